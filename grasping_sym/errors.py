@@ -1,0 +1,47 @@
+"""Exceptions raised by grasping_sym. Each message names the problem, its value and the fix."""
+from __future__ import annotations
+
+
+class GraspingSymError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class CompileError(GraspingSymError):
+    """The C compiler failed; the message carries the command and the compiler's stderr."""
+
+
+class InvalidCurveError(GraspingSymError, ValueError):
+    """A contour is not a smooth regular curve on its declared domain."""
+
+    def __init__(self, name: str, problems: list[str]):
+        self.name = name
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"contour '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")
+
+
+class InvalidSceneError(GraspingSymError, ValueError):
+    """A scene's parameters or initial configuration are invalid; lists every problem."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"invalid scene ({len(self.problems)} problem(s)):\n{lines}")
+
+
+class IntegratorError(GraspingSymError, RuntimeError):
+    """Integration failed: carries the time ``t`` (s), the state ``x`` and the ``reason``."""
+
+    def __init__(self, t: float, x, reason: str, state_names=None):
+        self.t = float(t)
+        self.x = x
+        self.reason = reason
+        if state_names is not None and x is not None:
+            state = ", ".join(f"{n}={v:.6g}" for n, v in zip(state_names, x))
+        else:
+            state = repr(x)
+        super().__init__(f"integration failed at t = {self.t:.6g} s: {reason}; state: {state}")
+
+
+class ContactLeftContourError(IntegratorError):
+    """The contact point reached the end of a contour's declared domain."""

@@ -1,0 +1,180 @@
+"""Planar parametric curves: the contours of fingertips and objects.
+
+A contour is a pair of SymPy expressions ``(x(t), y(t))`` in one parameter ``t`` with a
+closed domain ``[t_min, t_max]``, given in the body's local frame (metres). Any regular
+parameterisation works; arclength is not required. Everything the dynamics needs (unit
+tangent, speed, signed curvature and its derivative) is derived symbolically here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import sympy as sp
+
+from grasping_sym.errors import InvalidCurveError
+
+#: The parameter symbol every curve is written in (curves are re-expressed in it).
+T = sp.Symbol("t", real=True)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanarCurve:
+    """A regular planar curve ``c(t) = (x(t), y(t))`` for ``t`` in ``domain``.
+
+    Parameters
+    ----------
+    x, y
+        SymPy expressions in ``param`` (metres, local body frame).
+    param
+        The curve parameter symbol; it is replaced by the module symbol ``T``.
+    domain
+        ``(t_min, t_max)``, finite, ``t_min < t_max``.
+    name
+        A short label used in messages and plots.
+    """
+
+    x: sp.Expr
+    y: sp.Expr
+    param: sp.Symbol = T
+    domain: tuple[float, float] = (-1.0, 1.0)
+    name: str = "curve"
+    _checked: bool = field(default=False, repr=False)
+
+    def __post_init__(self) -> None:
+        x = sp.sympify(self.x)
+        y = sp.sympify(self.y)
+        if self.param != T:
+            x, y = x.subs(self.param, T), y.subs(self.param, T)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "param", T)
+        object.__setattr__(self, "domain", (float(self.domain[0]), float(self.domain[1])))
+        problems = self._static_problems()
+        if problems:
+            raise InvalidCurveError(self.name, problems)
+
+    # ----------------------------------------------------------------- symbolic
+    @cached_property
+    def d1(self) -> tuple[sp.Expr, sp.Expr]:
+        """First derivative ``c'(t)``."""
+        return sp.diff(self.x, T), sp.diff(self.y, T)
+
+    @cached_property
+    def d2(self) -> tuple[sp.Expr, sp.Expr]:
+        """Second derivative ``c''(t)``."""
+        return sp.diff(self.d1[0], T), sp.diff(self.d1[1], T)
+
+    @cached_property
+    def unit_speed(self) -> bool:
+        """True when ``|c'(t)| == 1`` on the domain (an arclength parameterisation).
+
+        Decided numerically at 201 points to 1e-12, which is far below any tolerance the
+        dynamics uses; symbolic simplification misses such identities too often to rely on.
+        """
+        f = sp.lambdify(T, self.d1[0] ** 2 + self.d1[1] ** 2 - 1, "numpy")
+        with np.errstate(all="ignore"):
+            r = np.asarray(f(np.linspace(*self.domain, 201)), dtype=float)
+        return bool(np.all(np.abs(r) < 1e-12))
+
+    @cached_property
+    def speed(self) -> sp.Expr:
+        """``|c'(t)|`` (m per unit parameter); the symbol 1 for unit-speed curves."""
+        if self.unit_speed:
+            return sp.Integer(1)
+        return sp.sqrt(self.d1[0] ** 2 + self.d1[1] ** 2)
+
+    @cached_property
+    def tangent(self) -> tuple[sp.Expr, sp.Expr]:
+        """Unit tangent ``c'/|c'|`` in the local frame."""
+        return self.d1[0] / self.speed, self.d1[1] / self.speed
+
+    @cached_property
+    def curvature(self) -> sp.Expr:
+        """Signed curvature ``(x'y'' - x''y')/|c'|^3`` (1/m), positive when turning left."""
+        (x1, y1), (x2, y2) = self.d1, self.d2
+        return (x1 * y2 - x2 * y1) / self.speed**3
+
+    def key(self) -> str:
+        """A canonical text of the definition, for content hashing."""
+        return f"{sp.srepr(self.x)}|{sp.srepr(self.y)}|{self.domain[0]!r}|{self.domain[1]!r}"
+
+    # ----------------------------------------------------------------- numeric
+    @cached_property
+    def _numeric(self):
+        exprs = [self.x, self.y, *self.d1, self.speed, self.curvature]
+        return sp.lambdify(T, exprs, "numpy")
+
+    def evaluate(self, t) -> dict[str, np.ndarray]:
+        """Numeric point, derivative, speed and curvature at parameter values ``t``."""
+        t = np.asarray(t, dtype=float)
+        vals = self._numeric(t)
+        vals = [np.broadcast_to(np.asarray(v, dtype=float), t.shape) for v in vals]
+        x, y, dx, dy, speed, kappa = vals
+        return {"x": x, "y": y, "dx": dx, "dy": dy, "speed": speed, "curvature": kappa}
+
+    def in_domain(self, t: float) -> bool:
+        """Whether ``t`` lies in the declared domain."""
+        return self.domain[0] <= t <= self.domain[1]
+
+    # ----------------------------------------------------------------- checks
+    def _static_problems(self) -> list[str]:
+        problems: list[str] = []
+        t0, t1 = self.domain
+        if not (math.isfinite(t0) and math.isfinite(t1)):
+            problems.append(f"domain ({t0}, {t1}) is not finite: give finite bounds")
+        elif not t0 < t1:
+            problems.append(f"domain ({t0}, {t1}) is empty: give t_min < t_max")
+        for label, e in (("x", self.x), ("y", self.y)):
+            extra = e.free_symbols - {T}
+            if extra:
+                names = ", ".join(sorted(map(str, extra)))
+                problems.append(
+                    f"{label}(t) has free symbols {names} besides the parameter t: "
+                    "substitute numbers for them"
+                )
+            if e.has(sp.Abs, sp.sign, sp.Heaviside, sp.Min, sp.Max, sp.floor, sp.ceiling):
+                problems.append(
+                    f"{label}(t) = {e} uses a non-smooth function; contours must be smooth "
+                    "(C^3): rewrite it with smooth functions or split the contour"
+                )
+            if e.has(sp.Piecewise):
+                problems.append(
+                    f"{label}(t) is piecewise: a contour must be one smooth expression"
+                )
+        return problems
+
+    def check(self, n_samples: int = 401) -> None:
+        """Check regularity and finiteness on the domain; raise listing every problem.
+
+        Samples ``n_samples`` parameter values evenly over the domain (ends included).
+        """
+        if self._checked:
+            return
+        ts = np.linspace(*self.domain, n_samples)
+        with np.errstate(all="ignore"):
+            v = self.evaluate(ts)
+        problems: list[str] = []
+        for key in ("x", "y", "dx", "dy", "curvature"):
+            bad = ~np.isfinite(v[key])
+            if bad.any():
+                problems.append(
+                    f"{key} is not finite at t = {ts[bad][0]:.6g} (and {bad.sum() - 1} more "
+                    "samples): shrink the domain or fix the formula"
+                )
+        speed = v["speed"]
+        ok = np.isfinite(speed)
+        scale = max(float(np.max(np.abs(speed[ok]), initial=0.0)), 1e-300)
+        tiny = ok & (speed <= 1e-9 * scale)
+        if tiny.any():
+            i = int(np.argmax(tiny))
+            problems.append(
+                f"not regular: speed |c'(t)| = {speed[i]:.3g} at t = {ts[i]:.6g} "
+                f"(largest speed {scale:.3g}); the tangent and curvature are undefined there: "
+                "reparameterise or exclude that point from the domain"
+            )
+        if problems:
+            raise InvalidCurveError(self.name, problems)
+        object.__setattr__(self, "_checked", True)
