@@ -1,0 +1,153 @@
+"""A library of contours: circle, ellipse, superellipse, polynomial graph, catenary.
+
+All lengths are metres, in the body's local frame. The contact-side convention of the
+2D scene (see ``grasping_sym.model.planar``): the fingertip contour is traversed so that
+its outward normal is on the left of the tangent, the object contour so that its outward
+normal is on the right; convex shapes then have positive curvature ``kappa0``/``kappa1``.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import sympy as sp
+
+from grasping_sym.errors import InvalidCurveError
+from grasping_sym.geometry.curves import T, PlanarCurve
+
+
+def _positive(name: str, **values: float) -> None:
+    problems = [
+        f"{k} = {v!r} must be a finite positive number"
+        for k, v in values.items()
+        if not (isinstance(v, (int, float)) and v == v and 0 < v < float("inf"))
+    ]
+    if problems:
+        raise InvalidCurveError(name, problems)
+
+
+def circle(
+    radius: float,
+    center: tuple[float, float] = (0.0, 0.0),
+    *,
+    by: str = "arclength",
+    start: float = 0.0,
+    span: float = 1.0,
+    clockwise: bool = False,
+    name: str = "circle",
+) -> PlanarCurve:
+    """A circular arc of ``radius`` about ``center``.
+
+    ``by='angle'`` uses the polar angle as parameter (speed = radius), ``by='arclength'``
+    the arclength ``s = radius * angle``. ``start`` is the polar angle (rad) at parameter 0
+    and ``span`` the half-width of the domain in radians of arc. ``clockwise`` reverses the
+    direction of travel (curvature changes sign).
+    """
+    _positive(name, radius=radius, span=span)
+    sgn = -1 if clockwise else 1
+    if by == "angle":
+        phi, dom = start + sgn * T, (-span, span)
+    elif by == "arclength":
+        phi, dom = start + sgn * T / radius, (-span * radius, span * radius)
+    else:
+        raise InvalidCurveError(name, [f"by = {by!r}: use 'angle' or 'arclength'"])
+    r = sp.Float(radius)
+    return PlanarCurve(center[0] + r * sp.cos(phi), center[1] + r * sp.sin(phi), T, dom, name)
+
+
+def ellipse(
+    a: float,
+    b: float,
+    center: tuple[float, float] = (0.0, 0.0),
+    *,
+    start: float = 0.0,
+    span: float = 1.0,
+    clockwise: bool = False,
+    name: str = "ellipse",
+) -> PlanarCurve:
+    """Ellipse ``(a cos t, b sin t)`` (semi-axes in metres); no closed-form arclength.
+
+    The parameter is the eccentric angle ``t``, domain ``start +- span``.
+    """
+    _positive(name, a=a, b=b, span=span)
+    phi = -T if clockwise else T
+    return PlanarCurve(
+        center[0] + sp.Float(a) * sp.cos(phi),
+        center[1] + sp.Float(b) * sp.sin(phi),
+        T,
+        (start - span, start + span),
+        name,
+    )
+
+
+def superellipse(
+    a: float,
+    b: float,
+    n: int = 4,
+    *,
+    start: float = 0.0,
+    span: float = 1.0,
+    clockwise: bool = False,
+    name: str = "superellipse",
+) -> PlanarCurve:
+    """Superellipse ``|x/a|^n + |y/b|^n = 1`` with an even integer ``n >= 2``.
+
+    Written in polar form ``r(t) = (cos^n t / a^n + sin^n t / b^n)^(-1/n)``, which is smooth
+    and regular everywhere for even ``n`` (the usual ``sign(cos t)|cos t|^(2/n)`` form is not).
+    """
+    _positive(name, a=a, b=b, span=span)
+    if not (isinstance(n, int) and n >= 2 and n % 2 == 0):
+        raise InvalidCurveError(name, [f"n = {n!r} must be an even integer >= 2 for a smooth curve"])
+    phi = -T if clockwise else T
+    r = (sp.cos(phi) ** n / sp.Float(a) ** n + sp.sin(phi) ** n / sp.Float(b) ** n) ** sp.Rational(-1, n)
+    return PlanarCurve(r * sp.cos(phi), r * sp.sin(phi), T, (start - span, start + span), name)
+
+
+def polynomial_graph(
+    coefficients: Sequence[float],
+    domain: tuple[float, float],
+    *,
+    offset: float = 0.0,
+    name: str = "polynomial",
+) -> PlanarCurve:
+    """The graph ``X = offset + sum_k c_k t^k``, ``Y = t`` (a contour bulging along X).
+
+    ``coefficients`` are ``c_0, c_1, ...`` (SI units); ``t`` is the local Y coordinate.
+    """
+    if not coefficients:
+        raise InvalidCurveError(name, ["coefficients is empty: give at least one"])
+    poly = sum(sp.Float(c) * T**k for k, c in enumerate(coefficients))
+    return PlanarCurve(offset + poly, T, T, domain, name)
+
+
+def catenary(
+    k: float,
+    x0: float,
+    *,
+    s0: float = 0.0,
+    sign: int = 1,
+    domain: tuple[float, float] = (-0.03, 0.03),
+    name: str = "catenary",
+) -> PlanarCurve:
+    """The paper's unit-speed catenary contour (eqs 37-40).
+
+    ``X(s) = x0 + sign * sqrt(1 + 4 k^2 (s - s0)^2) / (2k)``,
+    ``Y(s) = asinh(2 k (s - s0)) / (2k)``: curvature ``2k`` at its vertex ``s = s0``.
+    """
+    _positive(name, k=k)
+    if sign not in (1, -1):
+        raise InvalidCurveError(name, [f"sign = {sign!r} must be +1 or -1"])
+    kk = sp.Float(k)
+    u = T - sp.Float(s0)
+    x = sp.Float(x0) + sign * sp.sqrt(1 + 4 * kk**2 * u**2) / (2 * kk)
+    y = sp.asinh(2 * kk * u) / (2 * kk)
+    return PlanarCurve(x, y, T, domain, name)
+
+
+def paper_fingertip() -> PlanarCurve:
+    """Fingertip contour of Yoshida-Arimoto-Tahara 2009, eqs (37)-(38)."""
+    return catenary(20.0, 0.035, sign=-1, domain=(-0.03, 0.03), name="paper fingertip")
+
+
+def paper_object() -> PlanarCurve:
+    """Object contour of Yoshida-Arimoto-Tahara 2009, eqs (39)-(40)."""
+    return catenary(50.0, -0.03, s0=3.363e-3, sign=1, domain=(-0.03, 0.03), name="paper object")

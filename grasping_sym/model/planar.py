@@ -1,0 +1,232 @@
+"""The 2D scene: one planar two-joint finger rolling on an object pivoted at a point.
+
+Frames and signs follow ``shared/MODELS.md`` section 1 (Yoshida, Arimoto, Tahara 2009):
+
+- inertial frame O-xy, ``Rot(a) = [[cos a, -sin a], [sin a, cos a]]``;
+- finger joints at the origin, fingertip centre
+  ``O01 = (l11 sin q1 + l12 sin(q1+q2), l11 cos q1 + l12 cos(q1+q2))``;
+- fingertip contour point ``O01 + Rot(pi/2 - q1 - q2) c0(u0)``;
+- object contour point ``Om + Rot(-theta) c1(u1)``, the object pivoted at the fixed ``Om``.
+
+The contact is described by one parameter per contour (``u0`` on the fingertip, ``u1`` on the
+object). When both contours are unit-speed and the contact starts at equal parameters, the
+two coincide for all time (rolling: equal path lengths) and one state ``s`` serves both, as
+in the paper.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.curves import PlanarCurve
+
+#: Parameters of the 2D scene, with their units.
+PARAMETERS: dict[str, str] = {
+    "l11": "m, length of link 1",
+    "l12": "m, length of link 2",
+    "m11": "kg, mass of link 1 (uniform rod)",
+    "m12": "kg, mass of link 2 (uniform rod)",
+    "I": "kg m^2, object inertia about the pivot Om",
+    "fd": "N, desired internal force",
+    "c": "N m s, joint damping",
+    "r": "m, control constant of eq (32)",
+    "gf": "1/s, CSM damping gain of Q (gamma_f)",
+    "gl": "1/s, CSM damping gain of R (gamma_lambda)",
+    "wf": "1/s^2, CSM stiffness gain of Q (omega_f)",
+    "wl": "1/s^2, CSM stiffness gain of R (omega_lambda)",
+}
+
+#: Parameters that may be kept as run-time inputs: they change the dynamics but not the
+#: initial configuration (which fixes the pivot ``Om``), so a sweep over them needs no rebuild.
+RUNTIME_ALLOWED = ("m11", "m12", "I", "fd", "c", "r", "gf", "gl", "wf", "wl")
+
+#: Outputs a 2D model can generate (only the requested ones are derived and compiled).
+OUTPUTS: dict[str, str] = {
+    "Q": "m, normal contact constraint (14)",
+    "R": "m, rolling constraint (24)",
+    "f": "N, normal multiplier",
+    "lam": "N, tangential multiplier",
+    "delta_f": "N, f + (fd/r) Q1",
+    "delta_lam": "N, lam + (fd/r) R1",
+    "N1": "m^2, ln0 lb1 - lb0 ln1",
+    "kappa_sum": "1/m, kappa0 + kappa1 at the contact",
+    "constraint_residual": "m, max(|Q|, |R|)",
+    "tangency_defect": "rad, angle between the two contour tangents at the contact",
+    "kinetic_energy": "J",
+    "potential_energy": "J (gravity only)",
+    "power": "W, joint power q'.u of the controller",
+}
+DEFAULT_OUTPUTS = (
+    "Q", "R", "f", "lam", "delta_f", "delta_lam", "N1", "kappa_sum", "constraint_residual",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanarFingerScene:
+    """One two-joint planar finger rolling on an object pivoted at a fixed point.
+
+    Parameters
+    ----------
+    name
+        Scene name; also the prefix of the generated C symbols (``{name}_rhs``).
+    fingertip, object
+        Contours in the fingertip frame O01-X0Y0 and the object frame Om-XY.
+    params
+        Values of every key of ``PARAMETERS`` (SI units).
+    runtime
+        Parameters kept as run-time inputs of the compiled functions (see
+        ``RUNTIME_ALLOWED``); all others are folded in as constants.
+    outputs
+        Names from ``OUTPUTS`` to generate.
+    gravity
+        ``(gx, gy)`` in m/s^2, or ``None`` for a horizontal scene (no gravity terms at all).
+        The object's centre of mass is at its pivot; finger gravity is compensated by the
+        controller.
+    q1_0, theta_0, u0_0, u1_0
+        Initial joint angle q1 (rad), object angle (rad) and contact parameters on the
+        fingertip and object contours. The initial state is at rest; tangency fixes ``q2``
+        and contact fixes the pivot ``Om``.
+    """
+
+    name: str
+    fingertip: PlanarCurve
+    object: PlanarCurve
+    params: dict[str, float]
+    runtime: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = DEFAULT_OUTPUTS
+    gravity: tuple[float, float] | None = None
+    q1_0: float = math.pi / 6
+    theta_0: float = 0.0
+    u0_0: float = 0.0
+    u1_0: float = 0.0
+    pivot: tuple[float, float] = field(init=False)
+    q2_0: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "runtime", tuple(self.runtime))
+        object.__setattr__(self, "outputs", tuple(self.outputs))
+        self.validate()
+        q2, pivot = initial_configuration(self)
+        object.__setattr__(self, "q2_0", q2)
+        object.__setattr__(self, "pivot", pivot)
+
+    @property
+    def shared_parameter(self) -> bool:
+        """True when one state ``s`` serves both contours (unit speed, equal start)."""
+        return (
+            self.fingertip.unit_speed and self.object.unit_speed and self.u0_0 == self.u1_0
+        )
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        tail = ("s",) if self.shared_parameter else ("u0", "u1")
+        return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", *tail)
+
+    def validate(self) -> None:
+        """Check every parameter and the initial contact; raise listing all problems."""
+        problems: list[str] = []
+        if not self.name.isidentifier():
+            problems.append(f"name {self.name!r} must be a C identifier (letters, digits, _)")
+        missing = [k for k in PARAMETERS if k not in self.params]
+        unknown = [k for k in self.params if k not in PARAMETERS]
+        if missing:
+            problems.append(f"missing parameters {missing}: give a value for each")
+        if unknown:
+            problems.append(f"unknown parameters {unknown}: known ones are {list(PARAMETERS)}")
+        for k, v in self.params.items():
+            if k in PARAMETERS and not _finite_positive(v):
+                problems.append(f"{k} = {v!r} ({PARAMETERS[k]}) must be finite and > 0")
+        for k in self.runtime:
+            if k not in RUNTIME_ALLOWED:
+                problems.append(
+                    f"runtime parameter {k!r} cannot vary at run time: allowed are "
+                    f"{list(RUNTIME_ALLOWED)} (geometry fixes the initial configuration)"
+                )
+        for k in self.outputs:
+            if k not in OUTPUTS:
+                problems.append(f"unknown output {k!r}: choose from {list(OUTPUTS)}")
+        if self.gravity is not None and (
+            len(self.gravity) != 2 or not all(_finite(g) for g in self.gravity)
+        ):
+            problems.append(f"gravity = {self.gravity!r} must be None or two finite numbers")
+        for k in ("q1_0", "theta_0", "u0_0", "u1_0"):
+            if not _finite(getattr(self, k)):
+                problems.append(f"{k} = {getattr(self, k)!r} must be a finite number")
+        for label, curve, u in (("fingertip", self.fingertip, self.u0_0),
+                                ("object", self.object, self.u1_0)):
+            try:
+                curve.check()
+            except Exception as exc:  # noqa: BLE001 - collected and re-raised below
+                problems.append(f"{label} contour: {exc}")
+                continue
+            if _finite(u) and not curve.in_domain(u):
+                problems.append(
+                    f"initial contact parameter on the {label} ({u!r}) is outside the "
+                    f"contour's domain {curve.domain}: choose a value inside it"
+                )
+        if not problems:
+            k0 = float(self.fingertip.evaluate(self.u0_0)["curvature"])
+            k1 = -float(self.object.evaluate(self.u1_0)["curvature"])
+            if not k0 + k1 > 0:
+                problems.append(
+                    f"relative curvature kappa0 + kappa1 = {k0 + k1:.6g} 1/m <= 0 at the initial "
+                    "contact: the contours do not touch from outside there (check the direction "
+                    "of travel of each contour, see grasping_sym.geometry.library)"
+                )
+        if problems:
+            raise InvalidSceneError(problems)
+
+    def key(self) -> str:
+        """Canonical text of everything that determines the generated code."""
+        params = ";".join(f"{k}={float(self.params[k])!r}" for k in sorted(self.params))
+        return "|".join([
+            "planar-finger-v1", self.name, self.fingertip.key(), self.object.key(), params,
+            ",".join(self.runtime), ",".join(self.outputs), repr(self.gravity),
+            repr((self.q1_0, self.theta_0, self.u0_0, self.u1_0)),
+        ])
+
+    def initial_state(self) -> np.ndarray:
+        """The consistent initial state at rest, ordered as ``state_names``."""
+        x = [self.theta_0, self.q1_0, self.q2_0, 0.0, 0.0, 0.0]
+        x += [self.u0_0] if self.shared_parameter else [self.u0_0, self.u1_0]
+        return np.array(x, dtype=float)
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def _finite_positive(v) -> bool:
+    return _finite(v) and v > 0
+
+
+def _rot(a: float, v: np.ndarray) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def initial_configuration(scene: PlanarFingerScene) -> tuple[float, tuple[float, float]]:
+    """Solve tangency for ``q2`` and contact for the pivot ``Om``.
+
+    Tangency: the unit tangents of both contours coincide in the inertial frame, i.e.
+    ``q1 + q2 = pi/2 + theta + theta1(u1) - psi0(u0)`` with ``theta1 = atan2(X', Y')`` and
+    ``psi0 = atan2(X0', Y0')``. Contact: ``Om = O01 + Rot(pi/2-q1-q2) c0 - Rot(-theta) c1``.
+    """
+    p = scene.params
+    f0 = scene.fingertip.evaluate(scene.u0_0)
+    f1 = scene.object.evaluate(scene.u1_0)
+    theta1 = math.atan2(float(f1["dx"]), float(f1["dy"]))
+    psi0 = math.atan2(float(f0["dx"]), float(f0["dy"]))
+    q1, th = scene.q1_0, scene.theta_0
+    q2 = math.pi / 2 + th + theta1 - psi0 - q1
+    o01 = np.array([
+        p["l11"] * math.sin(q1) + p["l12"] * math.sin(q1 + q2),
+        p["l11"] * math.cos(q1) + p["l12"] * math.cos(q1 + q2),
+    ])
+    c0 = np.array([float(f0["x"]), float(f0["y"])])
+    c1 = np.array([float(f1["x"]), float(f1["y"])])
+    om = o01 + _rot(math.pi / 2 - q1 - q2, c0) - _rot(-th, c1)
+    return q2, (float(om[0]), float(om[1]))
