@@ -1,0 +1,240 @@
+/*
+ * grasping_sym fast path: a minimal CPython extension module (`_gs_fast`)
+ * wrapping the gs_ driver functions of driver.c, compiled into the same shared
+ * library.  It exists because a ctypes call plus NumPy allocation costs a few
+ * microseconds, while a METH_FASTCALL function costs a few hundred nanoseconds.
+ *
+ * Needs the same -D macros as driver.c (GS_NX, GS_NP, GS_HAS_OUT, GS_NY) and
+ * the include directories of Python.h and numpy/arrayobject.h.  The module
+ * uses multi-phase initialisation, so a rebuilt library loaded from the same
+ * path is never served from CPython's single-phase extension cache.
+ *
+ * Module functions (x: shape (nx,), X: shape (n, nx), p: shape (np,) or None
+ * when np == 0; anything array-like is converted to contiguous float64):
+ *   rhs(x, p=None)            -> ndarray (nx,)
+ *   rhs_batch(X, p=None)      -> ndarray (n, nx)
+ *   outputs(x, p=None)        -> ndarray (ny,)      (only if GS_HAS_OUT)
+ *   outputs_batch(X, p=None)  -> ndarray (n, ny)    (only if GS_HAS_OUT)
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+
+#ifndef GS_HAS_OUT
+#define GS_HAS_OUT 0
+#endif
+#ifndef GS_NY
+#define GS_NY 0
+#endif
+
+int gs_rhs(const double* x, const double* p, double* xdot);
+int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
+#if GS_HAS_OUT
+int gs_outputs(const double* x, const double* p, double* y);
+int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
+#endif
+
+#define GS_FAST_FLAGS (NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)
+
+/* Return a new reference to a C-contiguous float64 ndarray view/copy of obj,
+ * or NULL with an exception set. */
+static PyArrayObject* as_f64(PyObject* obj) {
+  if (PyArray_CheckExact(obj)) {
+    PyArrayObject* a = (PyArrayObject*)obj;
+    if (PyArray_TYPE(a) == NPY_DOUBLE && PyArray_CHKFLAGS(a, GS_FAST_FLAGS) &&
+        PyArray_ISNOTSWAPPED(a)) {
+      Py_INCREF(obj);
+      return a;
+    }
+  }
+  return (PyArrayObject*)PyArray_FROMANY(obj, NPY_DOUBLE, 0, 0, NPY_ARRAY_IN_ARRAY);
+}
+
+static PyObject* shape_str(PyArrayObject* a) {
+  PyObject* shape = PyTuple_New(PyArray_NDIM(a));
+  if (!shape) return NULL;
+  for (int i = 0; i < PyArray_NDIM(a); ++i)
+    PyTuple_SET_ITEM(shape, i, PyLong_FromSsize_t(PyArray_DIM(a, i)));
+  PyObject* s = PyObject_Repr(shape);
+  Py_DECREF(shape);
+  return s;
+}
+
+static void shape_error(const char* name, const char* expected, PyArrayObject* a) {
+  PyObject* got = shape_str(a);
+  if (!got) return;
+  PyErr_Format(PyExc_ValueError, "%s must have shape %s, got shape %U", name, expected, got);
+  Py_DECREF(got);
+}
+
+/* Collect (x, p) from vectorcall arguments: x positional or keyword `xname`,
+ * p positional or keyword "p" (default None).  Returns 0 or -1 with an exception. */
+static int get_args(const char* fname, const char* xname, PyObject* const* args,
+                    Py_ssize_t nargs, PyObject* kwnames, PyObject** x, PyObject** p) {
+  *x = nargs > 0 ? args[0] : NULL;
+  *p = nargs > 1 ? args[1] : NULL;
+  if (nargs > 2) goto bad;
+  if (kwnames) {
+    Py_ssize_t nkw = PyTuple_GET_SIZE(kwnames);
+    for (Py_ssize_t i = 0; i < nkw; ++i) {
+      PyObject* key = PyTuple_GET_ITEM(kwnames, i);
+      PyObject** slot;
+      if (PyUnicode_CompareWithASCIIString(key, "p") == 0) slot = p;
+      else if (PyUnicode_CompareWithASCIIString(key, xname) == 0) slot = x;
+      else {
+        PyErr_Format(PyExc_TypeError, "%s() got an unexpected keyword argument %R", fname, key);
+        return -1;
+      }
+      if (*slot) {
+        PyErr_Format(PyExc_TypeError, "%s() got multiple values for argument %R", fname, key);
+        return -1;
+      }
+      *slot = args[nargs + i];
+    }
+  }
+  if (!*x) goto bad;
+  if (!*p) *p = Py_None;
+  return 0;
+bad:
+  PyErr_Format(PyExc_TypeError, "%s() takes arguments (%s, p=None)", fname, xname);
+  return -1;
+}
+
+/* Parse p: returns 0 and sets *pa (new ref or NULL) and *pp, or -1 on error. */
+static int parse_p(PyObject* obj, PyArrayObject** pa, const double** pp) {
+  *pa = NULL;
+  *pp = NULL;
+  if (obj == Py_None) {
+    if (GS_NP == 0) return 0;
+    PyErr_SetString(PyExc_ValueError,
+                    "this model has np = " Py_STRINGIFY(GS_NP) " parameters: pass p of shape (" Py_STRINGIFY(GS_NP) ",)");
+    return -1;
+  }
+  PyArrayObject* a = as_f64(obj);
+  if (!a) return -1;
+  if (PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != GS_NP) {
+    shape_error("p", "(" Py_STRINGIFY(GS_NP) ",)", a);
+    Py_DECREF(a);
+    return -1;
+  }
+  *pa = a;
+  *pp = GS_NP ? (const double*)PyArray_DATA(a) : NULL;
+  return 0;
+}
+
+typedef int (*single_fn)(const double*, const double*, double*);
+typedef int (*batch_fn)(long, const double*, const double*, double*);
+
+static PyObject* call_single(const char* fname, single_fn fn, npy_intp nout,
+                             PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
+  PyObject *xo, *po;
+  if (get_args(fname, "x", args, nargs, kwnames, &xo, &po)) return NULL;
+  PyArrayObject* x = as_f64(xo);
+  if (!x) return NULL;
+  PyArrayObject* p = NULL;
+  const double* pp = NULL;
+  PyObject* out = NULL;
+  if (PyArray_NDIM(x) != 1 || PyArray_DIM(x, 0) != GS_NX) {
+    shape_error("x", "(" Py_STRINGIFY(GS_NX) ",)", x);
+    goto done;
+  }
+  if (parse_p(po, &p, &pp)) goto done;
+  out = PyArray_SimpleNew(1, &nout, NPY_DOUBLE);
+  if (!out) goto done;
+  if (fn((const double*)PyArray_DATA(x), pp, (double*)PyArray_DATA((PyArrayObject*)out))) {
+    Py_CLEAR(out);
+    PyErr_Format(PyExc_RuntimeError, "%s: the CasADi function reported an evaluation error", fname);
+  }
+done:
+  Py_DECREF(x);
+  Py_XDECREF(p);
+  return out;
+}
+
+static PyObject* call_batch(const char* fname, batch_fn fn, npy_intp nout,
+                            PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
+  PyObject *xo, *po;
+  if (get_args(fname, "X", args, nargs, kwnames, &xo, &po)) return NULL;
+  PyArrayObject* X = as_f64(xo);
+  if (!X) return NULL;
+  PyArrayObject* p = NULL;
+  const double* pp = NULL;
+  PyObject* out = NULL;
+  if (PyArray_NDIM(X) != 2 || PyArray_DIM(X, 1) != GS_NX) {
+    shape_error("X", "(n, " Py_STRINGIFY(GS_NX) ")", X);
+    goto done;
+  }
+  if (parse_p(po, &p, &pp)) goto done;
+  npy_intp dims[2] = {PyArray_DIM(X, 0), nout};
+  out = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+  if (!out) goto done;
+  int rc;
+  Py_BEGIN_ALLOW_THREADS
+  rc = fn((long)dims[0], (const double*)PyArray_DATA(X), pp,
+          (double*)PyArray_DATA((PyArrayObject*)out));
+  Py_END_ALLOW_THREADS
+  if (rc) {
+    Py_CLEAR(out);
+    PyErr_Format(PyExc_RuntimeError, "%s: the CasADi function reported an evaluation error", fname);
+  }
+done:
+  Py_DECREF(X);
+  Py_XDECREF(p);
+  return out;
+}
+
+static PyObject* py_rhs(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
+                        PyObject* kwnames) {
+  (void)self;
+  return call_single("rhs", gs_rhs, GS_NX, args, nargs, kwnames);
+}
+
+static PyObject* py_rhs_batch(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
+                        PyObject* kwnames) {
+  (void)self;
+  return call_batch("rhs_batch", gs_rhs_batch, GS_NX, args, nargs, kwnames);
+}
+
+#if GS_HAS_OUT
+static PyObject* py_outputs(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
+                        PyObject* kwnames) {
+  (void)self;
+  return call_single("outputs", gs_outputs, GS_NY, args, nargs, kwnames);
+}
+
+static PyObject* py_outputs_batch(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
+                        PyObject* kwnames) {
+  (void)self;
+  return call_batch("outputs_batch", gs_outputs_batch, GS_NY, args, nargs, kwnames);
+}
+#endif
+
+static PyMethodDef gs_methods[] = {
+    {"rhs", (PyCFunction)(void (*)(void))py_rhs, METH_FASTCALL | METH_KEYWORDS,
+     "rhs(x, p=None) -> xdot, shape (nx,)"},
+    {"rhs_batch", (PyCFunction)(void (*)(void))py_rhs_batch, METH_FASTCALL | METH_KEYWORDS,
+     "rhs_batch(X, p=None) -> XDOT, shape (n, nx)"},
+#if GS_HAS_OUT
+    {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL | METH_KEYWORDS,
+     "outputs(x, p=None) -> y, shape (ny,)"},
+    {"outputs_batch", (PyCFunction)(void (*)(void))py_outputs_batch, METH_FASTCALL | METH_KEYWORDS,
+     "outputs_batch(X, p=None) -> Y, shape (n, ny)"},
+#endif
+    {NULL, NULL, 0, NULL}};
+
+static int gs_exec(PyObject* m) {
+  if (_import_array() < 0) return -1;
+  if (PyModule_AddIntConstant(m, "nx", GS_NX) < 0) return -1;
+  if (PyModule_AddIntConstant(m, "np", GS_NP) < 0) return -1;
+  if (PyModule_AddIntConstant(m, "ny", GS_HAS_OUT ? GS_NY : -1) < 0) return -1;
+  return 0;
+}
+
+static PyModuleDef_Slot gs_slots[] = {{Py_mod_exec, (void*)gs_exec}, {0, NULL}};
+
+static struct PyModuleDef gs_module = {
+    PyModuleDef_HEAD_INIT, "_gs_fast", "grasping_sym compiled-model fast path", 0,
+    gs_methods, gs_slots, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__gs_fast(void) { return PyModuleDef_Init(&gs_module); }

@@ -1,0 +1,429 @@
+"""Load a compiled model library (CasADi code + ``c/driver.c``) and call it fast.
+
+Two call paths exist:
+
+* **fast path** -- if the library was built with ``c/pyfast.c`` (see
+  :func:`build_library`), it is also a CPython extension module and
+  :meth:`CompiledLibrary.rhs`, ``rhs_batch``, ``outputs`` and ``outputs_batch``
+  are bound directly to its ``METH_FASTCALL`` functions (about 0.3 us per call);
+* **ctypes path** -- always available; used for :meth:`CompiledLibrary.rk4` and
+  :meth:`CompiledLibrary.rhs_loop_ns` (which release the GIL), and as a fallback
+  for the evaluation functions (a few us per call).
+
+Both paths have the same semantics: inputs are converted with
+``np.ascontiguousarray(dtype=float)``, shapes are checked (``ValueError`` naming
+the expected shape) and every call returns a fresh array owned by the caller.
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+import sysconfig
+from collections.abc import Sequence
+from importlib.machinery import ExtensionFileLoader
+from importlib.util import module_from_spec, spec_from_file_location
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from grasping_sym.codegen.compiler import compile_shared
+from grasping_sym.errors import IntegratorError
+
+__all__ = [
+    "DRIVER_C",
+    "PYFAST_C",
+    "CompiledLibrary",
+    "build_library",
+    "driver_defines",
+]
+
+_C_DIR = Path(__file__).resolve().parent.parent / "c"
+#: The hand-written C driver compiled next to the CasADi-generated file.
+DRIVER_C: Path = _C_DIR / "driver.c"
+#: The optional CPython extension giving the sub-microsecond call path.
+PYFAST_C: Path = _C_DIR / "pyfast.c"
+
+# Return codes of gs_rk4 (see driver.c).
+_ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS = -1, -2, -3, -4
+_RK4_EXTRA_ROWS = 2
+
+_dp = ctypes.c_void_p
+_long = ctypes.c_long
+_double = ctypes.c_double
+
+
+def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None) -> dict[str, str | int]:
+    """Preprocessor macros for ``driver.c`` from the CasADi functions used.
+
+    Parameters
+    ----------
+    rhs_fn : casadi.Function
+        The DAE right-hand side ``<prefix>_rhs`` with inputs (t, x, z, p, u).
+    outputs_fn : casadi.Function, optional
+        ``<prefix>_outputs`` with inputs (x, p) and one output y.
+
+    Returns
+    -------
+    dict
+        ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_SZ_ARG,
+        GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes are maxima over both functions.
+    """
+    fns = [rhs_fn] + ([outputs_fn] if outputs_fn is not None else [])
+    defines: dict[str, str | int] = {
+        "GS_RHS": rhs_fn.name(),
+        "GS_NX": int(rhs_fn.numel_in(1)),
+        "GS_NP": int(rhs_fn.numel_in(3)),
+        "GS_HAS_OUT": int(outputs_fn is not None),
+    }
+    if outputs_fn is not None:
+        if outputs_fn.numel_in(0) != defines["GS_NX"] or outputs_fn.numel_in(1) != defines["GS_NP"]:
+            raise ValueError(
+                f"outputs function {outputs_fn.name()!r} must take x[{defines['GS_NX']}], "
+                f"p[{defines['GS_NP']}]; got x[{outputs_fn.numel_in(0)}], p[{outputs_fn.numel_in(1)}]"
+            )
+        defines["GS_OUT"] = outputs_fn.name()
+        defines["GS_NY"] = int(outputs_fn.numel_out(0))
+    for key, meth in (("GS_SZ_ARG", "sz_arg"), ("GS_SZ_RES", "sz_res"), ("GS_SZ_IW", "sz_iw"), ("GS_SZ_W", "sz_w")):
+        defines[key] = max(int(getattr(f, meth)()) for f in fns)
+    return defines
+
+
+def _python_include_dirs() -> list[str]:
+    return [sysconfig.get_paths()["include"], np.get_include()]
+
+
+def build_library(
+    casadi_c: Path | str,
+    out: Path | str,
+    rhs_fn: Any,
+    outputs_fn: Any | None = None,
+    fast: bool = True,
+) -> Path:
+    """Compile a CasADi-generated C file with the driver into ``out``.
+
+    Parameters
+    ----------
+    casadi_c : Path
+        The CasADi-generated ``<prefix>.c``.
+    out : Path
+        Destination shared library (replaced atomically).
+    rhs_fn, outputs_fn : casadi.Function
+        The functions generated into ``casadi_c`` (for names and work sizes).
+    fast : bool
+        Also compile ``pyfast.c`` so the library doubles as a CPython extension
+        (needs ``Python.h``; the result is then tied to this interpreter's ABI,
+        so include ``sys.version`` and the NumPy version in cache keys).
+
+    Returns
+    -------
+    Path
+        The library path.
+    """
+    sources = [Path(casadi_c), DRIVER_C] + ([PYFAST_C] if fast else [])
+    include_dirs = _python_include_dirs() if fast else []
+    return compile_shared(sources, Path(out), driver_defines(rhs_fn, outputs_fn), include_dirs=include_dirs)
+
+
+def _as_vector(a: Any, n: int, name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype=float)
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got shape {arr.shape}")
+    return arr
+
+
+def _as_matrix(a: Any, n: int, name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != n:
+        raise ValueError(f"{name} must have shape (n, {n}), got shape {arr.shape}")
+    return arr
+
+
+class CompiledLibrary:
+    """A compiled model: closed-loop right-hand side, outputs and RK4 in C.
+
+    Parameters
+    ----------
+    path : Path
+        Shared library built from a CasADi file and ``driver.c`` (e.g. by
+        :func:`build_library`).
+    state_names : sequence of str, optional
+        Names used in integrator error messages.
+    use_fast : bool
+        Use the CPython-extension fast path when the library contains it.
+
+    Attributes
+    ----------
+    nx, np, ny : int
+        Number of states, parameters and outputs (``ny == -1`` without outputs).
+    has_outputs : bool
+    fast : bool
+        True if the extension fast path is in use.
+
+    Notes
+    -----
+    Every ``gs_`` function keeps its work arrays on the stack (or in
+    thread-local storage), so a library may be used from several threads.
+    When the fast path is active, ``rhs``, ``rhs_batch``, ``outputs`` and
+    ``outputs_batch`` are instance attributes bound to C functions; they accept
+    ``(x, p=None)`` exactly like the methods documented here.
+    """
+
+    def __init__(self, path: Path | str, state_names: Sequence[str] | None = None, use_fast: bool = True):
+        self.path = Path(path).absolute()
+        if not self.path.is_file():
+            raise FileNotFoundError(f"compiled model library not found: {self.path}")
+        self.state_names = list(state_names) if state_names is not None else None
+        lib = ctypes.CDLL(str(self.path))
+        self._lib = lib
+
+        lib.gs_info.argtypes = [ctypes.POINTER(_long)] * 3
+        lib.gs_info.restype = ctypes.c_int
+        nx, npar, ny = _long(), _long(), _long()
+        self.has_outputs = bool(lib.gs_info(ctypes.byref(nx), ctypes.byref(npar), ctypes.byref(ny)))
+        self.nx, self.np, self.ny = nx.value, npar.value, ny.value
+        if self.state_names is not None and len(self.state_names) != self.nx:
+            raise ValueError(f"state_names has {len(self.state_names)} entries, the model has nx = {self.nx}")
+
+        self._c_rhs = lib.gs_rhs
+        self._c_rhs.argtypes = [_dp, _dp, _dp]
+        self._c_rhs.restype = ctypes.c_int
+        self._c_rhs_batch = lib.gs_rhs_batch
+        self._c_rhs_batch.argtypes = [_long, _dp, _dp, _dp]
+        self._c_rhs_batch.restype = ctypes.c_int
+        if self.has_outputs:
+            self._c_out = lib.gs_outputs
+            self._c_out.argtypes = [_dp, _dp, _dp]
+            self._c_out.restype = ctypes.c_int
+            self._c_out_batch = lib.gs_outputs_batch
+            self._c_out_batch.argtypes = [_long, _dp, _dp, _dp]
+            self._c_out_batch.restype = ctypes.c_int
+        self._c_rk4 = lib.gs_rk4
+        self._c_rk4.argtypes = [_double, _double, _long, _long, _dp, _dp, _dp, _dp, _dp, ctypes.POINTER(_double)]
+        self._c_rk4.restype = _long
+        self._c_loop = lib.gs_rhs_loop_ns
+        self._c_loop.argtypes = [_long, _dp, _dp]
+        self._c_loop.restype = _double
+
+        self.fast = False
+        self._ext = None
+        if use_fast and hasattr(lib, "PyInit__gs_fast"):
+            self._ext = self._load_extension()
+            self.rhs = self._ext.rhs  # type: ignore[method-assign]
+            self.rhs_batch = self._ext.rhs_batch  # type: ignore[method-assign]
+            if self.has_outputs:
+                self.outputs = self._ext.outputs  # type: ignore[method-assign]
+                self.outputs_batch = self._ext.outputs_batch  # type: ignore[method-assign]
+            self.fast = True
+
+    def _load_extension(self) -> Any:
+        loader = ExtensionFileLoader("_gs_fast", str(self.path))
+        spec = spec_from_file_location("_gs_fast", str(self.path), loader=loader)
+        assert spec is not None
+        module = module_from_spec(spec)  # not registered in sys.modules
+        loader.exec_module(module)
+        if (module.nx, module.np) != (self.nx, self.np):
+            raise RuntimeError(f"{self.path}: extension and driver disagree on sizes")
+        return module
+
+    def __repr__(self) -> str:
+        return (
+            f"CompiledLibrary({str(self.path)!r}, nx={self.nx}, np={self.np}, "
+            f"ny={self.ny}, fast={self.fast})"
+        )
+
+    # -- helpers ---------------------------------------------------------------
+    def _p(self, p: Any) -> np.ndarray | None:
+        if p is None:
+            if self.np:
+                raise ValueError(f"this model has np = {self.np} parameters: pass p of shape ({self.np},)")
+            return None
+        return _as_vector(p, self.np, "p")
+
+    @staticmethod
+    def _ptr(a: np.ndarray | None) -> int | None:
+        return None if a is None or a.size == 0 else a.ctypes.data
+
+    def _need_outputs(self) -> None:
+        if not self.has_outputs:
+            raise AttributeError(f"{self.path.name} was built without an outputs function")
+
+    # -- evaluation ------------------------------------------------------------
+    def rhs(self, x: Any, p: Any = None) -> np.ndarray:
+        """Closed-loop right-hand side ``xdot = f(x, p)`` at t = 0.
+
+        Parameters
+        ----------
+        x : array_like, shape (nx,)
+        p : array_like, shape (np,), optional (required when np > 0)
+
+        Returns
+        -------
+        numpy.ndarray, shape (nx,)
+        """
+        x = _as_vector(x, self.nx, "x")
+        pa = self._p(p)
+        out = np.empty(self.nx)
+        if self._c_rhs(x.ctypes.data, self._ptr(pa), out.ctypes.data):
+            raise RuntimeError("rhs: the CasADi function reported an evaluation error")
+        return out
+
+    def rhs_batch(self, X: Any, p: Any = None) -> np.ndarray:
+        """Right-hand side for many states; ``X`` shape (n, nx) -> shape (n, nx)."""
+        X = _as_matrix(X, self.nx, "X")
+        pa = self._p(p)
+        out = np.empty((X.shape[0], self.nx))
+        if self._c_rhs_batch(X.shape[0], X.ctypes.data, self._ptr(pa), out.ctypes.data):
+            raise RuntimeError("rhs_batch: the CasADi function reported an evaluation error")
+        return out
+
+    def outputs(self, x: Any, p: Any = None) -> np.ndarray:
+        """Outputs ``y = g(x, p)``; ``x`` shape (nx,) -> shape (ny,)."""
+        self._need_outputs()
+        x = _as_vector(x, self.nx, "x")
+        pa = self._p(p)
+        out = np.empty(self.ny)
+        if self._c_out(x.ctypes.data, self._ptr(pa), out.ctypes.data):
+            raise RuntimeError("outputs: the CasADi function reported an evaluation error")
+        return out
+
+    def outputs_batch(self, X: Any, p: Any = None) -> np.ndarray:
+        """Outputs for many states; ``X`` shape (n, nx) -> shape (n, ny)."""
+        self._need_outputs()
+        X = _as_matrix(X, self.nx, "X")
+        pa = self._p(p)
+        out = np.empty((X.shape[0], self.ny))
+        if self._c_out_batch(X.shape[0], X.ctypes.data, self._ptr(pa), out.ctypes.data):
+            raise RuntimeError("outputs_batch: the CasADi function reported an evaluation error")
+        return out
+
+    def rhs_loop_ns(self, x: Any, n: int = 100_000, p: Any = None) -> float:
+        """Time ``n`` evaluations of the right-hand side in a C loop.
+
+        Returns
+        -------
+        float
+            Nanoseconds per evaluation (wall clock, CLOCK_MONOTONIC).
+        """
+        x = _as_vector(x, self.nx, "x")
+        pa = self._p(p)
+        return float(self._c_loop(int(n), x.ctypes.data, self._ptr(pa)))
+
+    # -- integration -------------------------------------------------------------
+    def rk4(
+        self,
+        x0: Any,
+        t0: float,
+        t_final: float,
+        h: float,
+        stride: int = 1,
+        p: Any = None,
+        lo: Any = None,
+        hi: Any = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Integrate with classic fixed-step RK4, entirely in C (GIL released).
+
+        The number of steps is rounded up to a multiple of ``stride`` so that
+        the last row is exactly ``t_final``; the step actually used is
+        ``(t_final - t0) / nsteps <= h``.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (nx,)
+            Initial state at ``t0``; must be finite and within [lo, hi].
+        t0, t_final : float
+            Start and end time (s), ``t_final > t0``.
+        h : float
+            Maximum step (s), > 0.
+        stride : int
+            Store every ``stride``-th step.
+        p : array_like, shape (np,), optional
+        lo, hi : array_like, shape (nx,), optional
+            Bounds checked after every step (default -inf / +inf).
+
+        Returns
+        -------
+        t : numpy.ndarray, shape (m,)
+            Times (s) of the stored rows, ``t[0] == t0``, ``t[-1] == t_final``.
+        X : numpy.ndarray, shape (m, nx)
+            States at ``t``.
+
+        Raises
+        ------
+        IntegratorError
+            If a state becomes non-finite (reason mentions "non-finite") or a
+            component leaves its bounds (reason ``"state component <i> left
+            [lo, hi]..."``).  ``err.t`` and ``err.x`` are the last good time and
+            state (the failing step starts there); ``err.t_rejected``,
+            ``err.x_rejected`` hold the rejected step's end, and
+            ``err.trajectory`` the stored ``(t, X)`` up to ``err.t``.
+        """
+        x0a = _as_vector(x0, self.nx, "x0")
+        pa = self._p(p)
+        lo_a = np.full(self.nx, -np.inf) if lo is None else _as_vector(lo, self.nx, "lo")
+        hi_a = np.full(self.nx, np.inf) if hi is None else _as_vector(hi, self.nx, "hi")
+        t0, t_final, h = float(t0), float(t_final), float(h)
+        stride = int(stride)
+        if not (math.isfinite(t0) and math.isfinite(t_final) and t_final > t0):
+            raise ValueError(f"need finite t0 < t_final, got t0 = {t0}, t_final = {t_final}")
+        if not (math.isfinite(h) and h > 0):
+            raise ValueError(f"step h must be finite and > 0, got {h}")
+        if stride < 1:
+            raise ValueError(f"stride must be >= 1, got {stride}")
+
+        bad = self._violation(x0a, lo_a, hi_a)
+        if bad:
+            raise IntegratorError(t0, x0a, f"initial state: {bad}", self.state_names)
+
+        nblocks = max(1, math.ceil((t_final - t0) / (h * stride) - 1e-9))
+        nsteps = nblocks * stride
+        h_eff = (t_final - t0) / nsteps
+        rows = nblocks + 1
+        out = np.empty((rows + _RK4_EXTRA_ROWS, self.nx))
+        t_fail = _double(math.nan)
+        rc = self._c_rk4(
+            t0, h_eff, nsteps, stride, x0a.ctypes.data, self._ptr(pa),
+            lo_a.ctypes.data, hi_a.ctypes.data, out.ctypes.data, ctypes.byref(t_fail),
+        )
+        if rc >= 0:
+            if rc != rows:
+                raise RuntimeError(f"gs_rk4 wrote {rc} rows, expected {rows}")
+            t = t0 + h_eff * stride * np.arange(rows)
+            t[-1] = t_final
+            return t, out[:rows].copy()
+        if rc == _ERR_ARGS:
+            raise ValueError(f"gs_rk4 rejected its arguments (h = {h_eff}, nsteps = {nsteps}, stride = {stride})")
+
+        tf = t_fail.value
+        k = int(round((tf - t0) / h_eff))
+        r = k // stride + 1
+        x_good = out[r].copy()
+        x_bad = out[r + 1].copy()
+        if rc == _ERR_NONFINITE:
+            idx = np.flatnonzero(~np.isfinite(x_bad)).tolist()
+            reason = f"state component(s) {idx} became non-finite in the step to t = {tf + h_eff:.6g} s"
+        elif rc == _ERR_BOUNDS:
+            reason = self._violation(x_bad, lo_a, hi_a) + f" in the step to t = {tf + h_eff:.6g} s"
+        elif rc == _ERR_EVAL:
+            reason = f"the CasADi function reported an evaluation error in the step to t = {tf + h_eff:.6g} s"
+        else:
+            reason = f"gs_rk4 returned unknown code {rc}"
+        err = IntegratorError(tf, x_good, reason, self.state_names)
+        err.t_rejected = tf + h_eff  # type: ignore[attr-defined]
+        err.x_rejected = x_bad  # type: ignore[attr-defined]
+        err.code = int(rc)  # type: ignore[attr-defined]
+        t_stored = t0 + h_eff * stride * np.arange(r)
+        err.trajectory = (t_stored, out[:r].copy())  # type: ignore[attr-defined]
+        raise err
+
+    @staticmethod
+    def _violation(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> str:
+        """Empty string if ``x`` is finite and in bounds, else the reason."""
+        nonfinite = np.flatnonzero(~np.isfinite(x))
+        if nonfinite.size:
+            return f"state component(s) {nonfinite.tolist()} are non-finite"
+        out = np.flatnonzero((x < lo) | (x > hi))
+        if out.size:
+            i = int(out[0])
+            return f"state component {i} left [{lo[i]:g}, {hi[i]:g}] (value {x[i]:.6g})"
+        return ""

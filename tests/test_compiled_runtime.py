@@ -1,0 +1,222 @@
+"""Tests of the compiled runtime: driver.c + compiler.py + runtime/compiled.py."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
+from grasping_sym.errors import CompileError, IntegratorError
+from grasping_sym.runtime.compiled import CompiledLibrary, build_library, driver_defines
+
+
+def _dae_rhs(name: str, x: ca.SX, p: ca.SX, ode: ca.SX) -> ca.Function:
+    t = ca.SX.sym("t")
+    empty = ca.SX(0, 1)
+    return ca.Function(
+        name,
+        [t, x, ca.SX.sym("z", 0), p, ca.SX.sym("u", 0)],
+        [ode, empty, empty, empty],
+        ["t", "x", "z", "p", "u"],
+        ["ode", "alg", "quad", "zero"],
+    )
+
+
+def _generate(directory: Path, prefix: str, fns: list[ca.Function]) -> Path:
+    cg = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})  # a bare name, not a path
+    for f in fns:
+        cg.add(f)
+    cg.generate(f"{directory}/")  # the directory goes in as the prefix
+    return directory / f"{prefix}.c"
+
+
+@pytest.fixture(scope="module")
+def pendulum(tmp_path_factory):
+    """Damped pendulum, x = (theta, omega), p = (damping,), with outputs."""
+    d = tmp_path_factory.mktemp("pendulum")
+    x = ca.SX.sym("x", 2)
+    p = ca.SX.sym("p", 1)
+    rhs = _dae_rhs("pend_rhs", x, p, ca.vertcat(x[1], -ca.sin(x[0]) - p[0] * x[1]))
+    out = ca.Function(
+        "pend_outputs", [x, p], [ca.vertcat(ca.cos(x[0]), 0.5 * x[1] ** 2 + 1 - ca.cos(x[0]), p[0] * x[1])],
+        ["x", "p"], ["y"],
+    )
+    c_file = _generate(d, "pend", [rhs, rhs.jacobian(), out])
+    so = build_library(c_file, d / "pend.so", rhs, out)
+    return rhs, out, so
+
+
+@pytest.fixture(params=[True, False], ids=["fast", "ctypes"])
+def lib(request, pendulum):
+    return CompiledLibrary(pendulum[2], state_names=["theta", "omega"], use_fast=request.param)
+
+
+@pytest.fixture(scope="module")
+def blowup(tmp_path_factory):
+    """x' = x^2 (blows up at t = 1/x0), no parameters, no outputs."""
+    d = tmp_path_factory.mktemp("blowup")
+    x = ca.SX.sym("x", 1)
+    rhs = _dae_rhs("blow_rhs", x, ca.SX.sym("p", 0), x**2)
+    c_file = _generate(d, "blow", [rhs])
+    return CompiledLibrary(build_library(c_file, d / "blow.so", rhs))
+
+
+P = np.array([0.3])
+
+
+def test_info_and_fast_path(pendulum, lib):
+    assert (lib.nx, lib.np, lib.ny, lib.has_outputs) == (2, 1, 3, True)
+    assert CompiledLibrary(pendulum[2]).fast  # built with pyfast.c -> extension used
+
+
+def test_rhs_matches_casadi(pendulum, lib):
+    rhs, out, _ = pendulum
+    rng = np.random.default_rng(0)
+    for x in rng.normal(size=(20, 2)) * 3:
+        ref = np.array(rhs(0.0, x, [], P, [])[0]).ravel()
+        np.testing.assert_allclose(lib.rhs(x, P), ref, rtol=1e-14, atol=1e-14)
+        y_ref = np.array(out(x, P)).ravel()
+        np.testing.assert_allclose(lib.outputs(x, P), y_ref, rtol=1e-14, atol=1e-14)
+
+
+def test_batch_equals_single(lib):
+    X = np.random.default_rng(1).normal(size=(50, 2))
+    XD = lib.rhs_batch(X, P)
+    Y = lib.outputs_batch(X, P)
+    assert XD.shape == (50, 2) and Y.shape == (50, 3)
+    np.testing.assert_array_equal(XD, np.array([lib.rhs(x, P) for x in X]))
+    np.testing.assert_array_equal(Y, np.array([lib.outputs(x, P) for x in X]))
+    assert lib.rhs_batch(np.empty((0, 2)), P).shape == (0, 2)
+
+
+def test_returns_fresh_arrays_and_converts_input(lib):
+    a = lib.rhs([0.1, 0.2], P)
+    b = lib.rhs([0.1, 0.2], P)
+    assert a is not b and a.flags.owndata
+    a[:] = 99.0
+    assert b[0] != 99.0
+    strided = np.array([0.1, 7.0, 0.2, 7.0])[::2]  # non-contiguous
+    np.testing.assert_array_equal(lib.rhs(strided, P), b)
+    np.testing.assert_array_equal(lib.rhs(np.array([0, 1]), p=[0]), lib.rhs([0.0, 1.0], [0.0]))
+    np.testing.assert_array_equal(lib.rhs_batch(np.asfortranarray(np.ones((3, 2))), P)[0], lib.rhs([1, 1], P))
+
+
+def test_wrong_shapes_raise_value_error(lib):
+    with pytest.raises(ValueError, match=r"\(2,\)"):
+        lib.rhs(np.zeros(3), P)
+    with pytest.raises(ValueError, match=r"\(2,\)"):
+        lib.rhs(np.zeros((1, 2)), P)
+    with pytest.raises(ValueError, match=r"\(n, 2\)"):
+        lib.rhs_batch(np.zeros(2), P)
+    with pytest.raises(ValueError, match=r"\(1,\)"):
+        lib.rhs(np.zeros(2), np.zeros(2))
+    with pytest.raises(ValueError, match="np = 1"):
+        lib.rhs(np.zeros(2))
+    with pytest.raises(ValueError, match=r"\(2,\)"):
+        lib.rk4(np.zeros(3), 0.0, 1.0, 0.1, p=P)
+
+
+def _reference(x0, t_final):
+    sol = solve_ivp(
+        lambda t, x: [x[1], -np.sin(x[0]) - P[0] * x[1]], (0.0, t_final), x0,
+        method="DOP853", rtol=1e-13, atol=1e-13,
+    )
+    return sol.y[:, -1]
+
+
+def test_rk4_fourth_order(lib):
+    x0 = np.array([1.0, 0.0])
+    ref = _reference(x0, 2.0)
+    errs = []
+    for h in (0.2, 0.1, 0.05):
+        t, X = lib.rk4(x0, 0.0, 2.0, h, p=P)
+        assert t[0] == 0.0 and t[-1] == 2.0 and X.shape == (len(t), 2)
+        np.testing.assert_array_equal(X[0], x0)
+        errs.append(np.linalg.norm(X[-1] - ref))
+    for coarse, fine in zip(errs, errs[1:]):
+        assert 13.0 < coarse / fine < 19.0, errs
+
+
+def test_rk4_stride(lib):
+    x0 = np.array([0.5, 0.1])
+    t1, X1 = lib.rk4(x0, 0.0, 1.0, 0.01, stride=1, p=P)
+    t5, X5 = lib.rk4(x0, 0.0, 1.0, 0.01, stride=5, p=P)
+    assert len(t1) == 101 and len(t5) == 21
+    np.testing.assert_allclose(t5, t1[::5], atol=1e-15)
+    np.testing.assert_array_equal(X5, X1[::5])
+
+
+def test_rk4_nonfinite_raises_with_time(blowup):
+    with pytest.raises(IntegratorError, match="non-finite") as info:
+        blowup.rk4([1.0], 0.0, 2.0, 0.01)
+    err = info.value
+    assert 0.95 < err.t < 1.2  # exact solution 1/(1 - t) blows up at t = 1
+    assert np.all(np.isfinite(err.x)) and err.x[0] > 10
+    assert not np.all(np.isfinite(err.x_rejected))
+    assert f"{err.t:.6g}" in str(err)
+    t_stored, X_stored = err.trajectory
+    assert t_stored[-1] <= err.t and np.all(np.isfinite(X_stored))
+
+
+def test_rk4_bounds_raise(lib):
+    # theta rises from 0 with omega = 1 and crosses 0.5 near t = 0.53
+    with pytest.raises(IntegratorError, match=r"state component 0 left \[-inf, 0.5\]") as info:
+        lib.rk4([0.0, 1.0], 0.0, 2.0, 0.01, p=P, hi=[0.5, np.inf])
+    err = info.value
+    assert 0.45 < err.t < 0.6 and err.x[0] <= 0.5 < err.x_rejected[0]
+    assert "theta=" in str(err)  # state names appear in the message
+    with pytest.raises(IntegratorError, match="initial state"):
+        lib.rk4([0.0, 1.0], 0.0, 1.0, 0.01, p=P, lo=[0.1, -np.inf])
+
+
+def test_outputs_absent(blowup):
+    assert not blowup.has_outputs and blowup.ny == -1
+    with pytest.raises(AttributeError):
+        blowup.outputs([1.0])
+    np.testing.assert_array_equal(blowup.rhs([3.0]), [9.0])  # np == 0: p may be omitted
+
+
+def test_rhs_loop_ns(lib):
+    ns = lib.rhs_loop_ns([0.1, 0.2], 10_000, P)
+    assert 0.0 < ns < 1e5
+
+
+def test_compile_error_has_stderr(tmp_path):
+    bad = tmp_path / "bad.c"
+    bad.write_text("int f(void) { return 1 }\n")
+    with pytest.raises(CompileError) as info:
+        compile_shared([bad], tmp_path / "bad.so", {"FOO": 1})
+    msg = str(info.value)
+    assert "expected" in msg and "bad.c" in msg  # gcc's diagnostic
+    assert "-DFOO=1" in msg and "-O2" in msg  # the full command
+    assert not (tmp_path / "bad.so").exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.c"]  # no temporary files left
+
+
+def test_missing_compiler(tmp_path, monkeypatch):
+    src = tmp_path / "ok.c"
+    src.write_text("int f(void) { return 1; }\n")
+    monkeypatch.setenv("CC", "no-such-compiler-xyz")
+    with pytest.raises(CompileError, match="C compiler is required.*CC"):
+        compile_shared([src], tmp_path / "ok.so", {})
+
+
+def test_compile_clean_and_atomic(tmp_path, pendulum, caplog):
+    rhs, out, _ = pendulum
+    c_file = _generate(tmp_path, "pend", [rhs, rhs.jacobian(), out])
+    so = tmp_path / "lib" / "pend.so"
+    with caplog.at_level("WARNING"):
+        build_library(c_file, so, rhs, out)
+        build_library(c_file, so, rhs, out)  # rebuild replaces in place
+    assert not caplog.records, [r.getMessage() for r in caplog.records]  # no compiler warnings
+    assert [p.name for p in so.parent.iterdir()] == ["pend.so"]
+    assert isinstance(COMPILER_FLAGS, tuple) and "-O2" in COMPILER_FLAGS
+    d = driver_defines(rhs, out)
+    assert d["GS_NX"] == 2 and d["GS_NP"] == 1 and d["GS_NY"] == 3 and d["GS_RHS"] == "pend_rhs"
+    # the same .so also serves CasADi's external() (rhs + its Jacobian)
+    ext = ca.external("pend_rhs", str(so))
+    np.testing.assert_allclose(np.array(ext(0, [0.3, 0.1], [], P, [])[0]).ravel(),
+                               CompiledLibrary(so).rhs([0.3, 0.1], P), rtol=1e-15)
