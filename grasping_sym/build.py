@@ -1,0 +1,157 @@
+"""``build(scene)``: derive, generate C, compile, load -- or load from the cache.
+
+Stages (timed in ``Model.build_info``):
+
+1. hash the scene definition (``codegen.cache``); a cached library with that hash is
+   loaded at once: no derivation, no compilation;
+2. else, if ``generated/<name>/`` holds C with the same hash (built-in scenes), that C is
+   compiled: no derivation;
+3. else derive with SymPy, translate to CasADi, write C; then compile and load.
+"""
+from __future__ import annotations
+
+import shutil
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from grasping_sym import __version__
+from grasping_sym.codegen import cache, cwriter
+from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
+from grasping_sym.codegen.functions import build_casadi, sympy_op_counts
+from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT, leaf_expressions
+from grasping_sym.derive.planar import derive_planar
+from grasping_sym.model.planar import PlanarFingerScene
+from grasping_sym.runtime.compiled import DRIVER_C, PYFAST_C, driver_defines
+from grasping_sym.runtime.model import Model
+
+Progress = Callable[[str], None]
+
+
+def _library_tag() -> str:
+    """What ties a compiled library to this interpreter (the fast path is an extension)."""
+    return f"{sys.implementation.cache_tag}-numpy{np.__version__}"
+
+
+def code_hash(scene: PlanarFingerScene) -> dict:
+    """Content hash of the generated C for ``scene`` and the inputs it covers."""
+    return cache.content_hash(scene.key(), __version__, COMPILER_FLAGS)
+
+
+def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = True,
+             progress: Progress | None = None) -> dict:
+    """Derive and write the C and manifest of ``scene`` into ``directory``.
+
+    Returns the manifest (also written as ``manifest.json``) and, under ``"timings"``,
+    seconds spent deriving and translating (not written: they vary run to run).
+    """
+    say = progress or (lambda msg: None)
+    digest = code_hash(scene)
+    t0 = time.perf_counter()
+    say(f"deriving {scene.name} with SymPy")
+    system = derive_planar(scene)
+    t1 = time.perf_counter()
+    leaves = {**leaf_expressions(FINGERTIP, scene.fingertip),
+              **leaf_expressions(OBJECT, scene.object)}
+    say("translating to CasADi")
+    cm = build_casadi(system, leaves, scene.name)
+    t2 = time.perf_counter()
+    say(f"writing C into {directory}")
+    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
+    t3 = time.perf_counter()
+    ops = dict(cm.op_counts)
+    if count_ops:
+        ops.update(sympy_op_counts(system))
+    lower, upper = _bounds(scene)
+    manifest = {
+        "name": scene.name,
+        "hash": digest["hash"],
+        "hash_inputs": digest["inputs"],
+        "state_names": list(scene.state_names),
+        "output_names": list(cm.output_names),
+        "param_names": list(scene.runtime),
+        "param_values": [float(scene.params[k]) for k in scene.runtime],
+        "initial_state": [float(v) for v in scene.initial_state()],
+        "lower": lower,
+        "upper": upper,
+        "pivot": list(scene.pivot),
+        "op_counts": ops,
+        "driver_defines": driver_defines(cm.rhs, cm.outputs),
+        "c_symbols": [f.name() for f in cm.functions()],
+    }
+    cwriter.write_manifest(directory, manifest)
+    manifest["timings"] = {"derive": t1 - t0, "translate": t2 - t1, "write_c": t3 - t2}
+    return manifest
+
+
+def _bounds(scene: PlanarFingerScene) -> tuple[list, list]:
+    n = len(scene.state_names)
+    lower: list = [None] * n
+    upper: list = [None] * n
+    curves = [scene.fingertip] if scene.shared_parameter else [scene.fingertip, scene.object]
+    if scene.shared_parameter:
+        lo = max(scene.fingertip.domain[0], scene.object.domain[0])
+        hi = min(scene.fingertip.domain[1], scene.object.domain[1])
+        lower[-1], upper[-1] = lo, hi
+    else:
+        for j, c in enumerate(curves):
+            lower[n - 2 + j], upper[n - 2 + j] = c.domain
+    return lower, upper
+
+
+def compile_library(directory: Path, manifest: dict) -> Path:
+    """Compile ``{name}.c`` with the driver (and the CPython fast-call extension)."""
+    name = manifest["name"]
+    out = directory / f"lib{name}.{_library_tag()}.so"
+    from grasping_sym.runtime.compiled import _python_include_dirs  # noqa: PLC0415
+
+    compile_shared([directory / f"{name}.c", DRIVER_C, PYFAST_C], out,
+                   manifest["driver_defines"], include_dirs=_python_include_dirs())
+    return out
+
+
+def build(scene: PlanarFingerScene, *, progress: Progress | None = None,
+          force: bool = False) -> Model:
+    """Build (or load from the cache) the compiled model of ``scene``.
+
+    Parameters
+    ----------
+    scene
+        A scene, e.g. ``grasping_sym.scenes.paper2d()``.
+    progress
+        Called with a short message before each slow stage.
+    force
+        Rebuild even when the cache holds this scene.
+    """
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    digest = code_hash(scene)["hash"]
+    directory = cache.cache_dir(scene.name, digest)
+    lib = directory / f"lib{scene.name}.{_library_tag()}.so"
+    manifest = cwriter.read_manifest(directory)
+    info: dict = {"source": "cache"}
+    if force or manifest is None or manifest.get("hash") != digest or not lib.exists():
+        committed = cache.committed_dir(scene.name)
+        cm = cwriter.read_manifest(committed)
+        if not force and cm is not None and cm.get("hash") == digest:
+            say(f"using committed C from {committed}")
+            directory.mkdir(parents=True, exist_ok=True)
+            for suffix in (".c", ".h"):
+                shutil.copyfile(committed / f"{scene.name}{suffix}",
+                                directory / f"{scene.name}{suffix}")
+            cwriter.write_manifest(directory, cm)
+            manifest, info = cm, {"source": "committed C"}
+        else:
+            manifest = generate(scene, directory, count_ops=False, progress=progress)
+            info = {"source": "derived", **manifest.pop("timings")}
+        say(f"compiling {scene.name} with gcc")
+        t_c = time.perf_counter()
+        lib = compile_library(directory, manifest)
+        info["compile"] = time.perf_counter() - t_c
+    model = Model(directory, manifest, lib)
+    info["total"] = time.perf_counter() - t0
+    model.build_info = info
+    return model

@@ -1,0 +1,64 @@
+"""Content hash of a scene's generated code, and where generated code lives.
+
+- Built-in scenes: ``<repository>/generated/<name>/`` (committed C + manifest).
+- Every built model: ``<cache root>/<name>-<hash16>/`` with the C, the manifest and the
+  compiled library. The cache root is ``$GRASPING_SYM_CACHE`` if set, else
+  ``$XDG_CACHE_HOME/grasping_sym`` (default ``~/.cache/grasping_sym``).
+
+The hash covers the scene's canonical text, the package version, CasADi's version, the
+compiler flags and the source text of the modules that shape the generated code, so any
+change to one of them makes a fresh build.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from functools import lru_cache
+from pathlib import Path
+
+import casadi as ca
+
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+REPO_GENERATED = PACKAGE_DIR.parent / "generated"
+#: Sources whose text enters the hash (model, derivation, code generation, C driver).
+HASHED_SOURCES = ("geometry", "model", "derive", "codegen", "c")
+
+
+def cache_root() -> Path:
+    env = os.environ.get("GRASPING_SYM_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "grasping_sym"
+
+
+@lru_cache(maxsize=1)
+def _sources_digest() -> str:
+    h = hashlib.sha256()
+    for sub in HASHED_SOURCES:
+        for path in sorted((PACKAGE_DIR / sub).rglob("*")):
+            if path.suffix in (".py", ".c", ".h") and "__pycache__" not in path.parts:
+                h.update(path.relative_to(PACKAGE_DIR).as_posix().encode())
+                h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def content_hash(scene_key: str, version: str, compiler_flags: tuple[str, ...]) -> dict:
+    """The hash and the inputs it covers (recorded in the manifest)."""
+    inputs = {
+        "scene": hashlib.sha256(scene_key.encode()).hexdigest(),
+        "grasping_sym": version,
+        "casadi": ca.__version__,
+        "compiler_flags": " ".join(compiler_flags),
+        "sources": _sources_digest(),
+    }
+    h = hashlib.sha256("\n".join(f"{k}={inputs[k]}" for k in sorted(inputs)).encode())
+    return {"hash": h.hexdigest(), "inputs": inputs}
+
+
+def cache_dir(name: str, digest: str) -> Path:
+    return cache_root() / f"{name}-{digest[:16]}"
+
+
+def committed_dir(name: str) -> Path:
+    return REPO_GENERATED / name

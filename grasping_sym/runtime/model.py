@@ -1,0 +1,195 @@
+"""A built model: the compiled functions, their names, and simulation."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from grasping_sym.errors import ContactLeftContourError, IntegratorError
+from grasping_sym.runtime import integrators
+from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.runtime.result import SimulationResult
+
+
+class Model:
+    """A compiled scene, loaded from a generated directory with its manifest.
+
+    Attributes
+    ----------
+    name, state_names, output_names, param_names
+        As recorded at build time. ``param_names`` are the run-time parameters (inputs of
+        the compiled functions); all other parameters are folded into the code.
+    library
+        The loaded ``CompiledLibrary`` (fast calls, RK4 in C).
+    directory
+        Where the C, the manifest and the compiled library live.
+    """
+
+    def __init__(self, directory: Path, manifest: dict, library_path: Path):
+        self.directory = Path(directory)
+        self.manifest = manifest
+        self.name: str = manifest["name"]
+        self.state_names: tuple[str, ...] = tuple(manifest["state_names"])
+        self.output_names: tuple[str, ...] = tuple(manifest["output_names"])
+        self.param_names: tuple[str, ...] = tuple(manifest["param_names"])
+        self.default_params = np.array(manifest["param_values"], dtype=float)
+        self._x0 = np.array(manifest["initial_state"], dtype=float)
+        self.lower = np.array([-math.inf if v is None else v for v in manifest["lower"]])
+        self.upper = np.array([math.inf if v is None else v for v in manifest["upper"]])
+        self.library_path = Path(library_path)
+        self.library = CompiledLibrary(self.library_path, self.state_names)
+        self._external = None
+        self._integrators: dict = {}
+        if not self.param_names:
+            # bind the compiled calls directly: no Python wrapper in the way
+            self.rhs = self.library.rhs
+            self.rhs_batch = self.library.rhs_batch
+
+    def __repr__(self) -> str:
+        return (f"Model({self.name!r}, states={self.state_names}, "
+                f"outputs={self.output_names}, runtime params={self.param_names})")
+
+    # ------------------------------------------------------------------ calls
+    def params(self, params: dict[str, float] | None = None) -> np.ndarray | None:
+        """Run-time parameter vector: the scene's values, overridden by ``params``."""
+        if not self.param_names:
+            if params:
+                raise ValueError(
+                    f"parameters {sorted(params)} are folded into this model's code; build the "
+                    "scene with runtime=(...) naming them to vary them without a rebuild"
+                )
+            return None
+        p = self.default_params.copy()
+        for k, v in (params or {}).items():
+            if k not in self.param_names:
+                raise ValueError(f"{k!r} is not a run-time parameter of this model "
+                                 f"(run-time: {self.param_names})")
+            p[self.param_names.index(k)] = float(v)
+        return p
+
+    def initial_state(self) -> np.ndarray:
+        """The scene's consistent initial state at rest (a fresh copy)."""
+        return self._x0.copy()
+
+    def rhs(self, x, p=None) -> np.ndarray:  # replaced by the compiled call when np == 0
+        """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``."""
+        return self.library.rhs(x, self.default_params if p is None else p)
+
+    def rhs_batch(self, X, p=None) -> np.ndarray:
+        """``rhs`` for every row of ``X`` (shape ``(n, n_states)``) in one C loop."""
+        return self.library.rhs_batch(X, self.default_params if p is None else p)
+
+    def outputs(self, x, p=None) -> dict[str, float]:
+        """The requested outputs at one state."""
+        self._need_outputs()
+        y = self.library.outputs(x, self._p(p))
+        return dict(zip(self.output_names, map(float, y)))
+
+    def outputs_batch(self, X, p=None) -> dict[str, np.ndarray]:
+        """The requested outputs at every row of ``X``."""
+        self._need_outputs()
+        Y = self.library.outputs_batch(X, self._p(p))
+        return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
+
+    def _p(self, p):
+        return (self.default_params if p is None else p) if self.param_names else None
+
+    def _need_outputs(self) -> None:
+        if not self.output_names:
+            raise AttributeError(f"model {self.name!r} was built with no outputs: build the "
+                                 "scene with outputs=(...) naming the ones you need")
+
+    def external_rhs(self) -> ca.Function:
+        """The compiled right-hand side as a CasADi Function (for CVODES/IDAS)."""
+        if self._external is None:
+            self._external = ca.external(f"{self.name}_rhs", str(self.library_path))
+        return self._external
+
+    # ------------------------------------------------------------------ simulate
+    def simulate(self, t_final: float, *, x0=None, method: str = "cvodes",
+                 rtol: float = 1e-10, atol: float = 1e-12, t_eval=None, h: float = 1e-4,
+                 params: dict[str, float] | None = None, max_steps: int = 1_000_000,
+                 outputs: bool = True) -> SimulationResult:
+        """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
+
+        Parameters
+        ----------
+        method
+            ``'cvodes'`` (adaptive implicit BDF, default), ``'idas'``, or ``'rk4'``
+            (fixed step ``h`` s, loop in C).
+        rtol, atol
+            Tolerances of the adaptive methods.
+        t_eval
+            Output times (s); default every millisecond from 0 to ``t_final``.
+        params
+            Values of run-time parameters (see ``param_names``).
+        outputs
+            Evaluate the model's outputs along the trajectory.
+
+        Raises
+        ------
+        IntegratorError
+            The integrator failed (time, state and reason in the message).
+        ContactLeftContourError
+            The contact point reached the end of a contour's domain.
+        """
+        if method not in integrators.METHODS:
+            raise ValueError(f"method {method!r} unknown: choose one of {integrators.METHODS}")
+        if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > 0):
+            raise ValueError(f"t_final = {t_final!r} must be a finite number > 0 (seconds)")
+        x0 = self.initial_state() if x0 is None else np.array(x0, dtype=float)
+        if x0.shape != (len(self.state_names),):
+            raise ValueError(f"x0 has shape {x0.shape}; expected ({len(self.state_names)},) "
+                             f"ordered as {self.state_names}")
+        if not np.all(np.isfinite(x0)):
+            raise ValueError(f"x0 = {x0} has non-finite entries")
+        self._check_bounds(0.0, x0)
+        p = self.params(params)
+        if t_eval is None:
+            t_eval = np.linspace(0.0, t_final, int(round(t_final * 1000)) + 1)
+        t_eval = np.asarray(t_eval, dtype=float)
+        if t_eval.ndim != 1 or len(t_eval) < 2 or np.any(np.diff(t_eval) <= 0):
+            raise ValueError("t_eval must be an increasing 1-D array of at least two times")
+        if method == "rk4":
+            try:
+                t, X, stats = integrators.rk4(self, x0, t_eval, p, h, self.lower, self.upper)
+            except IntegratorError as exc:
+                raise self._classify(exc) from None
+        else:
+            pp = np.zeros(0) if p is None else p
+            t, X, stats = integrators.sundials(self, method, x0, t_eval, pp, rtol, atol,
+                                               max_steps)
+            for i in range(len(t)):
+                self._check_bounds(t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
+        outs = self.outputs_batch(X, p) if outputs and self.output_names else {}
+        pdict = dict(zip(self.param_names, [] if p is None else map(float, p)))
+        return SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
+                                method=method, stats=stats, params=pdict)
+
+    def _check_bounds(self, t: float, x: np.ndarray, previous=None) -> None:
+        bad = np.flatnonzero((x < self.lower) | (x > self.upper))
+        if bad.size == 0:
+            return
+        i = int(bad[0])
+        t_cross, x_good = t, x
+        if previous is not None:
+            tp, xp = previous
+            bound = self.lower[i] if x[i] < self.lower[i] else self.upper[i]
+            frac = (bound - xp[i]) / (x[i] - xp[i])
+            t_cross, x_good = tp + frac * (t - tp), xp
+        raise ContactLeftContourError(
+            t_cross, x_good,
+            f"contact parameter {self.state_names[i]} = {x[i]:.6g} left the contour's domain "
+            f"[{self.lower[i]:.6g}, {self.upper[i]:.6g}] (crossing at about t = {t_cross:.6g} s); "
+            "extend the contour's domain or shorten the simulation",
+            self.state_names,
+        )
+
+    def _classify(self, exc: IntegratorError) -> IntegratorError:
+        if "left [" in exc.reason:
+            return ContactLeftContourError(exc.t, exc.x, exc.reason + ": the contact point "
+                                           "reached the end of a contour's domain",
+                                           self.state_names)
+        return exc
