@@ -1,0 +1,24 @@
+# Developer loop. Every target installs what it needs into .venv first (scripts/env.sh).
+.PHONY: install demo test bench generate lint clean
+SH := bash
+
+install:
+	$(SH) -c 'source scripts/env.sh'
+
+demo:
+	$(SH) scripts/main.sh
+
+test:
+	$(SH) scripts/test.sh
+
+bench:
+	$(SH) -c 'source scripts/env.sh && python -m benchmarks.run'
+
+generate:
+	$(SH) -c 'source scripts/env.sh && grasping-sym generate --all'
+
+lint:
+	$(SH) -c 'source scripts/env.sh && python -m pip install --quiet ruff && ruff check grasping_sym tests benchmarks'
+
+clean:
+	rm -rf out build .pytest_cache

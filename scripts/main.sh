@@ -1,0 +1,5 @@
+#!/usr/bin/env bash
+# The main job: build the built-in paper scenes, simulate them, write results and figures under out/.
+source "$(dirname "${BASH_SOURCE[0]}")/env.sh"
+cd "$ROOT"
+grasping-sym simulate paper2d --t-final 3 --out out/paper2d

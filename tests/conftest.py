@@ -1,0 +1,32 @@
+"""Shared fixtures. Every build in the test session goes to a private cache under tmp."""
+from __future__ import annotations
+
+import os
+
+import pytest
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(tmp_path_factory):
+    old = os.environ.get("GRASPING_SYM_CACHE")
+    os.environ["GRASPING_SYM_CACHE"] = str(tmp_path_factory.mktemp("gs-cache"))
+    yield
+    if old is None:
+        os.environ.pop("GRASPING_SYM_CACHE", None)
+    else:
+        os.environ["GRASPING_SYM_CACHE"] = old
+
+
+@pytest.fixture(scope="session")
+def paper2d_model(_private_cache):
+    import grasping_sym as gs
+
+    return gs.build(gs.scenes.paper2d())
+
+
+@pytest.fixture(scope="session")
+def paper2d_result(paper2d_model):
+    return paper2d_model.simulate(
+        3.0, rtol=1e-10, atol=1e-12,
+        t_eval=None,
+    )
