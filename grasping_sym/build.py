@@ -88,17 +88,16 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
 
 
 def _bounds(scene: PlanarFingerScene) -> tuple[list, list]:
+    """Per-state bounds: the contact parameters must stay inside their contours' domains."""
     n = len(scene.state_names)
     lower: list = [None] * n
     upper: list = [None] * n
-    curves = [scene.fingertip] if scene.shared_parameter else [scene.fingertip, scene.object]
     if scene.shared_parameter:
-        lo = max(scene.fingertip.domain[0], scene.object.domain[0])
-        hi = min(scene.fingertip.domain[1], scene.object.domain[1])
-        lower[-1], upper[-1] = lo, hi
+        lower[-1] = max(scene.fingertip.domain[0], scene.object.domain[0])
+        upper[-1] = min(scene.fingertip.domain[1], scene.object.domain[1])
     else:
-        for j, c in enumerate(curves):
-            lower[n - 2 + j], upper[n - 2 + j] = c.domain
+        lower[-2], upper[-2] = scene.fingertip.domain
+        lower[-1], upper[-1] = scene.object.domain
     return lower, upper
 
 
@@ -155,3 +154,37 @@ def build(scene: PlanarFingerScene, *, progress: Progress | None = None,
     info["total"] = time.perf_counter() - t0
     model.build_info = info
     return model
+
+
+GENERATED_FILES = ("{name}.c", "{name}.h", "manifest.json")
+
+
+def generate_committed(names=None, *, check: bool = False,
+                       root: Path | None = None) -> dict[str, list[str]]:
+    """Regenerate ``generated/<name>/`` for built-in scenes (all by default).
+
+    With ``check=True`` nothing is written: returns, per scene, the files that differ
+    from a fresh generation (empty lists when up to date).
+    """
+    import tempfile  # noqa: PLC0415
+
+    from grasping_sym.scenes import BUILTIN  # noqa: PLC0415
+
+    root = Path(root) if root is not None else cache.REPO_GENERATED
+    differ: dict[str, list[str]] = {}
+    for name in names or sorted(BUILTIN):
+        scene = BUILTIN[name]()
+        with tempfile.TemporaryDirectory() as tmp:
+            fresh = Path(tmp)
+            generate(scene, fresh, count_ops=True)
+            target = root / name
+            files = [f.format(name=name) for f in GENERATED_FILES]
+            differ[name] = [
+                f for f in files
+                if not (target / f).exists() or (target / f).read_bytes() != (fresh / f).read_bytes()
+            ]
+            if not check:
+                target.mkdir(parents=True, exist_ok=True)
+                for f in files:
+                    shutil.copyfile(fresh / f, target / f)
+    return differ
