@@ -10,9 +10,15 @@ Failures raise ``IntegratorError`` with the time, the state and the reason.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import math
+import os
 import re
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -20,7 +26,6 @@ import numpy as np
 from grasping_sym.errors import IntegratorError
 
 METHODS = ("cvodes", "idas", "rk4")
-_T_IN_MESSAGE = re.compile(r"t\s*=\s*([-+0-9.eE]+)")
 
 
 def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray,
@@ -30,7 +35,7 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     integ = model._integrators.get(key)
     if integ is None:
         opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps,
-                "print_stats": False, "show_eval_warnings": False}
+                "disable_internal_warnings": True}
         grid = [float(t) for t in t_eval[1:]]
         integ = ca.integrator(f"{model.name}_{method}", method, model.external_rhs(),
                               float(t_eval[0]), grid, opts)
@@ -39,7 +44,7 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     try:
         out = integ(x0=x0, p=p)
     except RuntimeError as exc:
-        raise _failure(model, method, x0, t_eval, p, rtol, atol, str(exc)) from None
+        raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(exc)) from None
     wall = time.perf_counter() - start
     X = np.vstack([x0, np.array(out["xf"]).T])
     st = integ.stats()
@@ -48,22 +53,90 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     return t_eval.copy(), X, stats
 
 
-def _failure(model, method, x0, t_eval, p, rtol, atol, message: str) -> IntegratorError:
-    """Build the error for a SUNDIALS failure: time from the message, state just before."""
-    m = _T_IN_MESSAGE.findall(message)
-    t_fail = float(m[-1]) if m else float("nan")
-    reason = message.strip().splitlines()[-1] if message.strip() else "unknown failure"
-    x_fail = None
-    if math.isfinite(t_fail) and t_fail > t_eval[0]:
-        # recover the state just before the failure with a fresh, short integration
+def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
+             message: str) -> IntegratorError:
+    """Build the error for a SUNDIALS failure: the reason, the time and the state there.
+
+    SUNDIALS prints the failure time ("At t = ...") from C but CasADi's exception does not
+    carry it, so the failing run is repeated once with SUNDIALS' messages captured at the
+    file-descriptor level; the state is then recovered by integrating to just before that
+    time with an unlimited step budget. This only runs on the failure path.
+    """
+    reason = _sundials_reason(message)
+    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps}
+    grid = [float(t) for t in t_eval[1:]]
+    integ = ca.integrator("failing", method, model.external_rhs(), float(t_eval[0]), grid, opts)
+    with _captured_fds() as captured:
         try:
-            grid = [t_eval[0] + 0.999 * (t_fail - t_eval[0])]
-            short = ca.integrator("recover", method, model.external_rhs(), float(t_eval[0]),
-                                  grid, {"abstol": atol, "reltol": rtol})
-            x_fail = np.array(short(x0=x0, p=p)["xf"]).ravel()
+            integ(x0=x0, p=p)
+        except RuntimeError:
+            pass
+    times = re.findall(r"t\s*=\s*([-+0-9.eE]+)", captured.read())
+    if not times:
+        return IntegratorError(float("nan"), None, f"{method}: {reason} (time not reported)",
+                               model.state_names)
+    t_fail = float(times[0])
+    x_fail = None
+    if t_fail > t_eval[0]:
+        rec = ca.integrator("recover", method, model.external_rhs(), float(t_eval[0]),
+                            [t_fail], {**opts, "max_num_steps": 10**8,
+                                       "disable_internal_warnings": True})
+        try:
+            x_fail = np.array(rec(x0=x0, p=p)["xf"]).ravel()
         except RuntimeError:
             x_fail = None
+    else:
+        x_fail = np.asarray(x0, dtype=float)
     return IntegratorError(t_fail, x_fail, f"{method}: {reason}", model.state_names)
+
+
+class _Captured:
+    text = ""
+
+    def read(self) -> str:
+        return self.text
+
+
+@contextlib.contextmanager
+def _captured_fds():
+    """Capture stdout and stderr, both Python's streams (CasADi prints through them) and
+    the process's file descriptors (C libraries print there)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    py = io.StringIO()
+    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(py), \
+            contextlib.redirect_stderr(py):
+        path = Path(tmp) / "sundials.txt"
+        captured = _Captured()
+        with open(path, "w") as sink:
+            saved = [os.dup(1), os.dup(2)]
+            try:
+                os.dup2(sink.fileno(), 1)
+                os.dup2(sink.fileno(), 2)
+                yield captured
+            finally:
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+                for fd in saved:
+                    os.close(fd)
+        captured.text = path.read_text(errors="replace") + py.getvalue()
+
+
+def _sundials_reason(message: str) -> str:
+    m = re.search(r'returned "?([A-Z_]+)"?', message)
+    known = {
+        "CV_TOO_MUCH_WORK": "too many steps (raise max_steps or loosen rtol/atol)",
+        "IDA_TOO_MUCH_WORK": "too many steps (raise max_steps or loosen rtol/atol)",
+        "CV_CONV_FAILURE": "Newton iteration failed repeatedly (stiff blow-up or a singular "
+                           "contact: check kappa0 + kappa1 and the state)",
+        "CV_ERR_FAILURE": "error test failed repeatedly (the solution is not smooth here)",
+        "CV_RHSFUNC_FAIL": "the right-hand side returned non-finite values",
+    }
+    if m:
+        code = m.group(1)
+        return f"{code}: {known.get(code, 'see the SUNDIALS documentation')}"
+    lines = [ln for ln in message.strip().splitlines() if ln.strip()]
+    return lines[-1] if lines else "unknown failure"
 
 
 def rk4(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, h: float,
