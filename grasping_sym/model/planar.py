@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from grasping_sym.errors import InvalidSceneError
+from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
 
 #: Parameters of the 2D scene, with their units.
@@ -159,7 +159,7 @@ class PlanarFingerScene:
                                 ("object", self.object, self.u1_0)):
             try:
                 curve.check()
-            except Exception as exc:  # noqa: BLE001 - collected and re-raised below
+            except InvalidCurveError as exc:
                 problems.append(f"{label} contour: {exc}")
                 continue
             if _finite(u) and not curve.in_domain(u):
