@@ -1,9 +1,11 @@
 """A library of contours: circle, ellipse, superellipse, polynomial graph, catenary.
 
-All lengths are metres, in the body's local frame. The contact-side convention of the
-2D scene (see ``grasping_sym.model.planar``): the fingertip contour is traversed so that
-its outward normal is on the left of the tangent, the object contour so that its outward
-normal is on the right; convex shapes then have positive curvature ``kappa0``/``kappa1``.
+All lengths are metres, in the body's local frame. The direction of travel matters in
+the 2D scene (see ``grasping_sym.model.planar``): the fingertip contour runs
+counterclockwise about its body (outward normal on the right of the tangent, signed
+curvature > 0), the object contour clockwise (outward normal on the left, signed curvature
+< 0), as the paper's contours do; then ``kappa0`` and ``kappa1`` are both positive for
+convex shapes. Use ``clockwise=True`` for an object contour from this library.
 """
 from __future__ import annotations
 

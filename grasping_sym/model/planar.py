@@ -173,8 +173,9 @@ class PlanarFingerScene:
             if not k0 + k1 > 0:
                 problems.append(
                     f"relative curvature kappa0 + kappa1 = {k0 + k1:.6g} 1/m <= 0 at the initial "
-                    "contact: the contours do not touch from outside there (check the direction "
-                    "of travel of each contour, see grasping_sym.geometry.library)"
+                    "contact: the contours do not touch from outside there; the fingertip "
+                    "contour must run counterclockwise and the object contour clockwise about "
+                    "their bodies (e.g. clockwise=True for a library object contour)"
                 )
         if problems:
             raise InvalidSceneError(problems)
