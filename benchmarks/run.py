@@ -1,0 +1,118 @@
+"""Run the paper2d benchmarks and write ``benchmarks/results/``.
+
+Usage::
+
+    python -m benchmarks.run            # full run (a few minutes), results committed
+    python -m benchmarks.run --quick    # smoke test (< 1 minute), into results/quick/
+
+Every build goes to private temporary caches; the user's cache is not touched.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def _log(msg: str) -> None:
+    print(msg, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.run", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true",
+                    help="fewer settings and repeats (smoke test, < 1 minute)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="output directory (default benchmarks/results, or results/quick)")
+    args = ap.parse_args(argv)
+    out = args.out or (RESULTS / "quick" if args.quick else RESULTS)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="gs-bench-cache-") as cache:
+        old = os.environ.get("GRASPING_SYM_CACHE")
+        os.environ["GRASPING_SYM_CACHE"] = cache
+        try:
+            results = run(quick=args.quick)
+        finally:
+            if old is None:
+                os.environ.pop("GRASPING_SYM_CACHE", None)
+            else:
+                os.environ["GRASPING_SYM_CACHE"] = old
+    from benchmarks import report
+
+    report.write_json(results, out / "paper2d.json")
+    report.write_markdown(results, out / "paper2d.md")
+    report.plot_work_precision(results, out / "paper2d_work_precision.png")
+    _log(f"\nwrote {out / 'paper2d.md'}, paper2d.json, paper2d_work_precision.png")
+    for row in report.summary_rows(results):
+        _log(f"- {row[0]}: target {row[1]}; {row[2]} -> {row[3]}")
+    return 0
+
+
+def run(*, quick: bool) -> dict:
+    import grasping_sym as gs
+    from benchmarks import build_stages, rhs_cost, work_precision as wp
+    from benchmarks.machine import machine_info
+    from grasping_sym.derive.reference import ReferenceModel
+    from grasping_sym.model.planar import DEFAULT_OUTPUTS
+
+    t_start = time.perf_counter()
+    res: dict = {"quick": quick, "machine": machine_info()}
+    _log(f"machine: {res['machine']['cpu']}, {res['machine']['logical_cores']} cores, "
+         f"load {res['machine']['load_average_1_5_15']}")
+
+    _log("1. build stages (fresh processes, private caches)")
+    cold_n, cached_n = (1, 2) if quick else (3, 5)
+    res["build"] = {
+        "paper2d": build_stages.cold_and_cached("paper2d", cold_runs=cold_n,
+                                                cached_runs=cached_n, force=True, log=_log),
+        "paper2d_committed_c": build_stages.committed_c_build("paper2d"),
+        "ellipse2d": build_stages.cold_and_cached("ellipse2d", cold_runs=cold_n,
+                                                  cached_runs=cached_n, force=False, log=_log),
+    }
+    scene = gs.scenes.paper2d()
+    stages = build_stages.in_process_stages(scene)
+    res["build"]["in_process"] = stages
+    _log(f"  op counts: {stages['op_counts']}")
+
+    model = gs.build(scene)
+    energy_outputs = tuple(dict.fromkeys(
+        DEFAULT_OUTPUTS + ("kinetic_energy", "potential_energy", "power")))
+    energy_model = gs.build(gs.scenes.paper2d(outputs=energy_outputs))
+    t0 = time.perf_counter()
+    reference_model = ReferenceModel(scene, system=stages["_system"])
+    res["reference_model_s"] = time.perf_counter() - t0
+
+    _log("3. reference solution")
+    res["reference"] = wp.reference(model, quick=quick, log=_log)
+    x_ref = np.array(res["reference"]["x_ref"])
+
+    _log("2. right-hand side cost")
+    traj = model.simulate(wp.T_FINAL, rtol=1e-10, atol=1e-12,
+                          t_eval=np.linspace(0.0, wp.T_FINAL, 31), outputs=False).x
+    res["rhs"] = rhs_cost.rhs_costs(model, stages["_casadi_model"], reference_model, traj,
+                                    quick=quick, log=_log)
+
+    _log("3. work-precision, compiled methods")
+    res["compiled"] = wp.compiled_methods(model, energy_model, x_ref, quick=quick, log=_log)
+    res["breakdown"] = wp.sundials_breakdown(model, stages["_casadi_model"], res["compiled"],
+                                             quick=quick)
+
+    _log("4. baseline: lambdify + solve_ivp")
+    res["baseline"] = wp.baseline(reference_model, model.initial_state(), x_ref, quick=quick,
+                                  log=_log)
+    res["equal_error"] = wp.equal_error_comparison(res["compiled"], res["baseline"])
+    res["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
+    res["total_s"] = time.perf_counter() - t_start
+    return res
+
+
+if __name__ == "__main__":
+    sys.exit(main())

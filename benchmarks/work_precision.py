@@ -1,0 +1,320 @@
+"""Wall time against final-state error for the 3 s paper2d simulation.
+
+Error is the max-norm of (final state - reference final state), in the states' SI units
+(rad, rad/s, m). Wall times exclude derivation and compilation. For the SUNDIALS methods
+the integrator object is created (and cached inside the model) by the first call with a
+given tolerance: that first call is timed and reported apart, the median is over the
+calls after it.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import cumulative_simpson, solve_ivp
+
+from benchmarks.timing import median
+from grasping_sym.errors import GraspingSymError
+
+T_FINAL = 3.0
+T_EVAL = np.array([0.0, T_FINAL])
+#: Tolerances of the adaptive methods: rtol, with atol = rtol * ATOL_FACTOR.
+SUNDIALS_RTOLS = [10.0**-k for k in range(4, 13)]
+QUICK_SUNDIALS_RTOLS = [1e-4, 1e-6, 1e-8, 1e-10]
+ATOL_FACTOR = 1e-2
+RK4_STEPS = [1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5]
+QUICK_RK4_STEPS = [1e-3, 2e-4, 5e-5]
+#: Spacing (s) of the dense output used for constraint residual and energy drift.
+DENSE_DT = 2.5e-4
+#: Baseline: scipy methods and tolerances (loosest first; tighter ones are skipped once a
+#: single run exceeds the time budget).
+BASELINE_METHODS = ("LSODA", "Radau", "DOP853")
+BASELINE_RTOLS = [10.0**-k for k in range(2, 11)]
+QUICK_BASELINE = {"LSODA": [1e-5, 1e-7], "Radau": [1e-3, 1e-5], "DOP853": [1e-3]}
+
+
+def err(x: np.ndarray, x_ref: np.ndarray) -> float:
+    return float(np.max(np.abs(np.asarray(x) - x_ref)))
+
+
+# ---------------------------------------------------------------------- reference
+def reference(model, *, quick: bool, log=print) -> dict:
+    """Final state by CVODES at very tight tolerance, cross-checked by other methods.
+
+    Full mode: CVODES at rtol = atol = 1e-14 (the reference), CVODES and IDAS at 1e-13,
+    RK4 at h = 2e-6 and 5e-6 s; every pairwise max-norm difference is reported.
+    Quick mode: CVODES 1e-13 against IDAS 1e-13.
+    """
+    runs = {}
+    specs = ([("cvodes 1e-13", "cvodes", dict(rtol=1e-13, atol=1e-13)),
+              ("idas 1e-13", "idas", dict(rtol=1e-13, atol=1e-13))] if quick else
+             [("cvodes 1e-14", "cvodes", dict(rtol=1e-14, atol=1e-14)),
+              ("cvodes 1e-13", "cvodes", dict(rtol=1e-13, atol=1e-13)),
+              ("idas 1e-13", "idas", dict(rtol=1e-13, atol=1e-13)),
+              ("rk4 h=2e-6", "rk4", dict(h=2e-6)),
+              ("rk4 h=5e-6", "rk4", dict(h=5e-6))])
+    for label, method, kw in specs:
+        t0 = time.perf_counter()
+        r = model.simulate(T_FINAL, method=method, t_eval=T_EVAL, outputs=False, **kw)
+        runs[label] = {"x_final": r.x[-1].tolist(), "wall_s": time.perf_counter() - t0,
+                       "stats": r.stats}
+    labels = list(runs)
+    chosen = labels[0]
+    x_ref = np.array(runs[chosen]["x_final"])
+    diffs = {a: {b: err(runs[a]["x_final"], runs[b]["x_final"]) for b in labels}
+             for a in labels}
+    check = min((b for b in labels if b != chosen), key=lambda b: diffs[chosen][b])
+    log(f"  reference {chosen}; closest cross-check {check}: {diffs[chosen][check]:.2e}")
+    return {"chosen": chosen, "cross_check": check, "difference": diffs[chosen][check],
+            "x_ref": x_ref.tolist(), "runs": runs, "pairwise": diffs}
+
+
+# ---------------------------------------------------------------------- diagnostics
+def dense_diagnostics(energy_model, method: str, kw: dict) -> dict:
+    """Max constraint residual and energy-balance drift from one run with dense output.
+
+    Energy balance (MODELS.md): ``d/dt (kinetic + potential) = power``; drift is
+    ``max_t |E(t) - E(0) - int_0^t power dt|`` with Simpson's rule on the dense grid (J).
+    """
+    if method == "rk4":
+        h = kw["h"]
+        k = max(1, round(DENSE_DT / h))
+        n = round(T_FINAL / (k * h))
+    else:
+        n = round(T_FINAL / DENSE_DT)
+    t_eval = np.linspace(0.0, T_FINAL, n + 1)
+    try:
+        r = energy_model.simulate(T_FINAL, method=method, t_eval=t_eval, **kw)
+    except GraspingSymError as exc:
+        return {"failed": str(exc).splitlines()[0][:300]}
+    energy = r["kinetic_energy"] + r["potential_energy"]
+    work = cumulative_simpson(r["power"], x=r.t, initial=0.0)
+    return {"max_constraint_residual": float(np.max(np.abs(r["constraint_residual"]))),
+            "energy_drift_J": float(np.max(np.abs(energy - energy[0] - work))),
+            "max_kinetic_energy_J": float(np.max(r["kinetic_energy"])),
+            "dense_points": len(t_eval)}
+
+
+# ---------------------------------------------------------------------- compiled methods
+def time_setting(model, energy_model, method: str, kw: dict, x_ref: np.ndarray, *,
+                 repeats: int) -> dict:
+    """First call, then ``repeats`` timed calls; error, stats and dense diagnostics."""
+    row: dict = {"method": method, **kw}
+    try:
+        t0 = time.perf_counter()
+        r = model.simulate(T_FINAL, method=method, t_eval=T_EVAL, outputs=False, **kw)
+        row["first_call_s"] = time.perf_counter() - t0
+        row["first_call_integration_s"] = r.stats["wall_time"]
+    except GraspingSymError as exc:
+        row["failed"] = str(exc).splitlines()[0][:300]
+        row["error"] = math.inf
+        return row
+    walls, calls = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        r = model.simulate(T_FINAL, method=method, t_eval=T_EVAL, outputs=False, **kw)
+        calls.append(time.perf_counter() - t0)
+        walls.append(r.stats["wall_time"])
+    row.update({
+        "wall_s": median(walls), "wall_min_s": min(walls), "call_s": median(calls),
+        "repeats": repeats, "error": err(r.x[-1], x_ref), "stats": r.stats,
+    })
+    row.update(dense_diagnostics(energy_model, method, kw))
+    return row
+
+
+def compiled_methods(model, energy_model, x_ref: np.ndarray, *, quick: bool,
+                     log=print) -> list[dict]:
+    repeats = 3 if quick else 9
+    rows = []
+    rtols = QUICK_SUNDIALS_RTOLS if quick else SUNDIALS_RTOLS
+    for method in ("cvodes", "idas"):
+        for rtol in rtols:
+            kw = {"rtol": rtol, "atol": rtol * ATOL_FACTOR}
+            rows.append(time_setting(model, energy_model, method, kw, x_ref, repeats=repeats))
+            _log_row(rows[-1], log)
+    for h in (QUICK_RK4_STEPS if quick else RK4_STEPS):
+        rows.append(time_setting(model, energy_model, "rk4", {"h": h}, x_ref, repeats=repeats))
+        _log_row(rows[-1], log)
+    return rows
+
+
+def _log_row(row: dict, log) -> None:
+    setting = f"h={row['h']:g}" if "h" in row else f"rtol={row['rtol']:g}"
+    if "failed" in row:
+        log(f"  {row['method']:7s} {setting:12s} FAILED: {row['failed'][:100]}")
+    else:
+        log(f"  {row['method']:7s} {setting:12s} {row['wall_s'] * 1e3:9.3f} ms  "
+            f"err {row['error']:.2e}  first call {row['first_call_s'] * 1e3:.2f} ms")
+
+
+# ---------------------------------------------------------------------- where the time goes
+def sundials_breakdown(model, casadi_model, rows: list[dict], *, quick: bool) -> list[dict]:
+    """Re-run each SUNDIALS setting with CasADi's ``record_time`` to split the wall time.
+
+    The integrator is created with the same options as ``grasping_sym.runtime.integrators``
+    plus ``record_time``. Reported: time inside the right-hand side and Jacobian callbacks
+    (``t_wall_daeF``, ``t_wall_jacF``), the rest (SUNDIALS + CasADi's linear algebra and call
+    overhead), counters, and per-step / per-call costs. For cvodes at rtol 1e-8 the same
+    integration on CasADi's own SX virtual machine (no compiled code) is timed for comparison.
+    """
+    out = []
+    for row in rows:
+        if row["method"] not in ("cvodes", "idas") or "failed" in row:
+            continue
+        opts = {"abstol": row["atol"], "reltol": row["rtol"], "max_num_steps": 1_000_000,
+                "print_stats": False, "show_eval_warnings": False, "record_time": True}
+        integ = ca.integrator("bench", row["method"], model.external_rhs(), 0.0, [T_FINAL], opts)
+        x0 = model.initial_state()
+        integ(x0=x0, p=np.zeros(0))
+        st = integ.stats()
+        steps = max(1, st["nsteps"])
+        total = st["t_wall_total"]
+        rhs_t, jac_t = st["t_wall_daeF"], st["t_wall_jacF"]
+        out.append({
+            "method": row["method"], "rtol": row["rtol"], "atol": row["atol"],
+            "total_s": total, "rhs_s": rhs_t, "jac_s": jac_t, "other_s": total - rhs_t - jac_t,
+            "n_steps": st["nsteps"], "n_rhs": st["n_call_daeF"], "n_jac": st["n_call_jacF"],
+            "n_newton": st["nniters"], "n_lin_setups": st["nlinsetups"],
+            "n_err_test_fails": st["netfails"],
+            "us_per_step": total / steps * 1e6,
+            "us_per_rhs_call": rhs_t / max(1, st["n_call_daeF"]) * 1e6,
+            "us_per_jac_call": jac_t / max(1, st["n_call_jacF"]) * 1e6,
+        })
+    # the same integration on CasADi's SX virtual machine (nothing compiled)
+    opts = {"abstol": 1e-10, "reltol": 1e-8, "max_num_steps": 1_000_000,
+            "print_stats": False, "show_eval_warnings": False}
+    integ = ca.integrator("bench_sx", "cvodes", casadi_model.rhs, 0.0, [T_FINAL], opts)
+    x0 = model.initial_state()
+    integ(x0=x0, p=np.zeros(0))
+    walls = []
+    for _ in range(3 if quick else 7):
+        t0 = time.perf_counter()
+        integ(x0=x0, p=np.zeros(0))
+        walls.append(time.perf_counter() - t0)
+    out.append({"method": "cvodes on SX function (not compiled)", "rtol": 1e-8, "atol": 1e-10,
+                "total_s": median(walls), "n_steps": integ.stats()["nsteps"]})
+    return out
+
+
+# ---------------------------------------------------------------------- baseline
+def baseline(reference_model, x0: np.ndarray, x_ref: np.ndarray, *, quick: bool,
+             log=print) -> list[dict]:
+    """SymPy lambdify (``ReferenceModel.rhs``) + ``scipy.integrate.solve_ivp``.
+
+    Tolerances loosest first; for each method, tighter tolerances are skipped once one run
+    took longer than the budget (quick 5 s, full 20 s). Median of 3 runs when a run takes
+    under 2 s, else a single run.
+    """
+    budget = 5.0 if quick else 20.0
+
+    def f(t, y):
+        return reference_model.rhs(y)
+
+    rows = []
+    for method in BASELINE_METHODS:
+        rtols = QUICK_BASELINE[method] if quick else BASELINE_RTOLS
+        for rtol in rtols:
+            atol = rtol * ATOL_FACTOR
+            walls, sol = [], None
+            while True:
+                t0 = time.perf_counter()
+                try:
+                    sol = solve_ivp(f, (0.0, T_FINAL), x0, method=method, rtol=rtol,
+                                    atol=atol, t_eval=T_EVAL)
+                except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+                    sol = _Failed(f"{type(exc).__name__}: {exc}")
+                walls.append(time.perf_counter() - t0)
+                if quick or walls[0] > 2.0 or len(walls) >= 3 or not sol.success:
+                    break
+            row = {"method": f"lambdify+{method}", "rtol": rtol, "atol": atol,
+                   "wall_s": median(walls), "repeats": len(walls), "nfev": int(sol.nfev),
+                   "njev": int(getattr(sol, "njev", 0) or 0), "success": bool(sol.success)}
+            if sol.success:
+                row["error"] = err(sol.y[:, -1], x_ref)
+            else:
+                row["error"] = math.inf
+                row["failed"] = sol.message
+            rows.append(row)
+            log(f"  {row['method']:16s} rtol={rtol:g} {row['wall_s']:8.3f} s  "
+                f"err {row['error']:.2e}  nfev {row['nfev']}")
+            if walls[0] > budget:
+                skipped = [r for r in rtols if r < rtol]
+                if skipped:
+                    log(f"  {method}: over the {budget:g} s budget, skipping rtol {skipped}")
+                    rows.append({"method": f"lambdify+{method}", "skipped_rtols": skipped,
+                                 "reason": f"a run at rtol={rtol:g} took {walls[0]:.1f} s "
+                                           f"(> {budget:g} s budget)"})
+                break
+    return rows
+
+
+class _Failed:
+    """Stands in for a ``solve_ivp`` result when the right-hand side raised."""
+
+    success = False
+    nfev = 0
+    njev = 0
+
+    def __init__(self, message: str):
+        self.message = message
+
+
+# ---------------------------------------------------------------------- equal-error comparison
+def time_at_error(points: list[tuple[float, float]], target: float) -> dict | None:
+    """Wall time at which a method reaches final-state error ``target``.
+
+    ``points`` are (error, time) of one method. On the Pareto front (each point more
+    accurate than every cheaper one) the time is interpolated linearly in log-log between the
+    last point with error > target and the first with error <= target; if the cheapest
+    point already reaches the target, its time is used (no extrapolation). ``None`` when no
+    point reaches the target. ``measured`` is the cheapest measured point with
+    error <= target.
+    """
+    pts = sorted((t, e) for e, t in points if math.isfinite(e) and e > 0)
+    front: list[tuple[float, float]] = []
+    for t, e in pts:
+        if not front or e < front[-1][1]:
+            front.append((t, e))
+    ok = [(t, e) for t, e in front if e <= target]
+    if not ok:
+        return None
+    t_ok, e_ok = ok[0]
+    i = front.index(ok[0])
+    if i == 0:
+        return {"time_s": t_ok, "measured_s": t_ok, "measured_error": e_ok, "interpolated": False}
+    t_a, e_a = front[i - 1]
+    frac = (math.log(target) - math.log(e_a)) / (math.log(e_ok) - math.log(e_a))
+    t_int = math.exp(math.log(t_a) + frac * (math.log(t_ok) - math.log(t_a)))
+    return {"time_s": t_int, "measured_s": t_ok, "measured_error": e_ok, "interpolated": True}
+
+
+def equal_error_comparison(compiled_rows: list[dict], baseline_rows: list[dict],
+                           target: float = 1e-8) -> dict:
+    """Fastest compiled method vs fastest baseline method at error <= ``target``."""
+    def per_method(rows):
+        by: dict[str, list] = {}
+        for r in rows:
+            if "error" in r and "wall_s" in r:
+                by.setdefault(r["method"], []).append((r["error"], r["wall_s"]))
+        return {m: time_at_error(p, target) for m, p in by.items()}
+
+    ours, theirs = per_method(compiled_rows), per_method(baseline_rows)
+
+    def fastest(d, key):
+        ok = {m: v for m, v in d.items() if v is not None}
+        if not ok:
+            return None, None
+        m = min(ok, key=lambda k: ok[k][key])
+        return m, ok[m]
+
+    res: dict = {"target_error": target, "compiled": ours, "baseline": theirs}
+    for key in ("time_s", "measured_s"):
+        mo, vo = fastest(ours, key)
+        mb, vb = fastest(theirs, key)
+        res[key] = {"compiled_method": mo, "compiled_s": vo and vo[key],
+                    "baseline_method": mb, "baseline_s": vb and vb[key],
+                    "ratio": (vb[key] / vo[key]) if vo and vb else None}
+    return res
