@@ -58,7 +58,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(*, quick: bool) -> dict:
     import grasping_sym as gs
-    from benchmarks import build_stages, rhs_cost, work_precision as wp
+    from benchmarks import build_stages, rhs_cost
+    from benchmarks import work_precision as wp
     from benchmarks.machine import machine_info
     from grasping_sym.derive.reference import ReferenceModel
     from grasping_sym.model.planar import DEFAULT_OUTPUTS

@@ -7,9 +7,9 @@
 __version__ = "0.1.0"
 
 from grasping_sym import scenes  # noqa: E402
-from grasping_sym.build import build  # noqa: E402
 from grasping_sym.geometry import library as curves  # noqa: E402
 from grasping_sym.geometry.curves import PlanarCurve  # noqa: E402
+from grasping_sym.pipeline import build  # noqa: E402
 from grasping_sym.runtime.result import SimulationResult  # noqa: E402
 
 __all__ = ["build", "scenes", "curves", "PlanarCurve", "SimulationResult", "__version__"]

@@ -7,7 +7,6 @@ compiling, simulating, plotting) goes to stderr, results to stdout.
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 import sys
 import time
@@ -67,7 +66,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from grasping_sym.build import build
+    from grasping_sym.pipeline import build
     from grasping_sym.plots import write_figures
 
     factory = _scene_factory(args.name)
@@ -108,18 +107,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------- generate
-# >>> `generate` subcommand: owned by the code-generation engineer. <<<
 # Regenerates the committed C of built-in scenes (generated/<name>/) or, with --check,
-# verifies it is up to date. Calls grasping_sym.build.generate_committed(names, check=...),
-# which returns {name: [files that differ from a fresh generation]}.
+# verifies it is up to date (grasping_sym.pipeline.generate_committed).
 def cmd_generate(args: argparse.Namespace) -> int:
-    # ``grasping_sym.build`` as an attribute is the build() *function* (re-exported by the
-    # package), so the module is taken from the import system.
-    module = importlib.import_module("grasping_sym.build")
-    generate_committed = getattr(module, "generate_committed", None)
-    if generate_committed is None:
-        raise UsageError("`generate` is not available: "
-                         "grasping_sym.build.generate_committed is not implemented")
+    from grasping_sym.pipeline import generate_committed
+
     names = sorted(_builtin()) if args.all or not args.names else list(args.names)
     for name in names:
         _scene_factory(name)  # validates the name

@@ -9,8 +9,8 @@ import os
 import subprocess
 import sys
 
-from grasping_sym.build import generate_committed
 from grasping_sym.codegen.cache import REPO_GENERATED
+from grasping_sym.pipeline import generate_committed
 from grasping_sym.scenes import BUILTIN
 
 
@@ -37,7 +37,7 @@ def test_generation_does_not_depend_on_hash_seed(tmp_path):
         d = tmp_path / seed
         code = (
             "import sys; from pathlib import Path; import grasping_sym as gs; "
-            "from grasping_sym.build import generate; "
+            "from grasping_sym.pipeline import generate; "
             f"generate(gs.scenes.paper2d(), Path({str(d)!r}), count_ops=False)"
         )
         env = {**os.environ, "PYTHONHASHSEED": seed}

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from grasping_sym.geometry.curves import T, PlanarCurve
+from grasping_sym.geometry.curves import PlanarCurve, T
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import sympy as sp
 
-from grasping_sym.derive.system import ConstrainedSystem
 from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT
+from grasping_sym.derive.system import ConstrainedSystem
 from grasping_sym.model.planar import PARAMETERS, PlanarFingerScene
 
 

@@ -13,7 +13,10 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym.derive.contour_functions import (
-    FINGERTIP, OBJECT, leaf_expressions, substitute_leaves,
+    FINGERTIP,
+    OBJECT,
+    leaf_expressions,
+    substitute_leaves,
 )
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.derive.system import ConstrainedSystem, assemble

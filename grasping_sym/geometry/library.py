@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import sympy as sp
 
 from grasping_sym.errors import InvalidCurveError
-from grasping_sym.geometry.curves import T, PlanarCurve
+from grasping_sym.geometry.curves import PlanarCurve, T
 
 
 def _positive(name: str, **values: float) -> None:
