@@ -16,7 +16,8 @@ in the paper.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -102,16 +103,28 @@ class PlanarFingerScene:
     theta_0: float = 0.0
     u0_0: float = 0.0
     u1_0: float = 0.0
-    pivot: tuple[float, float] = field(init=False)
-    q2_0: float = field(init=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "runtime", tuple(self.runtime))
         object.__setattr__(self, "outputs", tuple(self.outputs))
+        problems = self._parameter_problems()
+        if problems:
+            raise InvalidSceneError(problems)
+
+    @cached_property
+    def _initial(self) -> tuple[float, tuple[float, float]]:
         self.validate()
-        q2, pivot = initial_configuration(self)
-        object.__setattr__(self, "q2_0", q2)
-        object.__setattr__(self, "pivot", pivot)
+        return initial_configuration(self)
+
+    @property
+    def q2_0(self) -> float:
+        """Initial q2 (rad), fixed by tangency at the initial contact."""
+        return self._initial[0]
+
+    @property
+    def pivot(self) -> tuple[float, float]:
+        """The pivot ``Om`` (m), fixed by contact at the initial state."""
+        return self._initial[1]
 
     @property
     def shared_parameter(self) -> bool:
@@ -126,7 +139,33 @@ class PlanarFingerScene:
         return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", *tail)
 
     def validate(self) -> None:
-        """Check every parameter and the initial contact; raise listing all problems."""
+        """Check every parameter, both contours and the initial contact; raise listing all.
+
+        Construction runs only the cheap parameter checks; this full check (which samples
+        the contours) runs when the scene is derived or its initial configuration is first
+        needed. A scene served from the build cache has the content hash of one that passed.
+        """
+        problems = self._parameter_problems()
+        for label, curve in (("fingertip", self.fingertip), ("object", self.object)):
+            try:
+                curve.check()
+            except InvalidCurveError as exc:
+                problems.append(f"{label} contour: {exc}")
+        if not problems and all(_finite(u) for u in (self.u0_0, self.u1_0)):
+            k0 = float(self.fingertip.evaluate(self.u0_0)["curvature"])
+            k1 = -float(self.object.evaluate(self.u1_0)["curvature"])
+            if not k0 + k1 > 0:
+                problems.append(
+                    f"relative curvature kappa0 + kappa1 = {k0 + k1:.6g} 1/m <= 0 at the initial "
+                    "contact: the contours do not touch from outside there; the fingertip "
+                    "contour must run counterclockwise and the object contour clockwise about "
+                    "their bodies (e.g. clockwise=True for a library object contour)"
+                )
+        if problems:
+            raise InvalidSceneError(problems)
+
+    def _parameter_problems(self) -> list[str]:
+        """Checks that need no numeric evaluation of the contours."""
         problems: list[str] = []
         if not self.name.isidentifier():
             problems.append(f"name {self.name!r} must be a C identifier (letters, digits, _)")
@@ -157,28 +196,12 @@ class PlanarFingerScene:
                 problems.append(f"{k} = {getattr(self, k)!r} must be a finite number")
         for label, curve, u in (("fingertip", self.fingertip, self.u0_0),
                                 ("object", self.object, self.u1_0)):
-            try:
-                curve.check()
-            except InvalidCurveError as exc:
-                problems.append(f"{label} contour: {exc}")
-                continue
             if _finite(u) and not curve.in_domain(u):
                 problems.append(
                     f"initial contact parameter on the {label} ({u!r}) is outside the "
                     f"contour's domain {curve.domain}: choose a value inside it"
                 )
-        if not problems:
-            k0 = float(self.fingertip.evaluate(self.u0_0)["curvature"])
-            k1 = -float(self.object.evaluate(self.u1_0)["curvature"])
-            if not k0 + k1 > 0:
-                problems.append(
-                    f"relative curvature kappa0 + kappa1 = {k0 + k1:.6g} 1/m <= 0 at the initial "
-                    "contact: the contours do not touch from outside there; the fingertip "
-                    "contour must run counterclockwise and the object contour clockwise about "
-                    "their bodies (e.g. clockwise=True for a library object contour)"
-                )
-        if problems:
-            raise InvalidSceneError(problems)
+        return problems
 
     def key(self) -> str:
         """Canonical text of everything that determines the generated code."""
