@@ -110,6 +110,10 @@ def run(*, quick: bool) -> dict:
     res["baseline"] = wp.baseline(reference_model, model.initial_state(), x_ref, quick=quick,
                                   log=_log)
     res["equal_error"] = wp.equal_error_comparison(res["compiled"], res["baseline"])
+
+    _log("5. folding constants vs run-time parameters")
+    from benchmarks.folding import folding
+    res["folding"] = folding(quick, log=_log)
     res["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
     res["total_s"] = time.perf_counter() - t_start
     return res
