@@ -45,3 +45,13 @@ class IntegratorError(GraspingSymError, RuntimeError):
 
 class ContactLeftContourError(IntegratorError):
     """The contact point reached the end of a contour's declared domain."""
+
+
+class InvalidSurfaceError(GraspingSymError, ValueError):
+    """A surface is not a smooth regular patch on its declared domain; lists every problem."""
+
+    def __init__(self, name: str, problems: list[str]):
+        self.name = name
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"surface '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")

@@ -1,0 +1,191 @@
+"""A library of surface patches: sphere, ellipsoid, superquadric, plane, torus, revolution.
+
+All lengths are metres, in the body's local frame. Every constructor takes an optional
+``center`` (3-vector, m) and ``rotation`` (3x3 proper rotation matrix, body-local from the
+shape's own frame): ``S = center + rotation @ S_shape``. The unit normal ``S_u x S_v / |.|``
+of the closed surfaces points outward.
+
+The sphere, ellipsoid and superquadric share the latitude-longitude chart
+``u = longitude`` (about the shape's z axis, default ``[-pi, pi]``), ``v = latitude``
+(default ``[-1.3, 1.3]`` rad, i.e. 15 degrees short of each pole). The chart is singular at
+the poles ``v = +-pi/2`` on the shape's z axis, so latitudes must stay inside
+``(-pi/2, pi/2)``: rotate the shape so the region where contact happens lies near the
+equator (e.g. for a fingertip pointing along local x, keep the shape's z axis sideways).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+
+from grasping_sym.errors import InvalidSurfaceError
+from grasping_sym.geometry.curves import PlanarCurve, T
+from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+
+Vec3 = tuple[float, float, float]
+_PI = math.pi
+
+
+def _finite_positive(**values: float) -> list[str]:
+    return [f"{k} = {v!r} must be a finite positive number" for k, v in values.items()
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < math.inf)]
+
+
+def _interval(label: str, span, lo: float = -math.inf, hi: float = math.inf) -> list[str]:
+    try:
+        a, b = (float(s) for s in span)
+    except (TypeError, ValueError):
+        return [f"{label} = {span!r} must be a pair of numbers (min, max)"]
+    if not (math.isfinite(a) and math.isfinite(b) and lo < a < b < hi):
+        return [f"{label} = ({a:.6g}, {b:.6g}) must satisfy {lo:.6g} < min < max < {hi:.6g}"]
+    return []
+
+
+def _placement(center, rotation) -> tuple[list[str], np.ndarray, np.ndarray]:
+    problems: list[str] = []
+    c, R = np.zeros(3), np.eye(3)
+    try:
+        c = np.asarray(center, dtype=float).reshape(3)
+        if not np.isfinite(c).all():
+            problems.append(f"center = {center!r} must be three finite numbers (m)")
+    except (TypeError, ValueError):
+        problems.append(f"center = {center!r} must be three finite numbers (m)")
+    if rotation is not None:
+        try:
+            R = np.asarray(rotation, dtype=float).reshape(3, 3)
+            if not (np.isfinite(R).all() and np.allclose(R.T @ R, np.eye(3), atol=1e-9)
+                    and np.linalg.det(R) > 0):
+                problems.append(f"rotation = {rotation!r} must be a proper rotation matrix "
+                                "(orthonormal, det +1; a reflection would turn the normal inward)")
+        except (TypeError, ValueError):
+            problems.append(f"rotation = {rotation!r} must be a 3x3 rotation matrix")
+    return problems, c, R
+
+
+def _make(name: str, xyz, center, rotation, domain, problems: list[str]) -> ParametricSurface:
+    more, c, R = _placement(center, rotation)
+    problems = problems + more
+    if problems:
+        raise InvalidSurfaceError(name, problems)
+    out = []
+    for i in range(3):  # skip zero entries so the identity placement leaves S unchanged
+        e = sum((xyz[j] if R[i, j] == 1.0 else sp.Float(R[i, j]) * xyz[j]) for j in range(3) if R[i, j] != 0.0)
+        out.append(e + sp.Float(c[i]) if c[i] != 0.0 else e)
+    return ParametricSurface(out, (U, V), (tuple(domain[0]), tuple(domain[1])), name)
+
+
+def _latlon_problems(lon, lat) -> list[str]:
+    return _interval("lon", lon) + _interval("lat", lat, -_PI / 2, _PI / 2)
+
+
+def sphere(radius: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
+           lon: tuple[float, float] = (-_PI, _PI), lat: tuple[float, float] = (-1.3, 1.3),
+           name: str = "sphere") -> ParametricSurface:
+    """Sphere ``r (cos v cos u, cos v sin u, sin v)``: ``u`` longitude, ``v`` latitude (rad).
+
+    ``lat`` must lie strictly inside ``(-pi/2, pi/2)`` (the poles are singular points of the
+    chart). Orthogonal chart: ``E = r^2 cos^2 v``, ``F = 0``, ``G = r^2``.
+    """
+    problems = _finite_positive(radius=radius) + _latlon_problems(lon, lat)
+    r = sp.Float(radius) if not problems else sp.Integer(1)
+    xyz = (r * sp.cos(V) * sp.cos(U), r * sp.cos(V) * sp.sin(U), r * sp.sin(V))
+    return _make(name, xyz, center, rotation, (lon, lat), problems)
+
+
+def ellipsoid(a: float, b: float, c: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
+              lon: tuple[float, float] = (-_PI, _PI), lat: tuple[float, float] = (-1.3, 1.3),
+              name: str = "ellipsoid") -> ParametricSurface:
+    """Ellipsoid ``(a cos v cos u, b cos v sin u, c sin v)`` with semi-axes ``a, b, c`` (m).
+
+    Same latitude-longitude chart as :func:`sphere` (parametric, not geodetic, latitude);
+    not orthogonal unless ``a == b``.
+    """
+    problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat)
+    ka, kb, kc = (sp.Float(s) for s in (a, b, c)) if not problems else (1, 1, 1)
+    xyz = (ka * sp.cos(V) * sp.cos(U), kb * sp.cos(V) * sp.sin(U), kc * sp.sin(V))
+    return _make(name, xyz, center, rotation, (lon, lat), problems)
+
+
+def superquadric(a: float, b: float, c: float, n: int = 4, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
+                 lon: tuple[float, float] = (-_PI, _PI), lat: tuple[float, float] = (-1.3, 1.3),
+                 name: str = "superquadric") -> ParametricSurface:
+    """Superquadric ``|x/a|^n + |y/b|^n + |z/c|^n = 1`` with an even integer ``n >= 2`` (m).
+
+    Written in radial form over the sphere's latitude-longitude chart:
+    ``S = rho(u, v) d(u, v)`` with the unit direction ``d = (cos v cos u, cos v sin u, sin v)``
+    and ``rho = ((d_x/a)^n + (d_y/b)^n + (d_z/c)^n)^(-1/n)``. For even ``n`` the bracket is a
+    sum of even powers of a unit vector's components, never zero, so ``rho`` is smooth
+    (analytic) and positive; the chart is regular wherever the sphere's is
+    (``(S_u x S_v) . d = rho^2 cos v > 0``), i.e. away from the poles. Barr's usual
+    ``sign(cos)|cos|^(2/n)`` form is neither smooth nor regular at the flat faces' centres.
+    """
+    problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat)
+    if not (isinstance(n, int) and not isinstance(n, bool) and n >= 2 and n % 2 == 0):
+        problems.append(f"n = {n!r} must be an even integer >= 2 for a smooth surface")
+    if problems:
+        raise InvalidSurfaceError(name, problems)
+    d = (sp.cos(V) * sp.cos(U), sp.cos(V) * sp.sin(U), sp.sin(V))
+    rho = sum(di**n / sp.Float(s) ** n for di, s in zip(d, (a, b, c))) ** sp.Rational(-1, n)
+    return _make(name, tuple(rho * di for di in d), center, rotation, (lon, lat), [])
+
+
+def plane(size_x: float, size_y: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
+          name: str = "plane") -> ParametricSurface:
+    """Rectangle ``(u, v, 0)``, ``|u| <= size_x/2``, ``|v| <= size_y/2`` (m); normal ``+z``."""
+    problems = _finite_positive(size_x=size_x, size_y=size_y)
+    dom = ((-size_x / 2, size_x / 2), (-size_y / 2, size_y / 2)) if not problems else ((-1, 1), (-1, 1))
+    return _make(name, (U, V, sp.Integer(0)), center, rotation, dom, problems)
+
+
+def torus(R: float, r: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
+          u: tuple[float, float] = (-_PI, _PI), v: tuple[float, float] = (-_PI, _PI),
+          name: str = "torus") -> ParametricSurface:
+    """Torus patch ``((R + r cos v) cos u, (R + r cos v) sin u, r sin v)``, ``R > r > 0`` (m).
+
+    ``u`` turns about the shape's z axis, ``v`` around the tube; outward normal
+    ``(cos v cos u, cos v sin u, sin v)``; Gaussian curvature ``cos v / (r (R + r cos v))``.
+    """
+    problems = _finite_positive(R=R, r=r) + _interval("u", u) + _interval("v", v)
+    if not problems and not R > r:
+        problems.append(f"R = {R!r} must exceed r = {r!r}: a spindle torus is not regular")
+    kR, kr = (sp.Float(R), sp.Float(r)) if not problems else (2, 1)
+    w = kR + kr * sp.cos(V)
+    return _make(name, (w * sp.cos(U), w * sp.sin(U), kr * sp.sin(V)), center, rotation, (u, v), problems)
+
+
+_AXES = {"x": (1, 2, 0), "y": (2, 0, 1), "z": (0, 1, 2)}  # (e1, e2, axis), right-handed
+
+
+def surface_of_revolution(curve: PlanarCurve, axis: str = "z", center: Vec3 = (0.0, 0.0, 0.0), rotation=None,
+                          *, angle: tuple[float, float] = (-_PI, _PI), name: str | None = None) -> ParametricSurface:
+    """Revolve a contour ``(x(t), y(t))`` about ``axis``: ``x`` is the radius, ``y`` the height.
+
+    ``S(u, v) = x(v) (cos u e1 + sin u e2) + y(v) e_axis`` with ``(e1, e2, e_axis)`` right-handed
+    (axis 'z': ``(e_x, e_y, e_z)``; 'y': ``(e_z, e_x, e_y)``; 'x': ``(e_y, e_z, e_x)``):
+    ``u`` is the angle of revolution (rad, domain ``angle``), ``v`` the contour's parameter
+    (its domain). The normal points to the right of the contour's direction of travel, i.e.
+    outward for a counterclockwise contour (the curve library's default, ``clockwise=False``).
+    ``library.circle(r, by='angle')`` about 'z' gives exactly :func:`sphere`'s chart, and
+    ``library.circle(r, (R, 0), by='angle', span=pi)`` :func:`torus`'s.
+    The radius ``x(t)`` must stay positive: where the contour meets the axis the chart has a pole.
+    """
+    name = name or f"revolved {getattr(curve, 'name', 'curve')}"
+    if not isinstance(curve, PlanarCurve):
+        raise InvalidSurfaceError(name, [f"curve = {curve!r} must be a PlanarCurve"])
+    problems = _interval("angle", angle)
+    if axis not in _AXES:
+        problems.append(f"axis = {axis!r}: use 'x', 'y' or 'z'")
+        axis = "z"
+    ts = np.linspace(*curve.domain, 401)
+    with np.errstate(all="ignore"):
+        radius = curve.evaluate(ts)["x"]
+    if not (radius > 0).all():
+        i = int(np.argmax(~(radius > 0)))
+        problems.append(f"the contour's radius x(t) = {radius[i]:.3g} at t = {ts[i]:.6g} is not positive: "
+                        "keep the contour on the x > 0 side of the axis (shift it or shrink its domain)")
+    x, y = curve.x.xreplace({T: V}), curve.y.xreplace({T: V})
+    i1, i2, ia = _AXES[axis]
+    xyz = [sp.Integer(0)] * 3
+    xyz[i1], xyz[i2], xyz[ia] = x * sp.cos(U), x * sp.sin(U), y
+    return _make(name, tuple(xyz), center, rotation, (angle, curve.domain), problems)
