@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
 
 from grasping_sym.derive.contour_functions import (
     FINGERTIP,
@@ -30,6 +31,20 @@ _NUMPY = dict(
 )
 
 
+class _ExactFloatPrinter(NumPyPrinter):
+    """Print every Float as the exact double it holds (SymPy's default keeps 15 digits,
+    an error of ~1e-16 that the stiff stabilisation gains amplify to ~1e-8)."""
+
+    def _print_Float(self, expr):
+        return repr(float(expr))
+
+
+def _lambdify(args, expr):
+    printer = _ExactFloatPrinter({"fully_qualified_modules": False, "inline": True,
+                                  "allow_unknown_functions": True, "user_functions": {}})
+    return sp.lambdify(args, expr, "numpy", printer=printer, cse=True)
+
+
 class ReferenceModel:
     """NumPy evaluation of a scene's closed loop, straight from the SymPy derivation."""
 
@@ -40,7 +55,7 @@ class ReferenceModel:
                   **leaf_expressions(OBJECT, scene.object)}
         args = [*self.system.state, *self.system.params]
         self._pieces = [
-            sp.lambdify(args, substitute_leaves(m, leaves), "numpy", cse=True)
+            _lambdify(args, substitute_leaves(m, leaves))
             for m in self.system.pieces()
         ]
         names = tuple(self.system.outputs)
@@ -48,7 +63,7 @@ class ReferenceModel:
         outs = sp.Matrix([substitute_leaves(sp.sympify(self.system.outputs[k]), leaves)
                           for k in names]) if names else None
         self._outputs: Callable | None = (
-            sp.lambdify([*args, *self.system.multipliers], outs, "numpy", cse=True)
+            _lambdify([*args, *self.system.multipliers], outs)
             if names else None
         )
 

@@ -149,7 +149,10 @@ class PlanarCurve:
     def check(self, n_samples: int = 401) -> None:
         """Check regularity and finiteness on the domain; raise listing every problem.
 
-        Samples ``n_samples`` parameter values evenly over the domain (ends included).
+        Samples ``n_samples`` parameter values evenly over the domain (ends included), then
+        refines every sampled local minimum and maximum of the speed with a bounded Brent
+        search, so that a cusp (speed 0) or a pole (speed unbounded) between two samples
+        is found too.
         """
         if self._checked:
             return
@@ -164,17 +167,55 @@ class PlanarCurve:
                     f"{key} is not finite at t = {ts[bad][0]:.6g} (and {bad.sum() - 1} more "
                     "samples): shrink the domain or fix the formula"
                 )
-        speed = v["speed"]
-        ok = np.isfinite(speed)
-        scale = max(float(np.max(np.abs(speed[ok]), initial=0.0)), 1e-300)
-        tiny = ok & (speed <= 1e-9 * scale)
-        if tiny.any():
-            i = int(np.argmax(tiny))
-            problems.append(
-                f"not regular: speed |c'(t)| = {speed[i]:.3g} at t = {ts[i]:.6g} "
-                f"(largest speed {scale:.3g}); the tangent and curvature are undefined there: "
-                "reparameterise or exclude that point from the domain"
-            )
+        problems += self._speed_problems(ts, v["speed"])
         if problems:
             raise InvalidCurveError(self.name, problems)
         object.__setattr__(self, "_checked", True)
+
+    def _speed_problems(self, ts: np.ndarray, speed: np.ndarray) -> list[str]:
+        """Zero or unbounded speed, looked for around each sampled local extremum."""
+        from scipy.optimize import minimize_scalar
+
+        def speed_at(t: float) -> float:
+            with np.errstate(all="ignore"):
+                val = float(self.evaluate(t)["speed"])
+            return val if math.isfinite(val) else math.inf
+
+        speed = np.where(np.isfinite(speed), speed, np.nan)
+        if np.all(np.isnan(speed)):
+            return []  # reported as not finite already
+        typical = float(np.nanmedian(speed))
+        if np.nanmax(speed) - np.nanmin(speed) <= 1e-9 * typical:
+            return []  # constant speed (e.g. an arclength parameterisation): nothing to refine
+        i_min, i_max = int(np.nanargmin(speed)), int(np.nanargmax(speed))
+        lo_pts, hi_pts = [(float(speed[i_min]), float(ts[i_min]))], []
+        for i in range(len(ts)):
+            left = speed[i - 1] if i > 0 else math.inf
+            right = speed[i + 1] if i < len(ts) - 1 else math.inf
+            window = (ts[max(i - 1, 0)], ts[min(i + 1, len(ts) - 1)])
+            if speed[i] < left and speed[i] <= right:
+                r = minimize_scalar(speed_at, bounds=window, method="bounded",
+                                    options={"xatol": 1e-13 * (1 + abs(ts[i]))})
+                lo_pts.append((r.fun, r.x))
+            left = speed[i - 1] if i > 0 else -math.inf
+            right = speed[i + 1] if i < len(ts) - 1 else -math.inf
+            if speed[i] > left and speed[i] >= right:
+                r = minimize_scalar(lambda t: -speed_at(t), bounds=window, method="bounded",
+                                    options={"xatol": 1e-13 * (1 + abs(ts[i]))})
+                hi_pts.append((-r.fun, r.x))
+        problems = []
+        low, t_low = min(lo_pts)
+        if low <= 1e-9 * typical:
+            problems.append(
+                f"not regular: speed |c'(t)| = {low:.3g} at t = {t_low:.6g} (typical speed "
+                f"{typical:.3g}); the tangent and curvature are undefined there: "
+                "reparameterise or exclude that point from the domain"
+            )
+        high, t_high = max(hi_pts) if hi_pts else (float(speed[i_max]), float(ts[i_max]))
+        if high >= 1e8 * typical:
+            problems.append(
+                f"speed |c'(t)| is not finite (unbounded) near t = {t_high:.6g} (reaches "
+                f"{high:.3g}, typical {typical:.3g}): a pole of the parameterisation; exclude it "
+                "from the domain"
+            )
+        return problems

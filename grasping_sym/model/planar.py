@@ -109,7 +109,8 @@ class PlanarFingerScene:
         object.__setattr__(self, "outputs", tuple(self.outputs))
         problems = self._parameter_problems()
         if problems:
-            raise InvalidSceneError(problems)
+            # the error path: add the contour checks too, so every problem is named at once
+            raise InvalidSceneError(problems + self._geometry_problems(problems))
 
     @cached_property
     def _initial(self) -> tuple[float, tuple[float, float]]:
@@ -146,12 +147,19 @@ class PlanarFingerScene:
         needed. A scene served from the build cache has the content hash of one that passed.
         """
         problems = self._parameter_problems()
+        problems += self._geometry_problems(problems)
+        if problems:
+            raise InvalidSceneError(problems)
+
+    def _geometry_problems(self, known: list[str]) -> list[str]:
+        """Contour regularity, and (when all else is valid) the relative curvature."""
+        problems: list[str] = []
         for label, curve in (("fingertip", self.fingertip), ("object", self.object)):
             try:
                 curve.check()
             except InvalidCurveError as exc:
                 problems.append(f"{label} contour: {exc}")
-        if not problems and all(_finite(u) for u in (self.u0_0, self.u1_0)):
+        if not (known or problems) and all(_finite(u) for u in (self.u0_0, self.u1_0)):
             k0 = float(self.fingertip.evaluate(self.u0_0)["curvature"])
             k1 = -float(self.object.evaluate(self.u1_0)["curvature"])
             if not k0 + k1 > 0:
@@ -161,8 +169,7 @@ class PlanarFingerScene:
                     "contour must run counterclockwise and the object contour clockwise about "
                     "their bodies (e.g. clockwise=True for a library object contour)"
                 )
-        if problems:
-            raise InvalidSceneError(problems)
+        return problems
 
     def _parameter_problems(self) -> list[str]:
         """Checks that need no numeric evaluation of the contours."""
