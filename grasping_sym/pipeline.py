@@ -79,7 +79,7 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
         "upper": upper,
         "pivot": list(scene.pivot),
         "op_counts": ops,
-        "driver_defines": driver_defines(cm.rhs, cm.outputs),
+        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac),
         "c_symbols": [f.name() for f in cm.functions()],
     }
     cwriter.write_manifest(directory, manifest)

@@ -8,7 +8,8 @@ Two call paths exist:
   are bound directly to its ``METH_FASTCALL`` functions (about 0.3 us per call);
 * **ctypes path** -- always available; used for :meth:`CompiledLibrary.rk4` and
   :meth:`CompiledLibrary.rhs_loop_ns` (which release the GIL), and as a fallback
-  for the evaluation functions (a few us per call).
+  for the evaluation functions (a few us per call); :meth:`CompiledLibrary.radau5`
+  (adaptive Radau IIA of order 5, whole loop in C) also goes through ctypes.
 
 Both paths have the same semantics: inputs are converted with
 ``np.ascontiguousarray(dtype=float)``, shapes are checked (``ValueError`` naming
@@ -19,6 +20,7 @@ from __future__ import annotations
 import ctypes
 import math
 import sysconfig
+from time import perf_counter as _perf_counter
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
@@ -44,16 +46,19 @@ DRIVER_C: Path = _C_DIR / "driver.c"
 #: The optional CPython extension giving the sub-microsecond call path.
 PYFAST_C: Path = _C_DIR / "pyfast.c"
 
-# Return codes of gs_rk4 (see driver.c).
-_ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS = -1, -2, -3, -4
+# Return codes of gs_rk4 and gs_radau5 (see driver.c).
+_ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
 _RK4_EXTRA_ROWS = 2
+_RADAU_EXTRA_ROWS = 1
+_RADAU_STATS = ("n_steps", "n_rejected", "n_rhs", "n_jac", "n_lu", "n_newton")
 
 _dp = ctypes.c_void_p
 _long = ctypes.c_long
 _double = ctypes.c_double
 
 
-def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None) -> dict[str, str | int]:
+def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
+                   jac_fn: Any | None = None) -> dict[str, str | int]:
     """Preprocessor macros for ``driver.c`` from the CasADi functions used.
 
     Parameters
@@ -62,14 +67,20 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None) -> dict[str, str 
         The DAE right-hand side ``<prefix>_rhs`` with inputs (t, x, z, p, u).
     outputs_fn : casadi.Function, optional
         ``<prefix>_outputs`` with inputs (x, p) and one output y.
+    jac_fn : casadi.Function, optional
+        ``rhs_fn.jacobian()`` (named ``jac_<prefix>_rhs``): inputs (t, x, z, p, u,
+        nominal outputs...), one output block per (output, input) pair; the block
+        ``jac_ode_x`` (d ode / d x, nx x nx) is used by ``gs_radau5``.  Without it
+        ``gs_radau5`` falls back to a finite-difference Jacobian.
 
     Returns
     -------
     dict
-        ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_SZ_ARG,
-        GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes are maxima over both functions.
+        ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_HAS_JAC, [GS_JAC,
+        GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW,
+        GS_SZ_W``; sizes are maxima over all the functions given.
     """
-    fns = [rhs_fn] + ([outputs_fn] if outputs_fn is not None else [])
+    fns = [rhs_fn] + [f for f in (outputs_fn, jac_fn) if f is not None]
     defines: dict[str, str | int] = {
         "GS_RHS": rhs_fn.name(),
         "GS_NX": int(rhs_fn.numel_in(1)),
@@ -84,6 +95,21 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None) -> dict[str, str 
             )
         defines["GS_OUT"] = outputs_fn.name()
         defines["GS_NY"] = int(outputs_fn.numel_out(0))
+    defines["GS_HAS_JAC"] = int(jac_fn is not None)
+    if jac_fn is not None:
+        nx = defines["GS_NX"]
+        names_out = [jac_fn.name_out(i) for i in range(jac_fn.n_out())]
+        block = names_out.index("jac_ode_x") if "jac_ode_x" in names_out else 1
+        names_in = [jac_fn.name_in(i) for i in range(min(5, jac_fn.n_in()))]
+        if (jac_fn.n_in() < 5 or names_in[1] != rhs_fn.name_in(1) or names_in[3] != rhs_fn.name_in(3)
+                or jac_fn.n_out() <= block or jac_fn.size_out(block) != (nx, nx)):
+            raise ValueError(
+                f"Jacobian function {jac_fn.name()!r} must be {rhs_fn.name()!r}.jacobian(): inputs "
+                f"(t, x, z, p, u, ...) and an output jac_ode_x of shape ({nx}, {nx}); got inputs "
+                f"{names_in}, outputs {names_out[:3]}..."
+            )
+        defines.update({"GS_JAC": jac_fn.name(), "GS_JAC_NIN": int(jac_fn.n_in()),
+                        "GS_JAC_NOUT": int(jac_fn.n_out()), "GS_JAC_BLOCK": int(block)})
     for key, meth in (("GS_SZ_ARG", "sz_arg"), ("GS_SZ_RES", "sz_res"), ("GS_SZ_IW", "sz_iw"), ("GS_SZ_W", "sz_w")):
         defines[key] = max(int(getattr(f, meth)()) for f in fns)
     return defines
@@ -99,6 +125,7 @@ def build_library(
     rhs_fn: Any,
     outputs_fn: Any | None = None,
     fast: bool = True,
+    jac_fn: Any | None = None,
 ) -> Path:
     """Compile a CasADi-generated C file with the driver into ``out``.
 
@@ -114,6 +141,9 @@ def build_library(
         Also compile ``pyfast.c`` so the library doubles as a CPython extension
         (needs ``Python.h``; the result is then tied to this interpreter's ABI,
         so include ``sys.version`` and the NumPy version in cache keys).
+    jac_fn : casadi.Function, optional
+        ``rhs_fn.jacobian()`` if it was generated into ``casadi_c``: used by
+        :meth:`CompiledLibrary.radau5` (finite differences otherwise).
 
     Returns
     -------
@@ -122,7 +152,8 @@ def build_library(
     """
     sources = [Path(casadi_c), DRIVER_C] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
-    return compile_shared(sources, Path(out), driver_defines(rhs_fn, outputs_fn), include_dirs=include_dirs)
+    return compile_shared(sources, Path(out), driver_defines(rhs_fn, outputs_fn, jac_fn),
+                          include_dirs=include_dirs)
 
 
 def _as_vector(a: Any, n: int, name: str) -> np.ndarray:
@@ -201,6 +232,10 @@ class CompiledLibrary:
         self._c_rk4 = lib.gs_rk4
         self._c_rk4.argtypes = [_double, _double, _long, _long, _dp, _dp, _dp, _dp, _dp, ctypes.POINTER(_double)]
         self._c_rk4.restype = _long
+        self._c_radau = lib.gs_radau5
+        self._c_radau.argtypes = [_double, _long, _dp, _dp, _dp, _double, _double, _double, _long,
+                                  _dp, _dp, _dp, _dp, ctypes.POINTER(_double)]
+        self._c_radau.restype = _long
         self._c_loop = lib.gs_rhs_loop_ns
         self._c_loop.argtypes = [_long, _dp, _dp]
         self._c_loop.restype = _double
@@ -414,6 +449,137 @@ class CompiledLibrary:
         err.code = int(rc)  # type: ignore[attr-defined]
         t_stored = t0 + h_eff * stride * np.arange(r)
         err.trajectory = (t_stored, out[:r].copy())  # type: ignore[attr-defined]
+        raise err
+
+    def radau5(
+        self,
+        x0: Any,
+        t_out: Any,
+        p: Any = None,
+        rtol: float = 1e-6,
+        atol: float = 1e-9,
+        h0: float = 0.0,
+        max_steps: int = 100_000,
+        lo: Any = None,
+        hi: Any = None,
+    ) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Integrate with adaptive Radau IIA of order 5, entirely in C (GIL released).
+
+        A port of scipy's ``Radau`` (Hairer & Wanner, *Solving ODEs II*, IV.8):
+        simplified Newton with Jacobian reuse, embedded error estimate, predictive
+        step control, collocation-polynomial dense output at ``t_out``.  The
+        Jacobian is the compiled ``jac_<name>_rhs`` when the library has it (see
+        :func:`driver_defines`), forward differences otherwise.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (nx,)
+            State at ``t_out[0]`` (the start time); finite and within [lo, hi].
+        t_out : array_like, shape (m,), m >= 2
+            Strictly increasing output times (s); integration runs from
+            ``t_out[0]`` to ``t_out[-1]``.
+        p : array_like, shape (np,), optional
+        rtol, atol : float
+            Local error tolerances (weights ``atol + rtol * |x|``, RMS norm);
+            ``rtol`` below 100 machine epsilon is raised to it.
+        h0 : float
+            First step (s); 0 chooses it automatically (scipy's
+            ``select_initial_step``).
+        max_steps : int
+            Maximum number of accepted steps.
+        lo, hi : array_like, shape (nx,), optional
+            Bounds checked at the end of every accepted step.
+
+        Returns
+        -------
+        t : numpy.ndarray, shape (m,)
+            ``t_out`` as floats.
+        X : numpy.ndarray, shape (m, nx)
+            States at ``t``.
+        stats : dict
+            ``n_steps, n_rejected, n_rhs, n_jac, n_lu, n_newton`` (counts;
+            rejected counts error-test and Newton failures; each LU of the real
+            and of the complex matrix counts one), ``h_last`` and ``wall_time`` (s).
+
+        Raises
+        ------
+        IntegratorError
+            With ``err.t`` / ``err.x`` the last accepted time and state, ``err.code``
+            the C return code, ``err.trajectory`` the output rows up to ``err.t``
+            and, for a non-finite or out-of-bounds state, ``err.x_rejected``.
+        """
+        x0a = _as_vector(x0, self.nx, "x0")
+        pa = self._p(p)
+        t_arr = np.ascontiguousarray(t_out, dtype=float)
+        if t_arr.ndim != 1 or t_arr.size < 2 or not np.all(np.isfinite(t_arr)) or np.any(np.diff(t_arr) <= 0):
+            raise ValueError("t_out must be a finite, strictly increasing 1-D array of at least two times")
+        lo_a = np.full(self.nx, -np.inf) if lo is None else _as_vector(lo, self.nx, "lo")
+        hi_a = np.full(self.nx, np.inf) if hi is None else _as_vector(hi, self.nx, "hi")
+        rtol, atol, h0 = float(rtol), float(atol), float(h0)
+        if not (math.isfinite(rtol) and rtol > 0 and math.isfinite(atol) and atol >= 0):
+            raise ValueError(f"need finite rtol > 0 and atol >= 0, got rtol = {rtol}, atol = {atol}")
+        if not (math.isfinite(h0) and h0 >= 0):
+            raise ValueError(f"h0 must be finite and >= 0 (0 = automatic), got {h0}")
+        max_steps = int(max_steps)
+        if max_steps < 1:
+            raise ValueError(f"max_steps must be >= 1, got {max_steps}")
+        t0 = float(t_arr[0])
+        bad = self._violation(x0a, lo_a, hi_a)
+        if bad:
+            raise IntegratorError(t0, x0a, f"initial state: {bad}", self.state_names)
+
+        m = t_arr.size
+        out = np.empty((m + _RADAU_EXTRA_ROWS, self.nx))
+        stats_a = np.zeros(8)
+        t_fail = _double(math.nan)
+        start = _perf_counter()
+        rc = self._c_radau(
+            t0, m, t_arr.ctypes.data, x0a.ctypes.data, self._ptr(pa), rtol, atol, h0, max_steps,
+            lo_a.ctypes.data, hi_a.ctypes.data, out.ctypes.data, stats_a.ctypes.data,
+            ctypes.byref(t_fail),
+        )
+        wall = _perf_counter() - start
+        stats: dict = {k: int(stats_a[i]) for i, k in enumerate(_RADAU_STATS)}
+        stats["h_last"] = float(stats_a[7])
+        stats["wall_time"] = wall
+        if rc >= 0:
+            if rc != m:
+                raise RuntimeError(f"gs_radau5 returned {rc}, expected {m}")
+            return t_arr.copy(), out[:m].copy(), stats
+        if rc == _ERR_ARGS:
+            raise ValueError(f"gs_radau5 rejected its arguments (rtol = {rtol}, atol = {atol}, "
+                             f"h0 = {h0}, max_steps = {max_steps})")
+        tf = t_fail.value
+        r = int(stats_a[6])
+        x_good = out[r].copy()
+        x_bad = out[r + 1].copy()
+        after = f"after t = {tf:.6g} s"
+        if rc == _ERR_NONFINITE:
+            if np.all(np.isfinite(x_bad)):
+                reason = (f"radau: the right-hand side became non-finite at the end of the step "
+                          f"{after} (state {x_bad.tolist()})")
+            else:
+                idx = np.flatnonzero(~np.isfinite(x_bad)).tolist()
+                reason = f"radau: state component(s) {idx} became non-finite in the step {after}"
+        elif rc == _ERR_BOUNDS:
+            reason = "radau: " + self._violation(x_bad, lo_a, hi_a) + f" in the step {after}"
+        elif rc == _ERR_EVAL:
+            reason = f"radau: the CasADi function reported an evaluation error in the step {after}"
+        elif rc == _ERR_STEP:
+            reason = (f"radau: step size fell below the minimum at t = {tf:.6g} s (Newton iteration "
+                      "or error test failed repeatedly: a stiff blow-up, a singularity, or "
+                      "tolerances too tight)")
+        elif rc == _ERR_MAXSTEPS:
+            reason = (f"radau: too many steps ({max_steps}) before reaching t = {t_arr[-1]:.6g} s "
+                      f"(stopped at t = {tf:.6g} s; raise max_steps or loosen rtol/atol)")
+        else:
+            reason = f"radau: gs_radau5 returned unknown code {rc}"
+        err = IntegratorError(tf, x_good, reason, self.state_names)
+        err.code = int(rc)  # type: ignore[attr-defined]
+        err.stats = stats  # type: ignore[attr-defined]
+        if rc in (_ERR_NONFINITE, _ERR_BOUNDS):
+            err.x_rejected = x_bad  # type: ignore[attr-defined]
+        err.trajectory = (t_arr[:r].copy(), out[:r].copy())  # type: ignore[attr-defined]
         raise err
 
     @staticmethod
