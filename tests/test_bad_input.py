@@ -12,7 +12,7 @@ import pytest
 import grasping_sym as gs
 from grasping_sym.errors import ContactLeftContourError, InvalidSceneError
 from grasping_sym.geometry import library
-from grasping_sym.geometry.curves import T, PlanarCurve
+from grasping_sym.geometry.curves import PlanarCurve, T
 
 
 # ------------------------------------------------------------------ scenes

@@ -13,7 +13,7 @@ import sympy as sp
 
 from grasping_sym.errors import InvalidCurveError
 from grasping_sym.geometry import library
-from grasping_sym.geometry.curves import T, PlanarCurve
+from grasping_sym.geometry.curves import PlanarCurve, T
 
 #: Vertex offset of the paper's object catenary (paper eqs 39-40), m.
 S_OBJ = 3.363e-3

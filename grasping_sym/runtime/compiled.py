@@ -20,11 +20,11 @@ from __future__ import annotations
 import ctypes
 import math
 import sysconfig
-from time import perf_counter as _perf_counter
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
 from pathlib import Path
+from time import perf_counter as _perf_counter
 from typing import Any
 
 import numpy as np

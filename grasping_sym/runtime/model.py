@@ -151,12 +151,14 @@ class Model:
         if not np.all(np.isfinite(x0)):
             raise ValueError(f"x0 = {x0} has non-finite entries")
         self._check_bounds(0.0, x0)
+        _positive("rtol", rtol)
+        _positive("atol", atol)
+        if method == "rk4":
+            _positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
+        if not (isinstance(max_steps, int) and max_steps > 0):
+            raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
         p = self.params(params)
-        if t_eval is None:
-            t_eval = np.linspace(0.0, t_final, int(round(t_final * 1000)) + 1)
-        t_eval = np.asarray(t_eval, dtype=float)
-        if t_eval.ndim != 1 or len(t_eval) < 2 or np.any(np.diff(t_eval) <= 0):
-            raise ValueError("t_eval must be an increasing 1-D array of at least two times")
+        t_eval, drop_first = _output_times(t_eval, float(t_final))
         if method in ("rk4", "radau"):
             try:
                 if method == "rk4":
@@ -172,6 +174,8 @@ class Model:
                                                max_steps)
             for i in range(len(t)):
                 self._check_bounds(t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
+        if drop_first:
+            t, X = t[1:], X[1:]
         outs = self.outputs_batch(X, p) if outputs and self.output_names else {}
         pdict = dict(zip(self.param_names, [] if p is None else map(float, p)))
         return SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
@@ -206,3 +210,33 @@ class Model:
                     setattr(new, key, getattr(exc, key))
             return new
         return exc
+
+
+def _positive(name: str, value, what: str = "") -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        extra = f" ({what})" if what else ""
+        raise ValueError(f"{name} = {value!r} must be a finite number > 0{extra}")
+
+
+def _output_times(t_eval, t_final: float) -> tuple[np.ndarray, bool]:
+    """Validated output times from 0 to ``t_final``; a leading 0 is added if missing."""
+    if t_eval is None:
+        return np.linspace(0.0, t_final, int(round(t_final * 1000)) + 1), False
+    t_eval = np.asarray(t_eval, dtype=float)
+    if t_eval.ndim != 1 or len(t_eval) < 1:
+        raise ValueError(f"t_eval must be a 1-D array of output times, got shape {t_eval.shape}")
+    if not np.all(np.isfinite(t_eval)):
+        raise ValueError(f"t_eval has non-finite entries at indices "
+                         f"{np.flatnonzero(~np.isfinite(t_eval)).tolist()}: give finite times")
+    if np.any(np.diff(t_eval) <= 0):
+        raise ValueError("t_eval must be strictly increasing")
+    if t_eval[0] < 0:
+        raise ValueError(f"t_eval starts at {t_eval[0]} < 0: the initial state is at t = 0")
+    if abs(t_eval[-1] - t_final) > 1e-12 * max(1.0, t_final):
+        raise ValueError(f"t_eval ends at {t_eval[-1]!r} but t_final = {t_final!r}: make the "
+                         "last output time equal to t_final")
+    if t_eval[0] > 0:
+        return np.concatenate([[0.0], t_eval]), True
+    if len(t_eval) < 2:
+        raise ValueError("t_eval needs a time after 0")
+    return t_eval, False
