@@ -381,6 +381,7 @@ def plot_work_precision(res: dict, path: Path) -> None:
 
     fig, ax = plt.subplots(figsize=(11.0, 6.0))
     styles = {"cvodes": ("C0", "o", "-"), "idas": ("C1", "s", "-"), "rk4": ("C2", "^", "-"),
+              "radau": ("C6", "*", "-"),
               "lambdify+LSODA": ("C3", "D", "--"), "lambdify+Radau": ("C4", "v", "--"),
               "lambdify+DOP853": ("C5", "P", "--")}
     groups: dict[str, list] = {}

@@ -96,18 +96,35 @@ def _define_flags(defines: Mapping[str, str | int | bool | None]) -> list[str]:
 
 
 def _run(cmd: list[str], what: str) -> None:
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    except OSError as exc:  # compiler vanished or is not executable
-        raise CompileError(f"{what} failed: could not run the compiler: {exc}\ncommand: {shlex.join(cmd)}") from exc
-    if proc.returncode != 0:
+    _run_all([(cmd, what)])
+
+
+def _run_all(jobs: list[tuple[list[str], str]]) -> None:
+    """Run compiler commands concurrently (one per source file); raise on the first failure."""
+    procs = []
+    for cmd, what in jobs:
+        try:
+            procs.append((subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                           text=True), cmd, what))
+        except OSError as exc:  # compiler vanished or is not executable
+            for p, _, _ in procs:
+                p.kill()
+            raise CompileError(f"{what} failed: could not run the compiler: {exc}\n"
+                               f"command: {shlex.join(cmd)}") from exc
+    results = [(p.communicate(), p.returncode, cmd, what) for p, cmd, what in procs]
+    for (stdout, stderr), code, cmd, what in results:
+        _check(code, stdout, stderr, cmd, what)
+
+
+def _check(returncode: int, stdout: str, stderr: str, cmd: list[str], what: str) -> None:
+    if returncode != 0:
         raise CompileError(
-            f"{what} failed (exit code {proc.returncode}).\n"
+            f"{what} failed (exit code {returncode}).\n"
             f"command: {shlex.join(cmd)}\n"
-            f"compiler output:\n{proc.stderr.strip()}{proc.stdout.strip()}"
+            f"compiler output:\n{stderr.strip()}{stdout.strip()}"
         )
-    if proc.stderr.strip():
-        log.warning("%s produced compiler warnings:\n%s", what, proc.stderr.strip())
+    if stderr.strip():
+        log.warning("%s produced compiler warnings:\n%s", what, stderr.strip())
 
 
 def compile_shared(
@@ -161,12 +178,14 @@ def compile_shared(
         *extra_flags,
     ]
     with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.build-") as tmp:
-        objects = []
+        objects, jobs = [], []
         for i, src in enumerate(srcs):
             obj = Path(tmp) / f"{i}_{src.stem}.o"
             per_file = list(CASADI_FILE_FLAGS) if is_casadi_generated(src) else []
-            _run([*cc, *common, *per_file, "-c", str(src), "-o", str(obj)], f"compiling {src.name}")
+            jobs.append(([*cc, *common, *per_file, "-c", str(src), "-o", str(obj)],
+                         f"compiling {src.name}"))
             objects.append(str(obj))
+        _run_all(jobs)  # the files compile in parallel
         fd, tmp_out = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
         os.close(fd)
         try:
