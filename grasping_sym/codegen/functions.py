@@ -49,6 +49,7 @@ def build_casadi(system: ConstrainedSystem, leaves: dict, name: str) -> CasadiMo
     p = ca.SX.sym("p", npar)
     symbols = {s: x[i] for i, s in enumerate(system.state)}
     symbols.update({s: p[i] for i, s in enumerate(system.params)})
+    symbols.update({s: ca.SX(v) for s, v in system.constants.items()})  # folded
     tr = SympyToCasadi(symbols, leaves)
     pieces = [tr(mat) for mat in system.pieces()]
     v = x[system.n:2 * system.n]

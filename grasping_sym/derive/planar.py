@@ -42,8 +42,9 @@ def _rot(a: sp.Expr, v: sp.Matrix) -> sp.Matrix:
 def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
     """Derive the closed-loop pieces of a 2D scene.
 
-    Parameters that are not run-time inputs are substituted by their values here, so the
-    generated code folds them. Outputs are derived only when the scene requests them.
+    Parameters stay symbols here; ``system.constants`` gives the values of those that are
+    not run-time inputs, which the translation to CasADi folds into the code. Outputs are
+    derived only when the scene requests them.
     """
     th, q1, q2 = sp.symbols("theta q1 q2", real=True)
     dth, dq1, dq2 = sp.symbols("dtheta dq1 dq2", real=True)
@@ -142,16 +143,6 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
         "power": vf.dot(ctrl),
     }
     system.outputs = {k: available[k] for k in scene.outputs}
-    _fold(system, scene, P)
-    return system
-
-
-def _fold(system: ConstrainedSystem, scene: PlanarFingerScene, P: dict) -> None:
-    """Substitute folded parameter values; keep run-time ones as free symbols."""
-    folded = {P[k]: sp.Float(scene.params[k]) for k in P if k not in scene.runtime}
-    for name in ("mass_matrix", "bias", "force", "constraint", "constraint_jac",
-                 "constraint_rate", "acc_jac", "acc_bias", "csm_damping", "csm_stiffness",
-                 "contact_rates"):
-        setattr(system, name, getattr(system, name).xreplace(folded))
-    system.outputs = {k: sp.sympify(e).xreplace(folded) for k, e in system.outputs.items()}
     system.params = [P[k] for k in scene.runtime]
+    system.constants = {P[k]: float(scene.params[k]) for k in P if k not in scene.runtime}
+    return system

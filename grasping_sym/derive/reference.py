@@ -53,7 +53,8 @@ class ReferenceModel:
         self.system = system or derive_planar(scene)
         leaves = {**leaf_expressions(FINGERTIP, scene.fingertip),
                   **leaf_expressions(OBJECT, scene.object)}
-        args = [*self.system.state, *self.system.params]
+        self._constants = list(self.system.constants.values())
+        args = [*self.system.state, *self.system.params, *self.system.constants]
         self._pieces = [
             _lambdify(args, substitute_leaves(m, leaves))
             for m in self.system.pieces()
@@ -74,7 +75,7 @@ class ReferenceModel:
 
     def evaluate(self, x, p=None) -> tuple[np.ndarray, np.ndarray]:
         """``(xdot, mu)`` at state ``x``."""
-        args = [*np.ravel(x), *self._p(p)]
+        args = [*np.ravel(x), *self._p(p), *self._constants]
         pieces = [np.asarray(f(*args), dtype=float) for f in self._pieces]
         n = self.system.n
         v = np.asarray(x, dtype=float)[n:2 * n, None]
@@ -88,5 +89,5 @@ class ReferenceModel:
     def outputs(self, x, p=None) -> dict[str, float]:
         """The scene's requested outputs at ``x``."""
         _, mu = self.evaluate(x, p)
-        vals = np.ravel(self._outputs(*np.ravel(x), *self._p(p), *mu))
+        vals = np.ravel(self._outputs(*np.ravel(x), *self._p(p), *self._constants, *mu))
         return dict(zip(self.output_names, map(float, vals)))

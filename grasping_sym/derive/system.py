@@ -26,7 +26,7 @@ class ConstrainedSystem:
 
     state: list[sp.Symbol]            # [q (n), v (n), u (k)], the ODE state order
     n: int
-    params: list[sp.Symbol]           # every parameter symbol still free
+    params: list[sp.Symbol]           # run-time parameters (inputs of the compiled code)
     mass_matrix: sp.Matrix            # (n, n)
     bias: sp.Matrix                   # (n, 1) Coriolis/centrifugal + gravity
     force: sp.Matrix                  # (n, 1) generalised control force tau
@@ -40,6 +40,7 @@ class ConstrainedSystem:
     contact_rates: sp.Matrix          # (k, 1) sigma
     multipliers: list[sp.Symbol]      # mu symbols, used inside output expressions
     outputs: dict[str, sp.Expr] = field(default_factory=dict)
+    constants: dict[sp.Symbol, float] = field(default_factory=dict)  # folded parameters
     op_counts: dict[str, int] = field(default_factory=dict)
 
     @property
