@@ -81,15 +81,12 @@ def in_process_stages(scene_obj) -> dict:
     and the objects (``system``, ``casadi_model``) for later use (not serialised).
     """
     from grasping_sym.codegen.functions import build_casadi, sympy_op_counts
-    from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT, leaf_expressions
     from grasping_sym.derive.planar import derive_planar
 
     t0 = time.perf_counter()
     system = derive_planar(scene_obj)
     t1 = time.perf_counter()
-    leaves = {**leaf_expressions(FINGERTIP, scene_obj.fingertip),
-              **leaf_expressions(OBJECT, scene_obj.object)}
-    cm = build_casadi(system, leaves, scene_obj.name)
+    cm = build_casadi(system, scene_obj.fingertip, scene_obj.object, scene_obj.name)
     t2 = time.perf_counter()
     ops = sympy_op_counts(system)
     t3 = time.perf_counter()

@@ -6,7 +6,8 @@ Stages (timed in ``Model.build_info``):
    loaded at once: no derivation, no compilation;
 2. else, if ``generated/<name>/`` holds C with the same hash (built-in scenes), that C is
    compiled: no derivation;
-3. else derive with SymPy, translate to CasADi, write C; then compile and load.
+3. else compose the scene's contours onto the template of its structure (derived with
+   SymPy once per structure and stored, ``codegen.templates``), write C; compile and load.
 """
 from __future__ import annotations
 
@@ -19,11 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym import __version__
-from grasping_sym.codegen import cache, cwriter
+from grasping_sym.codegen import cache, cwriter, templates
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
-from grasping_sym.codegen.functions import build_casadi, sympy_op_counts
-from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT, leaf_expressions
-from grasping_sym.derive.planar import derive_planar
+from grasping_sym.codegen.functions import compose, sympy_op_counts
+from grasping_sym.derive.planar import derive_planar, has_gravity, parameter_values
 from grasping_sym.model.planar import PlanarFingerScene
 from grasping_sym.runtime.compiled import DRIVER_C, PYFAST_C, driver_defines
 from grasping_sym.runtime.model import Model
@@ -51,20 +51,23 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
     say = progress or (lambda msg: None)
     digest = code_hash(scene)
     t0 = time.perf_counter()
-    say(f"deriving {scene.name} with SymPy")
-    system = derive_planar(scene)
+    values = parameter_values(scene)  # validates the scene, solves the initial configuration
     t1 = time.perf_counter()
-    leaves = {**leaf_expressions(FINGERTIP, scene.fingertip),
-              **leaf_expressions(OBJECT, scene.object)}
-    say("translating to CasADi")
-    cm = build_casadi(system, leaves, scene.name)
+    say(f"template for {scene.name}'s structure (derived with SymPy once per structure)")
+    template, template_source = templates.planar_template(scene.shared_parameter,
+                                                          has_gravity(scene))
     t2 = time.perf_counter()
+    say("composing the contours onto the template (CasADi)")
+    cm = compose(template, scene.fingertip, scene.object, runtime=scene.runtime,
+                 constants={k: v for k, v in values.items() if k not in scene.runtime},
+                 outputs=scene.outputs, name=scene.name)
+    t3 = time.perf_counter()
     say(f"writing C into {directory}")
     cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
-    t3 = time.perf_counter()
+    t4 = time.perf_counter()
     ops = dict(cm.op_counts)
     if count_ops:
-        ops.update(sympy_op_counts(system))
+        ops.update(sympy_op_counts(derive_planar(scene)))
     lower, upper = _bounds(scene)
     manifest = {
         "name": scene.name,
@@ -83,7 +86,9 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
         "c_symbols": [f.name() for f in cm.functions()],
     }
     cwriter.write_manifest(directory, manifest)
-    manifest["timings"] = {"derive": t1 - t0, "translate": t2 - t1, "write_c": t3 - t2}
+    manifest["timings"] = {"validate": t1 - t0, "template": t2 - t1,
+                           "template_source": template_source, "compose": t3 - t2,
+                           "write_c": t4 - t3}
     return manifest
 
 
@@ -161,17 +166,30 @@ GENERATED_FILES = ("{name}.c", "{name}.h", "manifest.json")
 
 def generate_committed(names=None, *, check: bool = False,
                        root: Path | None = None) -> dict[str, list[str]]:
-    """Regenerate ``generated/<name>/`` for built-in scenes (all by default).
+    """Regenerate ``generated/<name>/`` for built-in scenes (all by default) and
+    ``generated/templates/`` for every planar structure.
 
-    With ``check=True`` nothing is written: returns, per scene, the files that differ
-    from a fresh generation (empty lists when up to date).
+    With ``check=True`` nothing is written: returns, per scene (and ``"templates"``), the
+    files that differ from a fresh generation (empty lists when up to date).
     """
     import tempfile  # noqa: PLC0415
 
     from grasping_sym.scenes import BUILTIN  # noqa: PLC0415
 
     root = Path(root) if root is not None else cache.REPO_GENERATED
-    differ: dict[str, list[str]] = {}
+    differ: dict[str, list[str]] = {"templates": []}
+    for shared, gravity in templates.PLANAR_STRUCTURES:
+        name = f"{templates.template_name(shared, gravity)}.json"
+        with tempfile.TemporaryDirectory() as tmp:
+            fresh = Path(tmp) / name
+            templates.write_template(fresh, templates.derive_and_build(shared, gravity),
+                                     templates.template_key(shared, gravity))
+            target = root / "templates" / name
+            if not target.exists() or target.read_bytes() != fresh.read_bytes():
+                differ["templates"].append(name)
+                if not check:
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(fresh, target)
     for name in names or sorted(BUILTIN):
         scene = BUILTIN[name]()
         with tempfile.TemporaryDirectory() as tmp:

@@ -33,7 +33,8 @@ def cache_root() -> Path:
 
 
 @lru_cache(maxsize=1)
-def _sources_digest() -> str:
+def sources_digest() -> str:
+    """Hash of the source text of the modules that shape generated code."""
     h = hashlib.sha256()
     for sub in HASHED_SOURCES:
         for path in sorted((PACKAGE_DIR / sub).rglob("*")):
@@ -50,7 +51,7 @@ def content_hash(scene_key: str, version: str, compiler_flags: tuple[str, ...]) 
         "grasping_sym": version,
         "casadi": ca.__version__,
         "compiler_flags": " ".join(compiler_flags),
-        "sources": _sources_digest(),
+        "sources": sources_digest(),
     }
     h = hashlib.sha256("\n".join(f"{k}={inputs[k]}" for k in sorted(inputs)).encode())
     return {"hash": h.hexdigest(), "inputs": inputs}

@@ -13,7 +13,9 @@ import casadi as ca
 import sympy as sp
 
 from grasping_sym.codegen.translate import SympyToCasadi
+from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT, leaf_expressions
 from grasping_sym.derive.system import ConstrainedSystem, assemble
+from grasping_sym.geometry.curves import T
 
 #: CasADi Function options: eliminate common subexpressions in the SX graph.
 FUNCTION_OPTIONS = {"cse": True}
@@ -42,19 +44,96 @@ def _casadi_backend():
     )
 
 
-def build_casadi(system: ConstrainedSystem, leaves: dict, name: str) -> CasadiModel:
-    """Translate ``system`` (with concrete contour ``leaves``) into CasADi functions."""
-    nx, npar = len(system.state), len(system.params)
+@dataclass
+class Template:
+    """A scene structure's closed loop as CasADi functions of ``(x, q, L)``.
+
+    ``q`` holds every parameter (``param_names``), ``L`` the values at the contact of the
+    abstract contour functions (``contour_functions``): the fingertip's at ``x[contact_index
+    [0]]`` then the object's at ``x[contact_index[1]]``. ``compose`` turns it into one
+    scene's functions; the shape enters only there, so a new shape needs no derivation.
+    """
+
+    rhs: ca.Function                  # (x, q, L) -> xdot
+    outputs: ca.Function              # (x, q, L) -> every output
+    state_names: tuple[str, ...]
+    param_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    contact_index: tuple[int, int]
+
+    def to_json(self) -> dict:
+        return {"rhs": self.rhs.serialize(), "outputs": self.outputs.serialize(),
+                "state_names": list(self.state_names), "param_names": list(self.param_names),
+                "output_names": list(self.output_names),
+                "contact_index": list(self.contact_index)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> Template:
+        return cls(rhs=ca.Function.deserialize(d["rhs"]),
+                   outputs=ca.Function.deserialize(d["outputs"]),
+                   state_names=tuple(d["state_names"]), param_names=tuple(d["param_names"]),
+                   output_names=tuple(d["output_names"]),
+                   contact_index=tuple(d["contact_index"]))
+
+
+def build_template(system: ConstrainedSystem) -> Template:
+    """Translate a derived system into a ``Template``.
+
+    ``system.params`` and then ``system.constants``' symbols become ``q``; every outputs of
+    ``system.outputs`` is kept.
+    """
+    names = [str(s) for s in system.state]
+    nx = len(names)
+    i0, i1 = (nx - 1, nx - 1) if names[-1] == "s" else (nx - 2, nx - 1)
+    qsyms = [*system.params, *system.constants]
     x = ca.SX.sym("x", nx)
-    p = ca.SX.sym("p", npar)
+    q = ca.SX.sym("q", len(qsyms))
+    leaf_classes = [*FINGERTIP.leaves(), *OBJECT.leaves()]
+    L = ca.SX.sym("L", len(leaf_classes))
     symbols = {s: x[i] for i, s in enumerate(system.state)}
-    symbols.update({s: p[i] for i, s in enumerate(system.params)})
-    symbols.update({s: ca.SX(v) for s, v in system.constants.items()})  # folded
-    tr = SympyToCasadi(symbols, leaves)
+    symbols.update({s: q[i] for i, s in enumerate(qsyms)})
+    u0, u1 = system.state[i0], system.state[i1]
+    for k, cls in enumerate(leaf_classes):
+        symbols[cls(u0 if k < len(FINGERTIP.leaves()) else u1)] = L[k]
+    tr = SympyToCasadi(symbols)
     pieces = [tr(mat) for mat in system.pieces()]
     v = x[system.n:2 * system.n]
     xdot, mu = assemble(system.n, v, pieces, **_casadi_backend())
+    for i, m in enumerate(system.multipliers):
+        tr.memo[m] = mu[i]
+    out_names = tuple(system.outputs)
+    y = ca.vertcat(*[tr(system.outputs[k]) for k in out_names]) if out_names else ca.SX(0, 1)
+    return Template(
+        rhs=ca.Function("template_rhs", [x, q, L], [xdot], ["x", "q", "L"], ["xdot"]),
+        outputs=ca.Function("template_outputs", [x, q, L], [y], ["x", "q", "L"], ["y"]),
+        state_names=tuple(names), param_names=tuple(str(s) for s in qsyms),
+        output_names=out_names, contact_index=(i0, i1),
+    )
 
+
+def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
+            constants: dict[str, float], outputs: tuple[str, ...], name: str) -> CasadiModel:
+    """One scene's CasADi functions from a template, the two contours and the parameters.
+
+    ``runtime`` parameters become the input ``p`` (in that order); ``constants`` give the
+    value of every other template parameter, folded into the code.
+    """
+    nx = len(template.state_names)
+    x = ca.SX.sym("x", nx)
+    p = ca.SX.sym("p", len(runtime))
+    missing = [k for k in template.param_names if k not in runtime and k not in constants]
+    if missing:
+        raise ValueError(f"no value for template parameters {missing}")
+    q = ca.vertcat(*[p[runtime.index(k)] if k in runtime else ca.SX(constants[k])
+                     for k in template.param_names])
+    L = []
+    for fns, curve, i in ((FINGERTIP, fingertip, template.contact_index[0]),
+                          (OBJECT, object_, template.contact_index[1])):
+        tr = SympyToCasadi({T: x[i]})
+        concrete = leaf_expressions(fns, curve)
+        L += [tr(concrete[cls]) for cls in fns.leaves()]
+    L = ca.vertcat(*L)
+    xdot = template.rhs(x, q, L)
     t = ca.SX.sym("t")
     empty = ca.SX(0, 1)
     dyn_in = [t, x, empty, p, empty]
@@ -68,17 +147,23 @@ def build_casadi(system: ConstrainedSystem, leaves: dict, name: str) -> CasadiMo
         "rhs_sx_instructions": rhs.n_instructions(),
         "jac_sx_instructions": jac.n_instructions(),
     }
-    outputs = None
-    names = tuple(system.outputs)
-    if names:
-        for i, m in enumerate(system.multipliers):
-            tr.memo[m] = mu[i]
-        y = ca.vertcat(*[tr(system.outputs[k]) for k in names])
-        outputs = ca.Function(f"{name}_outputs", [x, p], [y], ["x", "p"], ["y"],
-                              FUNCTION_OPTIONS)
-        op_counts["outputs_sx_instructions"] = outputs.n_instructions()
-    return CasadiModel(rhs=rhs, jac=jac, outputs=outputs, output_names=names,
+    out_fn = None
+    if outputs:
+        y_all = template.outputs(x, q, L)
+        y = ca.vertcat(*[y_all[template.output_names.index(k)] for k in outputs])
+        out_fn = ca.Function(f"{name}_outputs", [x, p], [y], ["x", "p"], ["y"],
+                             FUNCTION_OPTIONS)
+        op_counts["outputs_sx_instructions"] = out_fn.n_instructions()
+    return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=tuple(outputs),
                        op_counts=op_counts)
+
+
+def build_casadi(system: ConstrainedSystem, fingertip, object_, name: str) -> CasadiModel:
+    """A scene's CasADi functions straight from its derived system (template + compose)."""
+    template = build_template(system)
+    constants = {str(k): v for k, v in system.constants.items()}
+    return compose(template, fingertip, object_, runtime=tuple(str(s) for s in system.params),
+                   constants=constants, outputs=tuple(system.outputs), name=name)
 
 
 def sympy_op_counts(system: ConstrainedSystem) -> dict[str, int]:

@@ -27,6 +27,9 @@ written for any parameterisation as ``u0' = s'/|c0'(u0)|``, ``u1' = s'/|c1'(u1)|
 """
 from __future__ import annotations
 
+from dataclasses import replace
+from functools import lru_cache
+
 import sympy as sp
 
 from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT
@@ -39,16 +42,54 @@ def _rot(a: sp.Expr, v: sp.Matrix) -> sp.Matrix:
     return sp.Matrix([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
 
-def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
-    """Derive the closed-loop pieces of a 2D scene.
+def template_parameters(gravity: bool) -> tuple[str, ...]:
+    """Names of every parameter of a template, in order (the pivot and gravity included)."""
+    return (*PARAMETERS, "xm", "ym", *(("gx", "gy") if gravity else ()))
 
-    Parameters stay symbols here; ``system.constants`` gives the values of those that are
-    not run-time inputs, which the translation to CasADi folds into the code. Outputs are
-    derived only when the scene requests them.
+
+def has_gravity(scene: PlanarFingerScene) -> bool:
+    """Whether the scene models gravity at all (no terms are derived otherwise)."""
+    return scene.gravity is not None and any(scene.gravity)
+
+
+def parameter_values(scene: PlanarFingerScene) -> dict[str, float]:
+    """Values of every template parameter for ``scene`` (solves the initial configuration)."""
+    values = {k: float(scene.params[k]) for k in PARAMETERS}
+    values["xm"], values["ym"] = scene.pivot
+    if has_gravity(scene):
+        values["gx"], values["gy"] = (float(g) for g in scene.gravity)
+    return values
+
+
+def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
+    """The closed-loop pieces of ``scene``: its template with the scene's choices.
+
+    Parameters stay symbols; ``system.params`` are the run-time inputs and
+    ``system.constants`` the values of the others, which the translation to CasADi folds
+    into the code. ``system.outputs`` holds only the outputs the scene requests.
+    """
+    template = derive_template(scene.shared_parameter, has_gravity(scene))
+    values = parameter_values(scene)
+    symbols = {str(sym): sym for sym in template.params}
+    return replace(
+        template,
+        outputs={k: template.outputs[k] for k in scene.outputs},
+        params=[symbols[k] for k in scene.runtime],
+        constants={symbols[k]: v for k, v in values.items() if k not in scene.runtime},
+    )
+
+
+@lru_cache(maxsize=8)
+def derive_template(shared: bool, gravity: bool) -> ConstrainedSystem:
+    """Derive the 2D model for any contours, with every parameter a symbol.
+
+    Depends only on the structure: one shared contact parameter ``s`` (both contours
+    unit-speed) or two (``u0``, ``u1``), and whether gravity is modelled. The contours enter
+    through the abstract functions of ``contour_functions``; every output is derived.
     """
     th, q1, q2 = sp.symbols("theta q1 q2", real=True)
     dth, dq1, dq2 = sp.symbols("dtheta dq1 dq2", real=True)
-    if scene.shared_parameter:
+    if shared:
         s = sp.Symbol("s", real=True)
         u0 = u1 = s
         us = [s]
@@ -57,9 +98,8 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
         us = [u0, u1]
     q = sp.Matrix([th, q1, q2])
     v = sp.Matrix([dth, dq1, dq2])
-    P = {k: sp.Symbol(k, positive=True) for k in PARAMETERS}
-    xm, ym = (sp.Float(c) for c in scene.pivot)
-    Om = sp.Matrix([xm, ym])
+    P = {k: sp.Symbol(k, real=True) for k in template_parameters(gravity)}
+    Om = sp.Matrix([P["xm"], P["ym"]])
 
     # ---- finger kinematics and Lagrangian (uniform rods, joints at the origin)
     l11, l12, m11, m12 = P["l11"], P["l12"], P["m11"], P["m12"]
@@ -76,8 +116,8 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
            + m11 * l11**2 / 12 * dq1**2 + m12 * l12**2 / 12 * (dq1 + dq2) ** 2
            + P["I"] * dth**2) / 2
     pot = sp.Integer(0)
-    if scene.gravity is not None and any(scene.gravity):
-        g = sp.Matrix([sp.Float(c) for c in scene.gravity])
+    if gravity:
+        g = sp.Matrix([P["gx"], P["gy"]])
         pot = -(m11 * g.dot(com1) + m12 * g.dot(com2))
     M = sp.hessian(kin, v)
     Mv = M * v
@@ -104,7 +144,7 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
 
     # ---- update law (29), for any parameterisation
     sdot = (dq1 + dq2 - dth) / (kappa0 + kappa1)
-    if scene.shared_parameter:
+    if shared:
         sigma = sp.Matrix([sdot])
     else:
         sigma = sp.Matrix([sdot / F0.speed(u0), sdot / F1.speed(u1)])
@@ -142,7 +182,6 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
         "tangency_defect": delta, "kinetic_energy": kin, "potential_energy": pot,
         "power": vf.dot(ctrl),
     }
-    system.outputs = {k: available[k] for k in scene.outputs}
-    system.params = [P[k] for k in scene.runtime]
-    system.constants = {P[k]: float(scene.params[k]) for k in P if k not in scene.runtime}
+    system.outputs = available
+    system.params = list(P.values())
     return system

@@ -1,0 +1,70 @@
+"""Where templates come from: the user cache, the committed ones, or a fresh derivation.
+
+A template (``functions.Template``) depends only on a scene's structure, so it is derived
+with SymPy once per structure and stored as serialized CasADi functions under
+``<cache root>/templates/`` (and, for the structures of the built-in scenes and their
+variants, committed under ``generated/templates/``). A new shape is then composed onto a
+stored template: no SymPy derivation on the way to C.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import casadi as ca
+
+from grasping_sym.codegen import cache
+from grasping_sym.codegen.functions import Template, build_template
+from grasping_sym.derive.planar import derive_template
+
+#: The planar structures: (one shared contact parameter?, gravity?).
+PLANAR_STRUCTURES = ((True, False), (False, False), (True, True), (False, True))
+
+
+def template_name(shared: bool, gravity: bool) -> str:
+    return f"planar-{'s' if shared else 'u0u1'}-{'gravity' if gravity else 'horizontal'}"
+
+
+def template_key(shared: bool, gravity: bool) -> str:
+    """Hash of what a template depends on: the structure, the sources, CasADi's version."""
+    text = f"{template_name(shared, gravity)}|{cache.sources_digest()}|{ca.__version__}"
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def committed_templates_dir() -> Path:
+    return cache.REPO_GENERATED / "templates"
+
+
+def _read(path: Path, key: str) -> Template | None:
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return Template.from_json(d) if d.get("key") == key else None
+
+
+def write_template(path: Path, template: Template, key: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp-{os.getpid()}")
+    tmp.write_text(json.dumps({"key": key, **template.to_json()}, sort_keys=True) + "\n")
+    tmp.replace(path)
+
+
+def derive_and_build(shared: bool, gravity: bool) -> Template:
+    return build_template(derive_template(shared, gravity))
+
+
+def planar_template(shared: bool, gravity: bool) -> tuple[Template, str]:
+    """The template of a planar structure and where it came from."""
+    key = template_key(shared, gravity)
+    name = f"{template_name(shared, gravity)}.json"
+    for source, directory in (("cache", cache.cache_root() / "templates"),
+                              ("committed", committed_templates_dir())):
+        found = _read(directory / name, key)
+        if found is not None:
+            return found, source
+    template = derive_and_build(shared, gravity)
+    write_template(cache.cache_root() / "templates" / name, template, key)
+    return template, "derived"
