@@ -1,4 +1,5 @@
-"""Build stages: derive (SymPy), translate (CasADi), write C, compile, load from the cache.
+"""Build stages: validate, template (loaded, or derived with SymPy once per structure),
+compose (CasADi), write C, compile, load from the cache.
 
 Cold builds and cached loads each run in a fresh interpreter, after ``import grasping_sym``
 (the import is not counted), with ``GRASPING_SYM_CACHE`` pointing at a private temporary
@@ -37,8 +38,9 @@ def _run(scene: str, cache: Path, force: bool) -> dict:
 
 def _summarise(runs: list[dict]) -> dict:
     """Median of every timing over the runs (the runs themselves are kept too)."""
-    keys = ["derive", "translate", "write_c", "compile", "total"]
+    keys = ["validate", "template", "compose", "write_c", "compile", "total"]
     out = {"runs": runs, "n": len(runs), "source": runs[0]["info"].get("source"),
+           "template_source": runs[0]["info"].get("template_source"),
            "scene_s": median([r["scene_s"] for r in runs]),
            "build_s": median([r["build_s"] for r in runs])}
     for k in keys:

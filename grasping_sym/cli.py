@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from grasping_sym.errors import GraspingSymError
+from grasping_sym.runtime.integrators import METHODS
 
 PROG = "grasping-sym"
 EXIT_USER_ERROR = 2
@@ -149,7 +150,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--t-final", type=_positive_float, default=3.0,
                    help="simulated time in s (default 3)")
     p.add_argument("--out", required=True, help="output directory (created if missing)")
-    p.add_argument("--method", choices=("cvodes", "idas", "rk4"), default="cvodes",
+    p.add_argument("--method", choices=METHODS, default="cvodes",
                    help="integrator (default cvodes)")
     p.add_argument("--rtol", type=_positive_float, default=1e-10,
                    help="relative tolerance of cvodes/idas (default 1e-10)")
