@@ -55,3 +55,13 @@ class InvalidSurfaceError(GraspingSymError, ValueError):
         self.problems = list(problems)
         lines = "\n".join(f"  - {p}" for p in self.problems)
         super().__init__(f"surface '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")
+
+
+class InvalidBodyError(GraspingSymError, ValueError):
+    """A body (finger chain or free object) has invalid parameters; lists every problem."""
+
+    def __init__(self, name: str, problems: list[str]):
+        self.name = name
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"body '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")
