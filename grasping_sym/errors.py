@@ -10,23 +10,32 @@ class CompileError(GraspingSymError):
     """The C compiler failed; the message carries the command and the compiler's stderr."""
 
 
-class InvalidCurveError(GraspingSymError, ValueError):
+class ProblemsError(GraspingSymError, ValueError):
+    """Invalid input described by a list of problems, all reported at once.
+
+    ``what`` names the thing ("contour 'ellipse'"); each problem names a quantity, its value
+    and the fix.
+    """
+
+    def __init__(self, what: str, problems: list[str]):
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"{what} is invalid ({len(self.problems)} problem(s)):\n{lines}")
+
+
+class InvalidCurveError(ProblemsError):
     """A contour is not a smooth regular curve on its declared domain."""
 
     def __init__(self, name: str, problems: list[str]):
         self.name = name
-        self.problems = list(problems)
-        lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"contour '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")
+        super().__init__(f"contour '{name}'", problems)
 
 
-class InvalidSceneError(GraspingSymError, ValueError):
+class InvalidSceneError(ProblemsError):
     """A scene's parameters or initial configuration are invalid; lists every problem."""
 
     def __init__(self, problems: list[str]):
-        self.problems = list(problems)
-        lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"invalid scene ({len(self.problems)} problem(s)):\n{lines}")
+        super().__init__("scene", problems)
 
 
 class IntegratorError(GraspingSymError, RuntimeError):
@@ -47,21 +56,17 @@ class ContactLeftContourError(IntegratorError):
     """The contact point reached the end of a contour's declared domain."""
 
 
-class InvalidSurfaceError(GraspingSymError, ValueError):
+class InvalidSurfaceError(ProblemsError):
     """A surface is not a smooth regular patch on its declared domain; lists every problem."""
 
     def __init__(self, name: str, problems: list[str]):
         self.name = name
-        self.problems = list(problems)
-        lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"surface '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")
+        super().__init__(f"surface '{name}'", problems)
 
 
-class InvalidBodyError(GraspingSymError, ValueError):
+class InvalidBodyError(ProblemsError):
     """A body (finger chain or free object) has invalid parameters; lists every problem."""
 
     def __init__(self, name: str, problems: list[str]):
         self.name = name
-        self.problems = list(problems)
-        lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"body '{name}' is invalid ({len(self.problems)} problem(s)):\n{lines}")
+        super().__init__(f"body '{name}'", problems)
