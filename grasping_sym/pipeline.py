@@ -21,11 +21,11 @@ import numpy as np
 
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, templates
-from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
+from grasping_sym.codegen.compiler import COMPILER_FLAGS
 from grasping_sym.codegen.functions import compose, sympy_op_counts
 from grasping_sym.derive.planar import derive_planar, has_gravity, parameter_values
 from grasping_sym.model.planar import PlanarFingerScene
-from grasping_sym.runtime.compiled import DRIVER_C, PYFAST_C, driver_defines
+from grasping_sym.runtime.compiled import compile_model, driver_defines
 from grasping_sym.runtime.model import Model
 
 Progress = Callable[[str], None]
@@ -110,11 +110,7 @@ def compile_library(directory: Path, manifest: dict) -> Path:
     """Compile ``{name}.c`` with the driver (and the CPython fast-call extension)."""
     name = manifest["name"]
     out = directory / f"lib{name}.{_library_tag()}.so"
-    from grasping_sym.runtime.compiled import _python_include_dirs  # noqa: PLC0415
-
-    compile_shared([directory / f"{name}.c", DRIVER_C, PYFAST_C], out,
-                   manifest["driver_defines"], include_dirs=_python_include_dirs())
-    return out
+    return compile_model(directory / f"{name}.c", out, manifest["driver_defines"])
 
 
 def build(scene: PlanarFingerScene, *, progress: Progress | None = None,

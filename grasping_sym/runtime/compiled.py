@@ -150,10 +150,19 @@ def build_library(
     Path
         The library path.
     """
+    return compile_model(casadi_c, out, driver_defines(rhs_fn, outputs_fn, jac_fn), fast=fast)
+
+
+def compile_model(casadi_c: Path | str, out: Path | str, defines: dict,
+                  fast: bool = True) -> Path:
+    """Compile a CasADi-generated C file with the driver, given the driver's macros.
+
+    ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
+    committed C file compiles without the CasADi functions at hand).
+    """
     sources = [Path(casadi_c), DRIVER_C] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
-    return compile_shared(sources, Path(out), driver_defines(rhs_fn, outputs_fn, jac_fn),
-                          include_dirs=include_dirs)
+    return compile_shared(sources, Path(out), defines, include_dirs=include_dirs)
 
 
 def _as_vector(a: Any, n: int, name: str) -> np.ndarray:
