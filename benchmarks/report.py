@@ -312,7 +312,8 @@ def _wp_section(res: dict) -> list[str]:
         *_table(["run", "wall ms", "steps", *labels], ref_rows),
         "",
         "Timed runs: `model.simulate(3.0, t_eval=[0, 3], outputs=False)`. Tolerances: "
-        "atol = rtol × 1e-2 (the states' final values are ~1e-5 rad/s for the velocities and "
+        "atol = rtol × 1e-2 for cvodes and idas, clamped to [1e-10, 1e-8] for radau "
+        "(the states' final values are ~1e-5 rad/s for the velocities and "
         "~1e-3…1 for the rest). `wall` = median over the repeats of `result.stats['wall_time']` "
         "(integration only); `simulate()` = median of the whole call; `first call` = the first "
         "call with these settings, which also creates the CasADi integrator (cached inside the "
