@@ -116,10 +116,11 @@ def cmd_generate(args: argparse.Namespace) -> int:
     names = sorted(_builtin()) if args.all or not args.names else list(args.names)
     for name in names:
         _scene_factory(name)  # validates the name
-    _say(f"{'checking' if args.check else 'generating'} {', '.join(names)} (derivation with SymPy)")
+    _say(f"{'checking' if args.check else 'generating'} the planar templates and "
+         f"{', '.join(names)} (derivation with SymPy)")
     differ = generate_committed(names, check=args.check)
     stale = False
-    for name in names:
+    for name in ["templates", *names]:
         files = list(differ.get(name, [])) if isinstance(differ, dict) else []
         if not files:
             print(f"{name}: up to date")
@@ -129,9 +130,6 @@ def cmd_generate(args: argparse.Namespace) -> int:
         else:
             print(f"{name}: regenerated {', '.join(files)}")
     return 1 if stale else 0
-
-
-# >>> end of `generate` <<<
 
 
 # ---------------------------------------------------------------------------- parser
