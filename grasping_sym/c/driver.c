@@ -80,12 +80,7 @@
 #if !defined(GS_SZ_ARG) || !defined(GS_SZ_RES) || !defined(GS_SZ_IW) || !defined(GS_SZ_W)
 #error "define GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW and GS_SZ_W (CasADi work sizes)"
 #endif
-#ifndef GS_HAS_OUT
-#define GS_HAS_OUT 0
-#endif
-#ifndef GS_NY
-#define GS_NY 0
-#endif
+#include "gs_driver.h"
 #ifndef GS_CASADI_INT
 #define GS_CASADI_INT long long int
 #endif

@@ -21,19 +21,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
-#ifndef GS_HAS_OUT
-#define GS_HAS_OUT 0
-#endif
-#ifndef GS_NY
-#define GS_NY 0
-#endif
-
-int gs_rhs(const double* x, const double* p, double* xdot);
-int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
-#if GS_HAS_OUT
-int gs_outputs(const double* x, const double* p, double* y);
-int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
-#endif
+#include "gs_driver.h"
 
 #define GS_FAST_FLAGS (NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)
 

@@ -1,0 +1,23 @@
+/*
+ * grasping_sym driver interface: macro defaults and the gs_ functions of driver.c,
+ * shared by driver.c and pyfast.c (the CPython fast-call front end).
+ * The macros themselves are documented at the top of driver.c.
+ */
+#ifndef GS_DRIVER_H
+#define GS_DRIVER_H
+
+#ifndef GS_HAS_OUT
+#define GS_HAS_OUT 0
+#endif
+#ifndef GS_NY
+#define GS_NY 0
+#endif
+
+int gs_rhs(const double* x, const double* p, double* xdot);
+int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
+#if GS_HAS_OUT
+int gs_outputs(const double* x, const double* p, double* y);
+int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
+#endif
+
+#endif /* GS_DRIVER_H */
