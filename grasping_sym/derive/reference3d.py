@@ -225,11 +225,10 @@ class Reference3D:
         M, h, tau, A, Ahat, bhat, Cdot, C, sigma, quat_dot = (_np(v) for v in self._fast(x))
         g = self.scene.gain
         V = x[6:11]
-        (xdot_v, mu) = assemble(5, V, [M, h, tau, A, Ahat, bhat, Cdot, C, np.full(3, 2 * g),
-                                       np.full(3, g * g), sigma],
-                                np.linalg.solve, np.concatenate, np.multiply, np.transpose)
-        acc = xdot_v[5:10]
-        xdot = np.concatenate([x[SL_DQ], quat_dot, acc, sigma])
+        xdot, mu = assemble(5, V, [M, h, tau, A, Ahat, bhat, Cdot, C, np.full(3, 2 * g),
+                                   np.full(3, g * g), sigma],
+                            np.linalg.solve, np.concatenate, np.multiply, np.transpose,
+                            qdot=np.concatenate([x[SL_DQ], quat_dot]))
         return xdot, mu
 
     def rhs(self, x: np.ndarray) -> np.ndarray:

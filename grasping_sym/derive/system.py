@@ -54,7 +54,7 @@ class ConstrainedSystem:
                 self.csm_stiffness, self.contact_rates]
 
 
-def assemble(n, v, pieces, solve, vcat, mul, transpose):
+def assemble(n, v, pieces, solve, vcat, mul, transpose, qdot=None):
     """Closed-loop accelerations and multipliers from evaluated pieces.
 
     Parameters
@@ -68,11 +68,14 @@ def assemble(n, v, pieces, solve, vcat, mul, transpose):
     solve, vcat, mul, transpose
         Backend operations: ``solve(A, B)``, vertical concatenation of a list,
         elementwise product, transpose.
+    qdot
+        Rates of the position coordinates when they are not the speeds themselves (a
+        quaternion with a body angular velocity: ``q' = N(q) v``); default ``v``.
 
     Returns
     -------
     xdot, mu
-        ``[v; a; sigma]`` and the constraint multipliers.
+        ``[q'; a; sigma]`` and the constraint multipliers.
     """
     M, h, tau, A, Ahat, bhat, Cdot, C, D, K, sigma = pieces
     free = solve(M, tau - h)                 # M^-1 (tau - h)
@@ -80,4 +83,4 @@ def assemble(n, v, pieces, solve, vcat, mul, transpose):
     S = Ahat @ MinvAT
     mu = solve(S, Ahat @ free + bhat + mul(D, Cdot) + mul(K, C))
     a = free - MinvAT @ mu
-    return vcat([v, a, sigma]), mu
+    return vcat([v if qdot is None else qdot, a, sigma]), mu
