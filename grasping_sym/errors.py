@@ -70,3 +70,28 @@ class InvalidBodyError(ProblemsError):
     def __init__(self, name: str, problems: list[str]):
         self.name = name
         super().__init__(f"body '{name}'", problems)
+
+
+class ContactOpenedError(IntegratorError):
+    """The normal multiplier ``f`` reached zero or below: a unilateral contact would open.
+
+    ``t`` is the interpolated time (s) where ``f`` crosses zero, ``force`` the value of ``f``
+    (N) at the first output sample with ``f <= 0`` and ``force_before`` the last positive one.
+    """
+
+
+class RelativeCurvatureError(IntegratorError):
+    """The relative curvature ``kappa0 + kappa1`` fell to (or below) its threshold.
+
+    The update law (29) divides by it: the contact point would race along the contours and
+    the state blow up. ``t`` is the time (s), ``kappa_sum`` the value (1/m) found there and
+    ``threshold`` the limit (1/m) that was crossed.
+    """
+
+
+class InconsistentInitialStateError(GraspingSymError, ValueError):
+    """The initial state is off the contact constraints: ``residual`` = max(|Q|, |R|) in m."""
+
+    def __init__(self, residual: float, message: str):
+        self.residual = float(residual)
+        super().__init__(message)
