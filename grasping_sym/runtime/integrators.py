@@ -31,6 +31,11 @@ from grasping_sym.errors import IntegratorError
 METHODS = ("cvodes", "idas", "rk4", "radau")
 
 
+#: Step budget for recovering the state just before a SUNDIALS failure (a blow-up can make
+#: that stretch arbitrarily expensive; past this budget the error carries no state).
+RECOVERY_MAX_STEPS = 20_000
+
+
 def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray,
              rtol: float, atol: float, max_steps: int) -> tuple[np.ndarray, np.ndarray, dict]:
     """Integrate with CVODES or IDAS through CasADi, reporting at ``t_eval``."""
@@ -62,8 +67,9 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
 
     SUNDIALS prints the failure time ("At t = ...") from C but CasADi's exception does not
     carry it, so the failing run is repeated once with SUNDIALS' messages captured at the
-    file-descriptor level; the state is then recovered by integrating to just before that
-    time with an unlimited step budget. This only runs on the failure path.
+    file-descriptor level; the trajectory is then recovered on the output grid up to just
+    before that time, with a bounded step budget (``err.trajectory``, ``err.x`` its last
+    state). This only runs on the failure path.
     """
     reason = _sundials_reason(message)
     opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps}
@@ -79,18 +85,30 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
         return IntegratorError(float("nan"), None, f"{method}: {reason} (time not reported)",
                                model.state_names)
     t_fail = float(times[0])
-    x_fail = None
-    if t_fail > t_eval[0]:
-        rec = ca.integrator("recover", method, model.external_rhs(), float(t_eval[0]),
-                            [t_fail], {**opts, "max_num_steps": 10**8,
-                                       "disable_internal_warnings": True})
+    if t_fail <= t_eval[0]:
+        return IntegratorError(t_fail, np.asarray(x0, dtype=float), f"{method}: {reason}",
+                               model.state_names)
+    x_fail, trajectory = None, None
+    t0 = float(t_eval[0])
+    for back in (1e-9, 1e-7, 1e-5, 1e-3):  # the stretch just before a blow-up can be costly
+        t_end = t_fail - back * max(1.0, abs(t_fail))
+        if t_end <= t0:
+            continue
+        grid = [float(t) for t in t_eval[1:] if t < t_end] + [t_end]
+        rec = ca.integrator("recover", method, model.external_rhs(), t0, grid,
+                            {**opts, "max_num_steps": RECOVERY_MAX_STEPS,
+                             "disable_internal_warnings": True})
         try:
-            x_fail = np.array(rec(x0=x0, p=p)["xf"]).ravel()
+            X = np.vstack([x0, np.array(rec(x0=x0, p=p)["xf"]).T])
         except RuntimeError:
-            x_fail = None
-    else:
-        x_fail = np.asarray(x0, dtype=float)
-    return IntegratorError(t_fail, x_fail, f"{method}: {reason}", model.state_names)
+            continue
+        x_fail, trajectory = X[-1], (np.array([t0, *grid]), X)
+        reason += f" (state recovered at t = {t_end:.9g} s)"
+        break
+    err = IntegratorError(t_fail, x_fail, f"{method}: {reason}", model.state_names)
+    if trajectory is not None:
+        err.trajectory = trajectory
+    return err
 
 
 class _Captured:

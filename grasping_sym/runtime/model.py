@@ -470,6 +470,16 @@ def _raise_earlier_event(self: Model, exc: IntegratorError, p, k_start) -> None:
     if event is not None and event.t <= exc.t:
         event.cause_error = exc
         raise event from exc
+    if k_start and exc.x is not None:  # the last row is the state recovered at the failure
+        k_last = float(outs["kappa_sum"][-1])
+        if k_last < 0.1 * k_start:  # name a likely cause the threshold did not catch yet
+            err = IntegratorError(
+                exc.t, exc.x, f"{exc.reason}; kappa0 + kappa1 had fallen to {k_last:.3g} 1/m "
+                f"({k_last / k_start:.2g} of its initial value): the contact update law (29) "
+                "divides by it", self.state_names)
+            err.kappa_sum = k_last
+            err.trajectory = getattr(exc, "trajectory", None)
+            raise err from exc
 
 
 def _blow_up(model: Model, err: IntegratorError, method: str, h: float) -> IntegratorError:
