@@ -62,11 +62,12 @@ FINGER2_Q_OPPOSED: tuple[float, float, float] = (0.0, -math.pi / 6, -math.pi / 3
 
 
 def _vec(value, n: int = 3) -> tuple[float, ...] | None:
+    """``value`` as ``n`` finite floats, or None."""
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         return None
-    if arr.shape != (n,):
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
         return None
     return tuple(float(x) for x in arr)
 
@@ -163,12 +164,12 @@ class FingerChain:
             problems.append(f"name {self.name!r} must be a non-empty alphanumeric string "
                             "(it names the joint symbols q{name}{k})")
         base = _vec(self.base)
-        if base is None or not all(math.isfinite(x) for x in base):
+        if base is None:
             problems.append(f"base {self.base!r} must be 3 finite numbers (m)")
         else:
             object.__setattr__(self, "base", base)
         offset = _vec(self.tip_offset)
-        if offset is None or not all(math.isfinite(x) for x in offset):
+        if offset is None:
             problems.append(f"tip_offset {self.tip_offset!r} must be 3 finite numbers (m)")
         else:
             object.__setattr__(self, "tip_offset", offset)
@@ -219,13 +220,13 @@ def _check_joint(joint: RevoluteJoint, label: str, problems: list[str]) -> Revol
     """Validate one joint, append its problems, return it with coerced tuples (or None)."""
     start = len(problems)
     axis = _vec(joint.axis)
-    if axis is None or not all(math.isfinite(x) for x in axis):
+    if axis is None:
         problems.append(f"{label}: axis {joint.axis!r} must be 3 finite numbers")
     elif math.hypot(*axis) < 1e-12:
         problems.append(f"{label}: axis {axis} has norm {math.hypot(*axis):.3g}; give a non-zero "
                         "direction (it is normalised)")
     vector = _vec(joint.vector)
-    if vector is None or not all(math.isfinite(x) for x in vector):
+    if vector is None:
         problems.append(f"{label}: vector {joint.vector!r} must be 3 finite numbers (m)")
     try:
         mass = float(joint.mass)
@@ -237,7 +238,7 @@ def _check_joint(joint: RevoluteJoint, label: str, problems: list[str]) -> Revol
     com = None
     if joint.com is not None:
         com = _vec(joint.com)
-        if com is None or not all(math.isfinite(x) for x in com):
+        if com is None:
             problems.append(f"{label}: com {joint.com!r} must be 3 finite numbers (m) or None")
     inertia = None
     if joint.inertia is not None:
@@ -253,7 +254,7 @@ def _check_joint(joint: RevoluteJoint, label: str, problems: list[str]) -> Revol
             elif np.min(np.linalg.eigvalsh(arr)) < -1e-12 * scale:
                 problems.append(f"{label}: inertia has a negative principal moment "
                                 f"{np.min(np.linalg.eigvalsh(arr)):.3g} kg m^2")
-    if vector is not None and math.isfinite(mass) and all(math.isfinite(x) for x in vector):
+    if vector is not None and math.isfinite(mass):
         length = math.hypot(*vector)
         if mass > 0 and length <= 0 and inertia is None:
             problems.append(f"{label}: link length 0 m with mass {mass} kg; a uniform rod needs a "

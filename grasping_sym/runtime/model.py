@@ -199,7 +199,7 @@ class Model:
             raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
         p = self.params(params)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
-        k_start = self._check_initial_state(x0, p) if checks else None
+        k_start = _check_initial_state(self, x0, p) if checks else None
         if method in ("rk4", "radau"):
             try:
                 if method == "rk4":
@@ -210,7 +210,7 @@ class Model:
             except IntegratorError as exc:
                 err = _blow_up(self, self._classify(exc), method, h)
                 if checks:
-                    self._raise_earlier_event(err, p, k_start)
+                    _raise_earlier_event(self, err, p, k_start)
                 raise err from None
         else:
             pp = np.zeros(0) if p is None else p
@@ -219,7 +219,7 @@ class Model:
                                                    max_steps)
             except IntegratorError as exc:
                 if checks:
-                    self._raise_earlier_event(exc, p, k_start)
+                    _raise_earlier_event(self, exc, p, k_start)
                 raise
             for i in range(len(t)):
                 try:
@@ -227,11 +227,11 @@ class Model:
                 except ContactLeftContourError as exc:
                     if checks:
                         exc.trajectory = (t[:i].copy(), X[:i].copy())
-                        self._raise_earlier_event(exc, p, k_start)
+                        _raise_earlier_event(self, exc, p, k_start)
                     raise
         outs = self.outputs_batch(X, p) if outputs and self.output_names else {}
         if checks and outs:
-            event = self._trajectory_event(t, X, outs, k_start)
+            event = _trajectory_event(self, t, X, outs, k_start)
             if event is not None:
                 raise event
         if drop_first:
@@ -320,15 +320,15 @@ def _scene_size(model: Model) -> float:
         return 0.0
 
 
-def _check_initial_state(self: Model, x0: np.ndarray, p) -> float | None:
+def _check_initial_state(model: Model, x0: np.ndarray, p) -> float | None:
     """Refuse an ``x0`` off the constraints or at a near-zero ``kappa_sum``.
 
     Returns ``kappa_sum`` at ``x0`` (``None`` when the model does not output it).
     """
-    names = set(self.output_names)
+    names = set(model.output_names)
     if not names & {"Q", "R", "constraint_residual", "kappa_sum"}:
         return None
-    y = self.outputs(x0, p)
+    y = model.outputs(x0, p)
     if "Q" in y and "R" in y:
         residual = max(abs(y["Q"]), abs(y["R"]))
         what = f"max(|Q|, |R|) = max({abs(y['Q']):.3g}, {abs(y['R']):.3g})"
@@ -349,7 +349,7 @@ def _check_initial_state(self: Model, x0: np.ndarray, p) -> float | None:
     if "kappa_sum" not in y:
         return None
     k0 = y["kappa_sum"]
-    size = _scene_size(self)
+    size = _scene_size(model)
     threshold = KAPPA_SUM_INITIAL / size if size > 0 else 0.0
     if not k0 > threshold:
         err = RelativeCurvatureError(
@@ -359,7 +359,7 @@ def _check_initial_state(self: Model, x0: np.ndarray, p) -> float | None:
             f"{size:.6g} m): the contours nearly osculate there, the update law (29) divides "
             "by it and the contact point would race along the contours; start from a "
             "contact where the fingertip is clearly more curved than the object's hollow",
-            self.state_names,
+            model.state_names,
         )
         err.kappa_sum, err.threshold = k0, threshold
         raise err
@@ -380,7 +380,7 @@ def _first_crossing(t: np.ndarray, v: np.ndarray, level: float):
     return i, float(t[i - 1] + frac * (t[i] - t[i - 1]))
 
 
-def _trajectory_event(self: Model, t: np.ndarray, X: np.ndarray, outs: dict,
+def _trajectory_event(model: Model, t: np.ndarray, X: np.ndarray, outs: dict,
                       k_start: float | None, *, force: bool = True,
                       note: str = "") -> IntegratorError | None:
     """The first of: ``f <= 0`` (contact opens, if ``force``), ``kappa_sum`` at its threshold.
@@ -405,7 +405,7 @@ def _trajectory_event(self: Model, t: np.ndarray, X: np.ndarray, outs: dict,
                 "the update law (29) divides by it and the state would blow up; choose a "
                 "fingertip more curved than the object's hollows along the path (state at "
                 "the last sample before)" + note,
-                self.state_names,
+                model.state_names,
             )
             err.kappa_sum, err.threshold, err.t_sample = float(k[i]), threshold, float(t[i])
             events.append((tc, 0, err))
@@ -425,7 +425,7 @@ def _trajectory_event(self: Model, t: np.ndarray, X: np.ndarray, outs: dict,
                 "a unilateral contact cannot pull, the contact would open and the model "
                 "(rolling contact kept by a constraint) no longer holds; raise fd or lower "
                 "the speeds that pull the finger away (state at the last sample before)" + note,
-                self.state_names,
+                model.state_names,
             )
             err.force, err.force_before, err.t_sample = float(f[i]), before, float(t[i])
             events.append((tc, 1, err))
@@ -434,12 +434,12 @@ def _trajectory_event(self: Model, t: np.ndarray, X: np.ndarray, outs: dict,
     return min(events, key=lambda e: (e[0], e[1]))[2]
 
 
-def _raise_earlier_event(self: Model, exc: IntegratorError, p, k_start) -> None:
+def _raise_earlier_event(model: Model, exc: IntegratorError, p, k_start) -> None:
     """On a failed run: raise ``RelativeCurvatureError`` instead if ``kappa_sum`` reached its
     threshold before ``exc.t`` (the cause of the blow-up). The sign of ``f`` is not checked
     here: near a numerical blow-up (e.g. RK4 beyond its stability limit) ``f`` swings wildly
     and a "contact opens" report would name a symptom, not the cause."""
-    if "kappa_sum" not in self.output_names:
+    if "kappa_sum" not in model.output_names:
         return
     rows_t, rows_x = [], []
     trajectory = getattr(exc, "trajectory", None)
@@ -451,7 +451,7 @@ def _raise_earlier_event(self: Model, exc: IntegratorError, p, k_start) -> None:
     x_fail = exc.x
     if x_fail is not None and math.isfinite(exc.t):
         x_fail = np.asarray(x_fail, dtype=float)
-        if x_fail.shape == (len(self.state_names),):
+        if x_fail.shape == (len(model.state_names),):
             rows_t.append(np.array([exc.t]))
             rows_x.append(x_fail[None, :])
     if not rows_t:
@@ -464,9 +464,9 @@ def _raise_earlier_event(self: Model, exc: IntegratorError, p, k_start) -> None:
     t, X = t[keep], X[keep]
     if len(t) == 0:
         return
-    outs = self.outputs_batch(X, p)
+    outs = model.outputs_batch(X, p)
     note = f"; the integrator then failed at t = {exc.t:.6g} s: {exc.reason}"
-    event = self._trajectory_event(t, X, outs, k_start, force=False, note=note)
+    event = _trajectory_event(model, t, X, outs, k_start, force=False, note=note)
     if event is not None and event.t <= exc.t:
         event.cause_error = exc
         raise event from exc
@@ -476,7 +476,7 @@ def _raise_earlier_event(self: Model, exc: IntegratorError, p, k_start) -> None:
             err = IntegratorError(
                 exc.t, exc.x, f"{exc.reason}; kappa0 + kappa1 had fallen to {k_last:.3g} 1/m "
                 f"({k_last / k_start:.2g} of its initial value): the contact update law (29) "
-                "divides by it", self.state_names)
+                "divides by it", model.state_names)
             err.kappa_sum = k_last
             err.trajectory = getattr(exc, "trajectory", None)
             raise err from exc
@@ -511,8 +511,3 @@ def _blow_up(model: Model, err: IntegratorError, method: str, h: float) -> Integ
         if hasattr(err, key):
             setattr(new, key, getattr(err, key))
     return new
-
-
-Model._check_initial_state = _check_initial_state
-Model._trajectory_event = _trajectory_event
-Model._raise_earlier_event = _raise_earlier_event
