@@ -3,7 +3,11 @@ from __future__ import annotations
 
 import math
 
-from grasping_sym.geometry import library
+import numpy as np
+
+from grasping_sym.geometry import library, surface_library
+from grasping_sym.model import chains
+from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
 
@@ -53,3 +57,103 @@ def paper2d(**overrides) -> PlanarFingerScene:
 
 #: Built-in scenes by name, for the CLI.
 BUILTIN = {"paper2d": paper2d}
+
+
+# ---------------------------------------------------------------------- 3D
+#: The object of ``paper3d``: a solid ellipsoid with three different semi-axes (m), 0.040 kg
+#: (MODELS.md section 2), touched at the ends of its X axis.
+PAPER3D_SEMI_AXES: tuple[float, float, float] = (0.020, 0.025, 0.030)
+PAPER3D_MASS: float = 0.040
+#: m, radius of the hemispherical fingertips (the 2D paper's fingertip scale).
+PAPER3D_TIP_RADIUS: float = 0.010
+
+
+def paper3d(**overrides) -> GraspScene3D:
+    """Arimoto-Yoshida 2011: two fingers grasp a free ellipsoid under gravity (MODELS.md 2).
+
+    Every value, chosen because the paper gives no numbers (SI units):
+
+    - finger 1: ``chains.finger1()`` (two joints about z, links 0.065 m, 0.045/0.040 kg, base
+      (-0.1275, 0, 0)); finger 2: ``chains.finger2()`` (joint about x, then two about the
+      turned z; base (0.1275, 0, 0)); guesses ``q1 = (pi/6, pi/3)``, ``q2 = (0.15, -pi/6,
+      -pi/3)``: finger 2 tilted out of the xy plane so that the grasp is truly 3D;
+    - fingertips: spheres of radius 0.010 m (hemispherical ends), touching at their +X point
+      (the tip frame's X runs along the last link);
+    - object: ellipsoid with semi-axes (0.020, 0.025, 0.030) m, 0.040 kg, the inertia of the
+      solid body ``m/5 (b^2 + c^2, a^2 + c^2, a^2 + b^2)``; its surface chart has longitude in
+      (-pi/2, 3pi/2) so that both contacts, near the ends of the X axis (u = 0 and u = pi, on
+      the equator), lie well inside it; pose guess: centre (0, 0.0563, 0), turned by 0.2 rad
+      about (1, 1, 1) (a generic pose);
+    - gravity 9.81 m/s^2 along -y, on the object and on the fingers (compensated by the
+      controller);
+    - controller: ``fd = 0.5 N``, ``r_ctrl = 0.010 m`` (the pull (fd / r_ctrl)(r_1 - r_2), about
+      3 N at the start), ``c = 0.006 N m s`` (the 2D paper's), ``k_center = 200 N/m`` (carries
+      the weight: sag about 2 mm); stabilisation gain 300 1/s;
+    - contacts: rolling without slip, with a torsional friction of ``spin_damping = 2e-5
+      N m s`` (a soft fingertip's twist resistance). With the paper's rigid contacts
+      (``spin_damping=0``) nothing resists a spin of the object about the line through the two
+      contacts, and it never settles: its angular speed still swings between 0.03 and 0.17
+      rad/s at 5 s (peak 1.8 rad/s); with 2e-5 it falls below 1e-3 rad/s;
+    - start: the consistent configuration nearest the guesses (``derive.initial3d``) with the
+      admissible motion nearest the joint speeds ``dq0 = (1.0, -0.5, 1.5, -0.5, 0.5)`` rad/s,
+      so that both contacts roll at first (the paper's formulation needs moving contacts) and
+      the grasp then comes to rest.
+
+    Any field of ``GraspScene3D`` may be overridden by keyword (e.g. ``formulation='paper'``).
+    """
+    from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
+
+    a, b, c = PAPER3D_SEMI_AXES
+    rot = _axis_angle((1.0, 1.0, 1.0), 0.2)
+    fingers = (
+        Finger3D(chain=chains.finger1(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip 1"),
+                 q0=chains.FINGER1_Q_OPPOSED, tip_contact=(0.0, 0.0), object_contact=(math.pi, 0.0)),
+        Finger3D(chain=chains.finger2(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip 2"),
+                 q0=(0.15, *chains.FINGER2_Q_OPPOSED[1:]), tip_contact=(0.0, 0.0), object_contact=(0.0, 0.0)),
+    )
+    kwargs = dict(
+        name="paper3d", fingers=fingers,
+        object_surface=surface_library.ellipsoid(a, b, c, lon=(-math.pi / 2, 3 * math.pi / 2),
+                                                 name="object ellipsoid"),
+        mass=PAPER3D_MASS, inertia=solid_ellipsoid_inertia(PAPER3D_MASS, a, b, c),
+        support="free", position=(0.0, 0.0563, 0.0), rotation=rot, gravity=(0.0, -9.81, 0.0),
+        fd=0.5, c=0.006, r_ctrl=0.010, k_center=200.0, gain=300.0, spin_damping=2e-5,
+        dq0=(1.0, -0.5, 1.5, -0.5, 0.5), outputs=PAPER3D_OUTPUTS,
+    )
+    kwargs.update(overrides)
+    return GraspScene3D(**kwargs)
+
+
+#: Outputs of the built-in 3D scenes (what the checks, the figures and the tests use).
+PAPER3D_OUTPUTS = ("constraint_residual", "f1", "lam1", "eta1", "f2", "lam2", "eta2",
+                   "krel_min1", "krel_min2", "orthonormality", "kinetic_energy",
+                   "potential_energy", "power", "object_speed", "object_angular_speed")
+
+
+def pivot3d(**overrides) -> GraspScene3D:
+    """One finger (``chains.finger1``, spherical tip of 0.010 m) rolling on an ellipsoid
+    (0.020, 0.025, 0.030) m that turns about its centre, fixed; no gravity. The controller pulls
+    the fingertip centre toward the pivot (the 2D law (32)). The smallest 3D scene."""
+    from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
+
+    a, b, c = PAPER3D_SEMI_AXES
+    fingers = (Finger3D(chain=chains.finger1(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip"),
+                        q0=chains.FINGER1_Q_OPPOSED, tip_contact=(0.0, 0.1), object_contact=(2.7, 0.25)),)
+    kwargs = dict(name="pivot3d", fingers=fingers,
+                  object_surface=surface_library.ellipsoid(a, b, c, name="object ellipsoid"),
+                  mass=PAPER3D_MASS, inertia=solid_ellipsoid_inertia(PAPER3D_MASS, a, b, c),
+                  support="pivot", position=(0.0, 0.0563, 0.0), gravity=None,
+                  outputs=("constraint_residual", "f1", "lam1", "eta1", "krel_min1",
+                           "orthonormality", "kinetic_energy", "power"))
+    kwargs.update(overrides)
+    return GraspScene3D(**kwargs)
+
+
+def _axis_angle(axis, angle: float) -> tuple:
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415
+
+    a = np.asarray(axis, float)
+    return tuple(map(tuple, Rotation.from_rotvec(angle * a / np.linalg.norm(a)).as_matrix()))
+
+
+BUILTIN.update({"paper3d": paper3d, "pivot3d": pivot3d})

@@ -1,0 +1,211 @@
+"""A consistent start for a 3D grasping scene: every contact condition holds at ``t = 0``.
+
+Configuration. The unknowns are the joint angles, the object's position (free object), a
+small rotation of the object and the four surface coordinates of each contact; the equations,
+per contact, are ``p_f = p_o`` (3) and opposite normals, ``(n_f + n_o) . x_o = (n_f + n_o) . y_o
+= 0`` (2). There are fewer equations than unknowns, so Gauss-Newton takes the weighted
+least-norm step: the start moves as little as possible from the scene's guess (the object's
+surface coordinates are weighted to move least: the user chose the points to touch). The
+scene is refused when the residual stays above ``TOL`` m.
+
+Speeds. ``scene.dq0`` (joint speeds wished at the start) becomes the admissible motion
+closest to it in kinetic energy: ``V0 = N (N^T M N)^-1 N^T M Vd`` with ``N`` a basis of the
+speeds with ``A V = 0`` (the contact constraints' velocity rows).
+
+The paper formulation also needs the initial frames ``Psi0 = (n0, b0, e0)``, ``Psi1 = (n1, b1,
+e1)``: ``b`` is the direction of the contact's motion on the object, from the regular
+formulation's rates, so the paper formulation cannot start at rest (it is 0/0 there).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from grasping_sym.errors import InvalidSceneError
+from grasping_sym.model.grasp3d import GraspScene3D
+
+#: m, largest contact residual accepted at the start.
+TOL = 1e-12
+MAX_ITER = 60
+#: Weights of the least-norm step: how freely each kind of unknown moves.
+WEIGHTS = {"q": 1.0, "pos": 1.0, "rot": 1.0, "tip": 1.0, "obj": 0.05}
+
+
+def _skew(w):
+    return ca.vertcat(ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0))
+
+
+def _residual_function(scene: GraspScene3D):
+    from grasping_sym.derive.grasp3d import finger_sx, surface_sx  # noqa: PLC0415
+
+    nQ = sum(f.chain.n for f in scene.fingers)
+    N = scene.n_contacts
+    nw = nQ + (3 if scene.free else 0) + 3 + 4 * N
+    w = ca.SX.sym("w", nw)
+    R0 = ca.SX.sym("R0", 3, 3)
+    q = w[:nQ]
+    k = nQ
+    pos = w[k:k + 3] if scene.free else ca.DM(scene.position)
+    k += 3 if scene.free else 0
+    R = R0 @ (ca.DM.eye(3) + _skew(w[k:k + 3]))
+    k += 3
+    res, weights = [], [WEIGHTS["q"]] * nQ + ([WEIGHTS["pos"]] * 3 if scene.free else []) + [WEIGHTS["rot"]] * 3
+    off = 0
+    frames = []
+    for i, f in enumerate(scene.fingers):
+        n = f.chain.n
+        fin = finger_sx(f.chain, None, q[off:off + n], ca.SX.zeros(n))
+        off += n
+        uv = w[k + 4 * i:k + 4 * i + 4]
+        sf = surface_sx(f.tip, uv[0], uv[1])
+        so = surface_sx(scene.object_surface, uv[2], uv[3])
+        pf = fin["r"] + fin["Pi"] @ sf["S"]
+        po = pos + R @ so["S"]
+        nf, no = fin["Pi"] @ sf["n"], R @ so["n"]
+        xo, yo = R @ so["x"], R @ so["y"]
+        res += [pf - po, ca.dot(nf + no, xo), ca.dot(nf + no, yo)]
+        weights += [WEIGHTS["tip"]] * 2 + [WEIGHTS["obj"]] * 2
+        frames.append(ca.horzcat(fin["Pi"] @ sf["x"], fin["Pi"] @ sf["y"], xo))
+    F = ca.vertcat(*res)
+    fun = ca.Function("start_residual", [w, R0], [F, ca.jacobian(F, w), *frames])
+    return fun, np.asarray(weights), nQ
+
+
+def solve_configuration(scene: GraspScene3D) -> dict:
+    """Joint angles, object pose and contact coordinates satisfying every contact condition.
+
+    Returns ``{"q", "pos", "R", "eta" (N x 5: u_f, v_f, u_o, v_o, psi), "residual",
+    "iterations"}``. Raises ``InvalidSceneError`` naming the residual when it does not converge.
+    """
+    fun, weights, nQ = _residual_function(scene)
+    N = scene.n_contacts
+    w = np.concatenate([np.concatenate([f.q0 for f in scene.fingers]),
+                        np.asarray(scene.position, float) if scene.free else [],
+                        np.zeros(3),
+                        np.concatenate([[*f.tip_contact, *f.object_contact] for f in scene.fingers])])
+    R = np.asarray(scene.rotation, float)
+    sw = np.sqrt(weights)
+    kr = nQ + (3 if scene.free else 0)
+    res = np.inf
+    for it in range(MAX_ITER):
+        F, J = (np.asarray(a, float) for a in fun(w, R)[:2])
+        F = F.ravel()
+        res = float(np.max(np.abs(F)))
+        if res <= 0.01 * TOL:
+            break
+        y, *_ = np.linalg.lstsq(J * sw, -F, rcond=None)
+        step = sw * y
+        w = w + step
+        R = R @ Rotation.from_rotvec(w[kr:kr + 3]).as_matrix()
+        w[kr:kr + 3] = 0.0
+        if not np.all(np.isfinite(w)):
+            break
+    F = np.asarray(fun(w, R)[0], float).ravel()
+    res = float(np.max(np.abs(F))) if np.all(np.isfinite(F)) else float("inf")
+    if not res <= TOL:
+        raise InvalidSceneError([
+            f"no consistent start near the scene's guess: the contact residual stays at {res:.3g} "
+            f"(m or unit normals) > {TOL:g} after {MAX_ITER} Gauss-Newton steps; move the guesses "
+            "(finger q0, object position/rotation, tip_contact) closer to touching"])
+    problems = []
+    for i, f in enumerate(scene.fingers):
+        uv = w[kr + 3 + 4 * i:kr + 7 + 4 * i]
+        if not f.tip.in_domain(uv[0], uv[1]):
+            problems.append(f"finger {i + 1}: the fingertip contact solved to (u, v) = {tuple(uv[:2])}, "
+                            f"outside the fingertip's domain {f.tip.domain}; move tip_contact or q0")
+        if not scene.object_surface.in_domain(uv[2], uv[3]):
+            problems.append(f"finger {i + 1}: the object contact solved to (u, v) = {tuple(uv[2:])}, "
+                            f"outside the object's domain {scene.object_surface.domain}")
+    if problems:
+        raise InvalidSceneError(problems)
+    frames = [np.asarray(a, float) for a in fun(w, R)[2:]]
+    eta = np.zeros((N, 5))
+    for i, Fr in enumerate(frames):
+        xf, yf, xo = Fr[:, 0], Fr[:, 1], Fr[:, 2]
+        eta[i, :4] = w[kr + 3 + 4 * i:kr + 7 + 4 * i]
+        eta[i, 4] = np.arctan2(-xo @ yf, xo @ xf)
+    return {"q": w[:nQ].copy(), "pos": w[nQ:nQ + 3].copy() if scene.free else np.asarray(scene.position, float),
+            "R": R, "eta": eta, "residual": res, "iterations": it}
+
+
+def _quat(R: np.ndarray) -> np.ndarray:
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    q = np.array([w, x, y, z])
+    return q if q[0] >= 0 else -q
+
+
+def regular_state(scene: GraspScene3D, conf: dict) -> np.ndarray:
+    """The regular formulation's state at rest from a solved configuration."""
+    nQ = len(conf["q"])
+    parts = [conf["q"], conf["pos"] if scene.free else [], _quat(conf["R"]),
+             np.zeros(nQ + (6 if scene.free else 3)), conf["eta"].ravel()]
+    return np.concatenate([np.asarray(p, float) for p in parts])
+
+
+def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
+    """``(x0, info)``: the scene's consistent start in its formulation's state order.
+
+    ``info``: ``r_bar0`` (m, mean fingertip centre), ``residual``, ``iterations``, ``V0``.
+    """
+    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
+
+    conf = solve_configuration(scene)
+    regular = dataclasses.replace(scene, formulation="regular") if scene.formulation != "regular" else scene
+    x = regular_state(regular, conf)
+    system = derive_grasp3d(regular, r_bar0=np.zeros(3))
+    fn = system.function("start_pieces", "pieces")
+    geo = system.function("start_geometry", "geometry")
+    p = np.array([regular.params[k] for k in regular.runtime], float)
+    info = {"residual": conf["residual"], "iterations": conf["iterations"],
+            "r_bar0": np.asarray(geo(x=x, p=p)["r_bar"], float).ravel()}
+    nQ = len(conf["q"])
+    nz = nQ + (7 if scene.free else 4)
+    nV = nQ + (6 if scene.free else 3)
+    V0 = np.zeros(nV)
+    if scene.dq0 is not None and np.any(np.asarray(scene.dq0) != 0):
+        pc = fn(x=x, p=p)
+        A, M = np.asarray(pc["A"], float), np.asarray(pc["M"], float)
+        _, sv, Vt = np.linalg.svd(A)
+        Nb = Vt[int(np.sum(sv > 1e-12 * sv[0])):].T
+        Vd = np.zeros(nV)
+        Vd[:nQ] = scene.dq0
+        V0 = Nb @ np.linalg.solve(Nb.T @ M @ Nb, Nb.T @ M @ Vd)
+        x[nz:nz + nV] = V0
+    info["V0"] = V0
+    if scene.formulation == "regular":
+        return x, info
+    # paper formulation: frames with b along the contact's motion on the object
+    pc = fn(x=x, p=p)
+    sigma = np.asarray(pc["sigma"], float).ravel()
+    g = geo(x=x, p=p)
+    R = conf["R"]
+    contact = []
+    for i, f in enumerate(scene.fingers):
+        uf, vf, uo, vo, _ = conf["eta"][i]
+        so = scene.object_surface.evaluate(uo, vo)
+        st = f.tip.evaluate(uf, vf)
+        d = _tangent(scene.object_surface, uo, vo) @ sigma[5 * i + 2:5 * i + 4]
+        if not np.linalg.norm(d) > 0:
+            from grasping_sym.derive.reference3d_paper import MovingFrameSingularityError  # noqa: PLC0415
+            raise MovingFrameSingularityError(0.0, 0.0, 0.0, 0.0)
+        b_w = R @ d / np.linalg.norm(R @ d)
+        Pi = np.asarray(g[f"Pi{i + 1}"], float)
+        no_w, nf_w = R @ so["normal"], Pi @ st["normal"]
+        F0 = np.column_stack([no_w, b_w, np.cross(no_w, b_w)])
+        F1 = np.column_stack([nf_w, b_w, np.cross(nf_w, b_w)])
+        contact += [conf["eta"][i, :4], [0.0], (R.T @ F0).ravel(order="F"), (Pi.T @ F1).ravel(order="F")]
+    xp = np.concatenate([x[:nz + nV], *[np.asarray(c, float) for c in contact]])
+    return xp, info
+
+
+def _tangent(surface, u, v) -> np.ndarray:
+    """3 x 2 ``[S_u S_v]`` at ``(u, v)`` (surface frame)."""
+    from grasping_sym.geometry.surfaces import U, V  # noqa: PLC0415
+    import sympy as sp  # noqa: PLC0415
+
+    f = sp.lambdify((U, V), [surface.S_u, surface.S_v], "numpy")
+    Su, Sv = f(u, v)
+    return np.column_stack([np.asarray(Su, float).ravel(), np.asarray(Sv, float).ravel()])

@@ -1,0 +1,258 @@
+"""The 3D scene: fingers with smooth fingertips grasp an object with a smooth surface.
+
+What a scene *is* (no derivation here): the finger chains (``model.chains``) with their
+fingertip surfaces, the object's surface, mass and inertia, whether the object is free or
+turns about a fixed pivot, gravity, the grasp controller's constants, the formulation of the
+contact tracking and the outputs to generate. ``derive.grasp3d`` turns it into equations,
+``derive.initial3d`` solves its consistent start.
+
+Frames and units: SI; the inertial frame O-xyz; the object frame Om-XYZ has its origin at the
+object's mass centre (free) or at the pivot (pivoted); the object's surface, mass centre and
+inertia are given in it. The fingertip surface of finger ``i`` is given in the fingertip frame
+``Pi_i`` of its chain.
+
+Controller (no object information; ``derive.grasp3d``)::
+
+    u_i = dP_i/dq_i - c q_i' - J_i^T [ (fd / r_ctrl) (r_i - r_j) + (k_center / N) (r_bar - r_bar(0)) ]
+
+``r_i`` the fingertip centres, ``r_bar`` their mean. The first term cancels the finger's own
+weight (only when gravity is modelled), the second is joint damping, the third the pull of the
+fingertip centres toward each other (the 3D counterpart of the 2D law (32); for ONE finger the
+pull is toward the pivot, as in 2D), the last a spring on the grasp's centre. The pull is an
+internal force: the two fingertip forces sum to zero, so with gravity alone nothing carries
+the object's weight and a grasp under gravity slides down until the fingers are stretched.
+The centre spring (N/m) carries it: the object sags by about ``m g / k_center`` and is held.
+It uses no object information (only the fingertip centres).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.surfaces import ParametricSurface
+from grasping_sym.model.chains import FingerChain
+
+FORMULATIONS = ("regular", "paper")
+SUPPORTS = ("free", "pivot")
+
+#: Parameters that may be kept as run-time inputs (controller and stabilisation only; the
+#: bodies fix the initial configuration).
+RUNTIME_ALLOWED = ("fd", "c", "k_center", "gain")
+
+#: Outputs a 3D model can generate; ``{i}`` is the contact (finger) number 1..N.
+OUTPUTS: dict[str, str] = {
+    "constraint_residual": "m, largest |Qn|, |Qb|, |Qe| over the contacts",
+    "f{i}": "N, normal multiplier of contact i (> 0 presses)",
+    "lam{i}": "N, tangential multiplier of contact i along x_f",
+    "eta{i}": "N, tangential multiplier of contact i along y_f",
+    "krel_min{i}": "1/m, smaller eigenvalue of the relative curvature K_f + K~_o at contact i",
+    "orthonormality": "max |R^T R - I| of the object's rotation matrix",
+    "quat_norm_error": "|quat| - 1",
+    "kinetic_energy": "J",
+    "potential_energy": "J, gravity of the object and the fingers",
+    "power": "W, sum q_i' . u_i (the controller's power) minus the spin friction's dissipation",
+    "object_speed": "m/s, |v| of the mass centre (0 for a pivoted object)",
+    "object_angular_speed": "rad/s, |omega|",
+    "frame_denominator{i}": "rad/s, the paper formulation's omega0.e0 + omega1.e1 (0/0 at rest)",
+    "frame_orthonormality": "max |Psi^T Psi - I| of the paper formulation's frames",
+}
+
+
+@dataclass(frozen=True)
+class Finger3D:
+    """A finger chain and its fingertip surface (in the chain's fingertip frame)."""
+
+    chain: FingerChain
+    tip: ParametricSurface
+    q0: tuple[float, ...]                      # rad, joint angles: a guess of the start
+    tip_contact: tuple[float, float]           # (u_f, v_f): a guess of the fingertip contact
+    object_contact: tuple[float, float]        # (u_o, v_o): the object point to touch
+
+
+@dataclass(frozen=True)
+class GraspScene3D:
+    """A 3D grasping scene (every value documented by ``scenes.paper3d``).
+
+    Parameters
+    ----------
+    fingers
+        One or more :class:`Finger3D`.
+    object_surface
+        The object's surface in its frame (m).
+    mass, inertia
+        kg; kg m^2, the 3x3 inertia about the object frame's origin in its axes.
+    support
+        ``'free'`` (6 DOF, position of the mass centre and orientation) or ``'pivot'`` (the
+        object turns about its frame's origin, fixed at ``position``).
+    position, rotation
+        m, 3x3: the object's pose at the start (a guess: the consistent start moves it).
+    gravity
+        m/s^2, world vector, or None for a horizontal scene (no gravity terms generated).
+    fd, c, r_ctrl, k_center
+        N; N m s; m; N/m: the controller (module docstring).
+    spin_damping
+        N m s, torsional friction at each contact: a twist torque ``-spin_damping (n . w_rel)``
+        about the normal (a soft finger's); 0 is the paper's rigid contact, where a spin of
+        the object about the line through two contacts is resisted by nothing.
+    gain
+        1/s, constraint stabilisation: ``C'' + 2 g C' + g^2 C = 0`` (critically damped).
+    dq0
+        rad/s, joint speeds wished at the start (all fingers, in order); the start uses the
+        admissible motion closest to them in kinetic energy (None: rest).
+    formulation
+        ``'regular'`` (surface coordinates and frame angle, regular at rest: default) or
+        ``'paper'`` (the paper's moving frames, (Es), (Efs), (31)-(32)).
+    outputs
+        Names from :data:`OUTPUTS` (``{i}`` expanded), only those are generated.
+    runtime
+        Parameters from :data:`RUNTIME_ALLOWED` kept as inputs of the compiled code.
+    """
+
+    name: str
+    fingers: tuple[Finger3D, ...]
+    object_surface: ParametricSurface
+    mass: float
+    inertia: tuple[tuple[float, float, float], ...]
+    support: str = "free"
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    gravity: tuple[float, float, float] | None = None
+    fd: float = 0.5
+    c: float = 0.006
+    r_ctrl: float = 0.010
+    k_center: float = 0.0
+    gain: float = 300.0
+    spin_damping: float = 0.0
+    formulation: str = "regular"
+    dq0: tuple[float, ...] | None = None
+    outputs: tuple[str, ...] = ()
+    runtime: tuple[str, ...] = ()
+    problems: tuple[str, ...] = field(default=(), repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "fingers", tuple(self.fingers))
+        object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "runtime", tuple(self.runtime))
+        object.__setattr__(self, "inertia", _matrix(self.inertia))
+        object.__setattr__(self, "rotation", _matrix(self.rotation))
+        problems = self._problems()
+        if problems:
+            raise InvalidSceneError(problems)
+
+    # ------------------------------------------------------------------ validation
+    def _problems(self) -> list[str]:
+        p: list[str] = []
+        if not self.fingers:
+            p.append("no fingers: give at least one Finger3D")
+        for i, f in enumerate(self.fingers, start=1):
+            if len(f.q0) != f.chain.n:
+                p.append(f"finger {i}: q0 has {len(f.q0)} angles, the chain has {f.chain.n} joints")
+            if not f.tip.in_domain(*f.tip_contact):
+                p.append(f"finger {i}: tip_contact {f.tip_contact} is outside the fingertip's domain "
+                         f"{f.tip.domain}")
+            if not self.object_surface.in_domain(*f.object_contact):
+                p.append(f"finger {i}: object_contact {f.object_contact} is outside the object's "
+                         f"domain {self.object_surface.domain}")
+        if self.dq0 is not None and len(self.dq0) != sum(f.chain.n for f in self.fingers):
+            p.append(f"dq0 has {len(self.dq0)} speeds; the fingers have "
+                     f"{sum(f.chain.n for f in self.fingers)} joints")
+        if self.support == "free" and len(self.fingers) < 2:
+            p.append("a free object needs at least two fingers: use support='pivot' with one finger")
+        names = [f.chain.name for f in self.fingers]
+        if len(set(names)) != len(names):
+            p.append(f"finger chains share names {names}: give each a distinct name")
+        for k in ("mass", "fd", "c", "r_ctrl", "gain"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                p.append(f"{k} = {v!r} must be a finite number > 0")
+        if not (math.isfinite(self.spin_damping) and self.spin_damping >= 0):
+            p.append(f"spin_damping = {self.spin_damping!r} must be finite and >= 0 (N m s)")
+        if not (math.isfinite(self.k_center) and self.k_center >= 0):
+            p.append(f"k_center = {self.k_center!r} must be finite and >= 0 (N/m)")
+        H = np.asarray(self.inertia, float)
+        if H.shape != (3, 3) or not np.all(np.isfinite(H)) or not np.allclose(H, H.T) \
+                or np.linalg.eigvalsh(0.5 * (H + H.T)).min() <= 0:
+            p.append(f"inertia {self.inertia} must be a symmetric positive definite 3x3 matrix (kg m^2)")
+        R = np.asarray(self.rotation, float)
+        if R.shape != (3, 3) or not np.allclose(R.T @ R, np.eye(3), atol=1e-12) or np.linalg.det(R) < 0:
+            p.append("rotation must be a proper rotation matrix (R^T R = I to 1e-12, det +1)")
+        if self.support not in SUPPORTS:
+            p.append(f"support {self.support!r} unknown: choose one of {SUPPORTS}")
+        if self.formulation not in FORMULATIONS:
+            p.append(f"formulation {self.formulation!r} unknown: choose one of {FORMULATIONS}")
+        if self.gravity is not None and (len(self.gravity) != 3
+                                         or not all(math.isfinite(g) for g in self.gravity)):
+            p.append(f"gravity {self.gravity!r} must be three finite numbers (m/s^2) or None")
+        for k in self.runtime:
+            if k not in RUNTIME_ALLOWED:
+                p.append(f"runtime parameter {k!r} not allowed: choose from {RUNTIME_ALLOWED}")
+        known = set(self.output_catalogue())
+        for k in self.outputs:
+            if k not in known:
+                p.append(f"output {k!r} unknown: choose from {sorted(known)}")
+        return p
+
+    # ------------------------------------------------------------------ names
+    @property
+    def n_contacts(self) -> int:
+        return len(self.fingers)
+
+    def output_catalogue(self) -> tuple[str, ...]:
+        """Every output this scene can generate (``{i}`` expanded)."""
+        out = []
+        for k in OUTPUTS:
+            if "{i}" in k:
+                if k.startswith("frame_denominator") and self.formulation != "paper":
+                    continue
+                out += [k.format(i=i) for i in range(1, self.n_contacts + 1)]
+            elif k == "frame_orthonormality" and self.formulation != "paper":
+                continue
+            else:
+                out.append(k)
+        return tuple(out)
+
+    @property
+    def free(self) -> bool:
+        return self.support == "free"
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(n for f in self.fingers for n in f.chain.joint_names)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Positions, speeds, then the contact states of each contact."""
+        q = list(self.joint_names)
+        pos = q + (["x", "y", "z"] if self.free else []) + ["qw", "qx", "qy", "qz"]
+        vel = ["d" + n for n in q] + (["vx", "vy", "vz"] if self.free else []) + ["omegaX", "omegaY", "omegaZ"]
+        return tuple(pos + vel + [n for i in range(1, self.n_contacts + 1) for n in self.contact_state_names(i)])
+
+    def contact_state_names(self, i: int) -> tuple[str, ...]:
+        base = (f"u_f{i}", f"v_f{i}", f"u_o{i}", f"v_o{i}")
+        if self.formulation == "regular":
+            return (*base, f"psi{i}")
+        return (*base, f"s{i}", *(f"Psi0{i}_{k}" for k in range(9)), *(f"Psi1{i}_{k}" for k in range(9)))
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"fd": self.fd, "c": self.c, "k_center": self.k_center, "gain": self.gain}
+
+    def key(self) -> str:
+        """Canonical text of the whole definition, for content hashing."""
+        parts = [self.name, self.support, self.formulation, repr(self.mass), repr(self.inertia),
+                 repr(self.position), repr(self.rotation), repr(self.gravity), repr(self.params),
+                 repr(self.r_ctrl), repr(self.dq0), repr(self.spin_damping), ",".join(self.outputs), ",".join(self.runtime),
+                 self.object_surface.key()]
+        for f in self.fingers:
+            parts += [repr(f.chain), f.tip.key(), repr(f.q0), repr(f.tip_contact), repr(f.object_contact)]
+        return "\n".join(parts)
+
+
+def _matrix(m) -> tuple[tuple[float, float, float], ...]:
+    a = np.asarray(m, dtype=float)
+    if a.shape == (3,):
+        a = np.diag(a)
+    return tuple(tuple(float(x) for x in row) for row in a)
