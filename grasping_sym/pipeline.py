@@ -22,7 +22,7 @@ import numpy as np
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, templates
 from grasping_sym.codegen.compiler import COMPILER_FLAGS
-from grasping_sym.codegen.functions import compose, sympy_op_counts
+from grasping_sym.codegen.functions import compose, sx_model, sympy_op_counts
 from grasping_sym.derive.planar import derive_planar, has_gravity, parameter_values
 from grasping_sym.model.planar import PlanarFingerScene
 from grasping_sym.runtime.compiled import compile_model, driver_defines
@@ -36,9 +36,14 @@ def _library_tag() -> str:
     return f"{sys.implementation.cache_tag}-numpy{np.__version__}"
 
 
-def code_hash(scene: PlanarFingerScene) -> dict:
+def _is_3d(scene) -> bool:
+    return getattr(scene, "kind", "planar") == "grasp3d"
+
+
+def code_hash(scene) -> dict:
     """Content hash of the generated C for ``scene`` and the inputs it covers."""
-    return cache.content_hash(scene.key(), __version__, COMPILER_FLAGS)
+    sources = cache.HASHED_SOURCES + (cache.HASHED_SOURCES_3D if _is_3d(scene) else ())
+    return cache.content_hash(scene.key(), __version__, COMPILER_FLAGS, sources)
 
 
 def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = True,
@@ -49,6 +54,8 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
     seconds spent deriving and translating (not written: they vary run to run).
     """
     say = progress or (lambda msg: None)
+    if _is_3d(scene):
+        return _generate_grasp3d(scene, directory, say)
     digest = code_hash(scene)
     t0 = time.perf_counter()
     values = parameter_values(scene)  # validates the scene, solves the initial configuration
@@ -88,6 +95,67 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
     cwriter.write_manifest(directory, manifest)
     manifest["timings"] = {"validate": t1 - t0, "template": t2 - t1,
                            "template_source": template_source, "compose": t3 - t2,
+                           "write_c": t4 - t3}
+    return manifest
+
+
+def _generate_grasp3d(scene, directory: Path, say: Progress) -> dict:
+    """``generate`` for a 3D grasping scene (``model.grasp3d``): start, derive, C, manifest."""
+    from grasping_sym.derive import initial3d  # noqa: PLC0415
+    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
+
+    digest = code_hash(scene)
+    t0 = time.perf_counter()
+    say(f"solving a consistent start for {scene.name} (Gauss-Newton)")
+    x0, info = initial3d.initial_state(scene)
+    t1 = time.perf_counter()
+    say(f"deriving {scene.name} ({scene.formulation} formulation; SymPy, then CasADi AD)")
+    system = derive_grasp3d(scene, info["r_bar0"])
+    t2 = time.perf_counter()
+    # no generated Jacobian: 250k SX instructions that gcc needs minutes for; the integrators
+    # difference the compiled rhs instead (33 calls of 14k instructions, rarely needed)
+    cm = sx_model(system.x, system.p, system.xdot, {k: system.outputs[k] for k in scene.outputs},
+                  scene.name, jacobian=False)
+    t3 = time.perf_counter()
+    say(f"writing C into {directory}")
+    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
+    t4 = time.perf_counter()
+    lower: list = [None] * len(scene.state_names)
+    upper: list = [None] * len(scene.state_names)
+    for i, f in enumerate(scene.fingers, start=1):
+        for name, (lo, hi) in ((f"u_f{i}", f.tip.domain[0]), (f"v_f{i}", f.tip.domain[1]),
+                               (f"u_o{i}", scene.object_surface.domain[0]),
+                               (f"v_o{i}", scene.object_surface.domain[1])):
+            k = scene.state_names.index(name)
+            lower[k], upper[k] = lo, hi
+    checks = {}
+    if scene.formulation == "paper":
+        fn = system.function("d0", "outputs")
+        d0 = fn(x=x0, p=[scene.params[k] for k in scene.runtime])
+        checks["frame_denominators"] = [float(d0[f"frame_denominator{i}"])
+                                        for i in range(1, scene.n_contacts + 1)]
+    manifest = {
+        "name": scene.name,
+        "kind": "grasp3d",
+        "formulation": scene.formulation,
+        "hash": digest["hash"],
+        "hash_inputs": digest["inputs"],
+        "state_names": list(scene.state_names),
+        "output_names": list(cm.output_names),
+        "param_names": list(scene.runtime),
+        "param_values": [float(scene.params[k]) for k in scene.runtime],
+        "initial_state": [float(v) for v in x0],
+        "start": {"residual": info["residual"], "iterations": info["iterations"],
+                  "r_bar0": [float(v) for v in info["r_bar0"]]},
+        "checks": checks,
+        "lower": lower,
+        "upper": upper,
+        "op_counts": dict(cm.op_counts),
+        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac),
+        "c_symbols": [f.name() for f in cm.functions()],
+    }
+    cwriter.write_manifest(directory, manifest)
+    manifest["timings"] = {"initial_state": t1 - t0, "derive": t2 - t1, "casadi": t3 - t2,
                            "write_c": t4 - t3}
     return manifest
 

@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
+from typing import TYPE_CHECKING
 
-from grasping_sym.geometry import library, surface_library
-from grasping_sym.model import chains
-from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
+from grasping_sym.geometry import library
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
+
+if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
+    from grasping_sym.model.grasp3d import GraspScene3D
 
 #: Paper Tables 1 and 2 plus the choices of MODELS.md section 1 (SI units).
 PAPER2D_PARAMS: dict[str, float] = {
@@ -68,7 +69,7 @@ PAPER3D_MASS: float = 0.040
 PAPER3D_TIP_RADIUS: float = 0.010
 
 
-def paper3d(**overrides) -> GraspScene3D:
+def paper3d(**overrides) -> "GraspScene3D":
     """Arimoto-Yoshida 2011: two fingers grasp a free ellipsoid under gravity (MODELS.md 2).
 
     Every value, chosen because the paper gives no numbers (SI units):
@@ -102,6 +103,9 @@ def paper3d(**overrides) -> GraspScene3D:
     Any field of ``GraspScene3D`` may be overridden by keyword (e.g. ``formulation='paper'``).
     """
     from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
+    from grasping_sym.geometry import surface_library  # noqa: PLC0415
+    from grasping_sym.model import chains  # noqa: PLC0415
+    from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     rot = _axis_angle((1.0, 1.0, 1.0), 0.2)
@@ -130,11 +134,14 @@ PAPER3D_OUTPUTS = ("constraint_residual", "f1", "lam1", "eta1", "f2", "lam2", "e
                    "potential_energy", "power", "object_speed", "object_angular_speed")
 
 
-def pivot3d(**overrides) -> GraspScene3D:
+def pivot3d(**overrides) -> "GraspScene3D":
     """One finger (``chains.finger1``, spherical tip of 0.010 m) rolling on an ellipsoid
     (0.020, 0.025, 0.030) m that turns about its centre, fixed; no gravity. The controller pulls
     the fingertip centre toward the pivot (the 2D law (32)). The smallest 3D scene."""
     from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
+    from grasping_sym.geometry import surface_library  # noqa: PLC0415
+    from grasping_sym.model import chains  # noqa: PLC0415
+    from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     fingers = (Finger3D(chain=chains.finger1(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip"),
@@ -150,6 +157,7 @@ def pivot3d(**overrides) -> GraspScene3D:
 
 
 def _axis_angle(axis, angle: float) -> tuple:
+    import numpy as np  # noqa: PLC0415
     from scipy.spatial.transform import Rotation  # noqa: PLC0415
 
     a = np.asarray(axis, float)

@@ -31,6 +31,12 @@ HASHED_SOURCES = (
     "codegen/compiler.py", "c/driver.c", "c/pyfast.c", "c/gs_driver.h", "runtime/compiled.py", "pipeline.py",
 )
 
+#: The 3D models' code-shaping modules, hashed (with ``HASHED_SOURCES``) for 3D scenes only.
+HASHED_SOURCES_3D = (
+    "model/grasp3d.py", "model/chains.py", "geometry/surfaces.py", "derive/grasp3d.py",
+    "derive/initial3d.py", "derive/spatial.py", "derive/contact3d.py",
+)
+
 
 def cache_root() -> Path:
     env = os.environ.get("GRASPING_SYM_CACHE")
@@ -40,24 +46,25 @@ def cache_root() -> Path:
     return Path(base) / "grasping_sym"
 
 
-@lru_cache(maxsize=1)
-def sources_digest() -> str:
+@lru_cache(maxsize=4)
+def sources_digest(sources: tuple[str, ...] = HASHED_SOURCES) -> str:
     """Hash of the source text of the modules that shape generated code."""
     h = hashlib.sha256()
-    for rel in HASHED_SOURCES:
+    for rel in sources:
         h.update(rel.encode())
         h.update((PACKAGE_DIR / rel).read_bytes())
     return h.hexdigest()
 
 
-def content_hash(scene_key: str, version: str, compiler_flags: tuple[str, ...]) -> dict:
+def content_hash(scene_key: str, version: str, compiler_flags: tuple[str, ...],
+                 sources: tuple[str, ...] = HASHED_SOURCES) -> dict:
     """The hash and the inputs it covers (recorded in the manifest)."""
     inputs = {
         "scene": hashlib.sha256(scene_key.encode()).hexdigest(),
         "grasping_sym": version,
         "casadi": ca.__version__,
         "compiler_flags": " ".join(compiler_flags),
-        "sources": sources_digest(),
+        "sources": sources_digest(sources),
     }
     h = hashlib.sha256("\n".join(f"{k}={inputs[k]}" for k in sorted(inputs)).encode())
     return {"hash": h.hexdigest(), "inputs": inputs}

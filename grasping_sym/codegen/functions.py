@@ -134,6 +134,21 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
         L += [tr(concrete[cls]) for cls in fns.leaves()]
     L = ca.vertcat(*L)
     xdot = template.rhs(x, q, L)
+    y = {}
+    if outputs:
+        y_all = template.outputs(x, q, L)
+        y = {k: y_all[template.output_names.index(k)] for k in outputs}
+    return sx_model(x, p, xdot, y, name)
+
+
+def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: str, *,
+             jacobian: bool = True) -> CasadiModel:
+    """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
+
+    ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
+    integrators then difference the compiled rhs), and ``{name}_outputs`` (only when
+    ``outputs`` is not empty), with the SX instruction counts before and after CSE.
+    """
     t = ca.SX.sym("t")
     empty = ca.SX(0, 1)
     dyn_in = [t, x, empty, p, empty]
@@ -141,16 +156,16 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
                       ca.dyn_in(), ca.dyn_out())
     rhs = ca.Function(f"{name}_rhs", dyn_in, [xdot, empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out(), FUNCTION_OPTIONS)
-    jac = rhs.jacobian()
+    jac = rhs.jacobian() if jacobian else None
     op_counts = {
         "rhs_sx_instructions_before_cse": raw.n_instructions(),
         "rhs_sx_instructions": rhs.n_instructions(),
-        "jac_sx_instructions": jac.n_instructions(),
     }
+    if jac is not None:
+        op_counts["jac_sx_instructions"] = jac.n_instructions()
     out_fn = None
     if outputs:
-        y_all = template.outputs(x, q, L)
-        y = ca.vertcat(*[y_all[template.output_names.index(k)] for k in outputs])
+        y = ca.vertcat(*outputs.values())
         out_fn = ca.Function(f"{name}_outputs", [x, p], [y], ["x", "p"], ["y"],
                              FUNCTION_OPTIONS)
         op_counts["outputs_sx_instructions"] = out_fn.n_instructions()

@@ -196,6 +196,9 @@ class GraspScene3D:
         return p
 
     # ------------------------------------------------------------------ names
+    #: Which pipeline builds it (``pipeline``).
+    kind = "grasp3d"
+
     @property
     def n_contacts(self) -> int:
         return len(self.fingers)

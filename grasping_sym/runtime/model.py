@@ -110,7 +110,10 @@ class Model:
     def external_rhs(self) -> ca.Function:
         """The compiled right-hand side as a CasADi Function (for CVODES/IDAS)."""
         if self._external is None:
-            self._external = ca.external(f"{self.name}_rhs", str(self.library_path))
+            has_jac = bool(self.manifest.get("driver_defines", {}).get("GS_HAS_JAC", 1))
+            # without a generated Jacobian, CasADi differences the compiled rhs
+            opts = {} if has_jac else {"enable_fd": True}
+            self._external = ca.external(f"{self.name}_rhs", str(self.library_path), opts)
         return self._external
 
     # ------------------------------------------------------------------ simulate
