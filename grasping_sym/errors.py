@@ -89,6 +89,14 @@ class RelativeCurvatureError(IntegratorError):
     """
 
 
+class MovingFrameSingularityError(IntegratorError):
+    """The paper's moving-frame formulation is 0/0: ``D = omega0.e0 + omega1.e1 = -(kn0 + kn1) s'``
+    fell to its threshold (the contact has stopped; the trace direction is undefined).
+
+    ``t`` (s), ``denominator`` (rad/s) and ``threshold`` (rad/s); ``contact`` names the output.
+    """
+
+
 class InconsistentInitialStateError(GraspingSymError, ValueError):
     """The initial state is off the contact constraints: ``residual`` = max(|Q|, |R|) in m."""
 

@@ -90,7 +90,8 @@ def solve_configuration(scene: GraspScene3D) -> dict:
     sw = np.sqrt(weights)
     kr = nQ + (3 if scene.free else 0)
     res = np.inf
-    for it in range(MAX_ITER):
+    it = 0
+    for it in range(MAX_ITER):  # noqa: B007 - the count is reported
         F, J = (np.asarray(a, float) for a in fun(w, R)[:2])
         F = F.ravel()
         res = float(np.max(np.abs(F)))
@@ -203,8 +204,9 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
 
 def _tangent(surface, u, v) -> np.ndarray:
     """3 x 2 ``[S_u S_v]`` at ``(u, v)`` (surface frame)."""
-    from grasping_sym.geometry.surfaces import U, V  # noqa: PLC0415
     import sympy as sp  # noqa: PLC0415
+
+    from grasping_sym.geometry.surfaces import U, V  # noqa: PLC0415
 
     f = sp.lambdify((U, V), [surface.S_u, surface.S_v], "numpy")
     Su, Sv = f(u, v)

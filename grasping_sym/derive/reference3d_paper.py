@@ -50,9 +50,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from grasping_sym import errors
 from grasping_sym.codegen.translate import SympyToCasadi
 from grasping_sym.derive.reference3d import SL_DQ, SL_OM, SL_QUAT, Reference3D, Scene3D
-from grasping_sym.errors import GraspingSymError
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 
 N_STATE = 34
@@ -61,19 +61,20 @@ FRAME_GAIN = 50.0          # 1/s, damping of the frames' orthonormality drift
 SINGULARITY_TOL = 1e-6     # relative threshold on |D| / ((kn0 + kn1) * speed_scale)
 
 
-class MovingFrameSingularityError(GraspingSymError):
-    """The moving-frame formulation is 0/0: ``D = omega0.e0 + omega1.e1 = -(kn0+kn1) s'`` ~ 0.
+class MovingFrameSingularityError(errors.MovingFrameSingularityError):
+    """``errors.MovingFrameSingularityError`` raised by this NumPy reference.
 
-    Attributes: ``denominator`` (rad/s), ``threshold`` (rad/s), ``s_dot`` (m/s), ``t`` (s or None).
+    Attributes: ``denominator`` (rad/s), ``threshold`` (rad/s), ``s_dot`` (m/s), ``t`` (s, NaN if unknown).
     """
 
     def __init__(self, denominator: float, threshold: float, s_dot: float, t: float | None = None):
-        self.denominator, self.threshold, self.s_dot, self.t = denominator, threshold, s_dot, t
         when = f" at t = {t:.6g} s" if t is not None else ""
         super().__init__(
+            float("nan") if t is None else t, None,
             f"moving-frame formulation singular{when}: |omega0.e0 + omega1.e1| = {abs(denominator):.3e} rad/s "
             f"< {threshold:.3e} rad/s (s' = {s_dot:.3e} m/s); the trace direction b is undefined as the "
             "contact stops. Use the regular formulation (reference3d).")
+        self.denominator, self.threshold, self.s_dot = denominator, threshold, s_dot
 
 
 def _darboux(kg, tg, kn):

@@ -247,7 +247,8 @@ class GraspScene3D:
         """Canonical text of the whole definition, for content hashing."""
         parts = [self.name, self.support, self.formulation, repr(self.mass), repr(self.inertia),
                  repr(self.position), repr(self.rotation), repr(self.gravity), repr(self.params),
-                 repr(self.r_ctrl), repr(self.dq0), repr(self.spin_damping), ",".join(self.outputs), ",".join(self.runtime),
+                 repr(self.r_ctrl), repr(self.dq0), repr(self.spin_damping), ",".join(self.outputs),
+                 ",".join(self.runtime),
                  self.object_surface.key()]
         for f in self.fingers:
             parts += [repr(f.chain), f.tip.key(), repr(f.q0), repr(f.tip_contact), repr(f.object_contact)]

@@ -9,11 +9,9 @@ import numpy as np
 
 from grasping_sym.errors import (
     ContactLeftContourError,
-    ContactOpenedError,
-    InconsistentInitialStateError,
     IntegratorError,
-    RelativeCurvatureError,
 )
+from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import integrators
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
@@ -202,7 +200,7 @@ class Model:
             raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
         p = self.params(params)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
-        k_start = _check_initial_state(self, x0, p) if checks else None
+        start = checks_.check_initial_state(self, x0, p) if checks else {}
         if method in ("rk4", "radau"):
             try:
                 if method == "rk4":
@@ -213,7 +211,7 @@ class Model:
             except IntegratorError as exc:
                 err = _blow_up(self, self._classify(exc), method, h)
                 if checks:
-                    _raise_earlier_event(self, err, p, k_start)
+                    checks_.raise_earlier_event(self, err, p, start)
                 raise err from None
         else:
             pp = np.zeros(0) if p is None else p
@@ -222,7 +220,7 @@ class Model:
                                                    max_steps)
             except IntegratorError as exc:
                 if checks:
-                    _raise_earlier_event(self, exc, p, k_start)
+                    checks_.raise_earlier_event(self, exc, p, start)
                 raise
             for i in range(len(t)):
                 try:
@@ -230,11 +228,11 @@ class Model:
                 except ContactLeftContourError as exc:
                     if checks:
                         exc.trajectory = (t[:i].copy(), X[:i].copy())
-                        _raise_earlier_event(self, exc, p, k_start)
+                        checks_.raise_earlier_event(self, exc, p, start)
                     raise
         outs = self.outputs_batch(X, p) if outputs and self.output_names else {}
         if checks and outs:
-            event = _trajectory_event(self, t, X, outs, k_start)
+            event = checks_.trajectory_event(self, t, X, outs, start)
             if event is not None:
                 raise event
         if drop_first:
@@ -303,186 +301,6 @@ def _output_times(t_eval, t_final: float) -> tuple[np.ndarray, bool]:
     if len(t_eval) < 2:
         raise ValueError("t_eval needs a time after 0")
     return t_eval, False
-
-
-# ---------------------------------------------------------------- checks of simulate
-#: ``kappa_sum`` may fall to this fraction of its initial value (see ``Model.simulate``).
-KAPPA_SUM_RELATIVE = 1e-3
-#: ``kappa_sum * |Om|`` at ``t = 0`` must exceed this (see ``Model.simulate``).
-KAPPA_SUM_INITIAL = 1e-3
-#: ``max(|Q|, |R|)`` (m) allowed at ``x0``.
-INITIAL_RESIDUAL = 1e-8
-
-
-def _scene_size(model: Model) -> float:
-    """``|Om|`` (m): the object's pivot's distance from the finger base, 0 if unknown."""
-    pivot = model.manifest.get("pivot")
-    try:
-        return float(np.hypot(*pivot)) if pivot is not None else 0.0
-    except (TypeError, ValueError):
-        return 0.0
-
-
-def _check_initial_state(model: Model, x0: np.ndarray, p) -> float | None:
-    """Refuse an ``x0`` off the constraints or at a near-zero ``kappa_sum``.
-
-    Returns ``kappa_sum`` at ``x0`` (``None`` when the model does not output it).
-    """
-    names = set(model.output_names)
-    if not names & {"Q", "R", "constraint_residual", "kappa_sum"}:
-        return None
-    y = model.outputs(x0, p)
-    if "Q" in y and "R" in y:
-        residual = max(abs(y["Q"]), abs(y["R"]))
-        what = f"max(|Q|, |R|) = max({abs(y['Q']):.3g}, {abs(y['R']):.3g})"
-    elif "constraint_residual" in y:
-        residual = abs(y["constraint_residual"])
-        what = "constraint_residual"
-    else:
-        residual, what = 0.0, ""
-    if not residual <= INITIAL_RESIDUAL:
-        raise InconsistentInitialStateError(
-            residual,
-            f"x0 is off the contact constraints: {what} = {residual:.6g} m > "
-            f"{INITIAL_RESIDUAL:g} m; start from model.initial_state() or a state on the "
-            "constraint manifold (Q = R = 0: the contours touch and are tangent), or pass "
-            "checks=False to integrate anyway (the constraint stabilisation then pulls the "
-            "state back, with a transient)",
-        )
-    if "kappa_sum" not in y:
-        return None
-    k0 = y["kappa_sum"]
-    size = _scene_size(model)
-    threshold = KAPPA_SUM_INITIAL / size if size > 0 else 0.0
-    if not k0 > threshold:
-        err = RelativeCurvatureError(
-            0.0, x0,
-            f"relative curvature kappa0 + kappa1 = {k0:.6g} 1/m at the initial contact is at "
-            f"or below {threshold:.6g} 1/m (= {KAPPA_SUM_INITIAL:g} / |Om|, |Om| = "
-            f"{size:.6g} m): the contours nearly osculate there, the update law (29) divides "
-            "by it and the contact point would race along the contours; start from a "
-            "contact where the fingertip is clearly more curved than the object's hollow",
-            model.state_names,
-        )
-        err.kappa_sum, err.threshold = k0, threshold
-        raise err
-    return k0
-
-
-def _first_crossing(t: np.ndarray, v: np.ndarray, level: float):
-    """First sample index with ``v <= level`` (or NaN), and the interpolated crossing time."""
-    bad = np.flatnonzero(~(v > level))
-    if bad.size == 0:
-        return None
-    i = int(bad[0])
-    if i == 0:
-        return 0, float(t[0])
-    a, b = float(v[i - 1]), float(v[i])
-    frac = (a - level) / (a - b) if math.isfinite(b) and a != b else 1.0
-    frac = min(max(frac, 0.0), 1.0)
-    return i, float(t[i - 1] + frac * (t[i] - t[i - 1]))
-
-
-def _trajectory_event(model: Model, t: np.ndarray, X: np.ndarray, outs: dict,
-                      k_start: float | None, *, force: bool = True,
-                      note: str = "") -> IntegratorError | None:
-    """The first of: ``f <= 0`` (contact opens, if ``force``), ``kappa_sum`` at its threshold.
-
-    ``note`` is appended to the reason.
-    """
-    events = []
-    if "kappa_sum" in outs and len(t):
-        k = outs["kappa_sum"]
-        k_ref = k_start if k_start is not None else float(k[0])
-        threshold = KAPPA_SUM_RELATIVE * k_ref
-        hit = _first_crossing(t, k, threshold)
-        if hit is not None:
-            i, tc = hit
-            xs = X[i - 1] if i else X[0]
-            err = RelativeCurvatureError(
-                tc, xs,
-                f"relative curvature kappa0 + kappa1 fell to {threshold:.6g} 1/m "
-                f"({KAPPA_SUM_RELATIVE:g} of its initial {k_ref:.6g} 1/m) at about "
-                f"t = {tc:.6g} s (sample t = {t[i]:.6g} s: {k[i]:.6g} 1/m): the contours "
-                "nearly osculate or cross (curvatures of opposite convexity), "
-                "the update law (29) divides by it and the state would blow up; choose a "
-                "fingertip more curved than the object's hollows along the path (state at "
-                "the last sample before)" + note,
-                model.state_names,
-            )
-            err.kappa_sum, err.threshold, err.t_sample = float(k[i]), threshold, float(t[i])
-            events.append((tc, 0, err))
-    if force and "f" in outs and len(t):
-        f = outs["f"]
-        hit = _first_crossing(t, f, 0.0)
-        if hit is not None:
-            i, tc = hit
-            xs = X[i - 1] if i else X[0]
-            before = float(f[i - 1]) if i else float("nan")
-            where = (f"crosses 0 at about t = {tc:.6g} s (f = {before:.6g} N at "
-                     f"t = {t[i - 1]:.6g} s, {f[i]:.6g} N at t = {t[i]:.6g} s)" if i else
-                     f"is {f[0]:.6g} N <= 0 at t = {t[0]:.6g} s, the start")
-            err = ContactOpenedError(
-                tc, xs,
-                f"normal force f {where}: "
-                "a unilateral contact cannot pull, the contact would open and the model "
-                "(rolling contact kept by a constraint) no longer holds; raise fd or lower "
-                "the speeds that pull the finger away (state at the last sample before)" + note,
-                model.state_names,
-            )
-            err.force, err.force_before, err.t_sample = float(f[i]), before, float(t[i])
-            events.append((tc, 1, err))
-    if not events:
-        return None
-    return min(events, key=lambda e: (e[0], e[1]))[2]
-
-
-def _raise_earlier_event(model: Model, exc: IntegratorError, p, k_start) -> None:
-    """On a failed run: raise ``RelativeCurvatureError`` instead if ``kappa_sum`` reached its
-    threshold before ``exc.t`` (the cause of the blow-up). The sign of ``f`` is not checked
-    here: near a numerical blow-up (e.g. RK4 beyond its stability limit) ``f`` swings wildly
-    and a "contact opens" report would name a symptom, not the cause."""
-    if "kappa_sum" not in model.output_names:
-        return
-    rows_t, rows_x = [], []
-    trajectory = getattr(exc, "trajectory", None)
-    if trajectory is not None:
-        tt, XX = (np.asarray(a, dtype=float) for a in trajectory)
-        if tt.ndim == 1 and XX.ndim == 2 and len(tt) == len(XX):
-            rows_t.append(tt)
-            rows_x.append(XX)
-    x_fail = exc.x
-    if x_fail is not None and math.isfinite(exc.t):
-        x_fail = np.asarray(x_fail, dtype=float)
-        if x_fail.shape == (len(model.state_names),):
-            rows_t.append(np.array([exc.t]))
-            rows_x.append(x_fail[None, :])
-    if not rows_t:
-        return
-    t = np.concatenate(rows_t)
-    X = np.vstack(rows_x)
-    keep = np.all(np.isfinite(X), axis=1)
-    if len(t) > 1:
-        keep[1:] &= np.diff(t) > 0
-    t, X = t[keep], X[keep]
-    if len(t) == 0:
-        return
-    outs = model.outputs_batch(X, p)
-    note = f"; the integrator then failed at t = {exc.t:.6g} s: {exc.reason}"
-    event = _trajectory_event(model, t, X, outs, k_start, force=False, note=note)
-    if event is not None and event.t <= exc.t:
-        event.cause_error = exc
-        raise event from exc
-    if k_start and exc.x is not None:  # the last row is the state recovered at the failure
-        k_last = float(outs["kappa_sum"][-1])
-        if k_last < 0.1 * k_start:  # name a likely cause the threshold did not catch yet
-            err = IntegratorError(
-                exc.t, exc.x, f"{exc.reason}; kappa0 + kappa1 had fallen to {k_last:.3g} 1/m "
-                f"({k_last / k_start:.2g} of its initial value): the contact update law (29) "
-                "divides by it", model.state_names)
-            err.kappa_sum = k_last
-            err.trajectory = getattr(exc, "trajectory", None)
-            raise err from exc
 
 
 def _blow_up(model: Model, err: IntegratorError, method: str, h: float) -> IntegratorError:

@@ -1,0 +1,273 @@
+"""The named checks of ``Model.simulate``: silent failure modes turned into errors.
+
+Each check reads the model's outputs, so it runs only when the model was built with them:
+
+- ``constraint_residual`` (or the 2D ``Q``, ``R``) at ``x0``: ``InconsistentInitialStateError``;
+- normal multipliers ``f`` (2D) or ``f1, f2, ...`` (3D) must stay > 0: ``ContactOpenedError``;
+- relative curvature, ``kappa_sum`` (2D) or the smaller eigenvalue ``krel_min{i}`` of
+  ``K_f + K~_o`` (3D), must stay above ``KAPPA_SUM_RELATIVE`` of its initial value:
+  ``RelativeCurvatureError`` (the contact update laws divide by it);
+- the paper formulation's ``frame_denominator{i} = omega0.e0 + omega1.e1`` must stay above
+  ``FRAME_DENOMINATOR_RELATIVE`` of its magnitude at the scene's start (the manifest's
+  ``checks.frame_denominators``): ``MovingFrameSingularityError`` (its (31)-(32) are 0/0 at
+  rest).
+
+Events are found on the output samples; the first in time is raised, its time interpolated
+linearly between the samples around it.
+"""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from grasping_sym.errors import (
+    ContactOpenedError,
+    InconsistentInitialStateError,
+    IntegratorError,
+    MovingFrameSingularityError,
+    RelativeCurvatureError,
+)
+
+#: ``kappa_sum`` / ``krel_min{i}`` may fall to this fraction of its initial value.
+KAPPA_SUM_RELATIVE = 1e-3
+#: ``kappa_sum * |Om|`` at ``t = 0`` must exceed this (2D).
+KAPPA_SUM_INITIAL = 1e-3
+#: ``max(|Q|, |R|)`` or ``constraint_residual`` (m) allowed at ``x0``.
+INITIAL_RESIDUAL = 1e-8
+#: ``|frame_denominator{i}|`` may fall to this fraction of its magnitude at the start: below
+#: it the geodesic curvatures ``(O(|s'|) numerator) / D`` have lost six of ~16 digits.
+FRAME_DENOMINATOR_RELATIVE = 1e-6
+
+
+def _matching(names, pattern: str) -> list[str]:
+    return [n for n in names if re.fullmatch(pattern, n)]
+
+
+def curvature_outputs(names) -> list[str]:
+    return _matching(names, r"kappa_sum|krel_min\d+")
+
+
+def force_outputs(names) -> list[str]:
+    return _matching(names, r"f\d*")
+
+
+def denominator_outputs(names) -> list[str]:
+    return _matching(names, r"frame_denominator\d+")
+
+
+def _scene_size(model) -> float:
+    """``|Om|`` (m): the 2D object's pivot's distance from the finger base, 0 if unknown."""
+    pivot = model.manifest.get("pivot")
+    try:
+        return float(np.hypot(*pivot)) if pivot is not None else 0.0
+    except (TypeError, ValueError):
+        return 0.0
+
+
+def _denominator_thresholds(model) -> dict[str, float]:
+    d0 = model.manifest.get("checks", {}).get("frame_denominators", [])
+    return {f"frame_denominator{i}": FRAME_DENOMINATOR_RELATIVE * abs(v)
+            for i, v in enumerate(d0, start=1)}
+
+
+def _frame_error(model, name: str, t: float, x, value: float, threshold: float, extra: str = ""):
+    err = MovingFrameSingularityError(
+        t, x,
+        f"moving-frame formulation singular: |{name}| = |omega0.e0 + omega1.e1| = {abs(value):.3e} "
+        f"rad/s fell to {threshold:.3e} rad/s ({FRAME_DENOMINATOR_RELATIVE:g} of its value at the "
+        f"start) at about t = {t:.6g} s: the contact has (nearly) stopped, the trace direction b "
+        "and the geodesic curvatures (31)-(32) are 0/0 there; this is where a grasp comes to rest. "
+        "Use the regular formulation (formulation='regular', the default)" + extra,
+        model.state_names)
+    err.denominator, err.threshold, err.contact = float(value), float(threshold), name
+    return err
+
+
+def check_initial_state(model, x0: np.ndarray, p) -> dict[str, float]:
+    """Refuse an ``x0`` off the constraints, at a vanishing relative curvature or, in the paper
+    formulation, with a (nearly) stopped contact. Returns the initial value of every
+    curvature output (the reference of their thresholds along the run)."""
+    names = set(model.output_names)
+    watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
+    if not names & watched:
+        return {}
+    y = model.outputs(x0, p)
+    if "Q" in y and "R" in y:
+        residual = max(abs(y["Q"]), abs(y["R"]))
+        what = f"max(|Q|, |R|) = max({abs(y['Q']):.3g}, {abs(y['R']):.3g})"
+    elif "constraint_residual" in y:
+        residual = abs(y["constraint_residual"])
+        what = "constraint_residual"
+    else:
+        residual, what = 0.0, ""
+    if not residual <= INITIAL_RESIDUAL:
+        raise InconsistentInitialStateError(
+            residual,
+            f"x0 is off the contact constraints: {what} = {residual:.6g} m > "
+            f"{INITIAL_RESIDUAL:g} m; start from model.initial_state() or a state on the "
+            "constraint manifold (the surfaces touch and are tangent), or pass "
+            "checks=False to integrate anyway (the constraint stabilisation then pulls the "
+            "state back, with a transient)",
+        )
+    start = {}
+    for name in curvature_outputs(y):
+        k0 = y[name]
+        if name == "kappa_sum":
+            size = _scene_size(model)
+            threshold = KAPPA_SUM_INITIAL / size if size > 0 else 0.0
+            why = (f"relative curvature kappa0 + kappa1 = {k0:.6g} 1/m at the initial contact is at "
+                   f"or below {threshold:.6g} 1/m (= {KAPPA_SUM_INITIAL:g} / |Om|, |Om| = "
+                   f"{size:.6g} m): the contours nearly osculate there, the update law (29) divides "
+                   "by it and the contact point would race along the contours; start from a "
+                   "contact where the fingertip is clearly more curved than the object's hollow")
+        else:
+            threshold = 0.0
+            why = (f"relative curvature K_f + K~_o at contact {name[8:]} has smallest eigenvalue "
+                   f"{k0:.6g} 1/m <= 0 at the start: the surfaces osculate (flat on flat, matched "
+                   "concave on convex) or interpenetrate there and the contact rates are "
+                   "undefined; start from a contact where the fingertip is more curved than the "
+                   "object's hollow in every direction")
+        if not k0 > threshold:
+            err = RelativeCurvatureError(0.0, x0, why, model.state_names)
+            err.kappa_sum, err.threshold = k0, threshold
+            raise err
+        start[name] = k0
+    for name, thr in _denominator_thresholds(model).items():
+        if name in y and not abs(y[name]) > thr:
+            raise _frame_error(model, name, 0.0, x0, y[name], thr,
+                               "; the paper formulation cannot start at rest: give the scene "
+                               "initial speeds (dq0) that move every contact")
+    return start
+
+
+def first_crossing(t: np.ndarray, v: np.ndarray, level: float):
+    """First sample index with ``v <= level`` (or NaN), and the interpolated crossing time."""
+    bad = np.flatnonzero(~(v > level))
+    if bad.size == 0:
+        return None
+    i = int(bad[0])
+    if i == 0:
+        return 0, float(t[0])
+    a, b = float(v[i - 1]), float(v[i])
+    frac = (a - level) / (a - b) if math.isfinite(b) and a != b else 1.0
+    frac = min(max(frac, 0.0), 1.0)
+    return i, float(t[i - 1] + frac * (t[i] - t[i - 1]))
+
+
+def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dict,
+                     *, force: bool = True, note: str = "") -> IntegratorError | None:
+    """The first event along the samples (module docstring); ``note`` is appended to it."""
+    events = []
+    if not len(t):
+        return None
+    for name in curvature_outputs(outs):
+        k = outs[name]
+        k_ref = start.get(name, float(k[0]))
+        threshold = KAPPA_SUM_RELATIVE * k_ref
+        hit = first_crossing(t, k, threshold)
+        if hit is None:
+            continue
+        i, tc = hit
+        xs = X[i - 1] if i else X[0]
+        if name == "kappa_sum":
+            what = ("relative curvature kappa0 + kappa1", "the contours nearly osculate or cross "
+                    "(curvatures of opposite convexity), the update law (29) divides by it",
+                    "choose a fingertip more curved than the object's hollows along the path")
+        else:
+            what = (f"relative curvature K_f + K~_o (smaller eigenvalue) at contact {name[8:]}",
+                    "the surfaces nearly osculate, Montana's contact rates divide by it",
+                    "choose a fingertip more curved than the object's hollows along the path")
+        err = RelativeCurvatureError(
+            tc, xs,
+            f"{what[0]} fell to {threshold:.6g} 1/m "
+            f"({KAPPA_SUM_RELATIVE:g} of its initial {k_ref:.6g} 1/m) at about "
+            f"t = {tc:.6g} s (sample t = {t[i]:.6g} s: {k[i]:.6g} 1/m): {what[1]} and the state "
+            f"would blow up; {what[2]} (state at the last sample before)" + note,
+            model.state_names,
+        )
+        err.kappa_sum, err.threshold, err.t_sample = float(k[i]), threshold, float(t[i])
+        events.append((tc, 0, err))
+    for name, thr in _denominator_thresholds(model).items():
+        if name not in outs:
+            continue
+        hit = first_crossing(t, np.abs(outs[name]), thr)
+        if hit is not None:
+            i, tc = hit
+            err = _frame_error(model, name, tc, X[i - 1] if i else X[0], outs[name][i], thr,
+                               " (state at the last sample before)" + note)
+            events.append((tc, 0, err))
+    for name in force_outputs(outs) if force else ():
+        f = outs[name]
+        hit = first_crossing(t, f, 0.0)
+        if hit is None:
+            continue
+        i, tc = hit
+        xs = X[i - 1] if i else X[0]
+        before = float(f[i - 1]) if i else float("nan")
+        where = (f"crosses 0 at about t = {tc:.6g} s ({name} = {before:.6g} N at "
+                 f"t = {t[i - 1]:.6g} s, {f[i]:.6g} N at t = {t[i]:.6g} s)" if i else
+                 f"is {f[0]:.6g} N <= 0 at t = {t[0]:.6g} s, the start")
+        err = ContactOpenedError(
+            tc, xs,
+            f"normal force {name} {where}: "
+            "a unilateral contact cannot pull, the contact would open and the model "
+            "(rolling contact kept by a constraint) no longer holds; raise fd or lower "
+            "the speeds that pull the finger away (state at the last sample before)" + note,
+            model.state_names,
+        )
+        err.force, err.force_before, err.t_sample = float(f[i]), before, float(t[i])
+        events.append((tc, 1, err))
+    if not events:
+        return None
+    return min(events, key=lambda e: (e[0], e[1]))[2]
+
+
+def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
+    """On a failed run: raise the curvature or moving-frame event instead when it came before
+    ``exc.t`` (the cause of the blow-up). The sign of ``f`` is not checked here: near a
+    numerical blow-up ``f`` swings wildly and "contact opens" would name a symptom."""
+    names = model.output_names
+    if not (curvature_outputs(names) or denominator_outputs(names)):
+        return
+    rows_t, rows_x = [], []
+    trajectory = getattr(exc, "trajectory", None)
+    if trajectory is not None:
+        tt, XX = (np.asarray(a, dtype=float) for a in trajectory)
+        if tt.ndim == 1 and XX.ndim == 2 and len(tt) == len(XX):
+            rows_t.append(tt)
+            rows_x.append(XX)
+    x_fail = exc.x
+    if x_fail is not None and math.isfinite(exc.t):
+        x_fail = np.asarray(x_fail, dtype=float)
+        if x_fail.shape == (len(model.state_names),):
+            rows_t.append(np.array([exc.t]))
+            rows_x.append(x_fail[None, :])
+    if not rows_t:
+        return
+    t = np.concatenate(rows_t)
+    X = np.vstack(rows_x)
+    keep = np.all(np.isfinite(X), axis=1)
+    if len(t) > 1:
+        keep[1:] &= np.diff(t) > 0
+    t, X = t[keep], X[keep]
+    if len(t) == 0:
+        return
+    outs = model.outputs_batch(X, p)
+    note = f"; the integrator then failed at t = {exc.t:.6g} s: {exc.reason}"
+    event = trajectory_event(model, t, X, outs, start, force=False, note=note)
+    if event is not None and event.t <= exc.t:
+        event.cause_error = exc
+        raise event from exc
+    k_start = start.get("kappa_sum")
+    if k_start and exc.x is not None:  # the last row is the state recovered at the failure
+        k_last = float(outs["kappa_sum"][-1])
+        if k_last < 0.1 * k_start:  # name a likely cause the threshold did not catch yet
+            err = IntegratorError(
+                exc.t, exc.x, f"{exc.reason}; kappa0 + kappa1 had fallen to {k_last:.3g} 1/m "
+                f"({k_last / k_start:.2g} of its initial value): the contact update law (29) "
+                "divides by it", model.state_names)
+            err.kappa_sum = k_last
+            err.trajectory = getattr(exc, "trajectory", None)
+            raise err from exc
