@@ -123,6 +123,8 @@ def paper3d(**overrides) -> "GraspScene3D":
         fd=0.5, c=0.006, r_ctrl=0.010, k_center=200.0, gain=300.0, spin_damping=2e-5,
         dq0=(1.0, -0.5, 1.5, -0.5, 0.5), outputs=PAPER3D_OUTPUTS,
     )
+    if overrides.get("formulation") == "paper" and "outputs" not in overrides:
+        kwargs["outputs"] = PAPER3D_OUTPUTS + ("frame_denominator1", "frame_denominator2", "frame_orthonormality")
     kwargs.update(overrides)
     return GraspScene3D(**kwargs)
 

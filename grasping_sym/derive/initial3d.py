@@ -154,7 +154,8 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
     from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
 
     conf = solve_configuration(scene)
-    regular = dataclasses.replace(scene, formulation="regular") if scene.formulation != "regular" else scene
+    regular = (dataclasses.replace(scene, formulation="regular", outputs=()) if scene.formulation != "regular"
+               else scene)
     x = regular_state(regular, conf)
     system = derive_grasp3d(regular, r_bar0=np.zeros(3))
     fn = system.function("start_pieces", "pieces")
