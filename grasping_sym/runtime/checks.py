@@ -79,7 +79,10 @@ def _frame_error(model, name: str, t: float, x, value: float, threshold: float, 
         f"rad/s fell to {threshold:.3e} rad/s ({FRAME_DENOMINATOR_RELATIVE:g} of its value at the "
         f"start) at about t = {t:.6g} s: the contact has (nearly) stopped, the trace direction b "
         "and the geodesic curvatures (31)-(32) are 0/0 there; this is where a grasp comes to rest. "
-        "Use the regular formulation (formulation='regular', the default)" + extra,
+        "Use the regular formulation (formulation='regular', the default), or pass checks=False "
+        "to integrate past it: the frames turn at kg s' = (numerator)/(kn0 + kn1), which stays "
+        "finite, so the bodies' motion stays accurate while b and e lose their meaning; only "
+        "D = 0 exactly (e.g. a start at rest) gives 0/0 = NaN" + extra,
         model.state_names)
     err.denominator, err.threshold, err.contact = float(value), float(threshold), name
     return err
