@@ -1,15 +1,18 @@
-"""Run the paper2d benchmarks and write ``benchmarks/results/``.
+"""Run the benchmarks (paper2d, then paper3d) and write ``benchmarks/results/``.
 
 Usage::
 
-    python -m benchmarks.run            # full run (a few minutes), results committed
-    python -m benchmarks.run --quick    # smoke test (< 1 minute), into results/quick/
+    python -m benchmarks.run                  # full run (several minutes), results committed
+    python -m benchmarks.run --quick          # smoke test, into results/quick/
+    python -m benchmarks.run --only paper3d   # one scene only (paper2d or paper3d)
 
 Every build goes to private temporary caches; the user's cache is not touched.
+The paper3d benchmarks live in ``benchmarks.paper3d`` (also runnable on their own).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import tempfile
@@ -25,34 +28,54 @@ def _log(msg: str) -> None:
     print(msg, flush=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmarks.run", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true",
-                    help="fewer settings and repeats (smoke test, < 1 minute)")
-    ap.add_argument("--out", type=Path, default=None,
-                    help="output directory (default benchmarks/results, or results/quick)")
-    args = ap.parse_args(argv)
-    out = args.out or (RESULTS / "quick" if args.quick else RESULTS)
-    out.mkdir(parents=True, exist_ok=True)
+SCENES = ("paper2d", "paper3d")
+
+
+@contextlib.contextmanager
+def private_cache():
+    """``GRASPING_SYM_CACHE`` points at a new temporary directory inside the block."""
     with tempfile.TemporaryDirectory(prefix="gs-bench-cache-") as cache:
         old = os.environ.get("GRASPING_SYM_CACHE")
         os.environ["GRASPING_SYM_CACHE"] = cache
         try:
-            results = run(quick=args.quick)
+            yield Path(cache)
         finally:
             if old is None:
                 os.environ.pop("GRASPING_SYM_CACHE", None)
             else:
                 os.environ["GRASPING_SYM_CACHE"] = old
-    from benchmarks import report
 
-    report.write_json(results, out / "paper2d.json")
-    report.write_markdown(results, out / "paper2d.md")
-    report.plot_work_precision(results, out / "paper2d_work_precision.png")
-    _log(f"\nwrote {out / 'paper2d.md'}, paper2d.json, paper2d_work_precision.png")
-    for row in report.summary_rows(results):
-        _log(f"- {row[0]}: target {row[1]}; {row[2]} -> {row[3]}")
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.run", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true",
+                    help="fewer settings and repeats (smoke test)")
+    ap.add_argument("--only", choices=SCENES, default=None,
+                    help="run the benchmarks of one scene only (default: all)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="output directory (default benchmarks/results, or results/quick)")
+    args = ap.parse_args(argv)
+    out = args.out or (RESULTS / "quick" if args.quick else RESULTS)
+    out.mkdir(parents=True, exist_ok=True)
+    scenes = (args.only,) if args.only else SCENES
+    if "paper2d" in scenes:
+        with private_cache():
+            results = run(quick=args.quick)
+        from benchmarks import report
+
+        report.write_json(results, out / "paper2d.json")
+        report.write_markdown(results, out / "paper2d.md")
+        report.plot_work_precision(results, out / "paper2d_work_precision.png")
+        _log(f"\nwrote {out / 'paper2d.md'}, paper2d.json, paper2d_work_precision.png")
+        for row in report.summary_rows(results):
+            _log(f"- {row[0]}: target {row[1]}; {row[2]} -> {row[3]}")
+    if "paper3d" in scenes:
+        from benchmarks import paper3d
+
+        with private_cache():
+            results3 = paper3d.run(quick=args.quick, log=_log)
+        paper3d.write_all(results3, out, log=_log)
     return 0
 
 
