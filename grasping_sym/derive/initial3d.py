@@ -57,7 +57,8 @@ def _residual_function(scene: GraspScene3D):
     frames = []
     for i, f in enumerate(scene.fingers):
         n = f.chain.n
-        fin = finger_sx(f.chain, None, q[off:off + n], ca.SX.zeros(n))
+        # same symbolic finger as the dynamics (cached): gravity only adds terms not used here
+        fin = finger_sx(f.chain, scene.gravity, q[off:off + n], ca.SX.zeros(n))
         off += n
         uv = w[k + 4 * i:k + 4 * i + 4]
         sf = surface_sx(f.tip, uv[0], uv[1])
