@@ -1,4 +1,4 @@
-"""Command line: ``grasping-sym list | simulate | generate``.
+"""Command line: ``grasping-sym list | simulate | generate | bench``.
 
 Errors raised on purpose by the package (``GraspingSymError``) are printed as one message
 on stderr with exit code 2, without a traceback. Progress of slow stages (deriving,
@@ -180,6 +180,21 @@ def cmd_generate(args: argparse.Namespace) -> int:
     return 1 if stale else 0
 
 
+# `bench` runs the benchmark suite of the source tree (benchmarks/ is not installed with the
+# package: it needs the repository, like `make bench`).
+def cmd_bench(args: argparse.Namespace) -> int:
+    import subprocess  # noqa: PLC0415
+
+    root = Path(__file__).resolve().parent.parent
+    if not (root / "benchmarks" / "run.py").is_file():
+        raise UsageError(f"no benchmarks/ beside the package at {root}: the benchmarks ship with the "
+                         "source repository; run `grasping-sym bench` from an editable install of a "
+                         "clone (pip install -e .)")
+    cmd = [sys.executable, "-m", "benchmarks.run", *args.bench_args]
+    _say(f"running {' '.join(cmd[1:])} in {root}")
+    return subprocess.call(cmd, cwd=root)
+
+
 # ---------------------------------------------------------------------------- parser
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -214,12 +229,22 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--check", action="store_true",
                    help="only check that generated/<name>/ is up to date")
     p.set_defaults(func=cmd_generate)
+
+    p = sub.add_parser("bench", help="run the benchmarks, write benchmarks/results/ (as `make bench`)",
+                       description="Passes its arguments to `python -m benchmarks.run` (e.g. --quick, "
+                                   "--only paper3d, --out DIR).")
+    p.set_defaults(func=cmd_bench)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``grasping-sym``; returns the exit code."""
-    args = make_parser().parse_args(argv)
+    parser = make_parser()
+    args, extra = parser.parse_known_args(argv)
+    if args.command == "bench":
+        args.bench_args = extra        # passed through to benchmarks.run
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return args.func(args)
     except GraspingSymError as exc:
