@@ -1,0 +1,84 @@
+"""Peer: the same closed loop as CasADi's own functions, without compilation.
+
+What a CasADi user gets without our C: the scene's SX graph (the one we generate C from) as
+a ``casadi.Function`` evaluated by CasADi's virtual machine, integrated by CVODES through
+``casadi.integrator``, which takes its Jacobian by AD on the same graph (also interpreted).
+Same equations, same start, same tolerances as our compiled cvodes: the ratio is the price
+of interpreting the graph (and, for 3D, of CasADi's AD Jacobian against our differenced one).
+
+    python -m benchmarks.peers.casadi_uncompiled   # prints a small work-precision table
+"""
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from benchmarks.timing import median
+from grasping_sym.codegen import templates
+from grasping_sym.codegen.functions import compose, sx_model
+from grasping_sym.derive.planar import has_gravity, parameter_values
+
+
+def rhs_function(scene, model) -> ca.Function:
+    """The scene's rhs as an uncompiled CasADi Function with the DAE signature.
+
+    ``model`` (the built model) supplies the 3D start (the centre spring's rest point).
+    """
+    if getattr(scene, "kind", "planar") == "grasp3d":
+        from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
+
+        system = derive_grasp3d(scene, np.array(model.manifest["start"]["r_bar0"]))
+        return sx_model(system.x, system.p, system.xdot, {}, f"{scene.name}_vm", jacobian=False).rhs
+    values = parameter_values(scene)
+    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene))
+    cm = compose(template, scene.fingertip, scene.object, runtime=scene.runtime,
+                 constants={k: v for k, v in values.items() if k not in scene.runtime},
+                 outputs=(), name=f"{scene.name}_vm")
+    return cm.rhs
+
+
+def simulate(rhs: ca.Function, x0: np.ndarray, t_final: float, rtol: float, atol: float,
+             p=()) -> tuple[np.ndarray, float]:
+    """Final state and wall time (s, integrator call only) of CVODES on ``rhs``."""
+    integ = ca.integrator("vm_cvodes", "cvodes", rhs, 0.0, [t_final],
+                          {"abstol": atol, "reltol": rtol, "max_num_steps": 1_000_000,
+                           "disable_internal_warnings": True})
+    integ(x0=x0, p=list(p))  # first call: setup (timed apart by the caller if wanted)
+    t0 = time.perf_counter()
+    out = integ(x0=x0, p=list(p))
+    return np.asarray(out["xf"], float).ravel(), time.perf_counter() - t0
+
+
+def work_precision(scene, model, x_ref: np.ndarray, rtols, *, t_final: float = 3.0,
+                   atol_factor: float = 1e-2, repeats: int = 3, budget: float = 20.0) -> list[dict]:
+    """Rows ``{rtol, atol, wall (median s), error}`` of the uncompiled peer; tighter tolerances
+    are skipped once one run takes more than ``budget`` seconds."""
+    rhs = rhs_function(scene, model)
+    x0 = model.initial_state()
+    rows = []
+    for rtol in rtols:
+        atol = rtol * atol_factor
+        times, xf = [], None
+        for _ in range(repeats):
+            xf, wall = simulate(rhs, x0, t_final, rtol, atol)
+            times.append(wall)
+            if wall > budget:
+                break
+        rows.append({"rtol": rtol, "atol": atol, "wall": median(times),
+                     "error": float(np.max(np.abs(xf - x_ref))), "runs": len(times)})
+        if min(times) > budget:
+            break
+    return rows
+
+
+if __name__ == "__main__":
+    import grasping_sym as gs
+
+    for make in (gs.scenes.paper2d, gs.scenes.paper3d):
+        scene = make()
+        model = gs.build(scene)
+        ref = model.simulate(3.0, rtol=1e-13, atol=1e-13, t_eval=[0.0, 3.0], outputs=False).x[-1]
+        for row in work_precision(scene, model, ref, [1e-6, 1e-8, 1e-10], repeats=1):
+            print(scene.name, row)
