@@ -32,14 +32,18 @@ def planar_finger(
     theta_0: float = 0.0,
     u0_0: float = 0.0,
     u1_0: float = 0.0,
+    extra_fingers: tuple = (),
     **params: float,
 ) -> PlanarFingerScene:
-    """The general 2D scene with any two contours; unspecified parameters from the paper."""
+    """The general 2D scene with any two contours; unspecified parameters from the paper.
+
+    ``extra_fingers``: further fingers on the same object (``model.planar.ExtraFinger``)."""
     values = dict(PAPER2D_PARAMS)
     values.update(params)
     return PlanarFingerScene(
         name=name, fingertip=fingertip, object=object, params=values, runtime=runtime,
         outputs=outputs, gravity=gravity, q1_0=q1_0, theta_0=theta_0, u0_0=u0_0, u1_0=u1_0,
+        extra_fingers=tuple(extra_fingers),
     )
 
 

@@ -93,3 +93,17 @@ def substitute_leaves(expr, leaves: dict[type, sp.Expr]):
 
 FINGERTIP = make_contour_functions("0")
 OBJECT = make_contour_functions("1")
+_EXTRA_FINGERTIPS: dict[int, ContourFunctions] = {}
+
+
+def fingertip_functions(i: int) -> ContourFunctions:
+    """The abstract functions of finger ``i``'s fingertip (``i = 1``: :data:`FINGERTIP`).
+
+    Each finger of a multi-finger scene has its own contour, hence its own functions; the
+    object's are :data:`OBJECT` for every contact, applied at each contact's parameter.
+    """
+    if i == 1:
+        return FINGERTIP
+    if i not in _EXTRA_FINGERTIPS:
+        _EXTRA_FINGERTIPS[i] = make_contour_functions(f"0_{i}")
+    return _EXTRA_FINGERTIPS[i]

@@ -32,7 +32,7 @@ from functools import lru_cache
 
 import sympy as sp
 
-from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT
+from grasping_sym.derive.contour_functions import OBJECT, fingertip_functions
 from grasping_sym.derive.system import ConstrainedSystem
 from grasping_sym.model.planar import PARAMETERS, PlanarFingerScene
 
@@ -42,9 +42,15 @@ def _rot(a: sp.Expr, v: sp.Matrix) -> sp.Matrix:
     return sp.Matrix([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
 
-def template_parameters(gravity: bool) -> tuple[str, ...]:
-    """Names of every parameter of a template, in order (the pivot and gravity included)."""
-    return (*PARAMETERS, "xm", "ym", *(("gx", "gy") if gravity else ()))
+def template_parameters(gravity: bool, n_fingers: int = 1) -> tuple[str, ...]:
+    """Names of every parameter of a template, in order (the pivot and gravity included).
+
+    Finger 1 is the paper's (joints at the origin, ``l11, l12, m11, m12``); finger ``i >= 2``
+    adds its links ``l{i}1, l{i}2, m{i}1, m{i}2`` and its base ``xb{i}, yb{i}``.
+    """
+    extra = tuple(f"{k}{i}{j}" for i in range(2, n_fingers + 1) for k, j in
+                  (("l", 1), ("l", 2), ("m", 1), ("m", 2), ("xb", ""), ("yb", "")))
+    return (*PARAMETERS, "xm", "ym", *(("gx", "gy") if gravity else ()), *extra)
 
 
 def has_gravity(scene: PlanarFingerScene) -> bool:
@@ -58,6 +64,10 @@ def parameter_values(scene: PlanarFingerScene) -> dict[str, float]:
     values["xm"], values["ym"] = scene.pivot
     if has_gravity(scene):
         values["gx"], values["gy"] = (float(g) for g in scene.gravity)
+    for i, f in enumerate(scene.extra_fingers, start=2):
+        values.update({f"l{i}1": float(f.lengths[0]), f"l{i}2": float(f.lengths[1]),
+                       f"m{i}1": float(f.masses[0]), f"m{i}2": float(f.masses[1]),
+                       f"xb{i}": float(f.base[0]), f"yb{i}": float(f.base[1])})
     return values
 
 
@@ -68,7 +78,7 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
     ``system.constants`` the values of the others, which the translation to CasADi folds
     into the code. ``system.outputs`` holds only the outputs the scene requests.
     """
-    template = derive_template(scene.shared_parameter, has_gravity(scene))
+    template = derive_template(scene.shared_parameter, has_gravity(scene), scene.n_fingers)
     values = parameter_values(scene)
     symbols = {str(sym): sym for sym in template.params}
     return replace(
@@ -79,53 +89,33 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
     )
 
 
-@lru_cache(maxsize=8)
-def derive_template(shared: bool, gravity: bool) -> ConstrainedSystem:
-    """Derive the 2D model for any contours, with every parameter a symbol.
-
-    Depends only on the structure: one shared contact parameter ``s`` (both contours
-    unit-speed) or two (``u0``, ``u1``), and whether gravity is modelled. The contours enter
-    through the abstract functions of ``contour_functions``; every output is derived.
-    """
-    th, q1, q2 = sp.symbols("theta q1 q2", real=True)
-    dth, dq1, dq2 = sp.symbols("dtheta dq1 dq2", real=True)
-    if shared:
-        s = sp.Symbol("s", real=True)
-        u0 = u1 = s
-        us = [s]
-    else:
-        u0, u1 = sp.symbols("u0 u1", real=True)
-        us = [u0, u1]
-    q = sp.Matrix([th, q1, q2])
-    v = sp.Matrix([dth, dq1, dq2])
-    P = {k: sp.Symbol(k, real=True) for k in template_parameters(gravity)}
-    Om = sp.Matrix([P["xm"], P["ym"]])
-
-    # ---- finger kinematics and Lagrangian (uniform rods, joints at the origin)
-    l11, l12, m11, m12 = P["l11"], P["l12"], P["m11"], P["m12"]
+def _finger(i: int, n_fingers: int, P: dict, gravity: bool):
+    """Kinematics and Lagrangian pieces of finger ``i`` (uniform rods)."""
+    one = n_fingers == 1
+    q1, q2 = sp.symbols("q1 q2" if one else f"q{i}1 q{i}2", real=True)
+    dq1, dq2 = sp.symbols("dq1 dq2" if one else f"dq{i}1 dq{i}2", real=True)
+    l1, l2, m1, m2 = (P[f"{k}{i}{j}"] for k, j in (("l", 1), ("l", 2), ("m", 1), ("m", 2)))
+    base = sp.Matrix([P[f"xb{i}"], P[f"yb{i}"]]) if i > 1 else sp.zeros(2, 1)
     d1 = sp.Matrix([sp.sin(q1), sp.cos(q1)])
     d12 = sp.Matrix([sp.sin(q1 + q2), sp.cos(q1 + q2)])
-    O01 = l11 * d1 + l12 * d12
-    com1 = l11 / 2 * d1
-    com2 = l11 * d1 + l12 / 2 * d12
-    qf = sp.Matrix([q1, q2])
-    vf = sp.Matrix([dq1, dq2])
-    J01 = O01.jacobian(qf)
+    O01 = base + l1 * d1 + l2 * d12
+    com1 = base + l1 / 2 * d1
+    com2 = base + l1 * d1 + l2 / 2 * d12
+    qf, vf = sp.Matrix([q1, q2]), sp.Matrix([dq1, dq2])
     vcom1, vcom2 = com1.jacobian(qf) * vf, com2.jacobian(qf) * vf
-    kin = (m11 * vcom1.dot(vcom1) + m12 * vcom2.dot(vcom2)
-           + m11 * l11**2 / 12 * dq1**2 + m12 * l12**2 / 12 * (dq1 + dq2) ** 2
-           + P["I"] * dth**2) / 2
+    kin = (m1 * vcom1.dot(vcom1) + m2 * vcom2.dot(vcom2)
+           + m1 * l1**2 / 12 * dq1**2 + m2 * l2**2 / 12 * (dq1 + dq2) ** 2) / 2
     pot = sp.Integer(0)
     if gravity:
         g = sp.Matrix([P["gx"], P["gy"]])
-        pot = -(m11 * g.dot(com1) + m12 * g.dot(com2))
-    M = sp.hessian(kin, v)
-    Mv = M * v
-    # h = M' v - dK/dq + dV/dq  (Euler-Lagrange with L = K - V)
-    h = Mv.jacobian(q) * v - sp.Matrix([kin]).jacobian(q).T + sp.Matrix([pot]).jacobian(q).T
+        pot = -(m1 * g.dot(com1) + m2 * g.dot(com2))
+    return {"q": qf, "v": vf, "O01": O01, "J01": O01.jacobian(qf), "kin": kin, "pot": pot}
 
-    # ---- contour geometry at the contact, through abstract Frenet functions
-    F0, F1 = FINGERTIP, OBJECT
+
+def _contact(fin: dict, F0, u0, u1, th, Om):
+    """Contact geometry of one finger with the object, through abstract Frenet functions."""
+    F1 = OBJECT
+    q1, q2 = fin["q"]
     X0, Y0, T0x, T0y = F0.X(u0), F0.Y(u0), F0.Tx(u0), F0.Ty(u0)
     X, Y, T1x, T1y = F1.X(u1), F1.Y(u1), F1.Tx(u1), F1.Ty(u1)
     kappa0 = F0.kappa(u0)
@@ -138,50 +128,107 @@ def derive_template(shared: bool, gravity: bool) -> ConstrainedSystem:
     n1 = sp.Matrix([b1[1], -b1[0]])
     b0 = _rot(sp.pi / 2 - q1 - q2, sp.Matrix([T0x, T0y]))
     delta = sp.atan2(b1[0] * b0[1] - b1[1] * b0[0], b1.dot(b0))
-    Q1 = (O01 - Om).dot(n1)
-    R1 = (O01 - Om).dot(b1)
-    C = sp.Matrix([Q1 + ln0 + ln1 - lb0 * delta, R1 + lb0 + lb1 + ln0 * delta])
+    Q1 = (fin["O01"] - Om).dot(n1)
+    R1 = (fin["O01"] - Om).dot(b1)
+    return {"C": [Q1 + ln0 + ln1 - lb0 * delta, R1 + lb0 + lb1 + ln0 * delta], "Q1": Q1, "R1": R1,
+            "delta": delta, "kappa_sum": kappa0 + kappa1, "N1": ln0 * lb1 - lb0 * ln1}
 
-    # ---- update law (29), for any parameterisation
-    sdot = (dq1 + dq2 - dth) / (kappa0 + kappa1)
-    if shared:
-        sigma = sp.Matrix([sdot])
-    else:
-        sigma = sp.Matrix([sdot / F0.speed(u0), sdot / F1.speed(u1)])
+
+@lru_cache(maxsize=8)
+def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> ConstrainedSystem:
+    """Derive the 2D model for any contours, with every parameter a symbol.
+
+    Depends only on the structure: one shared contact parameter ``s`` (both contours
+    unit-speed) or two (``u0``, ``u1``), whether gravity is modelled, and the number of
+    fingers (``n_fingers > 1``: each finger ``i`` has its own fingertip contour, contact
+    parameters ``u0_{i}, u1_{i}`` and joints ``q{i}1, q{i}2``; ``shared`` must be false).
+    The contours enter through the abstract functions of ``contour_functions``; every
+    output is derived.
+    """
+    if n_fingers < 1 or (n_fingers > 1 and shared):
+        raise ValueError(f"n_fingers = {n_fingers}, shared = {shared}: need n_fingers >= 1, and "
+                         "separate contact parameters (shared=False) for several fingers")
+    one = n_fingers == 1
+    th, dth = sp.symbols("theta dtheta", real=True)
+    P = {k: sp.Symbol(k, real=True) for k in template_parameters(gravity, n_fingers)}
+    Om = sp.Matrix([P["xm"], P["ym"]])
+    fingers = [_finger(i, n_fingers, P, gravity) for i in range(1, n_fingers + 1)]
+    q = sp.Matrix([th, *[x for f in fingers for x in f["q"]]])
+    v = sp.Matrix([dth, *[x for f in fingers for x in f["v"]]])
+    kin = sum((f["kin"] for f in fingers), P["I"] * dth**2 / 2)
+    pot = sum((f["pot"] for f in fingers), sp.Integer(0))
+    M = sp.hessian(kin, v)
+    Mv = M * v
+    # h = M' v - dK/dq + dV/dq  (Euler-Lagrange with L = K - V)
+    h = Mv.jacobian(q) * v - sp.Matrix([kin]).jacobian(q).T + sp.Matrix([pot]).jacobian(q).T
+
+    # ---- contacts; update law (29) for any parameterisation
+    us, C, sigma, contacts = [], [], [], []
+    for i, fin in enumerate(fingers, start=1):
+        F0 = fingertip_functions(i)
+        if shared:
+            u0 = u1 = sp.Symbol("s", real=True)
+            us.append(u0)
+        else:
+            u0, u1 = sp.symbols("u0 u1" if one else f"u0_{i} u1_{i}", real=True)
+            us += [u0, u1]
+        c = _contact(fin, F0, u0, u1, th, Om)
+        contacts.append(c)
+        C += c["C"]
+        sdot = (fin["v"][0] + fin["v"][1] - dth) / c["kappa_sum"]
+        sigma += [sdot] if shared else [sdot / F0.speed(u0), sdot / OBJECT.speed(u1)]
+    C = sp.Matrix(C)
+    sigma = sp.Matrix(sigma)
 
     # ---- constraint derivatives along the motion (u carried by sigma)
     z = sp.Matrix([*q, *us])
     zdot = sp.Matrix([*v, *sigma])
     Cz = C.jacobian(z)
-    A = Cz[:, :3]
+    A = Cz[:, :len(q)]
     Cdot = Cz * zdot
     # C' is a function of (z, v) (u' = sigma(z, v) written out), so along the motion
     # C'' = dC'/dz z' + dC'/dv a: the dependence of u'' on a enters through dC'/dv.
     Ahat = Cdot.jacobian(v)
     bhat = Cdot.jacobian(z) * zdot
 
-    # ---- controller (32), with gravity compensation when gravity is modelled
-    ctrl = -P["c"] * vf - J01.T * (P["fd"] / P["r"]) * (O01 - Om)
-    if pot != 0:
-        ctrl += sp.Matrix([pot]).jacobian(qf).T
-    tau = sp.Matrix([0, *ctrl])
+    # ---- controller (32) per finger, with gravity compensation when gravity is modelled
+    ctrls = []
+    for fin in fingers:
+        ctrl = -P["c"] * fin["v"] - fin["J01"].T * (P["fd"] / P["r"]) * (fin["O01"] - Om)
+        if fin["pot"] != 0:
+            ctrl += sp.Matrix([fin["pot"]]).jacobian(fin["q"]).T
+        ctrls.append(ctrl)
+    tau = sp.Matrix([0, *[x for ctrl in ctrls for x in ctrl]])
 
-    f, lam = sp.symbols("f lam", real=True)
+    mus = sp.symbols("f lam" if one else " ".join(f"f{i} lam{i}" for i in range(1, n_fingers + 1)),
+                     real=True)
     system = ConstrainedSystem(
-        state=[*q, *v, *us], n=3, params=[], mass_matrix=M, bias=h, force=tau,
+        state=[*q, *v, *us], n=len(q), params=[], mass_matrix=M, bias=h, force=tau,
         constraint=C, constraint_jac=A, constraint_rate=Cdot, acc_jac=Ahat, acc_bias=bhat,
-        csm_damping=sp.Matrix([2 * P["gf"], 2 * P["gl"]]),
-        csm_stiffness=sp.Matrix([P["wf"], P["wl"]]),
-        contact_rates=sigma, multipliers=[f, lam],
+        csm_damping=sp.Matrix([2 * P["gf"], 2 * P["gl"]] * n_fingers),
+        csm_stiffness=sp.Matrix([P["wf"], P["wl"]] * n_fingers),
+        contact_rates=sigma, multipliers=list(mus),
     )
-    available = {
-        "Q": C[0], "R": C[1], "f": f, "lam": lam,
-        "delta_f": f + P["fd"] / P["r"] * Q1, "delta_lam": lam + P["fd"] / P["r"] * R1,
-        "N1": ln0 * lb1 - lb0 * ln1, "kappa_sum": kappa0 + kappa1,
-        "constraint_residual": sp.Max(sp.Abs(C[0]), sp.Abs(C[1])),
-        "tangency_defect": delta, "kinetic_energy": kin, "potential_energy": pot,
-        "power": vf.dot(ctrl),
-    }
+    available = {}
+    for i, c in enumerate(contacts, start=1):
+        tag = "" if one else str(i)
+        f, lam = mus[2 * i - 2], mus[2 * i - 1]
+        available.update({
+            f"Q{tag}": c["C"][0], f"R{tag}": c["C"][1], f"f{tag}": f, f"lam{tag}": lam,
+            f"delta_f{tag}": f + P["fd"] / P["r"] * c["Q1"],
+            f"delta_lam{tag}": lam + P["fd"] / P["r"] * c["R1"],
+            ("N1" if one else f"N1_{i}"): c["N1"], f"kappa_sum{tag}": c["kappa_sum"],
+            f"tangency_defect{tag}": c["delta"],
+        })
+    available.update({
+        "constraint_residual": sp.Max(*[sp.Abs(e) for e in C]),
+        "kinetic_energy": kin, "potential_energy": pot,
+        "power": sum((fin["v"].dot(ctrl) for fin, ctrl in zip(fingers, ctrls)), sp.Integer(0)),
+    })
+    if one:  # keep the 2D outputs in their historical order
+        order = ["Q", "R", "f", "lam", "delta_f", "delta_lam", "N1", "kappa_sum",
+                 "constraint_residual", "tangency_defect", "kinetic_energy", "potential_energy", "power"]
+        available = {k: available[k] for k in order}
     system.outputs = available
     system.params = list(P.values())
     return system

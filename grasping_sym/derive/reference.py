@@ -14,8 +14,8 @@ import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
 from grasping_sym.derive.contour_functions import (
-    FINGERTIP,
     OBJECT,
+    fingertip_functions,
     leaf_expressions,
     substitute_leaves,
 )
@@ -51,8 +51,10 @@ class ReferenceModel:
     def __init__(self, scene: PlanarFingerScene, system: ConstrainedSystem | None = None):
         self.scene = scene
         self.system = system or derive_planar(scene)
-        leaves = {**leaf_expressions(FINGERTIP, scene.fingertip),
-                  **leaf_expressions(OBJECT, scene.object)}
+        leaves = leaf_expressions(OBJECT, scene.object)
+        tips = [scene.fingertip, *(f.fingertip for f in scene.extra_fingers)]
+        for i, tip in enumerate(tips, start=1):
+            leaves.update(leaf_expressions(fingertip_functions(i), tip))
         self._constants = list(self.system.constants.values())
         args = [*self.system.state, *self.system.params, *self.system.constants]
         self._pieces = [

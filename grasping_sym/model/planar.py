@@ -66,6 +66,29 @@ DEFAULT_OUTPUTS = (
 
 
 @dataclass(frozen=True, eq=False)
+class ExtraFinger:
+    """A further two-joint finger on the same object (finger ``i >= 2`` of a scene).
+
+    Its joints sit at ``base`` (m); its links are uniform rods like finger 1's; its fingertip
+    contour is in its own fingertip frame. At the start it touches the object at the object
+    parameter ``u1_0``; the fingertip parameter, ``q1`` and ``q2`` are solved from contact and
+    tangency (``u0_0`` is the guess).
+    """
+
+    fingertip: PlanarCurve
+    base: tuple[float, float]
+    u1_0: float
+    u0_0: float = 0.0
+    lengths: tuple[float, float] = (0.065, 0.065)
+    masses: tuple[float, float] = (0.045, 0.040)
+
+    def key(self) -> str:
+        return "|".join([self.fingertip.key(), repr((tuple(map(float, self.base)), float(self.u1_0),
+                                                     float(self.u0_0), tuple(map(float, self.lengths)),
+                                                     tuple(map(float, self.masses)), int(self.elbow)))])
+
+
+@dataclass(frozen=True, eq=False)
 class PlanarFingerScene:
     """One two-joint planar finger rolling on an object pivoted at a fixed point.
 
@@ -90,6 +113,10 @@ class PlanarFingerScene:
         Initial joint angle q1 (rad), object angle (rad) and contact parameters on the
         fingertip and object contours. The initial state is at rest; tangency fixes ``q2``
         and contact fixes the pivot ``Om``.
+    extra_fingers
+        Fingers 2, 3, ... (:class:`ExtraFinger`) on the same object. Each runs the same
+        controller (32) toward the pivot; the multi-finger states and outputs carry the
+        finger's number (``q21``, ``u0_2``, ``f2``, ...).
     """
 
     name: str
@@ -103,8 +130,10 @@ class PlanarFingerScene:
     theta_0: float = 0.0
     u0_0: float = 0.0
     u1_0: float = 0.0
+    extra_fingers: tuple[ExtraFinger, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "extra_fingers", tuple(self.extra_fingers))
         object.__setattr__(self, "runtime", tuple(self.runtime))
         object.__setattr__(self, "outputs", tuple(self.outputs))
         problems = self._parameter_problems()
@@ -116,6 +145,24 @@ class PlanarFingerScene:
     def _initial(self) -> tuple[float, tuple[float, float]]:
         self.validate()
         return initial_configuration(self)
+
+    @cached_property
+    def _extra_initial(self) -> list[tuple[float, float, float]]:
+        """``(q1, q2, u0)`` of each extra finger at the start."""
+        return [extra_finger_configuration(self, f) for f in self.extra_fingers]
+
+    @property
+    def n_fingers(self) -> int:
+        return 1 + len(self.extra_fingers)
+
+    def output_names(self) -> tuple[str, ...]:
+        """Every output name this scene can generate."""
+        if self.n_fingers == 1:
+            return tuple(OUTPUTS)
+        per = ("Q", "R", "f", "lam", "delta_f", "delta_lam", "kappa_sum", "tangency_defect")
+        names = [f"{k}{i}" for i in range(1, self.n_fingers + 1) for k in per]
+        names += [f"N1_{i}" for i in range(1, self.n_fingers + 1)]
+        return (*names, "constraint_residual", "kinetic_energy", "potential_energy", "power")
 
     @property
     def q2_0(self) -> float:
@@ -131,11 +178,17 @@ class PlanarFingerScene:
     def shared_parameter(self) -> bool:
         """True when one state ``s`` serves both contours (unit speed, equal start)."""
         return (
-            self.fingertip.unit_speed and self.object.unit_speed and self.u0_0 == self.u1_0
+            not self.extra_fingers
+            and self.fingertip.unit_speed and self.object.unit_speed and self.u0_0 == self.u1_0
         )
 
     @property
     def state_names(self) -> tuple[str, ...]:
+        if self.extra_fingers:
+            n = range(1, self.n_fingers + 1)
+            q = [f"q{i}{j}" for i in n for j in (1, 2)]
+            return ("theta", *q, "dtheta", *["d" + k for k in q],
+                    *[f"u{k}_{i}" for i in n for k in (0, 1)])
         tail = ("s",) if self.shared_parameter else ("u0", "u1")
         return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", *tail)
 
@@ -154,7 +207,9 @@ class PlanarFingerScene:
     def _geometry_problems(self, known: list[str]) -> list[str]:
         """Contour regularity, and (when all else is valid) the relative curvature."""
         problems: list[str] = []
-        for label, curve in (("fingertip", self.fingertip), ("object", self.object)):
+        curves = [("fingertip", self.fingertip), ("object", self.object)]
+        curves += [(f"finger {i}'s fingertip", f.fingertip) for i, f in enumerate(self.extra_fingers, start=2)]
+        for label, curve in curves:
             try:
                 curve.check()
             except InvalidCurveError as exc:
@@ -191,9 +246,24 @@ class PlanarFingerScene:
                     f"runtime parameter {k!r} cannot vary at run time: allowed are "
                     f"{list(RUNTIME_ALLOWED)} (geometry fixes the initial configuration)"
                 )
+        known = self.output_names()
         for k in self.outputs:
-            if k not in OUTPUTS:
-                problems.append(f"unknown output {k!r}: choose from {list(OUTPUTS)}")
+            if k not in known:
+                problems.append(f"unknown output {k!r}: choose from {list(known)}")
+        for i, f in enumerate(self.extra_fingers, start=2):
+            if not isinstance(f, ExtraFinger):
+                problems.append(f"extra finger {i} is {type(f).__name__}: give an ExtraFinger")
+                continue
+            vals = [*f.base, f.u1_0, f.u0_0]
+            if not all(_finite(v) for v in vals):
+                problems.append(f"finger {i}: base, u1_0 and u0_0 must be finite numbers")
+            if not all(_finite_positive(v) for v in (*f.lengths, *f.masses)) or len(f.lengths) != 2 \
+                    or len(f.masses) != 2:
+                problems.append(f"finger {i}: lengths {f.lengths} and masses {f.masses} must be two "
+                                "finite numbers > 0 each")
+            if _finite(f.u1_0) and not self.object.in_domain(f.u1_0):
+                problems.append(f"finger {i}: u1_0 = {f.u1_0!r} is outside the object's domain "
+                                f"{self.object.domain}")
         if self.gravity is not None and (
             len(self.gravity) != 2 or not all(_finite(g) for g in self.gravity)
         ):
@@ -217,10 +287,17 @@ class PlanarFingerScene:
             "planar-finger-v1", self.name, self.fingertip.key(), self.object.key(), params,
             ",".join(self.runtime), ",".join(self.outputs), repr(self.gravity),
             repr((self.q1_0, self.theta_0, self.u0_0, self.u1_0)),
+            *[f.key() for f in self.extra_fingers],
         ])
 
     def initial_state(self) -> np.ndarray:
         """The consistent initial state at rest, ordered as ``state_names``."""
+        if self.extra_fingers:
+            extra = self._extra_initial
+            q = [self.q1_0, self.q2_0, *[v for q1, q2, _ in extra for v in (q1, q2)]]
+            u = [self.u0_0, self.u1_0, *[v for (_, _, u0), f in zip(extra, self.extra_fingers)
+                                         for v in (u0, f.u1_0)]]
+            return np.array([self.theta_0, *q, 0.0, *[0.0] * len(q), *u], dtype=float)
         x = [self.theta_0, self.q1_0, self.q2_0, 0.0, 0.0, 0.0]
         x += [self.u0_0] if self.shared_parameter else [self.u0_0, self.u1_0]
         return np.array(x, dtype=float)
@@ -261,3 +338,49 @@ def initial_configuration(scene: PlanarFingerScene) -> tuple[float, tuple[float,
     c1 = np.array([float(f1["x"]), float(f1["y"])])
     om = o01 + _rot(math.pi / 2 - q1 - q2, c0) - _rot(-th, c1)
     return q2, (float(om[0]), float(om[1]))
+
+
+def extra_finger_configuration(scene: PlanarFingerScene, finger: ExtraFinger) -> tuple[float, float, float]:
+    """``(q1, q2, u0)`` of an extra finger touching the object at ``finger.u1_0`` at the start.
+
+    Tangency fixes ``q1 + q2 = pi/2 + theta + theta1(u1) - psi0(u0)`` (as for finger 1); the
+    fingertip centre is then ``O = P - Rot(pi/2 - q1 - q2) c0(u0)`` with ``P`` the object's
+    contact point, and the arm reaches it iff ``|O - base - l2 d(q1 + q2)| = l1``: one equation
+    in ``u0``, solved by the secant method from ``u0_0``; ``q1`` follows.
+    """
+    from scipy.optimize import newton  # noqa: PLC0415
+
+    om = np.array(scene.pivot)
+    th = scene.theta_0
+    f1 = scene.object.evaluate(finger.u1_0)
+    theta1 = math.atan2(float(f1["dx"]), float(f1["dy"]))
+    P = om + _rot(-th, np.array([float(f1["x"]), float(f1["y"])]))
+    l1, l2 = finger.lengths
+    base = np.array(finger.base, float)
+
+    def reach(u0: float):
+        f0 = finger.fingertip.evaluate(u0)
+        phi = math.pi / 2 + th + theta1 - math.atan2(float(f0["dx"]), float(f0["dy"]))
+        o_tip = P - _rot(math.pi / 2 - phi, np.array([float(f0["x"]), float(f0["y"])]))
+        w = o_tip - base - l2 * np.array([math.sin(phi), math.cos(phi)])
+        return w, phi
+
+    def gap(u0: float) -> float:
+        w, _ = reach(u0)
+        return float(np.hypot(*w) - l1)
+
+    problems = []
+    try:
+        u0 = float(newton(gap, finger.u0_0, tol=1e-14, maxiter=100))
+    except (RuntimeError, ValueError, OverflowError) as exc:
+        problems.append(f"an extra finger based at {finger.base} cannot reach the object at u1 = "
+                        f"{finger.u1_0} ({exc}): move its base or the contact point")
+        raise InvalidSceneError(problems) from None
+    if not (finger.fingertip.in_domain(u0) and abs(gap(u0)) < 1e-12):
+        raise InvalidSceneError([f"an extra finger based at {finger.base} touches the object at u1 = "
+                                 f"{finger.u1_0} only outside its fingertip's domain "
+                                 f"{finger.fingertip.domain} (u0 = {u0:.6g}, reach error {gap(u0):.3g} m): "
+                                 "move its base or the contact point"])
+    w, phi = reach(u0)
+    q1 = math.atan2(w[0], w[1])
+    return q1, phi - q1, u0
