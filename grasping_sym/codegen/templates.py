@@ -19,17 +19,19 @@ from grasping_sym.codegen import cache
 from grasping_sym.codegen.functions import Template, build_template
 from grasping_sym.derive.planar import derive_template
 
-#: The planar structures: (one shared contact parameter?, gravity?).
+#: The committed planar structures: (one shared contact parameter?, gravity?), one finger.
+#: Scenes with several fingers derive their structure once into the user cache.
 PLANAR_STRUCTURES = ((True, False), (False, False), (True, True), (False, True))
 
 
-def template_name(shared: bool, gravity: bool) -> str:
-    return f"planar-{'s' if shared else 'u0u1'}-{'gravity' if gravity else 'horizontal'}"
+def template_name(shared: bool, gravity: bool, n_fingers: int = 1) -> str:
+    fingers = "" if n_fingers == 1 else f"-{n_fingers}fingers"
+    return f"planar-{'s' if shared else 'u0u1'}-{'gravity' if gravity else 'horizontal'}{fingers}"
 
 
-def template_key(shared: bool, gravity: bool) -> str:
+def template_key(shared: bool, gravity: bool, n_fingers: int = 1) -> str:
     """Hash of what a template depends on: the structure, the sources, CasADi's version."""
-    text = f"{template_name(shared, gravity)}|{cache.sources_digest()}|{ca.__version__}"
+    text = f"{template_name(shared, gravity, n_fingers)}|{cache.sources_digest()}|{ca.__version__}"
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -52,19 +54,19 @@ def write_template(path: Path, template: Template, key: str) -> None:
     tmp.replace(path)
 
 
-def derive_and_build(shared: bool, gravity: bool) -> Template:
-    return build_template(derive_template(shared, gravity))
+def derive_and_build(shared: bool, gravity: bool, n_fingers: int = 1) -> Template:
+    return build_template(derive_template(shared, gravity, n_fingers))
 
 
-def planar_template(shared: bool, gravity: bool) -> tuple[Template, str]:
+def planar_template(shared: bool, gravity: bool, n_fingers: int = 1) -> tuple[Template, str]:
     """The template of a planar structure and where it came from."""
-    key = template_key(shared, gravity)
-    name = f"{template_name(shared, gravity)}.json"
+    key = template_key(shared, gravity, n_fingers)
+    name = f"{template_name(shared, gravity, n_fingers)}.json"
     for source, directory in (("cache", cache.cache_root() / "templates"),
                               ("committed", committed_templates_dir())):
         found = _read(directory / name, key)
         if found is not None:
             return found, source
-    template = derive_and_build(shared, gravity)
+    template = derive_and_build(shared, gravity, n_fingers)
     write_template(cache.cache_root() / "templates" / name, template, key)
     return template, "derived"
