@@ -89,8 +89,10 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
         "upper": upper,
         "pivot": list(scene.pivot),
         "op_counts": ops,
-        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac),
+        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac,
+                                         constraints_fn=cm.constraints),
         "c_symbols": [f.name() for f in cm.functions()],
+        "constraints": _constraints_entry(cm, scene.state_names),
     }
     cwriter.write_manifest(directory, manifest)
     manifest["timings"] = {"validate": t1 - t0, "template": t2 - t1,
@@ -114,8 +116,10 @@ def _generate_grasp3d(scene, directory: Path, say: Progress) -> dict:
     t2 = time.perf_counter()
     # no generated Jacobian: 250k SX instructions that gcc needs minutes for; the integrators
     # difference the compiled rhs instead (33 calls of 14k instructions, rarely needed)
+    names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
     cm = sx_model(system.x, system.p, system.xdot, {k: system.outputs[k] for k in scene.outputs},
-                  scene.name, jacobian=False)
+                  scene.name, jacobian=False, constraints=system.pieces["C"],
+                  constraint_names=names)
     t3 = time.perf_counter()
     say(f"writing C into {directory}")
     cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
@@ -151,13 +155,23 @@ def _generate_grasp3d(scene, directory: Path, say: Progress) -> dict:
         "lower": lower,
         "upper": upper,
         "op_counts": dict(cm.op_counts),
-        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac),
+        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac,
+                                         constraints_fn=cm.constraints),
         "c_symbols": [f.name() for f in cm.functions()],
+        "constraints": _constraints_entry(cm, scene.state_names),
     }
     cwriter.write_manifest(directory, manifest)
     manifest["timings"] = {"initial_state": t1 - t0, "derive": t2 - t1, "casadi": t3 - t2,
                            "write_c": t4 - t3}
     return manifest
+
+
+def _constraints_entry(cm, state_names) -> dict:
+    """The manifest's ``constraints``: the names of C and the states the projection changes."""
+    info = cm.constraint_info
+    return {"names": list(info["names"]),
+            "position_states": [state_names[i] for i in info["position_states"]],
+            "velocity_states": [state_names[i] for i in info["velocity_states"]]}
 
 
 def _bounds(scene: PlanarFingerScene) -> tuple[list, list]:

@@ -34,6 +34,13 @@
  *   GS_JAC_NIN, GS_JAC_NOUT   Function.n_in(), n_out() of GS_JAC  needed if GS_HAS_JAC
  *   GS_JAC_BLOCK  index of the output d ode / d x                 default 1
  *                 (the GS_SZ_* maxima must include GS_JAC's work sizes)
+ *   GS_HAS_CON    1 if a constraints function is compiled in, else 0  default 0
+ *   GS_CON        its name, e.g. paper2d_constraints: inputs (x[nx], p[np]), outputs
+ *                 C[nc] (position constraints, zero on the motion), dC/dx (nc x nx),
+ *                 Cdot[nc] (d C / dt along the closed loop), dCdot/dx (nc x nx); both
+ *                 Jacobians dense, column-major (CasADi's storage)   needed if GS_HAS_CON
+ *   GS_NC         number of constraints nc (>= 1)                  needed if GS_HAS_CON
+ *                 (the GS_SZ_* maxima must include GS_CON's work sizes)
  *
  * Exported functions (all prefixed gs_, default visibility):
  *
@@ -44,17 +51,34 @@
  *   int    gs_outputs_batch(long n, const double* X, const double* p, double* Y); (GS_HAS_OUT)
  *   long   gs_rk4(double t0, double h, long nsteps, long stride,
  *                 const double* x0, const double* p, const double* lo,
- *                 const double* hi, double* out, double* t_fail);
+ *                 const double* hi, const int* proj_mask, double proj_tol, double* out,
+ *                 double* stats, double* t_fail);
  *   long   gs_radau5(double t0, long n_out, const double* t_out, const double* x0,
  *                    const double* p, double rtol, double atol, double h0,
  *                    long max_steps, const double* lo, const double* hi,
- *                    double* out, double* stats, double* t_fail);
+ *                    const int* proj_mask, double proj_tol, double* out,
+ *                    double* stats, double* t_fail);
+ *   long   gs_dopri5(double t0, long n_out, const double* t_out, const double* x0,
+ *                    const double* p, double rtol, double atol, double h0,
+ *                    long max_steps, long nstiff, const double* lo, const double* hi,
+ *                    const int* proj_mask, double proj_tol, double* out,
+ *                    double* stats, double* t_fail);
+ *   int    gs_con_info(long* nc);
+ *   int    gs_constraints(const double* x, const double* p, double* C, double* JC,
+ *                         double* Cd, double* JCd);                     (GS_HAS_CON)
+ *   int    gs_project(double* x, const double* p, const int* mask, double tol,
+ *                     double* stats);                                   (GS_HAS_CON)
  *   double gs_rhs_loop_ns(long n, const double* x, const double* p);
  *
- * Return codes: 0 (or a row count for gs_rk4 / gs_radau5) on success;
- * GS_ERR_EVAL (-3) when the CasADi function reports an error; see gs_rk4 and
- * gs_radau5 for their codes.  Without a compiled Jacobian (GS_HAS_JAC 0)
- * gs_radau5 uses forward differences of GS_RHS.
+ * Return codes: 0 (or a row count for gs_rk4 / gs_radau5 / gs_dopri5) on success;
+ * GS_ERR_EVAL (-3) when the CasADi function reports an error; see gs_rk4,
+ * gs_radau5, gs_dopri5 and gs_project for their codes.  Without a compiled Jacobian
+ * (GS_HAS_JAC 0) gs_radau5 uses forward differences of GS_RHS.
+ *
+ * Projection (proj_mask not NULL, needs GS_HAS_CON): after every accepted step (and at
+ * every dense-output time between steps) the state is projected onto the constraints,
+ * see gs_project.  The stats array (GS_NSTATS doubles, see GS_ST_*) counts the constraint
+ * evaluations and records the largest residuals found before projecting.
  *
  * Thread safety: CasADi work arrays live on the stack of each exported call
  * (or in thread-local storage when they are large, see GS_WORK_ON_STACK_MAX),
@@ -100,6 +124,13 @@
 #error "GS_JAC_NIN / GS_JAC_NOUT / GS_JAC_BLOCK inconsistent with each other or with GS_SZ_ARG / GS_SZ_RES"
 #endif
 
+#if GS_HAS_CON && (!defined(GS_CON) || !defined(GS_NC))
+#error "GS_HAS_CON is 1 but GS_CON (name of the constraints function) or GS_NC is not defined"
+#endif
+#if GS_HAS_CON && GS_SZ_RES < 4
+#error "GS_SZ_RES must be at least 4 (the constraints function has four outputs)"
+#endif
+
 #define GS_EXPORT __attribute__((visibility("default")))
 
 /* Error codes. */
@@ -109,6 +140,27 @@
 #define GS_ERR_ARGS      (-4) /* invalid arguments (h, nsteps, stride, n)    */
 #define GS_ERR_STEP      (-5) /* step size too small (Newton / error test)    */
 #define GS_ERR_MAXSTEPS  (-6) /* max_steps reached before the end time       */
+#define GS_ERR_PROJECT   (-7) /* projection onto the constraints failed      */
+#define GS_ERR_STIFF     (-8) /* gs_dopri5: the problem is stiff             */
+
+/* Entries of the stats array (GS_NSTATS doubles). */
+#define GS_ST_STEPS 0       /* accepted steps                                      */
+#define GS_ST_REJECTED 1    /* rejected steps                                      */
+#define GS_ST_RHS 2         /* right-hand-side evaluations                         */
+#define GS_ST_JAC 3         /* Jacobian evaluations (gs_radau5)                    */
+#define GS_ST_LU 4          /* LU decompositions (gs_radau5)                       */
+#define GS_ST_NEWTON 5      /* Newton iterations (gs_radau5)                       */
+#define GS_ST_ROWS 6        /* output rows written                                 */
+#define GS_ST_HLAST 7       /* last step size                                      */
+#define GS_ST_CON_EVALS 8   /* evaluations of GS_CON by the projection             */
+#define GS_ST_DRIFT_C 9     /* largest max|C| found before a projection            */
+#define GS_ST_DRIFT_CDOT 10 /* largest max|Cdot| found before a velocity projection */
+#define GS_ST_PROJ_PHASE 11 /* projection failure: 1 positions, 2 velocities       */
+#define GS_ST_PROJ_RES 12   /* projection failure: the residual left               */
+#define GS_ST_HLAMBDA 13    /* gs_dopri5: last stiffness estimate h |lambda|       */
+#define GS_ST_STIFF 14      /* gs_dopri5: stiffness tests with h |lambda| > 3.25   */
+
+#define GS_EPS 2.220446049250313e-16
 
 /* Work arrays of at most this many bytes go on the stack; larger ones use
  * thread-local static storage (still thread-safe, never overflows the stack). */
@@ -145,6 +197,10 @@ int GS_OUT(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int m
 #define GS_JAC_SPARSITY_OUT GS_PASTE(GS_JAC, _sparsity_out)
 int GS_JAC(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
 const GS_CASADI_INT* GS_JAC_SPARSITY_OUT(GS_CASADI_INT i);
+#endif
+
+#if GS_HAS_CON
+int GS_CON(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
 #endif
 
 /* xdot = f(t, x, p) using the caller's work arrays. */
@@ -220,6 +276,193 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
   return 0;
 }
 
+/* ========================================================================== */
+/*  Projection onto the constraints: gs_project                               */
+/* ========================================================================== */
+
+#ifndef GS_PROJ_MAXIT
+#define GS_PROJ_MAXIT 8 /* Gauss-Newton iterations per phase (positions, velocities) */
+#endif
+
+GS_EXPORT int gs_con_info(long* nc) {
+#if GS_HAS_CON
+  if (nc) *nc = GS_NC;
+#else
+  if (nc) *nc = -1;
+#endif
+  return GS_HAS_CON;
+}
+
+#if GS_HAS_CON
+/* C, dC/dx, Cdot, dCdot/dx at x (a result pointer may be NULL: that result is skipped). */
+static inline int gs_eval_con(gs_work* wk, const double* x, const double* p, double* C,
+                              double* JC, double* Cd, double* JCd) {
+  wk->arg[0] = x;
+  wk->arg[1] = p;
+  wk->res[0] = C;
+  wk->res[1] = JC;
+  wk->res[2] = Cd;
+  wk->res[3] = JCd;
+  return GS_CON(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+}
+
+GS_EXPORT int gs_constraints(const double* x, const double* p, double* C, double* JC,
+                             double* Cd, double* JCd) {
+  GS_DECLARE_WORK(wk);
+  return gs_eval_con(wk, x, p, C, JC, Cd, JCd);
+}
+
+/* Solve A y = b in place (A m x m row-major, overwritten) by Gaussian elimination with
+ * partial pivoting.  Returns 1 when a pivot is at most m eps max|A| (numerically
+ * singular: dependent constraints), else 0. */
+static int gs_solve_small(int m, double* A, double* b) {
+  double amax = 0.0;
+  for (int i = 0; i < m * m; ++i) amax = fmax(amax, fabs(A[i]));
+  if (!(amax > 0.0) || !isfinite(amax)) return 1;
+  const double tiny = m * GS_EPS * amax;
+  for (int k = 0; k < m; ++k) {
+    int piv = k;
+    for (int i = k + 1; i < m; ++i)
+      if (fabs(A[i * m + k]) > fabs(A[piv * m + k])) piv = i;
+    if (!(fabs(A[piv * m + k]) > tiny)) return 1;
+    if (piv != k) {
+      for (int j = 0; j < m; ++j) {
+        const double tmp = A[k * m + j];
+        A[k * m + j] = A[piv * m + j];
+        A[piv * m + j] = tmp;
+      }
+      const double tb = b[k];
+      b[k] = b[piv];
+      b[piv] = tb;
+    }
+    for (int i = k + 1; i < m; ++i) {
+      const double l = A[i * m + k] / A[k * m + k];
+      for (int j = k + 1; j < m; ++j) A[i * m + j] -= l * A[k * m + j];
+      b[i] -= l * b[k];
+    }
+  }
+  for (int i = m - 1; i >= 0; --i) {
+    double s = b[i];
+    for (int j = i + 1; j < m; ++j) s -= A[i * m + j] * b[j];
+    b[i] = s / A[i * m + i];
+  }
+  return 0;
+}
+
+/* The least-norm change of the states S = {i : mask[i] == which} that removes the linear
+ * part of the residual r: x_S -= J_S^T (J_S J_S^T)^-1 r, with J (nc x nx, column-major)
+ * the residual's Jacobian.  Returns 1 when J_S J_S^T is singular. */
+static int gs_least_norm(double* x, const int* mask, int which, const double* J,
+                         const double* r) {
+  enum { m = GS_NC };
+  double A[m * m], y[m];
+  for (int a = 0; a < m; ++a) {
+    y[a] = r[a];
+    for (int b = 0; b <= a; ++b) {
+      double s = 0.0;
+      for (int i = 0; i < GS_NX; ++i)
+        if (mask[i] == which) s += J[i * m + a] * J[i * m + b];
+      A[a * m + b] = A[b * m + a] = s;
+    }
+  }
+  if (gs_solve_small(m, A, y)) return 1;
+  for (int i = 0; i < GS_NX; ++i)
+    if (mask[i] == which) {
+      double d = 0.0;
+      for (int a = 0; a < m; ++a) d += J[i * m + a] * y[a];
+      x[i] -= d;
+    }
+  return 0;
+}
+
+static inline double gs_max_abs(const double* v, int m) {
+  double r = 0.0;
+  for (int i = 0; i < m; ++i) {
+    if (!isfinite(v[i])) return INFINITY;
+    r = fmax(r, fabs(v[i]));
+  }
+  return r;
+}
+
+/* Project x in place onto C(x) = 0 and then Cdot(x) = 0 (see gs_project); counts into st.
+ * *changed (may be NULL) is set to 1 when x was modified. */
+static int gs_project_state(gs_work* wk, double* x, const double* p, const int* mask,
+                            double tol, double* st, int* changed) {
+  double C[GS_NC], JC[GS_NC * GS_NX], Cd[GS_NC], JCd[GS_NC * GS_NX];
+  int rc;
+  if (changed) *changed = 0;
+  for (int it = 0;; ++it) { /* positions: Gauss-Newton on C(x) = 0 */
+    if ((rc = gs_eval_con(wk, x, p, C, JC, Cd, JCd))) return rc;
+    st[GS_ST_CON_EVALS] += 1;
+    const double r = gs_max_abs(C, GS_NC);
+    if (it == 0) st[GS_ST_DRIFT_C] = fmax(st[GS_ST_DRIFT_C], r);
+    if (r <= tol) break;
+    if (it == GS_PROJ_MAXIT || !isfinite(r) || gs_least_norm(x, mask, 1, JC, C)) {
+      st[GS_ST_PROJ_PHASE] = 1;
+      st[GS_ST_PROJ_RES] = r;
+      return GS_ERR_PROJECT;
+    }
+    if (changed) *changed = 1;
+  }
+  for (int it = 0;; ++it) { /* velocities: Cdot is affine in them */
+    const double r = gs_max_abs(Cd, GS_NC);
+    if (it == 0) st[GS_ST_DRIFT_CDOT] = fmax(st[GS_ST_DRIFT_CDOT], r);
+    if (r <= tol) break;
+    if (it == GS_PROJ_MAXIT || !isfinite(r) || gs_least_norm(x, mask, 2, JCd, Cd)) {
+      st[GS_ST_PROJ_PHASE] = 2;
+      st[GS_ST_PROJ_RES] = r;
+      return GS_ERR_PROJECT;
+    }
+    if (changed) *changed = 1;
+    if ((rc = gs_eval_con(wk, x, p, NULL, NULL, Cd, JCd))) return rc;
+    st[GS_ST_CON_EVALS] += 1;
+  }
+  return 0;
+}
+
+/*
+ * Project x (in place) onto the constraints, the way the integrators do after every
+ * accepted step:
+ *   1. positions: Gauss-Newton on C(x) = 0 with the least-norm change of the states with
+ *      mask[i] == 1 (those C depends on), x_S -= J^T (J J^T)^-1 C, J = dC/dx_S, until
+ *      max|C| <= tol;
+ *   2. velocities: the same on Cdot(x) = 0 with the states with mask[i] == 2 (the speeds:
+ *      Cdot depends on them affinely, C not at all), until max|Cdot| <= tol.
+ * States with mask[i] == 0 are never changed.  Each phase stops after GS_PROJ_MAXIT
+ * iterations.  stats (NULL or GS_NSTATS doubles, written) receives the GS_ST_CON_EVALS,
+ * GS_ST_DRIFT_* entries and, on failure, GS_ST_PROJ_PHASE and GS_ST_PROJ_RES.
+ * Returns 0, GS_ERR_PROJECT (not converged in GS_PROJ_MAXIT iterations, a singular
+ * J J^T or a non-finite residual), GS_ERR_EVAL or GS_ERR_ARGS (x or mask NULL, tol <= 0).
+ */
+GS_EXPORT int gs_project(double* x, const double* p, const int* mask, double tol,
+                         double* stats) {
+  GS_DECLARE_WORK(wk);
+  double st[GS_NSTATS] = {0};
+  if (!x || !mask || !(tol > 0.0)) return GS_ERR_ARGS;
+  const int rc = gs_project_state(wk, x, p, mask, tol, st, NULL);
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
+  return rc;
+}
+
+/* After an accepted step: project x when proj_mask is given, then re-check the bounds. */
+#define GS_PROJECT_STEP(x, changed)                                                   \
+  do {                                                                                \
+    if (proj_mask) {                                                                  \
+      if ((rc = gs_project_state(wk, (x), p, proj_mask, proj_tol, st, (changed))))    \
+        goto fail;                                                                    \
+      if ((rc = gs_check((x), lo, hi))) goto fail;                                    \
+    }                                                                                 \
+  } while (0)
+#else
+#define GS_PROJECT_STEP(x, changed) ((void)0)
+#endif
+
+/* Validity of the projection arguments of the integrators. */
+static inline int gs_proj_args_ok(const int* proj_mask, double proj_tol) {
+  return !proj_mask || (GS_HAS_CON && proj_tol > 0.0 && isfinite(proj_tol));
+}
+
 /*
  * Classic fixed-step fourth-order Runge-Kutta, t_k = t0 + k*h, k = 0..nsteps.
  *
@@ -229,29 +472,39 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
  * written (see below).
  *
  * After every step the new state is checked: every component must be finite
- * and lo[i] <= x[i] <= hi[i] (lo / hi may be NULL or hold -inf / +inf).
+ * and lo[i] <= x[i] <= hi[i] (lo / hi may be NULL or hold -inf / +inf); with
+ * proj_mask (not NULL) it is then projected onto the constraints with tolerance
+ * proj_tol (see gs_project) and checked again.
  * When step k (from t_k to t_k + h) fails, integration stops and
  *   *t_fail            = t_k, the time of the last good state,
  *   row r = k/stride+1 = the last good state x(t_k),
- *   row r + 1          = the rejected state (the value that failed the check;
- *                        may contain NaN/inf; undefined for GS_ERR_EVAL),
+ *   row r + 1          = the rejected state (the value that failed the check or the
+ *                        projection; may contain NaN/inf; undefined for GS_ERR_EVAL),
  * and the return value is
  *   GS_ERR_NONFINITE (-1)  a component became NaN or +-inf,
  *   GS_ERR_BOUNDS    (-2)  a component left [lo[i], hi[i]],
  *   GS_ERR_EVAL      (-3)  the CasADi function returned an error,
- *   GS_ERR_ARGS      (-4)  h not finite, nsteps < 0 or stride < 1 (nothing written).
- * x0 itself is not checked.  On success the number of rows written is returned.
+ *   GS_ERR_ARGS      (-4)  h not finite, nsteps < 0 or stride < 1, or projection asked
+ *                          without GS_HAS_CON or with proj_tol <= 0 (nothing written),
+ *   GS_ERR_PROJECT   (-7)  the projection failed (see gs_project).
+ * x0 itself is not checked.  stats: NULL or GS_NSTATS doubles (GS_ST_STEPS, GS_ST_RHS
+ * and the projection entries are written).  On success the number of rows written is
+ * returned.
  */
 GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const double* x0,
-                      const double* p, const double* lo, const double* hi, double* out,
+                      const double* p, const double* lo, const double* hi,
+                      const int* proj_mask, double proj_tol, double* out, double* stats,
                       double* t_fail) {
   GS_DECLARE_WORK(wk);
   double x[GS_NX], xn[GS_NX], xs[GS_NX], k1[GS_NX], k2[GS_NX], k3[GS_NX], k4[GS_NX];
   double ts;
+  double st[GS_NSTATS] = {0};
   long row = 1;
   int rc = 0;
 
-  if (!isfinite(h) || !isfinite(t0) || nsteps < 0 || stride < 1) return GS_ERR_ARGS;
+  if (!isfinite(h) || !isfinite(t0) || nsteps < 0 || stride < 1 ||
+      !gs_proj_args_ok(proj_mask, proj_tol))
+    return GS_ERR_ARGS;
   for (int i = 0; i < GS_NX; ++i) {
     x[i] = out[i] = x0[i];
     xn[i] = NAN; /* reported as the rejected state if the very first evaluation fails */
@@ -270,7 +523,10 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
     if ((rc = gs_eval_rhs(wk, &ts, xs, p, k4))) goto fail;
     for (int i = 0; i < GS_NX; ++i)
       xn[i] = x[i] + (h / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    st[GS_ST_RHS] += 4;
     if ((rc = gs_check(xn, lo, hi))) goto fail;
+    GS_PROJECT_STEP(xn, NULL);
+    st[GS_ST_STEPS] += 1;
     for (int i = 0; i < GS_NX; ++i) x[i] = xn[i];
     if ((k + 1) % stride == 0) {
       for (int i = 0; i < GS_NX; ++i) out[row * GS_NX + i] = x[i];
@@ -286,8 +542,12 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
         r[GS_NX + i] = xn[i];
       }
     }
+    if (stats)
+      for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
     return rc;
   }
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
   return row;
 }
 
@@ -553,7 +813,34 @@ static const double gs_rd_P[3][3] = {
 #ifndef GS_RADAU_JAC_AT
 #define GS_RADAU_JAC_AT 0.5 /* evaluate J at t + JAC_AT h (predicted state), see below */
 #endif
-#define GS_EPS 2.220446049250313e-16
+/* First step size for an error estimate of order `order` (Hairer-Norsett-Wanner I, II.4, as
+ * scipy's select_initial_step): h with h^(order+1) max(|f|, |f'|) = 0.01 in the weighted
+ * RMS norm, at most 100 times the explicit Euler probe and at most `interval`. */
+static int gs_initial_step(gs_work* wk, double t0, const double* y, const double* f,
+                           const double* p, double rtol, double atol, double interval,
+                           int order, double* st, double* h_out) {
+  double scale[GS_NX], tmp[GS_NX], fnew[GS_NX];
+  for (int i = 0; i < GS_NX; ++i) scale[i] = atol + fabs(y[i]) * rtol;
+  const double d0 = gs_rms(y, scale, GS_NX), d1 = gs_rms(f, scale, GS_NX);
+  double hh = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+  if (hh > interval) hh = interval;
+  for (int i = 0; i < GS_NX; ++i) tmp[i] = y[i] + hh * f[i];
+  const double t1 = t0 + hh;
+  const int rc = gs_eval_rhs(wk, &t1, tmp, p, fnew);
+  if (rc) return rc;
+  st[GS_ST_RHS] += 1;
+  for (int i = 0; i < GS_NX; ++i) tmp[i] = fnew[i] - f[i];
+  const double d2 = gs_rms(tmp, scale, GS_NX) / hh;
+  double h1;
+  if (d1 <= 1e-15 && d2 <= 1e-15)
+    h1 = fmax(1e-6, hh * 1e-3);
+  else
+    h1 = pow(0.01 / fmax(d1, d2), 1.0 / (order + 1));
+  double h = fmin(fmin(100.0 * hh, h1), interval);
+  if (!isfinite(h) || h <= 0.0) h = 1e-6 * interval;
+  *h_out = h;
+  return 0;
+}
 
 #if !GS_HAS_JAC
 /* Forward-difference Jacobian (fallback when no Jacobian was compiled in). */
@@ -601,19 +888,23 @@ static int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double
  *               as scipy's select_initial_step with the error order 3)
  *   max_steps   maximum number of accepted steps (>= 1)
  *   lo, hi      bounds checked on every accepted step's end state (may be NULL)
+ *   proj_mask, proj_tol
+ *               NULL, or project every accepted step's end state and every output
+ *               between steps onto the constraints (see gs_project; needs GS_HAS_CON)
  *   out         row-major, nx columns, at least n_out + 1 rows (see failures)
- *   stats       NULL or 8 doubles: [0] accepted steps, [1] rejected steps (error test
- *               or Newton failures), [2] right-hand-side evaluations, [3] Jacobian
- *               evaluations, [4] LU decompositions (real and complex each count 1),
- *               [5] Newton iterations, [6] output rows written, [7] last step size
+ *   stats       NULL or GS_NSTATS doubles (GS_ST_*): [0] accepted steps, [1] rejected
+ *               steps (error test or Newton failures), [2] right-hand-side evaluations,
+ *               [3] Jacobian evaluations, [4] LU decompositions (real and complex each
+ *               count 1), [5] Newton iterations, [6] output rows written, [7] last step
+ *               size, [8..12] projection counts and residuals
  *   t_fail      receives the last accepted time on failure (may be NULL)
  *
  * Returns n_out on success.  On failure, with r = the number of output rows written
  * (also stats[6]; they are the rows with t_out <= *t_fail),
  *   row r      = the last accepted state x(*t_fail),
- *   row r + 1  = for GS_ERR_NONFINITE / GS_ERR_BOUNDS the rejected state (the end of
- *                the step that failed the check, or the state whose derivative was
- *                non-finite), otherwise NaN,
+ *   row r + 1  = for GS_ERR_NONFINITE / GS_ERR_BOUNDS / GS_ERR_PROJECT the rejected state
+ *                (the end of the step that failed the check or the projection, or the
+ *                state whose derivative was non-finite), otherwise NaN,
  * and the return value is
  *   GS_ERR_NONFINITE (-1)  a state or its derivative became NaN / +-inf,
  *   GS_ERR_BOUNDS    (-2)  a component left [lo[i], hi[i]] at the end of a step,
@@ -621,18 +912,19 @@ static int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double
  *   GS_ERR_ARGS      (-4)  invalid arguments (nothing written),
  *   GS_ERR_STEP      (-5)  the step size fell below 10 ulp(t) (repeated Newton
  *                          failures, error-test failures or singular matrices),
- *   GS_ERR_MAXSTEPS  (-6)  max_steps steps were taken before the end.
+ *   GS_ERR_MAXSTEPS  (-6)  max_steps steps were taken before the end,
+ *   GS_ERR_PROJECT   (-7)  the projection failed.
  */
 GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const double* x0,
                          const double* p, double rtol, double atol, double h0, long max_steps,
-                         const double* lo, const double* hi, double* out, double* stats,
-                         double* t_fail) {
+                         const double* lo, const double* hi, const int* proj_mask,
+                         double proj_tol, double* out, double* stats, double* t_fail) {
   enum { n = GS_NX, nit = GS_RADAU_NIT };
   GS_DECLARE_WORK(wk);
   GS_DECLARE_MATS(M);
   double y[n], f[n], ynew[n], fnew[n], scale[n], tmp[n], err[n], ze[n];
   double Z[3][n], W[3][n], F[3][n], dW[3][n], Q[n][3], yold[n];
-  double st[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  double st[GS_NSTATS] = {0};
   long row = 0;
   int rc = 0, have_sol = 0, lu_valid = 0, caljac = 0, need_jac = 1, reject = 0, first = 1;
   int nsing = 0;
@@ -643,7 +935,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   double fnewt;
 
   if (n_out < 1 || !t_out || !x0 || !out || max_steps < 1 || !isfinite(t0) || !isfinite(rtol) ||
-      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0))
+      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0) ||
+      !gs_proj_args_ok(proj_mask, proj_tol))
     return GS_ERR_ARGS;
   for (long k = 1; k < n_out; ++k)
     if (!(t_out[k] > t_out[k - 1]) || !isfinite(t_out[k])) return GS_ERR_ARGS;
@@ -672,28 +965,10 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
     }
 
   /* Initial step (scipy's select_initial_step with error order 3). */
-  if (h0 > 0.0) {
+  if (h0 > 0.0)
     h = h0;
-  } else {
-    const double interval = t_end - t0;
-    for (int i = 0; i < n; ++i) scale[i] = atol + fabs(y[i]) * rtol;
-    const double d0 = gs_rms(y, scale, n), d1 = gs_rms(f, scale, n);
-    double hh = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-    if (hh > interval) hh = interval;
-    for (int i = 0; i < n; ++i) tmp[i] = y[i] + hh * f[i];
-    const double t1 = t0 + hh;
-    if ((rc = gs_eval_rhs(wk, &t1, tmp, p, fnew))) goto fail;
-    st[2] += 1;
-    for (int i = 0; i < n; ++i) tmp[i] = fnew[i] - f[i];
-    const double d2 = gs_rms(tmp, scale, n) / hh;
-    double h1;
-    if (d1 <= 1e-15 && d2 <= 1e-15)
-      h1 = fmax(1e-6, hh * 1e-3);
-    else
-      h1 = pow(0.01 / fmax(d1, d2), 1.0 / 4.0);
-    h = fmin(fmin(100.0 * hh, h1), interval);
-    if (!isfinite(h) || h <= 0.0) h = 1e-6 * interval;
-  }
+  else if ((rc = gs_initial_step(wk, t0, y, f, p, rtol, atol, t_end - t0, 3, st, &h)))
+    goto fail;
   for (int i = 0; i < n * n; ++i) M->J[i] = 0.0;
 
   while (1) { /* one attempted step per pass */
@@ -891,6 +1166,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
     {
       const double tnew = (h == t_end - t) ? t_end : t + h;
       if ((rc = gs_check(ynew, lo, hi))) goto fail;
+      GS_PROJECT_STEP(ynew, NULL); /* the dense output below is the unprojected step's */
       if ((rc = gs_eval_rhs(wk, &tnew, ynew, p, fnew))) goto fail;
       st[2] += 1;
       for (int i = 0; i < n; ++i)
@@ -919,6 +1195,12 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
           const double x = (t_out[row] - told) / hsol;
           const double x2 = x * x, x3 = x2 * x;
           for (int i = 0; i < n; ++i) o[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
+#if GS_HAS_CON
+          if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
+            for (int i = 0; i < n; ++i) ynew[i] = o[i];
+            goto fail;
+          }
+#endif
         }
         ++row;
       }
@@ -964,17 +1246,311 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
 done:
   st[6] = (double)row;
   if (stats)
-    for (int i = 0; i < 8; ++i) stats[i] = st[i];
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
   return n_out;
 
 fail:
   if (t_fail) *t_fail = t;
   st[6] = (double)row;
   if (stats)
-    for (int i = 0; i < 8; ++i) stats[i] = st[i];
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
   for (int i = 0; i < n; ++i) {
     out[row * n + i] = y[i];
-    out[(row + 1) * n + i] = (rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS) ? ynew[i] : NAN;
+    out[(row + 1) * n + i] =
+        (rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT) ? ynew[i] : NAN;
+  }
+  return rc;
+}
+
+/* ========================================================================== */
+/*  Dormand-Prince 5(4) with adaptive steps: gs_dopri5                        */
+/* ========================================================================== */
+/*
+ * Follows E. Hairer, S. P. Norsett, G. Wanner, "Solving Ordinary Differential
+ * Equations I: Nonstiff Problems", 2nd ed., Springer 1993, Sec. II.4-II.6, and their
+ * DOPRI5 code: the Dormand-Prince pair (fifth-order solution, embedded fourth-order
+ * error estimate, first stage of a step = last stage of the previous one), step-size
+ * control with Lund stabilisation (beta = 0.04), the continuous extension of order 4 as
+ * dense output (no extra evaluations), and DOPRI5's stiffness detection (Hairer &
+ * Wanner, "Solving ODEs II", Sec. IV.2): h |lambda| is estimated from the last two
+ * stages, both at t + h, as h |k7 - k6| / |y1 - y6|; a step whose estimate exceeds 3.25
+ * (the stability boundary of the method on the negative real axis is 3.31) counts as
+ * stiff, 6 non-stiff steps in a row reset the count, and 15 stiff steps stop the
+ * integration.  The test runs on every nstiff-th accepted step and, once a stiff step
+ * was seen, on every step.  The C code here is our own; the constants are those of the
+ * reference.
+ */
+#ifndef GS_DOPRI_SAFE
+#define GS_DOPRI_SAFE 0.9 /* safety factor of the step-size selection            */
+#endif
+#ifndef GS_DOPRI_FAC1
+#define GS_DOPRI_FAC1 0.2 /* h_new / h >= FAC1                                    */
+#endif
+#ifndef GS_DOPRI_FAC2
+#define GS_DOPRI_FAC2 10.0 /* h_new / h <= FAC2                                   */
+#endif
+#ifndef GS_DOPRI_BETA
+#define GS_DOPRI_BETA 0.04 /* Lund stabilisation of the step-size controller       */
+#endif
+#ifndef GS_DOPRI_STIFF_HLAMBDA
+#define GS_DOPRI_STIFF_HLAMBDA 3.25 /* a step is stiff when h |lambda| exceeds this   */
+#endif
+#ifndef GS_DOPRI_STIFF_COUNT
+#define GS_DOPRI_STIFF_COUNT 15 /* this many stiff steps (no 6 non-stiff in between) stop */
+#endif
+#ifndef GS_DOPRI_NONSTIFF_RESET
+#define GS_DOPRI_NONSTIFF_RESET 6
+#endif
+
+static const double gs_dp_c[5] = {1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0};
+static const double gs_dp_a21 = 1.0 / 5.0;
+static const double gs_dp_a3[2] = {3.0 / 40.0, 9.0 / 40.0};
+static const double gs_dp_a4[3] = {44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0};
+static const double gs_dp_a5[4] = {19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0,
+                                   -212.0 / 729.0};
+static const double gs_dp_a6[5] = {9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0,
+                                   49.0 / 176.0, -5103.0 / 18656.0};
+/* The solution (= stage 7, a72 = 0). */
+static const double gs_dp_b[6] = {35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0,
+                                  -2187.0 / 6784.0, 11.0 / 84.0};
+/* Error estimate: fifth- minus fourth-order solution, weights of k1..k7. */
+static const double gs_dp_e[7] = {71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0,
+                                  -17253.0 / 339200.0, 22.0 / 525.0, -1.0 / 40.0};
+/* Dense output: the fifth coefficient's weights of k1..k7. */
+static const double gs_dp_d[7] = {-12715105075.0 / 11282082432.0, 0.0,
+                                  87487479700.0 / 32700410799.0, -10690763975.0 / 1880347072.0,
+                                  701980252875.0 / 199316789632.0, -1453857185.0 / 822651844.0,
+                                  69997945.0 / 29380423.0};
+
+/*
+ * Adaptive Dormand-Prince 5(4) integration of x' = f(t, x, p), see the comment above.
+ *
+ * Arguments as gs_radau5, and
+ *   nstiff      run the stiffness test on every nstiff-th accepted step (DOPRI5's NSTIFF,
+ *               Hairer's default 1000); <= 0: never (max_steps then bounds the work)
+ *   t_out       the outputs between steps come from the continuous extension of order 4
+ *               (continuous; a state at a step end is the step's); with proj_mask they
+ *               are projected onto the constraints, like the step ends.
+ *   stats       as gs_radau5 ([3], [4], [5] stay 0), and [13] the last estimate of
+ *               h |lambda|, [14] the number of stiffness tests above 3.25.
+ * Error estimate: weights atol + rtol max(|x_old|, |x_new|), RMS norm (as gs_radau5);
+ * rtol is raised to 100 eps if smaller.
+ *
+ * Returns n_out on success; on failure the rows, *t_fail and the codes of gs_radau5, and
+ *   GS_ERR_STEP      (-5)  the step size fell below 10 ulp(t) (repeated error-test
+ *                          failures, or a right-hand side non-finite inside the steps),
+ *   GS_ERR_STIFF     (-8)  the problem is stiff: *t_fail and row r are the start of the
+ *                          step on which the stiffness test fired for the 15th time.
+ */
+GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const double* x0,
+                         const double* p, double rtol, double atol, double h0, long max_steps,
+                         long nstiff, const double* lo, const double* hi, const int* proj_mask,
+                         double proj_tol, double* out, double* stats, double* t_fail) {
+  enum { n = GS_NX };
+  GS_DECLARE_WORK(wk);
+  double y[n], y1[n], ys[n], ysti[n], scale[n], dense[5][n];
+  double k1[n], k2[n], k3[n], k4[n], k5[n], k6[n], k7[n];
+  double st[GS_NSTATS] = {0};
+  long row = 0;
+  int rc = 0, reject = 0, last = 0, iasti = 0, nonsti = 0;
+  double t = t0, told = t0, hsol = 0.0, h, facold = 1e-4;
+  const double t_end = t_out ? t_out[n_out > 0 ? n_out - 1 : 0] : t0;
+  const double expo1 = 0.2 - GS_DOPRI_BETA * 0.75;
+
+  if (n_out < 1 || !t_out || !x0 || !out || max_steps < 1 || !isfinite(t0) || !isfinite(rtol) ||
+      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0) ||
+      !gs_proj_args_ok(proj_mask, proj_tol))
+    return GS_ERR_ARGS;
+  for (long k = 1; k < n_out; ++k)
+    if (!(t_out[k] > t_out[k - 1]) || !isfinite(t_out[k])) return GS_ERR_ARGS;
+  if (!isfinite(t_end)) return GS_ERR_ARGS;
+  if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
+  const double interval = t_end - t0;
+
+  for (int i = 0; i < n; ++i) {
+    y[i] = x0[i];
+    y1[i] = NAN;
+  }
+  while (row < n_out && t_out[row] <= t0) {
+    for (int i = 0; i < n; ++i) out[row * n + i] = y[i];
+    ++row;
+  }
+  if (row == n_out) goto done;
+
+  if ((rc = gs_eval_rhs(wk, &t, y, p, k1))) goto fail;
+  st[GS_ST_RHS] += 1;
+  for (int i = 0; i < n; ++i)
+    if (!isfinite(k1[i])) {
+      for (int j = 0; j < n; ++j) y1[j] = y[j];
+      rc = GS_ERR_NONFINITE;
+      goto fail;
+    }
+  if (h0 > 0.0)
+    h = fmin(h0, interval);
+  else if ((rc = gs_initial_step(wk, t0, y, k1, p, rtol, atol, interval, 4, st, &h)))
+    goto fail;
+
+  while (1) { /* one attempted step per pass */
+    if (st[GS_ST_STEPS] >= (double)max_steps) {
+      rc = GS_ERR_MAXSTEPS;
+      goto fail;
+    }
+    if (!(h >= 10.0 * fabs(nextafter(t, INFINITY) - t))) {
+      rc = GS_ERR_STEP;
+      goto fail;
+    }
+    if (t + 1.01 * h >= t_end) {
+      h = t_end - t;
+      last = 1;
+    }
+    /* Stages 2..7; stage 7 is the fifth-order solution y1, evaluated for the next step. */
+    double ts = t + gs_dp_c[0] * h;
+    for (int i = 0; i < n; ++i) ys[i] = y[i] + h * gs_dp_a21 * k1[i];
+    if ((rc = gs_eval_rhs(wk, &ts, ys, p, k2))) goto fail;
+    ts = t + gs_dp_c[1] * h;
+    for (int i = 0; i < n; ++i) ys[i] = y[i] + h * (gs_dp_a3[0] * k1[i] + gs_dp_a3[1] * k2[i]);
+    if ((rc = gs_eval_rhs(wk, &ts, ys, p, k3))) goto fail;
+    ts = t + gs_dp_c[2] * h;
+    for (int i = 0; i < n; ++i)
+      ys[i] = y[i] + h * (gs_dp_a4[0] * k1[i] + gs_dp_a4[1] * k2[i] + gs_dp_a4[2] * k3[i]);
+    if ((rc = gs_eval_rhs(wk, &ts, ys, p, k4))) goto fail;
+    ts = t + gs_dp_c[3] * h;
+    for (int i = 0; i < n; ++i)
+      ys[i] = y[i] + h * (gs_dp_a5[0] * k1[i] + gs_dp_a5[1] * k2[i] + gs_dp_a5[2] * k3[i] +
+                          gs_dp_a5[3] * k4[i]);
+    if ((rc = gs_eval_rhs(wk, &ts, ys, p, k5))) goto fail;
+    const double tph = last ? t_end : t + h;
+    for (int i = 0; i < n; ++i)
+      ysti[i] = y[i] + h * (gs_dp_a6[0] * k1[i] + gs_dp_a6[1] * k2[i] + gs_dp_a6[2] * k3[i] +
+                            gs_dp_a6[3] * k4[i] + gs_dp_a6[4] * k5[i]);
+    if ((rc = gs_eval_rhs(wk, &tph, ysti, p, k6))) goto fail;
+    for (int i = 0; i < n; ++i)
+      y1[i] = y[i] + h * (gs_dp_b[0] * k1[i] + gs_dp_b[2] * k3[i] + gs_dp_b[3] * k4[i] +
+                          gs_dp_b[4] * k5[i] + gs_dp_b[5] * k6[i]);
+    if ((rc = gs_eval_rhs(wk, &tph, y1, p, k7))) goto fail;
+    st[GS_ST_RHS] += 6;
+
+    /* Error estimate (ys reused) and the new step size, FAC1 <= h_new / h <= FAC2. */
+    for (int i = 0; i < n; ++i) {
+      ys[i] = h * (gs_dp_e[0] * k1[i] + gs_dp_e[2] * k3[i] + gs_dp_e[3] * k4[i] +
+                   gs_dp_e[4] * k5[i] + gs_dp_e[5] * k6[i] + gs_dp_e[6] * k7[i]);
+      scale[i] = atol + fmax(fabs(y[i]), fabs(y1[i])) * rtol;
+    }
+    const double err = gs_rms(ys, scale, n);
+    if (!isfinite(err)) { /* a stage left the region where f is finite: shrink */
+      h *= GS_DOPRI_FAC1;
+      reject = 1;
+      last = 0;
+      st[GS_ST_REJECTED] += 1;
+      continue;
+    }
+    const double fac11 = pow(err, expo1);
+    const double fac = fmax(1.0 / GS_DOPRI_FAC2,
+                            fmin(1.0 / GS_DOPRI_FAC1,
+                                 fac11 / pow(facold, GS_DOPRI_BETA) / GS_DOPRI_SAFE));
+    double hnew = h / fac;
+    if (!(err <= 1.0)) { /* rejected */
+      h /= fmin(1.0 / GS_DOPRI_FAC1, fac11 / GS_DOPRI_SAFE);
+      reject = 1;
+      last = 0;
+      st[GS_ST_REJECTED] += 1;
+      continue;
+    }
+
+    /* Accepted. */
+    facold = fmax(err, 1e-4);
+    st[GS_ST_STEPS] += 1;
+    if (nstiff > 0 && (((long)st[GS_ST_STEPS]) % nstiff == 0 || iasti > 0)) {
+      double stnum = 0.0, stden = 0.0;
+      for (int i = 0; i < n; ++i) {
+        stnum += (k7[i] - k6[i]) * (k7[i] - k6[i]);
+        stden += (y1[i] - ysti[i]) * (y1[i] - ysti[i]);
+      }
+      if (stden > 0.0) st[GS_ST_HLAMBDA] = h * sqrt(stnum / stden);
+      if (st[GS_ST_HLAMBDA] > GS_DOPRI_STIFF_HLAMBDA) {
+        nonsti = 0;
+        st[GS_ST_STIFF] += 1;
+        if (++iasti == GS_DOPRI_STIFF_COUNT) {
+          rc = GS_ERR_STIFF;
+          goto fail;
+        }
+      } else if (++nonsti == GS_DOPRI_NONSTIFF_RESET) {
+        iasti = 0;
+      }
+    }
+    /* Continuous extension of the unprojected step:
+     * y(t_old + s h) = d0 + s (d1 + (1-s) (d2 + s (d3 + (1-s) d4))). */
+    for (int i = 0; i < n; ++i) {
+      const double ydiff = y1[i] - y[i], bspl = h * k1[i] - ydiff;
+      dense[0][i] = y[i];
+      dense[1][i] = ydiff;
+      dense[2][i] = bspl;
+      dense[3][i] = ydiff - h * k7[i] - bspl;
+      dense[4][i] = h * (gs_dp_d[0] * k1[i] + gs_dp_d[2] * k3[i] + gs_dp_d[3] * k4[i] +
+                         gs_dp_d[4] * k5[i] + gs_dp_d[5] * k6[i] + gs_dp_d[6] * k7[i]);
+    }
+    if ((rc = gs_check(y1, lo, hi))) goto fail;
+    {
+      int changed = 0;
+      GS_PROJECT_STEP(y1, &changed);
+      if (changed) { /* the next step starts from f at the projected state */
+        if ((rc = gs_eval_rhs(wk, &tph, y1, p, k7))) goto fail;
+        st[GS_ST_RHS] += 1;
+      }
+    }
+    for (int i = 0; i < n; ++i)
+      if (!isfinite(k7[i])) {
+        rc = GS_ERR_NONFINITE;
+        goto fail;
+      }
+    told = t;
+    hsol = h;
+    t = tph;
+    st[GS_ST_HLAST] = h;
+    for (int i = 0; i < n; ++i) {
+      y[i] = y1[i];
+      k1[i] = k7[i];
+    }
+    while (row < n_out && t_out[row] <= t) {
+      double* o = out + row * n;
+      if (t_out[row] == t) {
+        for (int i = 0; i < n; ++i) o[i] = y[i];
+      } else {
+        const double s = (t_out[row] - told) / hsol, s1 = 1.0 - s;
+        for (int i = 0; i < n; ++i)
+          o[i] = dense[0][i] +
+                 s * (dense[1][i] + s1 * (dense[2][i] + s * (dense[3][i] + s1 * dense[4][i])));
+#if GS_HAS_CON
+        if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
+          for (int i = 0; i < n; ++i) y1[i] = o[i];
+          goto fail;
+        }
+#endif
+      }
+      ++row;
+    }
+    if (last) break;
+    hnew = fmin(hnew, interval);
+    if (reject) hnew = fmin(hnew, h);
+    reject = 0;
+    h = hnew;
+  }
+
+done:
+  st[GS_ST_ROWS] = (double)row;
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
+  return n_out;
+
+fail:
+  if (t_fail) *t_fail = t;
+  st[GS_ST_ROWS] = (double)row;
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
+  for (int i = 0; i < n; ++i) {
+    out[row * n + i] = y[i];
+    out[(row + 1) * n + i] =
+        (rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT) ? y1[i] : NAN;
   }
   return rc;
 }

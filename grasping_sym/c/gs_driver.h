@@ -12,12 +12,24 @@
 #ifndef GS_NY
 #define GS_NY 0
 #endif
+#ifndef GS_HAS_CON
+#define GS_HAS_CON 0
+#endif
+
+/* Length of the stats array of gs_rk4, gs_radau5, gs_dopri5 and gs_project. */
+#define GS_NSTATS 16
 
 int gs_rhs(const double* x, const double* p, double* xdot);
 int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
 #if GS_HAS_OUT
 int gs_outputs(const double* x, const double* p, double* y);
 int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
+#endif
+int gs_con_info(long* nc);
+#if GS_HAS_CON
+int gs_constraints(const double* x, const double* p, double* C, double* JC, double* Cd,
+                   double* JCd);
+int gs_project(double* x, const double* p, const int* mask, double tol, double* stats);
 #endif
 
 #endif /* GS_DRIVER_H */

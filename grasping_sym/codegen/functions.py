@@ -3,7 +3,10 @@
 Names (also the C symbols): ``{name}_rhs`` with CasADi's DAE signature
 ``(t, x, z, p, u) -> (ode, alg, quad, zero)`` so that CVODES/IDAS can use the compiled code
 directly; ``jac_{name}_rhs`` (CasADi's naming rule for a compiled function's Jacobian);
-``{name}_outputs`` ``(x, p) -> y``, only when outputs were requested.
+``{name}_outputs`` ``(x, p) -> y``, only when outputs were requested;
+``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dx)``, the position constraints, their
+total time derivative along the closed loop and both Jacobians (dense), for the projection of
+the C integration loops (``runtime/projection.py``).
 """
 from __future__ import annotations
 
@@ -19,6 +22,8 @@ from grasping_sym.geometry.curves import T
 
 #: CasADi Function options: eliminate common subexpressions in the SX graph.
 FUNCTION_OPTIONS = {"cse": True}
+#: The planar contact constraints (template outputs, m): Q (paper (14)) and R (paper (24)).
+PLANAR_CONSTRAINTS = ("Q", "R")
 
 
 @dataclass
@@ -30,9 +35,13 @@ class CasadiModel:
     outputs: ca.Function | None
     output_names: tuple[str, ...]
     op_counts: dict[str, int] = field(default_factory=dict)
+    constraints: ca.Function | None = None
+    #: ``names`` of the constraints, ``position_states`` (the states C depends on) and
+    #: ``velocity_states`` (those Cdot depends on affinely and C not at all), by name index.
+    constraint_info: dict = field(default_factory=dict)
 
     def functions(self) -> list[ca.Function]:
-        return [f for f in (self.rhs, self.jac, self.outputs) if f is not None]
+        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints) if f is not None]
 
 
 def _casadi_backend():
@@ -134,20 +143,23 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
         L += [tr(concrete[cls]) for cls in fns.leaves()]
     L = ca.vertcat(*L)
     xdot = template.rhs(x, q, L)
-    y = {}
-    if outputs:
-        y_all = template.outputs(x, q, L)
-        y = {k: y_all[template.output_names.index(k)] for k in outputs}
-    return sx_model(x, p, xdot, y, name)
+    y_all = template.outputs(x, q, L)
+    y = {k: y_all[template.output_names.index(k)] for k in outputs}
+    C = ca.vertcat(*[y_all[template.output_names.index(k)] for k in PLANAR_CONSTRAINTS])
+    return sx_model(x, p, xdot, y, name, constraints=C, constraint_names=PLANAR_CONSTRAINTS)
 
 
 def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: str, *,
-             jacobian: bool = True) -> CasadiModel:
+             jacobian: bool = True, constraints: ca.SX | None = None,
+             constraint_names: tuple[str, ...] | None = None) -> CasadiModel:
     """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
 
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
-    integrators then difference the compiled rhs), and ``{name}_outputs`` (only when
-    ``outputs`` is not empty), with the SX instruction counts before and after CSE.
+    integrators then difference the compiled rhs), ``{name}_outputs`` (only when ``outputs``
+    is not empty) and, given the position ``constraints`` C(x, p) (a column, zero on the
+    motion), ``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dx)`` with
+    ``Cdot = jtimes(C, x, xdot)`` (the total time derivative along the closed loop) and both
+    Jacobians as dense ``nc x nx`` matrices; with the SX instruction counts before and after CSE.
     """
     t = ca.SX.sym("t")
     empty = ca.SX(0, 1)
@@ -169,8 +181,44 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
         out_fn = ca.Function(f"{name}_outputs", [x, p], [y], ["x", "p"], ["y"],
                              FUNCTION_OPTIONS)
         op_counts["outputs_sx_instructions"] = out_fn.n_instructions()
+    con_fn, con_info = None, {}
+    if constraints is not None:
+        con_fn, con_info = _constraints_function(x, p, xdot, constraints, constraint_names, name)
+        op_counts["constraints_sx_instructions"] = con_fn.n_instructions()
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=tuple(outputs),
-                       op_counts=op_counts)
+                       op_counts=op_counts, constraints=con_fn, constraint_info=con_info)
+
+
+def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,
+                          names: tuple[str, ...] | None, name: str) -> tuple[ca.Function, dict]:
+    """``{name}_constraints`` and which states the projection may change.
+
+    Position states: those C depends on. Velocity states: those Cdot depends on and C does
+    not, on which Cdot depends affinely (no column of dCdot/dx among them depends on any of
+    them): the speeds. A frame angle that enters Cdot nonlinearly through the contact rates
+    (3D ``psi``) is a configuration variable, not a speed, and is left alone.
+    """
+    nc = C.numel()
+    if names is None:
+        names = tuple(f"C{i}" for i in range(nc))
+    if len(names) != nc:
+        raise ValueError(f"{len(names)} constraint names for {nc} constraints")
+    Cdot = ca.jtimes(C, x, xdot)
+    JC, JCd = ca.jacobian(C, x), ca.jacobian(Cdot, x)
+    position = sorted(set(JC.sparsity().get_col()))
+    candidates = sorted(set(JCd.sparsity().get_col()) - set(position))
+    # affine in each one alone, then jointly (drop any whose column depends on another's)
+    velocity = [i for i in candidates if not ca.depends_on(JCd[:, i], x[i])]
+    while velocity:
+        xs = ca.vertcat(*[x[i] for i in velocity])
+        kept = [i for i in velocity if not ca.depends_on(JCd[:, i], xs)]
+        if kept == velocity:
+            break
+        velocity = kept
+    fn = ca.Function(f"{name}_constraints", [x, p],
+                     [C, ca.densify(JC), Cdot, ca.densify(JCd)],
+                     ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dx"], FUNCTION_OPTIONS)
+    return fn, {"names": list(names), "position_states": position, "velocity_states": velocity}
 
 
 def build_casadi(system: ConstrainedSystem, fingertip, object_, name: str) -> CasadiModel:

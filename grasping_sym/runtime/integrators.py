@@ -8,7 +8,12 @@
 - ``radau``: adaptive Radau IIA of order 5 whose whole loop runs in C (``gs_radau5``),
   calling the compiled right-hand side and Jacobian directly; no CasADi/SUNDIALS
   overhead per step.
+- ``dopri5``: adaptive explicit Dormand-Prince 5(4) whose whole loop runs in C
+  (``gs_dopri5``), with dense output and DOPRI5's stiffness detection: a stiff problem stops
+  with an ``IntegratorError`` saying so instead of crawling.
 
+The C loops (``rk4``, ``radau``, ``dopri5``) check the contact parameters after every step and
+can project every step onto the constraints (``runtime/projection.py``).
 Failures raise ``IntegratorError`` with the time, the state and the reason.
 """
 from __future__ import annotations
@@ -28,7 +33,9 @@ import numpy as np
 
 from grasping_sym.errors import IntegratorError
 
-METHODS = ("cvodes", "idas", "rk4", "radau")
+METHODS = ("cvodes", "idas", "rk4", "radau", "dopri5")
+#: The methods whose whole loop runs in C (``driver.c``).
+C_LOOPS = ("rk4", "radau", "dopri5")
 
 
 #: Step budget for recovering the state just before a SUNDIALS failure (a blow-up can make
@@ -160,8 +167,26 @@ def _sundials_reason(message: str) -> str:
     return lines[-1] if lines else "unknown failure"
 
 
+def c_loop(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, *,
+           rtol: float, atol: float, max_steps: int, h: float,
+           projection: tuple[np.ndarray | None, float] = (None, 0.0)
+           ) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Integrate with one of ``C_LOOPS``, bounds ``model.lower`` / ``model.upper`` checked
+    after every step, projecting when ``projection[0]`` (the mask) is given."""
+    lo, hi = model.lower, model.upper
+    if method == "rk4":
+        return rk4(model, x0, t_eval, p, h, lo, hi, projection)
+    if method == "radau":
+        return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection)
+    if method == "dopri5":
+        return dopri5(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection)
+    raise ValueError(f"method {method!r} has no C loop: choose one of {C_LOOPS}")
+
+
 def rk4(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, h: float,
-        lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        lo: np.ndarray, hi: np.ndarray,
+        projection: tuple[np.ndarray | None, float] = (None, 0.0)
+        ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Fixed-step RK4 in C; ``t_eval`` must be uniform with spacing a multiple of ``h``."""
     t0, t1 = float(t_eval[0]), float(t_eval[-1])
     n_out = len(t_eval) - 1
@@ -172,16 +197,18 @@ def rk4(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, h: floa
         raise ValueError("rk4 reports on a uniform grid: give a uniformly spaced t_eval")
     stride = max(1, math.ceil(dt_out / h - 1e-9))
     h_used = dt_out / stride
+    stats: dict = {}
     start = time.perf_counter()
-    t, X = model.library.rk4(x0, t0, t1, h_used, stride=stride, p=p, lo=lo, hi=hi)
-    wall = time.perf_counter() - start
-    return t, X, {"wall_time": wall, "n_steps": stride * n_out, "n_rhs": 4 * stride * n_out,
-                  "h": h_used}
+    t, X = model.library.rk4(x0, t0, t1, h_used, stride=stride, p=p, lo=lo, hi=hi,
+                             proj_mask=projection[0], proj_tol=projection[1], stats=stats)
+    stats.update(wall_time=time.perf_counter() - start, h=h_used)
+    return t, X, stats
 
 
 def radau(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol: float,
           atol: float, max_steps: int, lo: np.ndarray, hi: np.ndarray,
-          h0: float = 0.0) -> tuple[np.ndarray, np.ndarray, dict]:
+          h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0)
+          ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Adaptive Radau IIA (order 5) in C, reporting at ``t_eval`` (dense output).
 
     The contact parameters are checked against ``lo`` / ``hi`` after every accepted step;
@@ -189,6 +216,24 @@ def radau(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol:
     """
     start = time.perf_counter()
     t, X, stats = model.library.radau5(x0, t_eval, p=p, rtol=rtol, atol=atol, h0=h0,
-                                       max_steps=max_steps, lo=lo, hi=hi)
+                                       max_steps=max_steps, lo=lo, hi=hi,
+                                       proj_mask=projection[0], proj_tol=projection[1])
+    stats["wall_time"] = time.perf_counter() - start
+    return t, X, stats
+
+
+def dopri5(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol: float,
+           atol: float, max_steps: int, lo: np.ndarray, hi: np.ndarray,
+           h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0)
+           ) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Adaptive Dormand-Prince 5(4) in C, reporting at ``t_eval`` (continuous extension).
+
+    Bounds checked after every accepted step as ``radau``; a stiff problem stops with an
+    ``IntegratorError`` (see ``CompiledLibrary.dopri5``).
+    """
+    start = time.perf_counter()
+    t, X, stats = model.library.dopri5(x0, t_eval, p=p, rtol=rtol, atol=atol, h0=h0,
+                                       max_steps=max_steps, lo=lo, hi=hi,
+                                       proj_mask=projection[0], proj_tol=projection[1])
     stats["wall_time"] = time.perf_counter() - start
     return t, X, stats

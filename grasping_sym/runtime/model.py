@@ -12,7 +12,7 @@ from grasping_sym.errors import (
     IntegratorError,
 )
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import integrators
+from grasping_sym.runtime import integrators, projection
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
 
@@ -118,7 +118,8 @@ class Model:
     def simulate(self, t_final: float, *, x0=None, method: str = "cvodes",
                  rtol: float = 1e-10, atol: float = 1e-12, t_eval=None, h: float = 1e-4,
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
-                 outputs: bool = True, checks: bool = True) -> SimulationResult:
+                 outputs: bool = True, checks: bool = True,
+                 project: bool | float = False) -> SimulationResult:
         """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
 
         Parameters
@@ -129,8 +130,15 @@ class Model:
             whole loop in C on the compiled right-hand side and Jacobian; much less
             per-step overhead than CVODES, best at moderate tolerances: e.g. rtol 1e-4,
             atol 1e-8 gives final-state errors ~1e-9 on ``paper2d``; keep atol >= ~1e-10
-            since tighter absolute tolerances on near-zero velocities hit rounding noise).
-            ``'rk4'`` and ``'radau'`` check the contact parameters after every step.
+            since tighter absolute tolerances on near-zero velocities hit rounding noise),
+            or ``'dopri5'`` (adaptive explicit Dormand-Prince 5(4), whole loop in C, dense
+            output; it stops with an ``IntegratorError`` saying the system is stiff when its
+            step is limited by stability rather than accuracy: on ``paper2d`` with the
+            paper's CSM gains, whose constraint modes at -3000 1/s cap its step near 1.1 ms,
+            that happens for rtol above ~1e-10; with the gains at 0 and ``project=True`` it is
+            not stiff and takes ~200 steps at rtol 1e-6).
+            ``'rk4'``, ``'radau'`` and ``'dopri5'`` check the contact parameters after every
+            step.
         rtol, atol
             Tolerances of the adaptive methods (``max_steps`` bounds their step count).
         t_eval
@@ -167,6 +175,14 @@ class Model:
             ``kappa_sum * |Om| <= 1e-3`` means that a relative rotation of 1 mrad moves the
             contact point by the size of the whole scene: the contours nearly osculate and
             the contact point is not well defined.
+        project
+            ``True`` (or a tolerance in m, default ``projection.PROJECT_TOL`` = 1e-13): after
+            every accepted step of 'radau', 'dopri5' or 'rk4' (and at every output between
+            steps), project the state onto the contact constraints C = 0 (Gauss-Newton,
+            least-norm change of the states C depends on) and then onto Cdot = 0 (least-norm
+            change of the speeds), see ``runtime/projection.py``. An alternative to the
+            Baumgarte-type stabilisation: with the CSM gains at 0 the motion stays on the
+            constraints to the tolerance and the closed loop is no longer stiff.
 
         Raises
         ------
@@ -199,15 +215,14 @@ class Model:
         if not (isinstance(max_steps, int) and max_steps > 0):
             raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
         p = self.params(params)
+        proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
         start = checks_.check_initial_state(self, x0, p) if checks else {}
-        if method in ("rk4", "radau"):
+        if method in integrators.C_LOOPS:
             try:
-                if method == "rk4":
-                    t, X, stats = integrators.rk4(self, x0, t_eval, p, h, self.lower, self.upper)
-                else:
-                    t, X, stats = integrators.radau(self, x0, t_eval, p, rtol, atol, max_steps,
-                                                    self.lower, self.upper)
+                t, X, stats = integrators.c_loop(self, method, x0, t_eval, p, rtol=rtol,
+                                                 atol=atol, max_steps=max_steps, h=h,
+                                                 projection=proj)
             except IntegratorError as exc:
                 err = _blow_up(self, self._classify(exc), method, h)
                 if checks:
