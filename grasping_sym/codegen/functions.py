@@ -22,7 +22,8 @@ from grasping_sym.geometry.curves import T
 
 #: CasADi Function options: eliminate common subexpressions in the SX graph.
 FUNCTION_OPTIONS = {"cse": True}
-#: The planar contact constraints (template outputs, m): Q (paper (14)) and R (paper (24)).
+#: The planar contact constraints (template outputs, m): Q (paper (14)) and R (paper (24));
+#: with several fingers ``Q1, R1, Q2, R2, ...``.
 PLANAR_CONSTRAINTS = ("Q", "R")
 
 
@@ -145,8 +146,23 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
     xdot = template.rhs(x, q, L)
     y_all = template.outputs(x, q, L)
     y = {k: y_all[template.output_names.index(k)] for k in outputs}
-    C = ca.vertcat(*[y_all[template.output_names.index(k)] for k in PLANAR_CONSTRAINTS])
-    return sx_model(x, p, xdot, y, name, constraints=C, constraint_names=PLANAR_CONSTRAINTS)
+    names = planar_constraint_names(template.output_names)
+    C = ca.vertcat(*[y_all[template.output_names.index(k)] for k in names])
+    return sx_model(x, p, xdot, y, name, constraints=C, constraint_names=names)
+
+
+def planar_constraint_names(output_names: tuple[str, ...]) -> tuple[str, ...]:
+    """The contact constraints among a planar template's outputs: ``(Q, R)`` for one finger,
+    ``(Q1, R1, Q2, R2, ...)`` for several."""
+    if "Q" in output_names:
+        return PLANAR_CONSTRAINTS
+    names: list[str] = []
+    while f"Q{len(names) // 2 + 1}" in output_names:
+        i = len(names) // 2 + 1
+        names += [f"Q{i}", f"R{i}"]
+    if not names or any(k not in output_names for k in names):
+        raise ValueError(f"no contact constraints (Q, R) among the template's outputs {output_names}")
+    return tuple(names)
 
 
 def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: str, *,
