@@ -165,7 +165,8 @@ def test_d_normal_force_changes_sign(runtime_model):
 # ------------------------------------------------------------------ (e)
 def test_e_csm_gains_100_times_the_papers(runtime_model):
     """Implicit methods succeed on the constraints; RK4 at h = 1e-4 s blows up at once
-    (t = 3e-4 s) and says so: stiffness, not a contact leaving its contour."""
+    (t = 3e-4 s) and says so: stiffness, not a contact leaving its contour; DOPRI5 detects
+    the stiffness at t = 5.6e-3 s and stops, naming it."""
     big = {"gf": 1500.0e2, "gl": 3000.0e2, "wf": 225.0e6, "wl": 900.0e6}
     ref = None
     for method, kw in (("radau", {"rtol": 1e-8, "atol": 1e-12}),
@@ -181,6 +182,15 @@ def test_e_csm_gains_100_times_the_papers(runtime_model):
     assert err.t < 1e-3
     assert "non-finite or exploding" in err.reason and "stiff" in err.reason
     assert type(err) is IntegratorError
+    # the adaptive explicit method does not blow up: DOPRI5's stiffness test stops it after
+    # ~1000 steps at its stability limit (h ~ 5.5e-6 s), in milliseconds, not a crawl
+    with pytest.raises(IntegratorError) as info:
+        runtime_model.simulate(1.0, method="dopri5", rtol=1e-6, atol=1e-12, params=big)
+    err = info.value
+    assert type(err) is IntegratorError and err.code == -8
+    assert "the system is stiff" in err.reason and "'radau' or 'cvodes'" in err.reason
+    assert 0.0 < err.t < 0.02 and err.stats["wall_time"] < 1.0
+    assert np.all(np.isfinite(err.x)) and err.trajectory[0][-1] <= err.t
 
 
 # ------------------------------------------------------------------ (f)
