@@ -62,10 +62,10 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
     t1 = time.perf_counter()
     say(f"template for {scene.name}'s structure (derived with SymPy once per structure)")
     template, template_source = templates.planar_template(scene.shared_parameter,
-                                                          has_gravity(scene))
+                                                          has_gravity(scene), scene.n_fingers)
     t2 = time.perf_counter()
     say("composing the contours onto the template (CasADi)")
-    cm = compose(template, scene.fingertip, scene.object, runtime=scene.runtime,
+    cm = compose(template, scene.fingertips, scene.object, runtime=scene.runtime,
                  constants={k: v for k, v in values.items() if k not in scene.runtime},
                  outputs=scene.outputs, name=scene.name)
     t3 = time.perf_counter()
@@ -182,9 +182,14 @@ def _bounds(scene: PlanarFingerScene) -> tuple[list, list]:
     if scene.shared_parameter:
         lower[-1] = max(scene.fingertip.domain[0], scene.object.domain[0])
         upper[-1] = min(scene.fingertip.domain[1], scene.object.domain[1])
-    else:
-        lower[-2], upper[-2] = scene.fingertip.domain
-        lower[-1], upper[-1] = scene.object.domain
+        return lower, upper
+    names = scene.state_names
+    tips = scene.fingertips
+    for i, tip in enumerate(tips, start=1):
+        tag = "" if len(tips) == 1 else f"_{i}"
+        k0, k1 = names.index(f"u0{tag}"), names.index(f"u1{tag}")
+        lower[k0], upper[k0] = tip.domain
+        lower[k1], upper[k1] = scene.object.domain
     return lower, upper
 
 

@@ -32,8 +32,8 @@ def rhs_function(scene, model) -> ca.Function:
         system = derive_grasp3d(scene, np.array(model.manifest["start"]["r_bar0"]))
         return sx_model(system.x, system.p, system.xdot, {}, f"{scene.name}_vm", jacobian=False).rhs
     values = parameter_values(scene)
-    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene))
-    cm = compose(template, scene.fingertip, scene.object, runtime=scene.runtime,
+    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene), scene.n_fingers)
+    cm = compose(template, scene.fingertips, scene.object, runtime=scene.runtime,
                  constants={k: v for k, v in values.items() if k not in scene.runtime},
                  outputs=(), name=f"{scene.name}_vm")
     return cm.rhs

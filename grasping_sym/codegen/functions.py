@@ -16,7 +16,7 @@ import casadi as ca
 import sympy as sp
 
 from grasping_sym.codegen.translate import SympyToCasadi
-from grasping_sym.derive.contour_functions import FINGERTIP, OBJECT, leaf_expressions
+from grasping_sym.derive.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.derive.system import ConstrainedSystem, assemble
 from grasping_sym.geometry.curves import T
 
@@ -59,8 +59,9 @@ class Template:
     """A scene structure's closed loop as CasADi functions of ``(x, q, L)``.
 
     ``q`` holds every parameter (``param_names``), ``L`` the values at the contact of the
-    abstract contour functions (``contour_functions``): the fingertip's at ``x[contact_index
-    [0]]`` then the object's at ``x[contact_index[1]]``. ``compose`` turns it into one
+    abstract contour functions (``contour_functions``), contact by contact: finger ``i``'s
+    fingertip's at ``x[contact_index[i][0]]`` then the object's at ``x[contact_index[i][1]]``.
+    ``compose`` turns it into one
     scene's functions; the shape enters only there, so a new shape needs no derivation.
     """
 
@@ -69,13 +70,13 @@ class Template:
     state_names: tuple[str, ...]
     param_names: tuple[str, ...]
     output_names: tuple[str, ...]
-    contact_index: tuple[int, int]
+    contact_index: tuple[tuple[int, int], ...]
 
     def to_json(self) -> dict:
         return {"rhs": self.rhs.serialize(), "outputs": self.outputs.serialize(),
                 "state_names": list(self.state_names), "param_names": list(self.param_names),
                 "output_names": list(self.output_names),
-                "contact_index": list(self.contact_index)}
+                "contact_index": [list(c) for c in self.contact_index]}
 
     @classmethod
     def from_json(cls, d: dict) -> Template:
@@ -83,7 +84,7 @@ class Template:
                    outputs=ca.Function.deserialize(d["outputs"]),
                    state_names=tuple(d["state_names"]), param_names=tuple(d["param_names"]),
                    output_names=tuple(d["output_names"]),
-                   contact_index=tuple(d["contact_index"]))
+                   contact_index=tuple(tuple(c) for c in d["contact_index"]))
 
 
 def build_template(system: ConstrainedSystem) -> Template:
@@ -94,17 +95,20 @@ def build_template(system: ConstrainedSystem) -> Template:
     """
     names = [str(s) for s in system.state]
     nx = len(names)
-    i0, i1 = (nx - 1, nx - 1) if names[-1] == "s" else (nx - 2, nx - 1)
+    contacts = _contact_states(names)
     qsyms = [*system.params, *system.constants]
     x = ca.SX.sym("x", nx)
     q = ca.SX.sym("q", len(qsyms))
-    leaf_classes = [*FINGERTIP.leaves(), *OBJECT.leaves()]
-    L = ca.SX.sym("L", len(leaf_classes))
+    families = _families(len(contacts))
+    L = ca.SX.sym("L", sum(len(f.leaves()) for pair in families for f in pair))
     symbols = {s: x[i] for i, s in enumerate(system.state)}
     symbols.update({s: q[i] for i, s in enumerate(qsyms)})
-    u0, u1 = system.state[i0], system.state[i1]
-    for k, cls in enumerate(leaf_classes):
-        symbols[cls(u0 if k < len(FINGERTIP.leaves()) else u1)] = L[k]
+    k = 0
+    for (i0, i1), pair in zip(contacts, families):
+        for fns, i in zip(pair, (i0, i1)):
+            for cls in fns.leaves():
+                symbols[cls(system.state[i])] = L[k]
+                k += 1
     tr = SympyToCasadi(symbols)
     pieces = [tr(mat) for mat in system.pieces()]
     v = x[system.n:2 * system.n]
@@ -117,13 +121,35 @@ def build_template(system: ConstrainedSystem) -> Template:
         rhs=ca.Function("template_rhs", [x, q, L], [xdot], ["x", "q", "L"], ["xdot"]),
         outputs=ca.Function("template_outputs", [x, q, L], [y], ["x", "q", "L"], ["y"]),
         state_names=tuple(names), param_names=tuple(str(s) for s in qsyms),
-        output_names=out_names, contact_index=(i0, i1),
+        output_names=out_names, contact_index=tuple(contacts),
     )
+
+
+def _contact_states(names: list[str]) -> list[tuple[int, int]]:
+    """State indices of (fingertip, object) contact parameter of each contact, in order."""
+    if names[-1] == "s":
+        return [(len(names) - 1, len(names) - 1)]
+    if names[-2:] == ["u0", "u1"]:
+        return [(len(names) - 2, len(names) - 1)]
+    pairs, i = [], 1
+    while f"u0_{i}" in names:
+        pairs.append((names.index(f"u0_{i}"), names.index(f"u1_{i}")))
+        i += 1
+    if not pairs:
+        raise ValueError(f"no contact parameters among the states {names}")
+    return pairs
+
+
+def _families(n_contacts: int):
+    """The (fingertip, object) abstract-function families of each contact."""
+    return [(fingertip_functions(i), OBJECT) for i in range(1, n_contacts + 1)]
 
 
 def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
             constants: dict[str, float], outputs: tuple[str, ...], name: str) -> CasadiModel:
-    """One scene's CasADi functions from a template, the two contours and the parameters.
+    """One scene's CasADi functions from a template, the contours and the parameters.
+
+    ``fingertip`` is one contour, or a sequence of them (one per finger, in order).
 
     ``runtime`` parameters become the input ``p`` (in that order); ``constants`` give the
     value of every other template parameter, folded into the code.
@@ -136,12 +162,16 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
         raise ValueError(f"no value for template parameters {missing}")
     q = ca.vertcat(*[p[runtime.index(k)] if k in runtime else ca.SX(constants[k])
                      for k in template.param_names])
+    tips = list(fingertip) if isinstance(fingertip, (list, tuple)) else [fingertip]
+    if len(tips) != len(template.contact_index):
+        raise ValueError(f"{len(tips)} fingertip contour(s) for a template of "
+                         f"{len(template.contact_index)} contact(s)")
     L = []
-    for fns, curve, i in ((FINGERTIP, fingertip, template.contact_index[0]),
-                          (OBJECT, object_, template.contact_index[1])):
-        tr = SympyToCasadi({T: x[i]})
-        concrete = leaf_expressions(fns, curve)
-        L += [tr(concrete[cls]) for cls in fns.leaves()]
+    for tip, (i0, i1), pair in zip(tips, template.contact_index, _families(len(tips))):
+        for fns, curve, i in zip(pair, (tip, object_), (i0, i1)):
+            tr = SympyToCasadi({T: x[i]})
+            concrete = leaf_expressions(fns, curve)
+            L += [tr(concrete[cls]) for cls in fns.leaves()]
     L = ca.vertcat(*L)
     xdot = template.rhs(x, q, L)
     y_all = template.outputs(x, q, L)

@@ -40,6 +40,9 @@ PARAMETERS: dict[str, str] = {
     "wl": "1/s^2, CSM stiffness gain of R (omega_lambda)",
 }
 
+#: The constraint-stabilisation gains: 0 is allowed (no stabilisation).
+CSM_GAINS = ("gf", "gl", "wf", "wl")
+
 #: Parameters that may be kept as run-time inputs: they change the dynamics but not the
 #: initial configuration (which fixes the pivot ``Om``), so a sweep over them needs no rebuild.
 RUNTIME_ALLOWED = ("m11", "m12", "I", "fd", "c", "r", "gf", "gl", "wf", "wl")
@@ -85,7 +88,7 @@ class ExtraFinger:
     def key(self) -> str:
         return "|".join([self.fingertip.key(), repr((tuple(map(float, self.base)), float(self.u1_0),
                                                      float(self.u0_0), tuple(map(float, self.lengths)),
-                                                     tuple(map(float, self.masses)), int(self.elbow)))])
+                                                     tuple(map(float, self.masses))))])
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,6 +157,11 @@ class PlanarFingerScene:
     @property
     def n_fingers(self) -> int:
         return 1 + len(self.extra_fingers)
+
+    @property
+    def fingertips(self) -> tuple[PlanarCurve, ...]:
+        """Every finger's fingertip contour, finger 1 first."""
+        return (self.fingertip, *(f.fingertip for f in self.extra_fingers))
 
     def output_names(self) -> tuple[str, ...]:
         """Every output name this scene can generate."""
@@ -238,7 +246,10 @@ class PlanarFingerScene:
         if unknown:
             problems.append(f"unknown parameters {unknown}: known ones are {list(PARAMETERS)}")
         for k, v in self.params.items():
-            if k in PARAMETERS and not _finite_positive(v):
+            if k in CSM_GAINS:  # 0 turns the stabilisation off (e.g. with projection)
+                if not (_finite(v) and v >= 0):
+                    problems.append(f"{k} = {v!r} ({PARAMETERS[k]}) must be finite and >= 0")
+            elif k in PARAMETERS and not _finite_positive(v):
                 problems.append(f"{k} = {v!r} ({PARAMETERS[k]}) must be finite and > 0")
         for k in self.runtime:
             if k not in RUNTIME_ALLOWED:
@@ -346,9 +357,10 @@ def extra_finger_configuration(scene: PlanarFingerScene, finger: ExtraFinger) ->
     Tangency fixes ``q1 + q2 = pi/2 + theta + theta1(u1) - psi0(u0)`` (as for finger 1); the
     fingertip centre is then ``O = P - Rot(pi/2 - q1 - q2) c0(u0)`` with ``P`` the object's
     contact point, and the arm reaches it iff ``|O - base - l2 d(q1 + q2)| = l1``: one equation
-    in ``u0``, solved by the secant method from ``u0_0``; ``q1`` follows.
+    in ``u0``: every root on the fingertip's domain is bracketed, the one nearest ``u0_0`` is
+    taken; ``q1`` follows.
     """
-    from scipy.optimize import newton  # noqa: PLC0415
+    from scipy.optimize import brentq  # noqa: PLC0415
 
     om = np.array(scene.pivot)
     th = scene.theta_0
@@ -369,18 +381,18 @@ def extra_finger_configuration(scene: PlanarFingerScene, finger: ExtraFinger) ->
         w, _ = reach(u0)
         return float(np.hypot(*w) - l1)
 
-    problems = []
-    try:
-        u0 = float(newton(gap, finger.u0_0, tol=1e-14, maxiter=100))
-    except (RuntimeError, ValueError, OverflowError) as exc:
-        problems.append(f"an extra finger based at {finger.base} cannot reach the object at u1 = "
-                        f"{finger.u1_0} ({exc}): move its base or the contact point")
-        raise InvalidSceneError(problems) from None
-    if not (finger.fingertip.in_domain(u0) and abs(gap(u0)) < 1e-12):
-        raise InvalidSceneError([f"an extra finger based at {finger.base} touches the object at u1 = "
-                                 f"{finger.u1_0} only outside its fingertip's domain "
-                                 f"{finger.fingertip.domain} (u0 = {u0:.6g}, reach error {gap(u0):.3g} m): "
-                                 "move its base or the contact point"])
+    # every root of the reach equation on the fingertip's domain; the one nearest u0_0
+    lo, hi = finger.fingertip.domain
+    grid = np.linspace(lo, hi, 721)
+    vals = np.array([gap(u) for u in grid])
+    roots = [float(brentq(gap, a, b, xtol=1e-15, rtol=4 * np.finfo(float).eps))
+             for a, b, fa, fb in zip(grid[:-1], grid[1:], vals[:-1], vals[1:]) if fa * fb <= 0]
+    if not roots:
+        raise InvalidSceneError([
+            f"an extra finger based at {finger.base} cannot touch the object at u1 = {finger.u1_0} "
+            f"with any point of its fingertip (the arm's reach misses by at least {np.min(np.abs(vals)):.3g} m): "
+            "move its base or the contact point"])
+    u0 = min(roots, key=lambda u: abs(u - finger.u0_0))
     w, phi = reach(u0)
     q1 = math.atan2(w[0], w[1])
     return q1, phi - q1, u0

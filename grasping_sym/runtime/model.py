@@ -109,8 +109,10 @@ class Model:
         """The compiled right-hand side as a CasADi Function (for CVODES/IDAS)."""
         if self._external is None:
             has_jac = bool(self.manifest.get("driver_defines", {}).get("GS_HAS_JAC", 1))
-            # without a generated Jacobian, CasADi differences the compiled rhs
-            opts = {} if has_jac else {"enable_fd": True}
+            # without a generated Jacobian, CasADi differences the compiled rhs: forward
+            # differences (nx + 1 calls) cost a quarter of its default central scheme and,
+            # for a Newton matrix, lose nothing measurable (benchmarks/results/paper3d.md)
+            opts = {} if has_jac else {"enable_fd": True, "fd_method": "forward"}
             self._external = ca.external(f"{self.name}_rhs", str(self.library_path), opts)
         return self._external
 
