@@ -28,6 +28,7 @@ print(json.dumps({{"scene_s": t1 - t0, "build_s": t2 - t1, "info": model.build_i
 SCENES = {
     "paper2d": ("", "gs.scenes.paper2d()"),
     "ellipse2d": ("from benchmarks.scenes import ellipse2d", "ellipse2d()"),
+    **{f"fingers{n}": ("from benchmarks.scenes import fingers2d", f"fingers2d({n})") for n in (1, 2, 3)},
 }
 
 
