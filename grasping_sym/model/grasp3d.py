@@ -164,10 +164,13 @@ class GraspScene3D:
         names = [f.chain.name for f in self.fingers]
         if len(set(names)) != len(names):
             p.append(f"finger chains share names {names}: give each a distinct name")
-        for k in ("mass", "fd", "c", "r_ctrl", "gain"):
+        for k in ("mass", "fd", "c", "r_ctrl"):
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 p.append(f"{k} = {v!r} must be a finite number > 0")
+        if not (isinstance(self.gain, (int, float)) and math.isfinite(self.gain) and self.gain >= 0):
+            p.append(f"gain = {self.gain!r} must be a finite number >= 0 (1/s; 0: no stabilisation, "
+                     "e.g. with simulate(project=True))")
         if not (math.isfinite(self.spin_damping) and self.spin_damping >= 0):
             p.append(f"spin_damping = {self.spin_damping!r} must be finite and >= 0 (N m s)")
         if not (math.isfinite(self.k_center) and self.k_center >= 0):
