@@ -89,16 +89,6 @@ def test_formulations_agree_while_the_contacts_move(paper3d_model, paper3d_paper
     assert np.ptp(u) > 1e-3
 
 
-def test_paper_formulation_stops_by_name_at_rest(paper3d_paper_model):
-    with pytest.raises(MovingFrameSingularityError) as info:
-        paper3d_paper_model.simulate(5.0, method="radau", rtol=1e-7, atol=1e-10)
-    err = info.value
-    assert 0.5 < err.t < 5.0
-    assert abs(err.denominator) <= err.threshold
-    assert np.all(np.isfinite(err.x))
-    assert "regular formulation" in str(err)
-
-
 def test_paper_formulation_refuses_a_start_at_rest(paper3d_paper_model):
     x0 = paper3d_paper_model.initial_state()
     x0[12:23] = 0.0    # all speeds: the contacts do not move
