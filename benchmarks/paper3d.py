@@ -46,14 +46,23 @@ TARGETS = {"cold_build_s": 30.0, "run_ms": 20.0}
 
 #: Work-precision sweep (one curve per method). Adaptive: atol = rtol * ATOL_FACTOR.
 ATOL_FACTOR = 1e-2
+#: Curves named ``"<method>" + wp.PROJECTED`` run on ``paper3d_proj`` (stabilisation gain 0)
+#: with ``project=True``.
 SWEEP = {
     "cvodes": [10.0**-k for k in range(4, 13)],
     "idas": [10.0**-k for k in range(4, 13)],
     "radau": [10.0**-k for k in range(3, 11)],
     "rk4": [5e-3, 2.5e-3, 2e-3, 1.8e-3, 1.6e-3, 1.25e-3, 1e-3, 5e-4, 2e-4, 1e-4],
+    "dopri5": [10.0**-k for k in range(3, 11)],
+    "radau" + wp.PROJECTED: [10.0**-k for k in range(3, 11)],
+    "dopri5" + wp.PROJECTED: [10.0**-k for k in range(3, 12)],
 }
 QUICK_SWEEP = {"cvodes": [1e-5, 1e-7, 1e-9], "idas": [1e-5, 1e-7, 1e-9],
-               "radau": [1e-4, 1e-6, 1e-8], "rk4": [2.5e-3, 1e-3, 2e-4]}
+               "radau": [1e-4, 1e-6, 1e-8], "rk4": [2.5e-3, 1e-3, 2e-4],
+               "dopri5": [1e-4, 1e-6, 1e-8], "radau" + wp.PROJECTED: [1e-4, 1e-6],
+               "dopri5" + wp.PROJECTED: [1e-4, 1e-6, 1e-8]}
+#: Methods searched on the (rtol, atol) grid near error 1e-8.
+GRID_METHODS = ("cvodes", "idas", "radau", "dopri5" + wp.PROJECTED)
 #: Extra (rtol, atol) settings of the adaptive methods near error 1e-8 (markers on the plot):
 #: near there the error does not fall monotonically with the tolerances, so the cheapest
 #: setting reaching 1e-8 is searched on this grid as well.
@@ -265,10 +274,11 @@ def _setting_label(row: dict) -> str:
 
 
 def time_setting(model, method: str, kw: dict, x_ref: np.ndarray, quat: slice, *,
-                 repeats: int, log=_log) -> dict:
+                 repeats: int, label: str | None = None, log=_log) -> dict:
     """First call, then the timed calls; error, counters, quaternion norm and dense
-    diagnostics (``work_precision.dense_diagnostics``: constraint residual, energy drift)."""
-    row: dict = {"method": method, **kw}
+    diagnostics (``work_precision.dense_diagnostics``: constraint residual, energy drift).
+    ``label`` names the curve (default ``method``)."""
+    row: dict = {"method": label or method, **kw}
     run = dict(method=method, t_eval=T_EVAL, outputs=False, checks=False, **kw)
     try:
         t0 = time.perf_counter()
@@ -277,7 +287,7 @@ def time_setting(model, method: str, kw: dict, x_ref: np.ndarray, quat: slice, *
     except GraspingSymError as exc:
         row["failed"] = str(exc).splitlines()[0][:300]
         row["error"] = math.inf
-        log(f"  {method:7s} {_setting_label(row):26s} FAILED: {row['failed'][:90]}")
+        log(f"  {row['method']:7s} {_setting_label(row):26s} FAILED: {row['failed'][:90]}")
         return row
     n = repeats if row["first_call_s"] < SLOW_S else max(3, repeats // 2)
     walls, calls = [], []
@@ -291,31 +301,44 @@ def time_setting(model, method: str, kw: dict, x_ref: np.ndarray, quat: slice, *
                 "repeats": n, "error": wp.err(xf, x_ref), "stats": r.stats,
                 "quat_norm_error": abs(float(np.linalg.norm(xf[quat])) - 1.0)})
     row.update(wp.dense_diagnostics(model, method, kw))
-    log(f"  {method:7s} {_setting_label(row):26s} {row['wall_s'] * 1e3:8.2f} ms  "
+    log(f"  {row['method']:7s} {_setting_label(row):26s} {row['wall_s'] * 1e3:8.2f} ms  "
         f"err {row['error']:.1e}  residual {row.get('max_constraint_residual', math.nan):.1e}  "
         f"drift {row.get('energy_drift_J', math.nan):.1e} J")
     return row
 
 
-def work_precision(model, x_ref: np.ndarray, *, quick: bool, log=_log) -> tuple[list, list]:
-    """The sweep (one curve per method) and the grid near error 1e-8."""
+def work_precision(model, x_ref: np.ndarray, *, quick: bool, proj_model=None,
+                   log=_log) -> tuple[list, list]:
+    """The sweep (one curve per method) and the grid near error 1e-8. ``proj_model``: the
+    scene with its stabilisation gain at 0, for the projection curves (skipped when None)."""
     repeats = 3 if quick else 7
     quat = slice(model.state_names.index("qw"), model.state_names.index("qz") + 1)
-    sweep = QUICK_SWEEP if quick else SWEEP
+    sweep = sweep_of(quick)
+
+    def run(label, kw):
+        method, projected = wp.variant(label)
+        if projected:
+            return time_setting(proj_model, method, {**kw, "project": True}, x_ref, quat,
+                                repeats=repeats, label=label, log=log)
+        return time_setting(model, method, kw, x_ref, quat, repeats=repeats, log=log)
+
     rows = []
-    for method, values in sweep.items():
+    for label, values in sweep.items():
+        if wp.variant(label)[1] and proj_model is None:
+            continue
         for v in values:
-            kw = {"h": v} if method == "rk4" else {"rtol": v, "atol": v * ATOL_FACTOR}
-            rows.append(time_setting(model, method, kw, x_ref, quat, repeats=repeats, log=log))
+            rows.append(run(label, {"h": v} if label == "rk4" else
+                            {"rtol": v, "atol": v * ATOL_FACTOR}))
     grid = []
     log("  grid near 1e-8:")
-    for method in ("cvodes", "idas", "radau"):
+    for label in GRID_METHODS:
+        if wp.variant(label)[1] and proj_model is None:
+            continue
         for rtol in (QUICK_GRID_RTOLS if quick else GRID_RTOLS):
             for atol in (QUICK_GRID_ATOLS if quick else GRID_ATOLS):
                 if math.isclose(atol, rtol * ATOL_FACTOR, rel_tol=1e-9):
                     continue                    # already in the sweep
-                grid.append(time_setting(model, method, {"rtol": rtol, "atol": atol}, x_ref,
-                                         quat, repeats=repeats, log=log))
+                grid.append(run(label, {"rtol": rtol, "atol": atol}))
     return rows, grid
 
 
@@ -340,8 +363,8 @@ def at_target(rows: list[dict], target: float = TARGET_ERROR) -> dict:
 # ---------------------------------------------------------------------- where the time goes
 def sundials_breakdown(model, x_ref: np.ndarray, settings: list[dict], *, quick: bool) -> list:
     """CVODES / IDAS with CasADi's ``record_time``: the package's options (the Jacobian by
-    CasADi's finite differences of the compiled rhs, its default ``fd_method``) and, for
-    comparison only, the same with ``fd_method='forward'`` (not what ``simulate`` does)."""
+    CasADi's forward differences of the compiled rhs, ``model.external_rhs()``) and, for
+    comparison, the same with CasADi's default ``fd_method`` (central differences)."""
     x0 = model.initial_state()
     out = []
     for s in settings:
@@ -386,6 +409,10 @@ def radau_breakdown(rows: list[dict], nx: int) -> list[dict]:
     return out
 
 
+def sweep_of(quick: bool) -> dict:
+    return QUICK_SWEEP if quick else SWEEP
+
+
 # ---------------------------------------------------------------------- driver
 def run(*, quick: bool, log=_log) -> dict:
     import grasping_sym as gs
@@ -399,7 +426,8 @@ def run(*, quick: bool, log=_log) -> dict:
     log("paper3d 1. build stages (fresh processes, private caches)")
     res["build"] = build_stages(quick=quick, main_cache=Path(os.environ["GRASPING_SYM_CACHE"]),
                                 log=log)
-    model = gs.build(gs.scenes.paper3d())
+    scene = gs.scenes.paper3d()
+    model = gs.build(scene)
     model2d = gs.build(gs.scenes.paper2d())
     staged = res["build"]["staged"]
     res["op_counts"] = {
@@ -428,7 +456,10 @@ def run(*, quick: bool, log=_log) -> dict:
             f"rhs_batch(10000) {v['rhs_batch']['10000']['us_per_state']:.2f} us/state")
 
     log("paper3d 4. work-precision")
-    res["compiled"], res["grid"] = work_precision(model, x_ref, quick=quick, log=log)
+    # the same scene without Baumgarte stabilisation, for the curves with projection
+    proj_model = gs.build(gs.scenes.paper3d(name="paper3d_proj", gain=0.0))
+    res["compiled"], res["grid"] = work_precision(model, x_ref, quick=quick,
+                                                  proj_model=proj_model, log=log)
     res["baseline"] = []               # no lambdify baseline for 3D
     res["at_target"] = at_target(res["compiled"] + res["grid"])
     for m, v in res["at_target"].items():
@@ -447,6 +478,15 @@ def run(*, quick: bool, log=_log) -> dict:
             settings.append(s)
     res["breakdown"] = sundials_breakdown(model, x_ref, settings, quick=quick)
     res["radau_breakdown"] = radau_breakdown(res["compiled"], len(model.state_names))
+
+    log("paper3d 5. peer: CasADi without compilation")
+    from benchmarks import peer_curves
+    res["peers"] = peer_curves.casadi_rows(scene, model, model, x_ref,
+                                           sweep_of(quick)["cvodes"], quick=quick, log=log)
+    ours = res["compiled"] + res["grid"]
+    res["peers_equal_error"] = wp.peers_at_equal_error(ours, {
+        peer_curves.CASADI: [r for r in res["peers"] if r.get("peer") == peer_curves.CASADI]})
+    res["method_choice"] = wp.method_choice(ours)
     res["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
     res["total_s"] = time.perf_counter() - t_start
     return res
@@ -459,7 +499,7 @@ def _setting(r: dict) -> str:
 
 
 def summary_rows(res: dict) -> list[tuple[str, str, str, str]]:
-    from benchmarks.report import _ms, _status
+    from benchmarks.report import _ms, _status, peer_summary_rows
 
     cold = res["build"]["cold"]
     rows = [("cold build of paper3d (`gs.build`, fresh cache, fresh process, nothing reused)",
@@ -482,6 +522,7 @@ def summary_rows(res: dict) -> list[tuple[str, str, str, str]]:
         text, status = "no setting reached 1e-8", "not reached"
     rows.append(("paper3d 3 s simulation at final-state error ≤ 1e-8, median wall time "
                  "excluding build", f"≤ {TARGETS['run_ms']:g} ms", text, status))
+    rows += peer_summary_rows(res["peers_equal_error"], {})
     return rows
 
 
@@ -514,12 +555,13 @@ def write_markdown(res: dict, path: Path) -> None:
         f"- git commit {mi['git_commit']}",
         "",
     ]
-    L += _build_md(res) + _ops_md(res) + _rhs_md(res) + _ref_md(res) + _wp_md(res)
+    L += (_build_md(res) + _ops_md(res) + _rhs_md(res) + _ref_md(res) + _wp_md(res)
+          + _peers_md(res))
     path.write_text("\n".join(L) + "\n")
 
 
 def _fd_note(res: dict) -> list[str]:
-    """One sentence: what CVODES/IDAS reach with forward differences (section 5)."""
+    """One sentence: what forward differences (the package's) save CVODES/IDAS (section 5)."""
     from benchmarks.report import _ms
 
     ok = [d for d in res["breakdown"] if d["fd_method"] == "forward" and d["error"] <= TARGET_ERROR]
@@ -528,11 +570,12 @@ def _fd_note(res: dict) -> list[str]:
     d = min(ok, key=lambda d: d["wall_s"])
     same = [e for e in res["breakdown"] if e["fd_method"] == "default" and e["method"] ==
             d["method"] and e["rtol"] == d["rtol"] and e["atol"] == d["atol"]]
-    return [f"Most of the CVODES/IDAS time is CasADi's finite-difference Jacobian of the compiled "
-            f"rhs (section 5). Measured for comparison, not what `simulate` does: with "
-            f"`fd_method='forward'` on `ca.external`, {d['method']} at {_setting(d)} takes "
+    return [f"Much of the CVODES/IDAS time is CasADi's finite-difference Jacobian of the compiled "
+            f"rhs (section 5). The package asks for forward differences "
+            f"(`model.external_rhs()`): {d['method']} at {_setting(d)} takes "
             f"{_ms(d['wall_s'])} ms (error {d['error']:.1e})"
-            + (f", against {_ms(same[0]['wall_s'])} ms with the package's default" if same else "")
+            + (f", against {_ms(same[0]['wall_s'])} ms with CasADi's default (central) "
+               "differences" if same else "")
             + ".", ""]
 
 
@@ -740,8 +783,8 @@ def _wp_md(res: dict) -> list[str]:
                         "–" if c is None else _e(c.get("max_constraint_residual")),
                         "–" if c is None else _e(c.get("energy_drift_J")),
                         "–" if i is None else _ms(i["time_s"])])
-    bd_rows = [[d["method"], _setting(d), "CasADi default (package)" if d["fd_method"] ==
-                "default" else "`forward` (not the package's)", _ms(d["wall_s"]), _e(d["error"]),
+    bd_rows = [[d["method"], _setting(d), "CasADi's default (central)" if d["fd_method"] ==
+                "default" else "`forward` (the package's)", _ms(d["wall_s"]), _e(d["error"]),
                 _ms(d["total_s"]), _ms(d["rhs_s"]), _ms(d["jac_s"]), _ms(d["other_s"]),
                 d["n_steps"], d["n_rhs"],
                 d["n_jac"], f"{d['us_per_jac_call']:.0f}"] for d in res["breakdown"]]
@@ -768,7 +811,7 @@ def _wp_md(res: dict) -> list[str]:
         "so its drift includes the quadrature error of that coarser grid). ‖quat‖ − 1: the "
         "object quaternion's norm at 3 s (not renormalised; R is exact for any norm).",
         "",
-        f"### Sweep (one curve per method; cvodes, idas, radau: atol = rtol × {ATOL_FACTOR:g})",
+        f"### Sweep (one curve per method; adaptive methods: atol = rtol × {ATOL_FACTOR:g})",
         "",
         *_table(header, [row(r) for r in res["compiled"]]),
         "",
@@ -796,9 +839,9 @@ def _wp_md(res: dict) -> list[str]:
         "CVODES/IDAS through CasADi with `record_time`: `wall` = median of several calls; the "
         "split is that of the last call (`recorded run` = rhs + jac + other): `rhs`/`jac` = "
         "time in the rhs callbacks / in CasADi's finite-difference Jacobian of the compiled rhs; "
-        "`other` = SUNDIALS and CasADi's linear algebra. For comparison only (not what "
-        "`simulate` does), the same integrations with `ca.external(..., {'enable_fd': True, "
-        "'fd_method': 'forward'})`:",
+        "`other` = SUNDIALS and CasADi's linear algebra. The package's `model.external_rhs()` is "
+        "`ca.external(..., {'enable_fd': True, 'fd_method': 'forward'})`; for comparison, the "
+        "same integrations with CasADi's default scheme (`{'enable_fd': True}`):",
         "",
         *_table(["method", "setting", "finite differences", "wall ms (median)", "error",
                  "recorded run ms", "rhs ms", "jac ms", "other ms", "steps", "rhs calls",
@@ -812,6 +855,38 @@ def _wp_md(res: dict) -> list[str]:
         *_table(["setting", "wall ms", "steps", "rhs calls", "jacobians", "in Jacobians",
                  "µs per rhs call (wall / calls)"], rd_rows),
         "",
+    ]
+
+
+def _peers_md(res: dict) -> list[str]:
+    from benchmarks.report import equal_error_table, method_choice_md, peer_table, peers_equal_error_md
+
+    return [
+        "## 6. Peer: CasADi's own functions, without compilation",
+        "",
+        "`benchmarks/peers/casadi_uncompiled.py`: the scene's SX graph (the one we generate C "
+        "from) as a `casadi.Function` on CasADi's virtual machine, CVODES through "
+        "`casadi.integrator` with its Jacobian by AD on the same (interpreted) graph; atol = "
+        "rtol × 1e-2, wall time of the integrator call after a setup call, median of 3; tighter "
+        "tolerances are skipped once a run exceeds the time budget. Constraint residual and "
+        "energy drift: one more run with outputs every 0.25 ms, evaluated by our compiled "
+        "outputs (`model.outputs_batch`). (No lambdify or PyDy peer exists for the 3D scene.)",
+        "",
+        *peer_table(res["peers"]),
+        "",
+        "### Time to reach final-state error 1e-8",
+        "",
+        *equal_error_table(res["compiled"] + res["grid"], res["peers"]),
+        "",
+        *peers_equal_error_md(res["peers_equal_error"], {}),
+        *method_choice_md(res["method_choice"], wp.failures(res["compiled"] + res["grid"]),
+                          ref_difference=res["reference"]["difference"], section="7", notes=[
+            "Over the sweep and the grid near 1e-8 (section 5). The projection curves run "
+            "`gs.scenes.paper3d(name='paper3d_proj', gain=0.0)` with `simulate(..., "
+            "project=True)`: the stabilisation gain at 0, the state projected onto the "
+            "contact constraints after every step.",
+            "cvodes and idas difference the compiled rhs for their Jacobian (no Jacobian is "
+            "generated for 3D); radau and dopri5 run their whole loop in C."]),
     ]
 
 

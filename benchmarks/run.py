@@ -125,14 +125,31 @@ def run(*, quick: bool) -> dict:
                                     quick=quick, log=_log)
 
     _log("3. work-precision, compiled methods")
-    res["compiled"] = wp.compiled_methods(model, energy_model, x_ref, quick=quick, log=_log)
+    # the same scene without Baumgarte stabilisation, for the curves with projection
+    proj_model = gs.build(gs.scenes.paper2d(name="paper2d_proj", gf=0.0, gl=0.0, wf=0.0, wl=0.0,
+                                            outputs=energy_outputs))
+    res["compiled"] = wp.compiled_methods(model, energy_model, x_ref, quick=quick,
+                                          proj_model=proj_model, log=_log)
     res["breakdown"] = wp.sundials_breakdown(model, stages["_casadi_model"], res["compiled"],
                                              quick=quick)
 
     _log("4. baseline: lambdify + solve_ivp")
     res["baseline"] = wp.baseline(reference_model, model.initial_state(), x_ref, quick=quick,
-                                  log=_log)
+                                  energy_model=energy_model, log=_log)
     res["equal_error"] = wp.equal_error_comparison(res["compiled"], res["baseline"])
+
+    _log("4b. peers: CasADi without compilation, PyDy Cython")
+    from benchmarks import peer_curves
+    rtols = wp.QUICK_SUNDIALS_RTOLS if quick else wp.SUNDIALS_RTOLS   # as our cvodes curve
+    res["peers"] = peer_curves.casadi_rows(scene, model, energy_model, x_ref, rtols,
+                                           quick=quick, log=_log)
+    pydy, res["pydy_build"] = peer_curves.pydy_rows(energy_model, x_ref, quick=quick, log=_log)
+    res["peers"] += pydy
+    res["peers_equal_error"] = wp.peers_at_equal_error(res["compiled"], {
+        "SymPy lambdify + solve_ivp": res["baseline"],
+        peer_curves.CASADI: [r for r in res["peers"] if r.get("peer") == peer_curves.CASADI],
+        peer_curves.PYDY: [r for r in res["peers"] if r.get("peer") == peer_curves.PYDY]})
+    res["method_choice"] = wp.method_choice(res["compiled"])
 
     _log("5. folding constants vs run-time parameters")
     from benchmarks.folding import folding

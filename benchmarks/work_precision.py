@@ -4,7 +4,12 @@ Error is the max-norm of (final state - reference final state), in the states' S
 (rad, rad/s, m). Wall times exclude derivation and compilation. For the SUNDIALS methods
 the integrator object is created (and cached inside the model) by the first call with a
 given tolerance: that first call is timed and reported apart, the median is over the
-calls after it.
+calls after it. Every point also gets the maximum constraint residual over the run and the
+energy-balance drift, from our compiled model's outputs on a dense trajectory
+(``trajectory_diagnostics``), for the peers as well.
+
+Curves named ``"<method> + projection, no Baumgarte"`` (``PROJECTED``) run ``<method>`` with
+``project=True`` on the scene built with its constraint-stabilisation gains at 0.
 """
 from __future__ import annotations
 
@@ -37,6 +42,26 @@ QUICK_BASELINE = {"LSODA": [1e-5, 1e-7], "Radau": [1e-3, 1e-5], "DOP853": [1e-3]
 
 RADAU_RTOLS = (1e-2, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
 QUICK_RADAU_RTOLS = (1e-3, 1e-5)
+#: Suffix of a curve run with projection after every step on the scene without Baumgarte
+#: stabilisation (gains 0): ``"radau" + PROJECTED``.
+PROJECTED = " + projection, no Baumgarte"
+#: Baseline: a run is stopped once it has taken this long (s); tighter tolerances are then
+#: skipped. Constraint residual and energy drift are measured (one more, dense, run) only
+#: for settings whose timed run took at most ``BASELINE_DIAG_S``.
+BASELINE_BUDGET_S, QUICK_BASELINE_BUDGET_S = 10.0, 3.0
+BASELINE_DIAG_S, QUICK_BASELINE_DIAG_S = 3.0, 0.5
+#: Accuracy bands of the method-choice section (final-state error).
+BANDS = (1e-6, 1e-8, 1e-10, 1e-12)
+
+
+def variant(label: str) -> tuple[str, bool]:
+    """``(integrator method, project)`` of a curve label (see ``PROJECTED``)."""
+    return (label[:-len(PROJECTED)], True) if label.endswith(PROJECTED) else (label, False)
+
+
+def dense_grid(step: float = DENSE_DT) -> np.ndarray:
+    """Output times every ``step`` s over the 3 s run (the dense diagnostics' grid)."""
+    return np.linspace(0.0, T_FINAL, round(T_FINAL / step) + 1)
 
 
 def err(x: np.ndarray, x_ref: np.ndarray) -> float:
@@ -77,35 +102,47 @@ def reference(model, *, quick: bool, log=print) -> dict:
 
 # ---------------------------------------------------------------------- diagnostics
 def dense_diagnostics(energy_model, method: str, kw: dict) -> dict:
-    """Max constraint residual and energy-balance drift from one run with dense output.
-
-    Energy balance (MODELS.md): ``d/dt (kinetic + potential) = power``; drift is
-    ``max_t |E(t) - E(0) - int_0^t power dt|`` with Simpson's rule on the dense grid (J).
-    """
+    """Max constraint residual and energy-balance drift from one run with dense output
+    (``method`` and ``kw`` as given to ``simulate``; see ``outputs_diagnostics``)."""
     if method == "rk4":
         h = kw["h"]
-        k = max(1, round(DENSE_DT / h))
-        n = round(T_FINAL / (k * h))
+        t_eval = dense_grid(max(1, round(DENSE_DT / h)) * h)
     else:
-        n = round(T_FINAL / DENSE_DT)
-    t_eval = np.linspace(0.0, T_FINAL, n + 1)
+        t_eval = dense_grid()
     try:
         r = energy_model.simulate(T_FINAL, method=method, t_eval=t_eval, **kw)
     except GraspingSymError as exc:
         return {"failed": str(exc).splitlines()[0][:300]}
-    energy = r["kinetic_energy"] + r["potential_energy"]
-    work = cumulative_simpson(r["power"], x=r.t, initial=0.0)
-    return {"max_constraint_residual": float(np.max(np.abs(r["constraint_residual"]))),
+    return outputs_diagnostics(r.t, r)
+
+
+def trajectory_diagnostics(energy_model, t: np.ndarray, X: np.ndarray) -> dict:
+    """The same diagnostics for any trajectory (a peer's): states ``X`` (rows, in
+    ``energy_model``'s state order) at times ``t``, measured by our compiled outputs."""
+    out = energy_model.outputs_batch(np.ascontiguousarray(X, dtype=float))
+    return outputs_diagnostics(np.asarray(t, dtype=float), out)
+
+
+def outputs_diagnostics(t: np.ndarray, out) -> dict:
+    """Max constraint residual (output ``constraint_residual``) and energy-balance drift.
+
+    Energy balance (MODELS.md): ``d/dt (kinetic + potential) = power``; drift is
+    ``max_t |E(t) - E(0) - int_0^t power dt|`` with Simpson's rule on the grid ``t`` (J).
+    """
+    energy = out["kinetic_energy"] + out["potential_energy"]
+    work = cumulative_simpson(out["power"], x=t, initial=0.0)
+    return {"max_constraint_residual": float(np.max(np.abs(out["constraint_residual"]))),
             "energy_drift_J": float(np.max(np.abs(energy - energy[0] - work))),
-            "max_kinetic_energy_J": float(np.max(r["kinetic_energy"])),
-            "dense_points": len(t_eval)}
+            "max_kinetic_energy_J": float(np.max(out["kinetic_energy"])),
+            "dense_points": len(t)}
 
 
 # ---------------------------------------------------------------------- compiled methods
 def time_setting(model, energy_model, method: str, kw: dict, x_ref: np.ndarray, *,
-                 repeats: int) -> dict:
-    """First call, then ``repeats`` timed calls; error, stats and dense diagnostics."""
-    row: dict = {"method": method, **kw}
+                 repeats: int, label: str | None = None) -> dict:
+    """First call, then ``repeats`` timed calls; error, stats and dense diagnostics.
+    ``label`` names the curve (default ``method``)."""
+    row: dict = {"method": label or method, **kw}
     try:
         t0 = time.perf_counter()
         r = model.simulate(T_FINAL, method=method, t_eval=T_EVAL, outputs=False, **kw)
@@ -130,24 +167,30 @@ def time_setting(model, energy_model, method: str, kw: dict, x_ref: np.ndarray, 
 
 
 def compiled_methods(model, energy_model, x_ref: np.ndarray, *, quick: bool,
-                     log=print) -> list[dict]:
+                     proj_model=None, log=print) -> list[dict]:
+    """Our curves. ``proj_model``: the scene with its stabilisation gains at 0 (built with
+    the energy outputs), for the ``PROJECTED`` curves (skipped when None)."""
     repeats = 3 if quick else 9
     rows = []
     rtols = QUICK_SUNDIALS_RTOLS if quick else SUNDIALS_RTOLS
-    for method in ("cvodes", "idas"):
-        for rtol in rtols:
-            kw = {"rtol": rtol, "atol": rtol * ATOL_FACTOR}
-            rows.append(time_setting(model, energy_model, method, kw, x_ref, repeats=repeats))
-            _log_row(rows[-1], log)
     # Radau IIA in C: atol is kept >= 1e-10 (tighter absolute tolerances on the near-zero
     # velocities hit rounding noise, see Model.simulate) and <= 1e-8.
-    for rtol in (QUICK_RADAU_RTOLS if quick else RADAU_RTOLS):
-        kw = {"rtol": rtol, "atol": max(1e-10, min(1e-8, rtol * ATOL_FACTOR))}
-        rows.append(time_setting(model, energy_model, "radau", kw, x_ref, repeats=repeats))
-        _log_row(rows[-1], log)
-    for h in (QUICK_RK4_STEPS if quick else RK4_STEPS):
-        rows.append(time_setting(model, energy_model, "rk4", {"h": h}, x_ref, repeats=repeats))
-        _log_row(rows[-1], log)
+    radau = [{"rtol": rtol, "atol": max(1e-10, min(1e-8, rtol * ATOL_FACTOR))}
+             for rtol in (QUICK_RADAU_RTOLS if quick else RADAU_RTOLS)]
+    adaptive = [{"rtol": rtol, "atol": rtol * ATOL_FACTOR} for rtol in rtols]
+    curves = [("cvodes", adaptive), ("idas", adaptive), ("radau", radau),
+              ("rk4", [{"h": h} for h in (QUICK_RK4_STEPS if quick else RK4_STEPS)]),
+              ("dopri5", adaptive)]
+    if proj_model is not None:
+        curves += [("radau" + PROJECTED, radau), ("dopri5" + PROJECTED, adaptive)]
+    for label, settings in curves:
+        method, projected = variant(label)
+        m = proj_model if projected else model
+        for kw in settings:
+            kw = {**kw, "project": True} if projected else kw
+            rows.append(time_setting(m, proj_model if projected else energy_model, method, kw,
+                                     x_ref, repeats=repeats, label=label))
+            _log_row(rows[-1], log)
     return rows
 
 
@@ -157,7 +200,9 @@ def _log_row(row: dict, log) -> None:
         log(f"  {row['method']:7s} {setting:12s} FAILED: {row['failed'][:100]}")
     else:
         log(f"  {row['method']:7s} {setting:12s} {row['wall_s'] * 1e3:9.3f} ms  "
-            f"err {row['error']:.2e}  first call {row['first_call_s'] * 1e3:.2f} ms")
+            f"err {row['error']:.2e}  first call {row['first_call_s'] * 1e3:.2f} ms  "
+            f"residual {row.get('max_constraint_residual', math.nan):.1e}  "
+            f"drift {row.get('energy_drift_J', math.nan):.1e} J")
 
 
 # ---------------------------------------------------------------------- where the time goes
@@ -211,17 +256,34 @@ def sundials_breakdown(model, casadi_model, rows: list[dict], *, quick: bool) ->
 
 # ---------------------------------------------------------------------- baseline
 def baseline(reference_model, x0: np.ndarray, x_ref: np.ndarray, *, quick: bool,
-             log=print) -> list[dict]:
+             energy_model=None, log=print) -> list[dict]:
     """SymPy lambdify (``ReferenceModel.rhs``) + ``scipy.integrate.solve_ivp``.
 
-    Tolerances loosest first; for each method, tighter tolerances are skipped once one run
-    took longer than the budget (quick 5 s, full 20 s). Median of 3 runs when a run takes
-    under 2 s, else a single run.
+    Tolerances loosest first. A run is stopped once it has taken ``BASELINE_BUDGET_S``
+    (quick: ``QUICK_BASELINE_BUDGET_S``) and the method's tighter tolerances are then
+    skipped (a row says so). Median of 3 runs when a run takes under 2 s, else a single run.
+    With ``energy_model``, settings whose run took at most ``BASELINE_DIAG_S`` get one more
+    run with dense output for the constraint residual and energy drift.
     """
-    budget = 5.0 if quick else 20.0
+    budget = QUICK_BASELINE_BUDGET_S if quick else BASELINE_BUDGET_S
+    diag_limit = QUICK_BASELINE_DIAG_S if quick else BASELINE_DIAG_S
+    deadline = [math.inf]
 
     def f(t, y):
+        if time.perf_counter() > deadline[0]:
+            raise _OverBudget(t)
         return reference_model.rhs(y)
+
+    def solve(method, rtol, atol, t_eval):
+        deadline[0] = time.perf_counter() + budget
+        try:
+            return solve_ivp(f, (0.0, T_FINAL), x0, method=method, rtol=rtol, atol=atol,
+                             t_eval=t_eval)
+        except _OverBudget as exc:
+            return _Failed(f"stopped after the {budget:g} s time budget at t = "
+                           f"{exc.args[0]:.3g} s of {T_FINAL:g}", over_budget=True)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+            return _Failed(f"{type(exc).__name__}: {exc}")
 
     rows = []
     for method in BASELINE_METHODS:
@@ -231,34 +293,48 @@ def baseline(reference_model, x0: np.ndarray, x_ref: np.ndarray, *, quick: bool,
             walls, sol = [], None
             while True:
                 t0 = time.perf_counter()
-                try:
-                    sol = solve_ivp(f, (0.0, T_FINAL), x0, method=method, rtol=rtol,
-                                    atol=atol, t_eval=T_EVAL)
-                except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
-                    sol = _Failed(f"{type(exc).__name__}: {exc}")
+                sol = solve(method, rtol, atol, T_EVAL)
                 walls.append(time.perf_counter() - t0)
                 if quick or walls[0] > 2.0 or len(walls) >= 3 or not sol.success:
                     break
             row = {"method": f"lambdify+{method}", "rtol": rtol, "atol": atol,
-                   "wall_s": median(walls), "repeats": len(walls), "nfev": int(sol.nfev),
+                   "repeats": len(walls), "nfev": int(sol.nfev),
                    "njev": int(getattr(sol, "njev", 0) or 0), "success": bool(sol.success)}
             if sol.success:
+                row["wall_s"] = median(walls)
                 row["error"] = err(sol.y[:, -1], x_ref)
+                if energy_model is not None and walls[0] <= diag_limit:
+                    dense = solve(method, rtol, atol, dense_grid())
+                    if dense.success:
+                        row.update(trajectory_diagnostics(energy_model, dense.t, dense.y.T))
+                elif energy_model is not None:
+                    row["note"] = (f"residual and drift not measured (run > {diag_limit:g} s, "
+                                   "no dense run)")
             else:
                 row["error"] = math.inf
                 row["failed"] = sol.message
+                row["stopped_after_s"] = walls[0]
             rows.append(row)
-            log(f"  {row['method']:16s} rtol={rtol:g} {row['wall_s']:8.3f} s  "
-                f"err {row['error']:.2e}  nfev {row['nfev']}")
-            if walls[0] > budget:
+            log(f"  {row['method']:16s} rtol={rtol:g} {walls[0]:8.3f} s  "
+                f"err {row['error']:.2e}  nfev {row['nfev']}  {row.get('failed', '')}")
+            if walls[0] > budget or getattr(sol, "over_budget", False):
                 skipped = [r for r in rtols if r < rtol]
                 if skipped:
                     log(f"  {method}: over the {budget:g} s budget, skipping rtol {skipped}")
-                    rows.append({"method": f"lambdify+{method}", "skipped_rtols": skipped,
-                                 "reason": f"a run at rtol={rtol:g} took {walls[0]:.1f} s "
-                                           f"(> {budget:g} s budget)"})
+                    rows.append(skipped_row(f"lambdify+{method}", skipped,
+                                            f"a run at rtol={rtol:g} took {walls[0]:.1f} s "
+                                            f"(≥ {budget:g} s budget)"))
                 break
     return rows
+
+
+def skipped_row(method: str, rtols: list[float], reason: str) -> dict:
+    """A table row saying that ``method``'s tolerances ``rtols`` were not run, and why."""
+    return {"method": method, "skipped_rtols": list(rtols), "reason": reason}
+
+
+class _OverBudget(Exception):
+    """Raised by the baseline's right-hand side once a run exceeds its time budget."""
 
 
 class _Failed:
@@ -268,8 +344,9 @@ class _Failed:
     nfev = 0
     njev = 0
 
-    def __init__(self, message: str):
+    def __init__(self, message: str, *, over_budget: bool = False):
         self.message = message
+        self.over_budget = over_budget
 
 
 # ---------------------------------------------------------------------- equal-error comparison
@@ -328,3 +405,40 @@ def equal_error_comparison(compiled_rows: list[dict], baseline_rows: list[dict],
                     "baseline_method": mb, "baseline_s": vb and vb[key],
                     "ratio": (vb[key] / vo[key]) if vo and vb else None}
     return res
+
+
+def peers_at_equal_error(ours: list[dict], peers: dict[str, list[dict]],
+                         target: float = 1e-8) -> dict:
+    """Per peer (name -> its rows, one or more methods): ``equal_error_comparison`` of our
+    fastest method against the peer's fastest at final-state error ``target``."""
+    return {name: equal_error_comparison(ours, rows, target) for name, rows in peers.items()}
+
+
+# ---------------------------------------------------------------------- method choice
+_BRIEF = ("method", "rtol", "atol", "h", "project", "wall_s", "error", "max_constraint_residual",
+          "energy_drift_J")
+
+
+def method_choice(rows: list[dict], bands=BANDS) -> list[dict]:
+    """Per accuracy band: each of our methods' cheapest measured setting with final-state
+    error <= band, fastest first (``ranked``); ``failures``: the failed settings per method."""
+    out = []
+    for band in bands:
+        best: dict[str, dict] = {}
+        for r in rows:
+            if "wall_s" in r and r.get("error", math.inf) <= band and (
+                    r["method"] not in best or r["wall_s"] < best[r["method"]]["wall_s"]):
+                best[r["method"]] = r
+        ranked = sorted(best.values(), key=lambda r: r["wall_s"])
+        out.append({"band": band, "ranked": [{k: r[k] for k in _BRIEF if k in r}
+                                             for r in ranked]})
+    return out
+
+
+def failures(rows: list[dict]) -> dict[str, list[dict]]:
+    """Failed settings per method (rows with ``failed``), in the order run."""
+    out: dict[str, list[dict]] = {}
+    for r in rows:
+        if "failed" in r:
+            out.setdefault(r["method"], []).append(r)
+    return out

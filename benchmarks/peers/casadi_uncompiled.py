@@ -40,15 +40,17 @@ def rhs_function(scene, model) -> ca.Function:
 
 
 def simulate(rhs: ca.Function, x0: np.ndarray, t_final: float, rtol: float, atol: float,
-             p=()) -> tuple[np.ndarray, float]:
-    """Final state and wall time (s, integrator call only) of CVODES on ``rhs``."""
-    integ = ca.integrator("vm_cvodes", "cvodes", rhs, 0.0, [t_final],
+             p=(), grid=None) -> tuple[np.ndarray, float]:
+    """Final state and wall time (s, integrator call only) of CVODES on ``rhs``; with
+    ``grid`` (output times from 0 to ``t_final``) the states at those times (rows) instead."""
+    integ = ca.integrator("vm_cvodes", "cvodes", rhs, 0.0, [t_final] if grid is None else list(grid),
                           {"abstol": atol, "reltol": rtol, "max_num_steps": 1_000_000,
                            "disable_internal_warnings": True})
     integ(x0=x0, p=list(p))  # first call: setup (timed apart by the caller if wanted)
     t0 = time.perf_counter()
     out = integ(x0=x0, p=list(p))
-    return np.asarray(out["xf"], float).ravel(), time.perf_counter() - t0
+    x = np.asarray(out["xf"], float)
+    return (x.ravel() if grid is None else x.T), time.perf_counter() - t0
 
 
 def work_precision(scene, model, x_ref: np.ndarray, rtols, *, t_final: float = 3.0,
