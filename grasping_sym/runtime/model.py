@@ -320,11 +320,16 @@ def _output_times(t_eval, t_final: float) -> tuple[np.ndarray, bool]:
     return t_eval, False
 
 
+#: Fraction of a contour's domain crossed in one rejected step that names a blow-up.
+BLOW_UP_JUMP = 0.25
+
+
 def _blow_up(model: Model, err: IntegratorError, method: str, h: float) -> IntegratorError:
     """A "left the contour's domain" whose rejected step overshot the domain by more than
-    1e3 times its width (or went non-finite) is a numerical blow-up, not a contact reaching
-    the end of its contour: name it as such (an explicit method beyond its stability limit,
-    i.e. a stiff system)."""
+    1e3 times its width, jumped across more than ``BLOW_UP_JUMP`` of the domain's width in
+    that one step (a contact reaching the end of its contour creeps up to it), or went
+    non-finite is a numerical blow-up: name it as such (an explicit method beyond its
+    stability limit, i.e. a stiff system)."""
     if not isinstance(err, ContactLeftContourError):
         return err
     x_bad = getattr(err, "x_rejected", None)
@@ -333,7 +338,11 @@ def _blow_up(model: Model, err: IntegratorError, method: str, h: float) -> Integ
     x_bad = np.asarray(x_bad, dtype=float)
     width = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, np.inf)
     over = np.maximum(model.lower - x_bad, x_bad - model.upper)
-    if not (np.any(~np.isfinite(x_bad)) or np.any(over > 1e3 * width)):
+    jumped = False
+    if err.x is not None:
+        jump = np.abs(x_bad - np.asarray(err.x, dtype=float))
+        jumped = bool(np.any((over > 0) & (jump > BLOW_UP_JUMP * width)))
+    if not (np.any(~np.isfinite(x_bad)) or np.any(over > 1e3 * width) or jumped):
         return err
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(np.isfinite(width), over / width, -np.inf)
