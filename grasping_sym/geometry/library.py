@@ -1,4 +1,5 @@
-"""A library of contours: circle, ellipse, superellipse, polynomial graph, catenary.
+"""A library of contours: circle, ellipse, superellipse, polynomial graph, catenary, and a
+quintic spline through sampled points (``spline``, in ``geometry.spline``).
 
 All lengths are metres, in the body's local frame. The direction of travel matters in
 the 2D scene (see ``grasping_sym.model.planar``): the fingertip contour runs
@@ -15,6 +16,10 @@ import sympy as sp
 
 from grasping_sym.errors import InvalidCurveError
 from grasping_sym.geometry.curves import PlanarCurve, T
+from grasping_sym.geometry.spline import SplineCurve, spline
+
+__all__ = ["circle", "ellipse", "superellipse", "polynomial_graph", "catenary", "paper_fingertip",
+           "paper_object", "spline", "SplineCurve"]
 
 
 def _positive(name: str, **values: float) -> None:
