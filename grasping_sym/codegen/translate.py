@@ -4,7 +4,8 @@ The walk is iterative (no recursion limit) and memoised on structurally equal Sy
 nodes, so a subexpression that occurs many times becomes one SX node: no exponential
 re-expansion of the expression DAG. Applications of abstract contour functions (see
 ``grasping_sym.derive.contour_functions``) are replaced by the translation of their
-concrete formulas, each translated once per argument.
+concrete formulas, each translated once per argument. A SymPy function class with a
+``_casadi_`` attribute is translated by calling it with the SX of its arguments.
 """
 from __future__ import annotations
 
@@ -83,6 +84,9 @@ class SympyToCasadi:
             return ca.SX(float(e))
         if e.is_Symbol:
             raise TranslationError(f"free symbol {e} has no value: declare it as a state or parameter")
+        fn = type(e)
+        if fn is sp.Piecewise:  # its arguments are (expr, cond) pairs: only the exprs are walked
+            return self._piecewise(e)
         args = [m[a] for a in e.args]
         if e.is_Add:
             out = args[0]
@@ -107,7 +111,6 @@ class SympyToCasadi:
             if ex.is_Integer and ex < 0:
                 return 1 / ca.constpow(base, float(-ex))
             return ca.constpow(base, args[1]) if ex.is_Number else ca.power(base, args[1])
-        fn = type(e)
         if fn in _UNARY:
             return _UNARY[fn](args[0])
         if fn is sp.atan2:
@@ -116,8 +119,11 @@ class SympyToCasadi:
             return _fold(ca.fmax, args)
         if fn is sp.Min:
             return _fold(ca.fmin, args)
-        if fn is sp.Piecewise:
-            return self._piecewise(e)
+        impl = getattr(fn, "_casadi_", None)
+        if impl is not None:
+            # a SymPy function that knows its CasADi form (e.g. a spline's coefficient lookup,
+            # a call node): called with the SX of its arguments
+            return impl(*args)
         raise TranslationError(f"no CasADi translation for {fn.__name__} in {e}")
 
     def _piecewise(self, e: sp.Piecewise) -> ca.SX:

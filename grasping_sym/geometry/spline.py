@@ -26,24 +26,24 @@ Direction of travel: the points are traversed in their order, so an object conto
 
 How it becomes C. A piecewise polynomial with ``m`` pieces is written as the polynomial of
 one piece in the local variable ``U = t - K(t)`` whose 13 coefficients (``K`` and the six
-coefficients of each coordinate) are *selected* by exact 0/1 indicators of the piece:
-``C(t) = sum_i c_i I_i(t)``, ``I_i`` built from ``sign(t - t_i)`` (exactly one term is
-nonzero, so the selected value is exact). The generated code is straight-line (CasADi SX has
-no branches), so every evaluation touches every piece: ~32 flops (45 SX instructions) per
-piece, ~9 ns per piece per rhs call and ~30 ms of gcc per piece, measured with the
-alternatives in ``benchmarks/results/build_scaling.md``: a ``Piecewise`` (if_else chain) is
-3-6x slower to run and ~10x slower to compile (and translate.py does not translate one at
-present); an if_else tree is no cheaper, as SX evaluates both branches; only a CasADi call
-node (a lookup by binary search) would make the cost independent of ``m``, which needs a
-change to translate.py.
+coefficients of each coordinate) are SymPy functions of ``t`` with zero derivative (they are
+piecewise constant). ``codegen.translate`` turns them into outputs of ONE CasADi call node per
+argument: a B-spline ``Function`` of the coefficient table over the breaks (a binary search
+in the generated C, the table stored as data), called from the SX graph and never inlined;
+the quintics stay inline SX. The cost is then independent of ``m`` (about 1400 rhs SX
+instructions and 0.3-0.6 us per rhs call at 10 to 1000 points; a 1000-point scene compiles
+in ~3 s instead of ~36 s with the former 0/1 sign() indicators over all pieces, see
+``benchmarks/results/build_scaling.md``). The NumPy reference (lambdify) evaluates the same
+functions by a table lookup (``_imp_``). A closed spline's wrap of ``t`` into ``[0, L]``
+is two sign() steps, exact.
 
-The SymPy side never differentiates these sums: the derivatives, speed, tangent and
-curvature are written out from the polynomial pieces, and the two derivatives
+The SymPy side never differentiates the curve: the derivatives, speed, tangent and
+curvature are written out from the polynomial pieces (SymPy would differentiate the
+closed spline's sign() wrap into DiracDelta terms), and the two derivatives
 ``leaf_expressions`` asks SymPy for (of the speed and of the curvature) are returned by
 nodes that know them (``_KnownDerivative``). Those nodes also answer SymPy's assumption
-queries as "unknown" at once and walk their expression DAG instead of its tree, because
-SymPy's ``Derivative`` queries ``is_zero`` and walks the result; otherwise a 1000-point
-spline would take hours in SymPy instead of ~0.1 s.
+queries as "unknown" at once and walk their expression DAG instead of its tree (needed when
+the coefficients were sums over all pieces; kept, as it costs nothing).
 """
 from __future__ import annotations
 
@@ -54,6 +54,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import sympy as sp
 
@@ -102,9 +103,9 @@ class SplineData:
         return np.where(t <= 0, t + L, np.where(t > L, t - L, t))
 
     def piece(self, t: np.ndarray) -> np.ndarray:
-        """Index of the piece used at ``t``: the one with ``breaks[i] < t <= breaks[i+1]``
+        """Index of the piece used at ``t``: the one with ``breaks[i] <= t < breaks[i+1]``
         (the first and last pieces extend beyond the ends), as in the generated code."""
-        return np.searchsorted(self.breaks[1:-1], t, side="left")
+        return np.searchsorted(self.breaks[1:-1], t, side="right")
 
     def derivatives(self, t, order: int = 3) -> tuple[np.ndarray, np.ndarray]:
         """``(dx, dy)``, each of shape ``(order + 1,) + t.shape``: derivatives 0..order."""
@@ -347,8 +348,8 @@ def _own_free_symbols(node) -> bool:
 class _DagWalks:
     """``free_symbols`` and ``replace`` computed over the expression DAG.
 
-    A spline's expressions repeat large subexpressions (the coefficient selectors occur in
-    every derivative); SymPy walks them as trees, once per occurrence, in every
+    A spline's expressions repeat subexpressions (the coefficients and ``U`` occur in every
+    derivative); SymPy walks them as trees, once per occurrence, in every
     ``Derivative`` it builds. These two give SymPy's results, visiting each node once.
     """
 
@@ -403,19 +404,85 @@ def _pow(b, e):
     return sp.Pow(b, e, evaluate=False)
 
 
-def _selector(values: np.ndarray, J: list) -> sp.Expr:
-    """``sum_i values[i] I_i`` with ``I_i = J_i / 2`` exactly 0 or 1 (halving is exact)."""
-    terms = [_mul(sp.Float(0.5 * float(v)), j) for v, j in zip(values, J) if v != 0.0]
-    if not terms:
-        return sp.Float(0.0)
-    return terms[0] if len(terms) == 1 else _add(*terms)
+#: Outer knots of the lookup: the first and last pieces extend beyond the ends.
+_FAR = 1e300
+
+
+class _Lookup:
+    """The piece's 13 coefficients at ``t`` (its knot ``K`` and the six coefficients of each
+    coordinate) as ONE CasADi call: a ``Function.bspline`` over the breaks, called from SX as
+    a call node (never inlined; binary search in the generated C). The call is made once per
+    SX argument, so the 13 :class:`_Coefficient` functions share it.
+
+    Piecewise constant as a degree-1 B-spline with every inner break doubled and each row
+    repeated (``c (1 - s) + c s``: within 1 ulp of ``c``): CasADi 3.8.2's degree-0 B-spline
+    corrupts memory when evaluated at or next to a knot.
+    """
+
+    def __init__(self, data: SplineData, tag: str):
+        br = data.breaks
+        m = len(br) - 1
+        self.table = np.column_stack([br[:-1], data.cx.T, data.cy.T])          # (m, 13)
+        self.inner = np.asarray(br[1:-1], dtype=float)
+        knots = [-_FAR, -_FAR, *np.repeat(self.inner, 2).tolist(), _FAR, _FAR]
+        coefs = np.repeat(self.table, 2, axis=0).ravel().tolist()
+        self.function = ca.Function.bspline(f"spline_{tag}", [knots], coefs, [1],
+                                            self.table.shape[1], {})
+        self._calls: list[tuple[ca.SX, ca.SX]] = []
+        assert self.table.shape == (m, 13)
+
+    def call(self, t: ca.SX) -> ca.SX:
+        for arg, out in self._calls:
+            if ca.is_equal(arg, t, 0):
+                return out
+        out = self.function.call([t], False, True)[0]
+        self._calls = [*self._calls[-15:], (t, out)]
+        return out
+
+    def numeric(self, t, j: int):
+        """Coefficient ``j`` at ``t`` (NumPy), the piece chosen as the generated code does."""
+        i = np.searchsorted(self.inner, np.asarray(t, dtype=float), side="right")
+        return self.table[i, j]
+
+
+class _Coefficient(sp.Function):
+    """Coefficient ``j`` of the piece at ``t``: piecewise constant, so its derivative is 0
+    (the derivatives of the curve come from the polynomial in ``t - K(t)``)."""
+
+    nargs = 1
+    _lookup: _Lookup
+    _j: int
+
+    def fdiff(self, argindex=1):
+        return sp.S.Zero
+
+    def _eval_is_real(self):
+        return True
+
+
+def _coefficients(data: SplineData) -> list[type]:
+    """The 13 SymPy functions ``K, cx0..cx5, cy0..cy5`` of ``t`` sharing one lookup; each
+    translates to its output of the lookup call (``_casadi_``) and lambdifies to a NumPy
+    table lookup (``_imp_``)."""
+    h = hashlib.sha256()
+    for arr in (data.breaks, data.cx, data.cy):
+        h.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+    tag = h.hexdigest()[:12]
+    lookup = _Lookup(data, tag)
+    names = ["K", *(f"cx{j}" for j in range(6)), *(f"cy{j}" for j in range(6))]
+    out = []
+    for j, nm in enumerate(names):
+        out.append(type(f"spline_{tag}_{nm}", (_Coefficient,), {
+            "_lookup": lookup, "_j": j, "__module__": __name__,
+            "_casadi_": staticmethod(lambda t, j=j: lookup.call(t)[j]),
+            "_imp_": staticmethod(lambda t, j=j: lookup.numeric(t, j)),
+        }))
+    return out
 
 
 def _expressions(data: SplineData) -> dict[str, sp.Expr]:
     """SymPy expressions of the point, derivatives, speed and curvature (see module doc)."""
     L = data.length
-    br = data.breaks
-    m = len(br) - 1
     tw: sp.Expr = T
     if data.closed:
         # t + L for t < 0, t - L for t > L: steps G = sign(d)(sign(d) + 1) in {0, 2}
@@ -424,18 +491,8 @@ def _expressions(data: SplineData) -> dict[str, sp.Expr]:
             return _mul(s, _add(s, sp.Integer(1)))
         tw = _add(T, _mul(sp.Float(L / 2), _add(sp.Integer(2), _mul(sp.Integer(-1), g(0.0)))),
                   _mul(sp.Float(-L / 2), g(L)))
-    # G_k = sign(tw - t_k) (sign(tw - t_k) + 1) is 2 for tw > t_k, else 0 (k = 1..m-1)
-    G = []
-    for k in range(1, m):
-        s = sp.sign(_add(tw, sp.Float(-float(br[k]))))
-        G.append(_mul(s, _add(s, sp.Integer(1))))
-    if m == 1:
-        J = [sp.Integer(2)]
-    else:
-        neg = [_mul(sp.Integer(-1), gk) for gk in G]
-        J = ([_add(sp.Integer(2), neg[0])] + [_add(G[k - 1], neg[k]) for k in range(1, m - 1)]
-             + [G[m - 2]])
-    K = _selector(br[:-1], J)
+    fns = _coefficients(data)
+    K = fns[0](tw)
     U = _add(tw, _mul(sp.Integer(-1), K))
 
     def horner(cs):
@@ -448,8 +505,8 @@ def _expressions(data: SplineData) -> dict[str, sp.Expr]:
         return c if f == 1 else _mul(sp.Integer(f), c)
 
     res = {}
-    for name, coef in (("x", data.cx), ("y", data.cy)):
-        C = [_selector(coef[j], J) for j in range(6)]
+    for name, off in (("x", 1), ("y", 7)):
+        C = [fns[off + j](tw) for j in range(6)]
         res[name] = horner(C)
         res[f"d1{name}"] = horner([scaled(C[j], j) for j in range(1, 6)])
         res[f"d2{name}"] = horner([scaled(C[j], j * (j - 1)) for j in range(2, 6)])
@@ -485,8 +542,8 @@ class SplineCurve(PlanarCurve):
     spline_data: SplineData | None = None
 
     def _static_problems(self) -> list[str]:
-        # The expressions contain sign() only in the exact 0/1 indicators that pick the
-        # piece; the pieces agree to the 4th derivative at the breaks (a C^4 curve), which
+        # The expressions contain sign() only in the exact wrap of a closed spline's
+        # parameter; the pieces agree to the 4th derivative at the breaks (a C^4 curve), which
         # is what the base class's "non-smooth function" check guards. The domain and the
         # pieces are checked when the spline is fitted.
         t0, t1 = self.domain
