@@ -187,9 +187,9 @@ SELECTION_VARIANTS = {
     "chain": "if_else chain (what a Piecewise becomes in translate.py)",
     "tree": "balanced if_else tree on t",
     "atan2": "steps atan2(0, t_k - t) / pi",
-    "sign": "steps sign(d)(sign(d) + 1) / 2 (shipped)",
+    "sign": "steps sign(d)(sign(d) + 1) / 2 (shipped before 9dd7d99)",
     "cmp": "steps (t > t_k) (SX comparison; no SymPy route in translate.py)",
-    "bspline_call": "CasADi B-spline call node, O(log m) lookup (needs a translate.py change)",
+    "bspline_call": "CasADi B-spline call node, O(log m) lookup (what the spline now uses, degree 1)",
 }
 
 _HARNESS = r"""
@@ -523,7 +523,7 @@ def write(result: dict, out: Path = RESULTS) -> Path:
         ship = {r["n_points"]: r for r in splines}
         lines += [
             "",
-            "## Alternative: the whole model with call nodes (needs a translate.py change)",
+            "## The whole model with a call node (an emulation of what the spline now does, degree-0 table)",
             "",
             "The same spline evaluated through CasADi functions called from the SX graph as call nodes "
             "(`Function.call(..., never_inline=True)`): the generated C holds the data as arrays and "
@@ -545,7 +545,7 @@ def write(result: dict, out: Path = RESULTS) -> Path:
                              f"{r['rhs_c_loop_ns']:.0f} | {r['rhs_us']:.2f} | {r['rhs_rel_diff_vs_shipped']:.1e} |")
             if n in ship:
                 s = ship[n]
-                lines.append(f"| {n} | shipped (sign steps) | {s['cold']['build_s']:.2f} | "
+                lines.append(f"| {n} | shipped (call node) | {s['cold']['build_s']:.2f} | "
                              f"{s['cold']['compose']:.3f} | {s['cold']['compile']:.2f} | "
                              f"{s['op_counts']['rhs_sx_instructions']} | {s['op_counts']['jac_sx_instructions']} | "
                              f"{s['c_bytes'] / 1e3:.0f} | {s['rhs_c_loop_ns']:.0f} | {s['rhs_us']:.2f} | - |")
@@ -578,7 +578,7 @@ def plot(result: dict, out: Path = RESULTS) -> str | None:
                          label=f"compile, call nodes ({variant})")
             ax[1].loglog([r["n_points"] for r in cn], [r["rhs_c_loop_ns"] for r in cn], "s--",
                          label=f"call nodes ({variant})")
-    ax[1].loglog(n, [r["rhs_c_loop_ns"] for r in splines], "o-", label="shipped (sign steps)")
+    ax[1].loglog(n, [r["rhs_c_loop_ns"] for r in splines], "o-", label="shipped (call node)")
     ax[0].set(xlabel="spline points", ylabel="s", title="build stages")
     ax[1].set(xlabel="spline points", ylabel="ns per rhs call (C loop)", title="rhs cost")
     for a in ax:
