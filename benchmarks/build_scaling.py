@@ -529,8 +529,10 @@ def write(result: dict, out: Path = RESULTS) -> Path:
             "(`Function.call(..., never_inline=True)`): the generated C holds the data as arrays and "
             "finds the piece by binary search (`casadi_low`). Two ways: " + "; ".join(
                 f"`{k}`: {v}" for k, v in CALLNODE_VARIANTS.items()) + ". Emulated by registering SymPy "
-            "functions in translate.py's translation table inside a throw-away interpreter (the package "
-            "cannot do this without changing translate.py); the last column compares the rhs at the "
+            "functions in translate.py's translation table inside a throw-away interpreter, with a degree-0 "
+            "table (measured before the package got its `_casadi_` hook; CasADi 3.8.2 can corrupt memory "
+            "there at the knots, so the shipped spline uses degree 1 with doubled breaks); the last "
+            "column compares the rhs at the "
             "start with the shipped spline's (same points, same state).",
             "",
             "| points | variant | cold build, s | compose, s | compile, s | rhs SX | Jacobian SX | C, kB | "
