@@ -57,6 +57,26 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
     if _is_3d(scene):
         return _generate_grasp3d(scene, directory, say)
     digest = code_hash(scene)
+    cm, timings = planar_casadi(scene, say)
+    say(f"writing C into {directory}")
+    t0 = time.perf_counter()
+    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
+    timings["write_c"] = time.perf_counter() - t0
+    ops = dict(cm.op_counts)
+    if count_ops:
+        ops.update(sympy_op_counts(derive_planar(scene)))
+    lower, upper = _bounds(scene)
+    manifest = _manifest(scene, digest, cm, scene.initial_state(), lower, upper,
+                         pivot=list(scene.pivot), op_counts=ops)
+    cwriter.write_manifest(directory, manifest)
+    manifest["timings"] = timings
+    return manifest
+
+
+def planar_casadi(scene: PlanarFingerScene, progress: Progress | None = None):
+    """The CasADi functions of a planar scene (template composed with its contours), uncompiled,
+    and the seconds spent: ``validate`` (and the initial configuration), ``template``, ``compose``."""
+    say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     values = parameter_values(scene)  # validates the scene, solves the initial configuration
     t1 = time.perf_counter()
@@ -69,14 +89,13 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
                  constants={k: v for k, v in values.items() if k not in scene.runtime},
                  outputs=scene.outputs, name=scene.name)
     t3 = time.perf_counter()
-    say(f"writing C into {directory}")
-    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
-    t4 = time.perf_counter()
-    ops = dict(cm.op_counts)
-    if count_ops:
-        ops.update(sympy_op_counts(derive_planar(scene)))
-    lower, upper = _bounds(scene)
-    manifest = {
+    return cm, {"validate": t1 - t0, "template": t2 - t1, "template_source": template_source,
+                "compose": t3 - t2}
+
+
+def _manifest(scene, digest: dict, cm, x0, lower: list, upper: list, **extra) -> dict:
+    """What every manifest records: names, sizes, start, domains and how to compile it."""
+    return {
         "name": scene.name,
         "hash": digest["hash"],
         "hash_inputs": digest["inputs"],
@@ -84,21 +103,15 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
         "output_names": list(cm.output_names),
         "param_names": list(scene.runtime),
         "param_values": [float(scene.params[k]) for k in scene.runtime],
-        "initial_state": [float(v) for v in scene.initial_state()],
+        "initial_state": [float(v) for v in x0],
         "lower": lower,
         "upper": upper,
-        "pivot": list(scene.pivot),
-        "op_counts": ops,
         "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac,
                                          constraints_fn=cm.constraints),
         "c_symbols": [f.name() for f in cm.functions()],
         "constraints": _constraints_entry(cm, scene.state_names),
+        **extra,
     }
-    cwriter.write_manifest(directory, manifest)
-    manifest["timings"] = {"validate": t1 - t0, "template": t2 - t1,
-                           "template_source": template_source, "compose": t3 - t2,
-                           "write_c": t4 - t3}
-    return manifest
 
 
 def _generate_grasp3d(scene, directory: Path, say: Progress) -> dict:
@@ -138,28 +151,11 @@ def _generate_grasp3d(scene, directory: Path, say: Progress) -> dict:
         d0 = fn(x=x0, p=[scene.params[k] for k in scene.runtime])
         checks["frame_denominators"] = [float(d0[f"frame_denominator{i}"])
                                         for i in range(1, scene.n_contacts + 1)]
-    manifest = {
-        "name": scene.name,
-        "kind": "grasp3d",
-        "formulation": scene.formulation,
-        "hash": digest["hash"],
-        "hash_inputs": digest["inputs"],
-        "state_names": list(scene.state_names),
-        "output_names": list(cm.output_names),
-        "param_names": list(scene.runtime),
-        "param_values": [float(scene.params[k]) for k in scene.runtime],
-        "initial_state": [float(v) for v in x0],
-        "start": {"residual": info["residual"], "iterations": info["iterations"],
-                  "r_bar0": [float(v) for v in info["r_bar0"]]},
-        "checks": checks,
-        "lower": lower,
-        "upper": upper,
-        "op_counts": dict(cm.op_counts),
-        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac,
-                                         constraints_fn=cm.constraints),
-        "c_symbols": [f.name() for f in cm.functions()],
-        "constraints": _constraints_entry(cm, scene.state_names),
-    }
+    manifest = _manifest(
+        scene, digest, cm, x0, lower, upper, kind="grasp3d", formulation=scene.formulation,
+        start={"residual": info["residual"], "iterations": info["iterations"],
+               "r_bar0": [float(v) for v in info["r_bar0"]]},
+        checks=checks, op_counts=dict(cm.op_counts))
     cwriter.write_manifest(directory, manifest)
     manifest["timings"] = {"initial_state": t1 - t0, "derive": t2 - t1, "casadi": t3 - t2,
                            "write_c": t4 - t3}

@@ -11,14 +11,14 @@ of interpreting the graph (and, for 3D, of CasADi's AD Jacobian against our diff
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
 
 from benchmarks.timing import median
-from grasping_sym.codegen import templates
-from grasping_sym.codegen.functions import compose, sx_model
-from grasping_sym.derive.planar import has_gravity, parameter_values
+from grasping_sym.codegen.functions import sx_model
+from grasping_sym.pipeline import planar_casadi
 
 
 def rhs_function(scene, model) -> ca.Function:
@@ -31,11 +31,7 @@ def rhs_function(scene, model) -> ca.Function:
 
         system = derive_grasp3d(scene, np.array(model.manifest["start"]["r_bar0"]))
         return sx_model(system.x, system.p, system.xdot, {}, f"{scene.name}_vm", jacobian=False).rhs
-    values = parameter_values(scene)
-    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene), scene.n_fingers)
-    cm = compose(template, scene.fingertips, scene.object, runtime=scene.runtime,
-                 constants={k: v for k, v in values.items() if k not in scene.runtime},
-                 outputs=(), name=f"{scene.name}_vm")
+    cm, _ = planar_casadi(replace(scene, outputs=(), name=f"{scene.name}_vm"))
     return cm.rhs
 
 
