@@ -100,14 +100,10 @@ class SympyToCasadi:
             return out
         if e.is_Pow:
             base, ex = args[0], e.args[1]
-            if ex == sp.Rational(1, 2):
-                return ca.sqrt(base)
-            if ex == sp.Rational(-1, 2):
-                return 1 / ca.sqrt(base)
-            if ex == -1:
-                return 1 / base
-            if ex == 2:
-                return base * base
+            if ex.is_Rational and ex.q in (1, 2) and abs(ex.p) // ex.q <= _MAX_MUL_POWER:
+                # small integer and half-integer powers as products and one sqrt: several
+                # times cheaper than pow() in C, and their derivatives stay pow-free
+                return _small_power(base, int(ex.p), int(ex.q))
             if ex.is_Integer and ex < 0:
                 return 1 / ca.constpow(base, float(-ex))
             return ca.constpow(base, args[1]) if ex.is_Number else ca.power(base, args[1])
@@ -148,6 +144,19 @@ class SympyToCasadi:
         if isinstance(c, sp.Or):
             return _fold(ca.logic_or, [self._cond(a) for a in c.args])
         raise TranslationError(f"no CasADi translation for condition {c}")
+
+
+#: Largest integer part of a power written out as products (``x**4``, ``x**(-9/2)``).
+_MAX_MUL_POWER = 4
+
+
+def _small_power(base: ca.SX, p: int, q: int) -> ca.SX:
+    """``base ** (p / q)`` for ``q`` in (1, 2) and ``|p| / q <= _MAX_MUL_POWER``."""
+    k = abs(p) // q  # integer part of the exponent
+    out = ca.sqrt(base) if q == 2 else None
+    for _ in range(k):
+        out = base if out is None else out * base
+    return 1 / out if p < 0 else out
 
 
 def _fold(op, args):
