@@ -281,7 +281,7 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
 /* ========================================================================== */
 
 #ifndef GS_PROJ_MAXIT
-#define GS_PROJ_MAXIT 8 /* Gauss-Newton iterations per phase (positions, velocities) */
+#define GS_PROJ_MAXIT 8 /* Gauss-Newton iterations on the positions */
 #endif
 
 GS_EXPORT int gs_con_info(long* nc) {
@@ -404,19 +404,18 @@ static int gs_project_state(gs_work* wk, double* x, const double* p, const int* 
     }
     if (changed) *changed = 1;
   }
-  for (int it = 0;; ++it) { /* velocities: Cdot is affine in them */
-    const double r = gs_max_abs(Cd, GS_NC);
-    if (it == 0) st[GS_ST_DRIFT_CDOT] = fmax(st[GS_ST_DRIFT_CDOT], r);
-    if (r <= tol) break;
-    if (it == GS_PROJ_MAXIT || !isfinite(r) || gs_least_norm(x, mask, 2, JCd, Cd)) {
-      st[GS_ST_PROJ_PHASE] = 2;
-      st[GS_ST_PROJ_RES] = r;
-      return GS_ERR_PROJECT;
-    }
-    if (changed) *changed = 1;
-    if ((rc = gs_eval_con(wk, x, p, NULL, NULL, Cd, JCd))) return rc;
-    st[GS_ST_CON_EVALS] += 1;
+  /* velocities: Cdot is affine in them, Cdot = JCd v + b(q), so one least-norm step
+   * zeroes it up to rounding (relative GS_EPS times the condition of JCd JCd^T, checked by
+   * gs_solve_small's pivot test); it is not evaluated again. */
+  const double r = gs_max_abs(Cd, GS_NC);
+  st[GS_ST_DRIFT_CDOT] = fmax(st[GS_ST_DRIFT_CDOT], r);
+  if (r <= tol) return 0;
+  if (!isfinite(r) || gs_least_norm(x, mask, 2, JCd, Cd)) {
+    st[GS_ST_PROJ_PHASE] = 2;
+    st[GS_ST_PROJ_RES] = r;
+    return GS_ERR_PROJECT;
   }
+  if (changed) *changed = 1;
   return 0;
 }
 
@@ -426,10 +425,11 @@ static int gs_project_state(gs_work* wk, double* x, const double* p, const int* 
  *   1. positions: Gauss-Newton on C(x) = 0 with the least-norm change of the states with
  *      mask[i] == 1 (those C depends on), x_S -= J^T (J J^T)^-1 C, J = dC/dx_S, until
  *      max|C| <= tol;
- *   2. velocities: the same on Cdot(x) = 0 with the states with mask[i] == 2 (the speeds:
- *      Cdot depends on them affinely, C not at all), until max|Cdot| <= tol.
- * States with mask[i] == 0 are never changed.  Each phase stops after GS_PROJ_MAXIT
- * iterations.  stats (NULL or GS_NSTATS doubles, written) receives the GS_ST_CON_EVALS,
+ *   2. velocities: one least-norm step on Cdot(x) = 0 with the states with mask[i] == 2
+ *      (the speeds: Cdot depends on them affinely, C not at all), when max|Cdot| > tol;
+ *      being affine, one step is exact up to rounding and Cdot is not evaluated again.
+ * States with mask[i] == 0 are never changed.  The position phase stops after
+ * GS_PROJ_MAXIT iterations.  stats (NULL or GS_NSTATS doubles, written) receives the GS_ST_CON_EVALS,
  * GS_ST_DRIFT_* entries and, on failure, GS_ST_PROJ_PHASE and GS_ST_PROJ_RES.
  * Returns 0, GS_ERR_PROJECT (not converged in GS_PROJ_MAXIT iterations, a singular
  * J J^T or a non-finite residual), GS_ERR_EVAL or GS_ERR_ARGS (x or mask NULL, tol <= 0).
