@@ -74,44 +74,65 @@ def pydy_rows(energy_model, x_ref: np.ndarray, *, quick: bool, log=print) -> tup
         f"{info['codegen_compile']:.2f} s")
     tols = (1e-6, 1e-8, 1e-10) if quick else tuple(10.0**-k for k in range(4, 13))
     budget = 0.5 if quick else 2.0
-    repeats = 3 if quick else 5
-    grid = wp.dense_grid()
+    measure = _PydySetting(peer, energy_model, x_ref, repeats=3 if quick else 5)
     rows = []
     for method in PYDY_METHODS:
         label = f"PyDy+{method}"
         for i, tol in enumerate(tols):
-            atol = tol * wp.ATOL_FACTOR
-            details: list = []
-            try:
-                (r,) = pp.work_precision(x_ref, [tol], method=method, peer=peer,
-                                         model=energy_model, atol_factor=wp.ATOL_FACTOR,
-                                         repeats=repeats, t_final=wp.T_FINAL, details=details)
-                dense = peer.simulate(wp.T_FINAL, rtol=tol, atol=atol, method=method,
-                                      t_eval=grid)
-            except RuntimeError as exc:
-                rows.append({"method": label, "peer": PYDY, "rtol": tol, "atol": atol,
-                             "failed": str(exc).splitlines()[0][:300], "error": math.inf})
-                log(f"  {label} rtol={tol:g} FAILED: {rows[-1]['failed'][:100]}")
-                continue
-            d = details[0]
-            row = {"method": label, "peer": PYDY, "rtol": tol, "atol": atol, "wall_s": r.wall_s,
-                   "repeats": repeats, "error": r.error, "nfev": d["nfev"],
-                   **wp.trajectory_diagnostics(energy_model, dense.t, dense.x),
-                   # the peer's own max(|Q|, |R|) on its dense run (the same definition)
-                   "max_constraint_residual": r.max_constraint_residual,
-                   "pydy_max_gap_m": d["pydy_max_gap_m"],
-                   "pydy_max_tangency_rad": d["pydy_max_tangency_rad"]}
-            rows.append(row)
-            _log(row, log)
-            if r.wall_s > budget and tols[i + 1:]:
+            rows.append(measure(label, method, tol, tol * wp.ATOL_FACTOR))
+            _log(rows[-1], log)
+            if rows[-1].get("wall_s", 0.0) > budget and tols[i + 1:]:
                 rows.append(wp.skipped_row(label, list(tols[i + 1:]),
-                                           f"a run at rtol={tol:g} took {r.wall_s:.2f} s "
-                                           f"(> {budget:g} s budget)"))
+                                           f"a run at rtol={tol:g} took "
+                                           f"{rows[-1]['wall_s']:.2f} s (> {budget:g} s budget)"))
                 break
+    # the same (rtol, atol) grid near error 1e-8 as our methods
+    for method in PYDY_METHODS:
+        label = f"PyDy+{method}"
+        for kw in wp.grid_settings(quick, wp._taken(rows, label)):
+            rows.append({**measure(label, method, kw["rtol"], kw["atol"]), "grid": True})
+            _log(rows[-1], log)
     return rows, info
 
 
+class _PydySetting:
+    """Times one PyDy setting (median of ``repeats`` after an untimed run) and measures its
+    dense run: one peer row."""
+
+    def __init__(self, peer, energy_model, x_ref, *, repeats: int):
+        self.peer, self.energy_model, self.x_ref = peer, energy_model, x_ref
+        self.repeats = repeats
+        self.grid = wp.dense_grid()
+
+    def __call__(self, label: str, method: str, rtol: float, atol: float) -> dict:
+        from benchmarks.peers import pydy_paper2d as pp
+
+        details: list = []
+        try:
+            (r,) = pp.work_precision(self.x_ref, [rtol], method=method, peer=self.peer,
+                                     model=self.energy_model, atol=atol,
+                                     repeats=self.repeats, t_final=wp.T_FINAL, details=details)
+            dense = self.peer.simulate(wp.T_FINAL, rtol=rtol, atol=atol, method=method,
+                                       t_eval=self.grid)
+        except RuntimeError as exc:
+            return {"method": label, "peer": PYDY, "rtol": rtol, "atol": atol,
+                    "failed": str(exc).splitlines()[0][:300], "error": math.inf}
+        d = details[0]
+        return {"method": label, "peer": PYDY, "rtol": rtol, "atol": atol, "wall_s": r.wall_s,
+                "repeats": self.repeats, "error": r.error, "nfev": d["nfev"],
+                **wp.trajectory_diagnostics(self.energy_model, dense.t, dense.x),
+                # the peer's own max(|Q|, |R|) on its dense run (the same definition)
+                "max_constraint_residual": r.max_constraint_residual,
+                "pydy_max_gap_m": d["pydy_max_gap_m"],
+                "pydy_max_tangency_rad": d["pydy_max_tangency_rad"]}
+
+
 def _log(row: dict, log) -> None:
-    log(f"  {row['method']:26s} rtol={row['rtol']:g} {row['wall_s'] * 1e3:9.3f} ms  "
+    if "failed" in row:
+        log(f"  {row['method']:26s} rtol={row['rtol']:g} atol={row['atol']:g} FAILED: "
+            f"{row['failed'][:100]}")
+        return
+    log(f"  {row['method']:26s} rtol={row['rtol']:g} atol={row['atol']:g} "
+        f"{row['wall_s'] * 1e3:9.3f} ms  "
         f"err {row['error']:.2e}  residual {row['max_constraint_residual']:.1e}  "
         f"drift {row['energy_drift_J']:.1e} J")

@@ -298,6 +298,16 @@ def _wp_section(res: dict) -> list[str]:
                      _ms(r["first_call_s"]), r["repeats"], _e(r["error"]), st["n_steps"],
                      st["n_rhs"], st.get("n_jac", "–"),
                      _e(r.get("max_constraint_residual")), _e(r.get("energy_drift_J"))])
+    grid_rows = []
+    for r in res.get("grid", []):
+        if "failed" in r:
+            grid_rows.append([r["method"], _setting(r), "failed", "", "∞", "", "", "", "",
+                              r["failed"][:90].replace("|", "/")])
+            continue
+        st = r["stats"]
+        grid_rows.append([r["method"], _setting(r), _ms(r["wall_s"]), r["repeats"],
+                          _e(r["error"]), st["n_steps"], st["n_rhs"], st.get("n_jac", "–"),
+                          _e(r.get("max_constraint_residual")), _e(r.get("energy_drift_J"))])
     bd_rows = []
     for d in res["breakdown"]:
         if "rhs_s" not in d:
@@ -343,6 +353,20 @@ def _wp_section(res: dict) -> list[str]:
                  "error", "steps", "rhs evals", "jac evals", "constraint residual",
                  "energy drift J"], rows),
         "",
+        "### (rtol, atol) grid near error 1e-8",
+        "",
+        "Near 1e-8 the error does not fall monotonically along a tolerance line, and the "
+        "cheapest setting reaching it is often off the line atol = rtol × 1e-2. So each of our "
+        "adaptive methods (except plain dopri5, stiff with the paper's gains) also runs on the "
+        f"grid rtol ∈ {{{', '.join(f'{v:g}' for v in _grid()[0])}}} × atol ∈ "
+        f"{{{', '.join(f'{v:g}' for v in _grid()[1])}}} (settings of the sweep not repeated), "
+        "measured as above. The peers get the same grid (section 4). Equal-error "
+        "comparisons and the method choice use the sweep and the grid together; on the plot "
+        "grid points are hollow markers.",
+        "",
+        *_table(["method", "setting", "wall ms", "runs", "error", "steps", "rhs evals",
+                 "jac evals", "constraint residual", "energy drift J"], grid_rows),
+        "",
         "### Where the time goes (SUNDIALS through CasADi)",
         "",
         "One more run per setting with CasADi's `record_time` (same options as the package): "
@@ -374,14 +398,29 @@ def _wp_section(res: dict) -> list[str]:
         "whose run took ≤ "
         f"{'0.5' if res['quick'] else '3'} s (one more run each).",
         "",
-        *peer_table(res["baseline"]),
+        "Two formulations, as for our own curves: the paper's equations (the scene, with its "
+        "Baumgarte gains; stiff), and the same equations with the gains at 0 "
+        "(`ReferenceModel(gs.scenes.paper2d(gf=0, gl=0, wf=0, wl=0))`, rows '…, no "
+        "Baumgarte'): not stiff, so LSODA's Adams mode and DOP853 run fast there, but with "
+        "nothing to hold the constraints (solve_ivp cannot project) they drift, which the "
+        "residual column shows. The ratio in the summary is against the faster of the two.",
+        "",
+        *peer_table([r for r in res["baseline"] if not r.get("grid")]),
+        "",
+        "On the (rtol, atol) grid near 1e-8 (section 3), "
+        + ", ".join(f"lambdify+{m}{sfx}" for sfx, ms in _baseline_grid_methods().items()
+                    for m in ms) + ":",
+        "",
+        *peer_table([r for r in res["baseline"] if r.get("grid")]),
         "",
         *_peers_md(res),
         "### Time to reach final-state error 1e-8",
         "",
-        *equal_error_table(res["compiled"], res["baseline"] + res.get("peers", [])),
+        *equal_error_table(res["compiled"] + res.get("grid", []),
+                           res["baseline"] + res.get("peers", [])),
         "",
         *peers_equal_error_md(res["peers_equal_error"], PEER_TARGETS),
+        *_same_formulation_md(res.get("same_formulation", {})),
         *method_choice_md(res["method_choice"], wp_failures(res["compiled"]),
                           ref_difference=res["reference"]["difference"], section="5",
                           notes=[
@@ -432,9 +471,45 @@ def _peers_md(res: dict) -> list[str]:
           "an untimed run. PyDy's own residuals on the dense run: contact gap and tangency defect "
           "(which Q, R do not see).",
           "",
-          *peer_table(pydy, extra=("pydy_max_tangency_rad", "tangency defect rad")),
+          *peer_table([r for r in pydy if not r.get("grid")],
+                      extra=("pydy_max_tangency_rad", "tangency defect rad")),
+          "",
+          "On the (rtol, atol) grid near 1e-8 (section 3):",
+          "",
+          *peer_table([r for r in pydy if r.get("grid")],
+                      extra=("pydy_max_tangency_rad", "tangency defect rad")),
           ""]
     return L
+
+
+def _same_formulation_md(same: dict) -> list[str]:
+    """Ours against lambdify with both sides on one formulation."""
+    if not same:
+        return []
+    rows = []
+    for name, eq in same.items():
+        i = eq["time_s"]
+        rows.append([name,
+                     "–" if i["compiled_s"] is None else
+                     f"{i['compiled_method']} {_ms(i['compiled_s'])}",
+                     "–" if i["baseline_s"] is None else
+                     f"{i['baseline_method']} {_ms(i['baseline_s'])}",
+                     "–" if i["ratio"] is None else f"**{i['ratio']:.0f}×**"])
+    return ["Against lambdify + solve_ivp with both sides on the same formulation "
+            "(interpolated at 1e-8, ms):",
+            "",
+            *_table(["formulation", "ours", "lambdify + solve_ivp", "ratio"], rows),
+            ""]
+
+
+def _grid() -> tuple:
+    from benchmarks.work_precision import GRID_ATOLS, GRID_RTOLS
+    return GRID_RTOLS, GRID_ATOLS
+
+
+def _baseline_grid_methods() -> dict:
+    from benchmarks.work_precision import BASELINE_GRID_METHODS
+    return BASELINE_GRID_METHODS
 
 
 def _best_error(rows: list[dict], method: str) -> float:
@@ -572,6 +647,8 @@ STYLES = {"cvodes": ("C0", "o", "-"), "idas": ("C1", "s", "-"), "rk4": ("C2", "^
           "dopri5 + projection, no Baumgarte": ("C8", "H", "-."),
           "lambdify+LSODA": ("C3", "D", "--"), "lambdify+Radau": ("C4", "v", "--"),
           "lambdify+DOP853": ("C5", "P", "--"),
+          "lambdify+LSODA, no Baumgarte": ("#e377c2", "d", "--"),
+          "lambdify+DOP853, no Baumgarte": ("#17becf", "P", "--"),
           "CasADi (uncompiled)+cvodes": ("C9", "p", ":"),
           "PyDy+odeint": ("#393b79", "<", ":"), "PyDy+LSODA": ("#843c39", ">", ":"),
           "PyDy+Radau": ("#8c6d31", "d", ":")}
@@ -597,8 +674,9 @@ def plot_work_precision(res: dict, path: Path, *,
                         title: str = "paper2d, 3 s simulation: work-precision",
                         target_ms: float = 1.0, extra: list[dict] | tuple = ()) -> None:
     """Log-log wall time against final-state error: one curve per method of
-    ``res['compiled']``, ``res['baseline']`` and ``res['peers']``; ``extra`` rows (same keys)
-    as markers without lines, in their method's colour."""
+    ``res['compiled']``, ``res['baseline']`` and ``res['peers']``; grid rows (``grid``: ours
+    in ``res['grid']``, the peers' marked) and ``extra`` rows (same keys) as hollow markers
+    without lines, in their method's colour."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -608,7 +686,12 @@ def plot_work_precision(res: dict, path: Path, *,
     peers = res["baseline"] + res.get("peers", [])
     for r in res["compiled"] + peers:
         if "wall_s" in r and math.isfinite(r.get("error", math.inf)):
-            groups.setdefault(r["method"], []).append(r)
+            if r.get("grid"):
+                extra = [*extra, r]
+            else:
+                groups.setdefault(r["method"], []).append(r)
+    seen = {id(r) for r in extra}
+    extra = [*extra, *(r for r in res.get("grid", []) if id(r) not in seen)]
     ours = {r["method"] for r in res["compiled"]}
     failed = _failed_text(res["compiled"] + peers)
     floor = max(res["reference"]["difference"], 1e-16)
@@ -633,7 +716,8 @@ def plot_work_precision(res: dict, path: Path, *,
         color, marker, _ = STYLES.get(m, ("k", "x", ":"))
         ax.loglog([max(r["error"], floor / 10) for r in rows], [r["wall_s"] * 1e3 for r in rows],
                   ls="none", marker=marker, mfc="none", color=color, ms=5, alpha=0.8,
-                  label=f"grasping_sym {m}, other (rtol, atol)")
+                  label=("grasping_sym " + m if m in ours else m)
+                  + ", (rtol, atol) grid")
     ax.axvline(1e-8, color="0.4", lw=0.8, ls=":")
     ax.axhline(target_ms, color="0.4", lw=0.8, ls=":")
     ax.text(0.9e-8, 0.9 * target_ms, f"targets: error ≤ 1e-8, {target_ms:g} ms", fontsize=7,

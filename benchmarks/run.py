@@ -130,13 +130,30 @@ def run(*, quick: bool) -> dict:
                                             outputs=energy_outputs))
     res["compiled"] = wp.compiled_methods(model, energy_model, x_ref, quick=quick,
                                           proj_model=proj_model, log=_log)
+    _log("3b. (rtol, atol) grid near error 1e-8, compiled methods")
+    res["grid"] = wp.compiled_grid(model, energy_model, x_ref, res["compiled"], quick=quick,
+                                   proj_model=proj_model, log=_log)
     res["breakdown"] = wp.sundials_breakdown(model, stages["_casadi_model"], res["compiled"],
                                              quick=quick)
 
-    _log("4. baseline: lambdify + solve_ivp")
-    res["baseline"] = wp.baseline(reference_model, model.initial_state(), x_ref, quick=quick,
+    _log("4. baseline: lambdify + solve_ivp, the paper's equations and without Baumgarte")
+    x0 = model.initial_state()
+    nb_scene = gs.scenes.paper2d(name="paper2d_proj", gf=0.0, gl=0.0, wf=0.0, wl=0.0)
+    nb_reference = ReferenceModel(nb_scene)
+    if not np.allclose(proj_model.initial_state(), x0, rtol=0.0, atol=1e-15):
+        raise RuntimeError("the scene without Baumgarte terms starts elsewhere")
+    res["baseline"] = wp.baseline(reference_model, x0, x_ref, quick=quick,
                                   energy_model=energy_model, log=_log)
-    res["equal_error"] = wp.equal_error_comparison(res["compiled"], res["baseline"])
+    res["baseline"] += wp.baseline(nb_reference, x0, x_ref, quick=quick,
+                                   energy_model=energy_model, methods=wp.BASELINE_NB_METHODS,
+                                   suffix=wp.NO_BAUMGARTE, log=_log)
+    _log("4a. baseline on the (rtol, atol) grid near error 1e-8")
+    for suffix, methods in wp.BASELINE_GRID_METHODS.items():
+        res["baseline"] += wp.baseline_grid(
+            nb_reference if suffix else reference_model, x0, x_ref, res["baseline"],
+            quick=quick, energy_model=energy_model, methods=methods, suffix=suffix, log=_log)
+    ours = res["compiled"] + res["grid"]
+    res["equal_error"] = wp.equal_error_comparison(ours, res["baseline"])
 
     _log("4b. peers: CasADi without compilation, PyDy Cython")
     from benchmarks import peer_curves
@@ -145,11 +162,14 @@ def run(*, quick: bool) -> dict:
                                            quick=quick, log=_log)
     pydy, res["pydy_build"] = peer_curves.pydy_rows(energy_model, x_ref, quick=quick, log=_log)
     res["peers"] += pydy
-    res["peers_equal_error"] = wp.peers_at_equal_error(res["compiled"], {
+    res["peers_equal_error"] = wp.peers_at_equal_error(ours, {
         "SymPy lambdify + solve_ivp": res["baseline"],
+        wp.PAPER_EQUATIONS_ONLY: [r for r in res["baseline"]
+                                  if not r["method"].endswith(wp.NO_BAUMGARTE)],
         peer_curves.CASADI: [r for r in res["peers"] if r.get("peer") == peer_curves.CASADI],
         peer_curves.PYDY: [r for r in res["peers"] if r.get("peer") == peer_curves.PYDY]})
-    res["method_choice"] = wp.method_choice(res["compiled"])
+    res["method_choice"] = wp.method_choice(ours)
+    res["same_formulation"] = wp.same_formulation(ours, res["baseline"])
 
     _log("5. folding constants vs run-time parameters")
     from benchmarks.folding import folding

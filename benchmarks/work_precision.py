@@ -37,8 +37,29 @@ DENSE_DT = 2.5e-4
 #: single run exceeds the time budget).
 BASELINE_METHODS = ("LSODA", "Radau", "DOP853")
 BASELINE_RTOLS = [10.0**-k for k in range(2, 11)]
-QUICK_BASELINE = {"LSODA": [1e-5, 1e-7], "Radau": [1e-3, 1e-5], "DOP853": [1e-3]}
+QUICK_BASELINE = {"LSODA": [1e-5, 1e-7], "Radau": [1e-3, 1e-5], "DOP853": [1e-5]}
 
+
+#: (rtol, atol) grid near final-state error 1e-8, searched for our adaptive methods and for
+#: the peers alike (the sweeps tie atol to rtol; the cheapest setting reaching 1e-8 is
+#: often off that line, so every side gets the same search). Settings already in a sweep
+#: are not repeated.
+GRID_RTOLS = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7)
+GRID_ATOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+QUICK_GRID_RTOLS, QUICK_GRID_ATOLS = (1e-4,), (1e-7,)
+#: Our methods searched on the grid (plain dopri5 and rk4 are left out: the first is stiff
+#: with the paper's gains, the second has no tolerances).
+GRID_METHODS = ("cvodes", "idas", "radau", "radau + projection, no Baumgarte",
+                "dopri5 + projection, no Baumgarte")
+#: The lambdify baseline on the scene without Baumgarte stabilisation (gains 0, no
+#: projection: solve_ivp has none): not stiff, so explicit methods and LSODA's Adams mode
+#: run there; the constraints drift, which the residual column measures.
+NO_BAUMGARTE = ", no Baumgarte"
+BASELINE_NB_METHODS = ("LSODA", "DOP853")
+#: The peer entry restricted to the paper's equations (informational, no figure).
+PAPER_EQUATIONS_ONLY = "SymPy lambdify + solve_ivp, the paper's equations only"
+#: Baseline methods searched on the grid, per formulation ('' = the paper's equations).
+BASELINE_GRID_METHODS = {"": ("LSODA", "Radau"), NO_BAUMGARTE: ("LSODA", "DOP853")}
 
 RADAU_RTOLS = (1e-2, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
 QUICK_RADAU_RTOLS = (1e-3, 1e-5)
@@ -194,8 +215,41 @@ def compiled_methods(model, energy_model, x_ref: np.ndarray, *, quick: bool,
     return rows
 
 
+def grid_settings(quick: bool, taken: set | None = None) -> list[dict]:
+    """The (rtol, atol) grid near error 1e-8, minus the settings in ``taken``."""
+    taken = taken or set()
+    return [{"rtol": r, "atol": a}
+            for r in (QUICK_GRID_RTOLS if quick else GRID_RTOLS)
+            for a in (QUICK_GRID_ATOLS if quick else GRID_ATOLS)
+            if not any(math.isclose(r, tr) and math.isclose(a, ta) for tr, ta in taken)]
+
+
+def _taken(rows: list[dict], method: str) -> set:
+    return {(r["rtol"], r["atol"]) for r in rows if r.get("method") == method and "rtol" in r}
+
+
+def compiled_grid(model, energy_model, x_ref: np.ndarray, sweep_rows: list[dict], *,
+                  quick: bool, proj_model=None, log=print) -> list[dict]:
+    """Our ``GRID_METHODS`` on the (rtol, atol) grid (rows marked ``grid``)."""
+    repeats = 3 if quick else 9
+    rows = []
+    for label in GRID_METHODS:
+        method, projected = variant(label)
+        if projected and proj_model is None:
+            continue
+        m = proj_model if projected else model
+        for kw in grid_settings(quick, _taken(sweep_rows, label)):
+            kw = {**kw, "project": True} if projected else kw
+            row = time_setting(m, proj_model if projected else energy_model, method, kw,
+                               x_ref, repeats=repeats, label=label)
+            row["grid"] = True
+            rows.append(row)
+            _log_row(row, log)
+    return rows
+
+
 def _log_row(row: dict, log) -> None:
-    setting = f"h={row['h']:g}" if "h" in row else f"rtol={row['rtol']:g}"
+    setting = f"h={row['h']:g}" if "h" in row else f"rtol={row['rtol']:g} atol={row['atol']:g}"
     if "failed" in row:
         log(f"  {row['method']:7s} {setting:12s} FAILED: {row['failed'][:100]}")
     else:
@@ -256,76 +310,111 @@ def sundials_breakdown(model, casadi_model, rows: list[dict], *, quick: bool) ->
 
 # ---------------------------------------------------------------------- baseline
 def baseline(reference_model, x0: np.ndarray, x_ref: np.ndarray, *, quick: bool,
-             energy_model=None, log=print) -> list[dict]:
+             energy_model=None, methods=BASELINE_METHODS, suffix: str = "",
+             log=print) -> list[dict]:
     """SymPy lambdify (``ReferenceModel.rhs``) + ``scipy.integrate.solve_ivp``.
 
-    Tolerances loosest first. A run is stopped once it has taken ``BASELINE_BUDGET_S``
-    (quick: ``QUICK_BASELINE_BUDGET_S``) and the method's tighter tolerances are then
-    skipped (a row says so). Median of 3 runs when a run takes under 2 s, else a single run.
-    With ``energy_model``, settings whose run took at most ``BASELINE_DIAG_S`` get one more
-    run with dense output for the constraint residual and energy drift.
+    Tolerances loosest first, atol = rtol * ATOL_FACTOR. A run is stopped once it has taken
+    ``BASELINE_BUDGET_S`` (quick: ``QUICK_BASELINE_BUDGET_S``) and the method's tighter
+    tolerances are then skipped (a row says so). Median of 3 runs when a run takes under
+    2 s, else a single run. With ``energy_model``, settings whose run took at most
+    ``BASELINE_DIAG_S`` get one more run with dense output for the constraint residual and
+    energy drift. ``suffix`` is appended to the method labels (``NO_BAUMGARTE`` when
+    ``reference_model`` is the scene without stabilisation).
     """
     budget = QUICK_BASELINE_BUDGET_S if quick else BASELINE_BUDGET_S
-    diag_limit = QUICK_BASELINE_DIAG_S if quick else BASELINE_DIAG_S
-    deadline = [math.inf]
+    run = _BaselineRunner(reference_model, x0, x_ref, quick=quick, energy_model=energy_model)
+    rows = []
+    for method in methods:
+        rtols = QUICK_BASELINE.get(method, [1e-5]) if quick else BASELINE_RTOLS
+        label = f"lambdify+{method}{suffix}"
+        for rtol in rtols:
+            row, first = run(label, method, rtol, rtol * ATOL_FACTOR)
+            rows.append(row)
+            log(f"  {label:30s} rtol={rtol:g} {first:8.3f} s  "
+                f"err {row['error']:.2e}  nfev {row['nfev']}  {row.get('failed', '')}")
+            if first > budget or row.get("over_budget"):
+                skipped = [r for r in rtols if r < rtol]
+                if skipped:
+                    log(f"  {label}: over the {budget:g} s budget, skipping rtol {skipped}")
+                    rows.append(skipped_row(label, skipped,
+                                            f"a run at rtol={rtol:g} took {first:.1f} s "
+                                            f"(≥ {budget:g} s budget)"))
+                break
+    return rows
 
-    def f(t, y):
-        if time.perf_counter() > deadline[0]:
+
+def baseline_grid(reference_model, x0: np.ndarray, x_ref: np.ndarray, sweep_rows: list[dict],
+                  *, quick: bool, energy_model=None, methods=(), suffix: str = "",
+                  log=print) -> list[dict]:
+    """The baseline's ``methods`` on the (rtol, atol) grid (rows marked ``grid``), measured
+    as in ``baseline``; settings already in ``sweep_rows`` are not repeated."""
+    run = _BaselineRunner(reference_model, x0, x_ref, quick=quick, energy_model=energy_model)
+    rows = []
+    for method in methods:
+        label = f"lambdify+{method}{suffix}"
+        for kw in grid_settings(quick, _taken(sweep_rows, label)):
+            row, first = run(label, method, kw["rtol"], kw["atol"])
+            row["grid"] = True
+            rows.append(row)
+            log(f"  {label:30s} rtol={kw['rtol']:g} atol={kw['atol']:g} {first:8.3f} s  "
+                f"err {row['error']:.2e}  {row.get('failed', '')}")
+    return rows
+
+
+class _BaselineRunner:
+    """Times one lambdify + solve_ivp setting: ``(row, wall of the first run)``."""
+
+    def __init__(self, reference_model, x0, x_ref, *, quick: bool, energy_model=None):
+        self.ref, self.x0, self.x_ref = reference_model, x0, x_ref
+        self.quick, self.energy_model = quick, energy_model
+        self.budget = QUICK_BASELINE_BUDGET_S if quick else BASELINE_BUDGET_S
+        self.diag_limit = QUICK_BASELINE_DIAG_S if quick else BASELINE_DIAG_S
+        self.deadline = math.inf
+
+    def _f(self, t, y):
+        if time.perf_counter() > self.deadline:
             raise _OverBudget(t)
-        return reference_model.rhs(y)
+        return self.ref.rhs(y)
 
-    def solve(method, rtol, atol, t_eval):
-        deadline[0] = time.perf_counter() + budget
+    def solve(self, method, rtol, atol, t_eval):
+        self.deadline = time.perf_counter() + self.budget
         try:
-            return solve_ivp(f, (0.0, T_FINAL), x0, method=method, rtol=rtol, atol=atol,
-                             t_eval=t_eval)
+            return solve_ivp(self._f, (0.0, T_FINAL), self.x0, method=method, rtol=rtol,
+                             atol=atol, t_eval=t_eval)
         except _OverBudget as exc:
-            return _Failed(f"stopped after the {budget:g} s time budget at t = "
+            return _Failed(f"stopped after the {self.budget:g} s time budget at t = "
                            f"{exc.args[0]:.3g} s of {T_FINAL:g}", over_budget=True)
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
             return _Failed(f"{type(exc).__name__}: {exc}")
 
-    rows = []
-    for method in BASELINE_METHODS:
-        rtols = QUICK_BASELINE[method] if quick else BASELINE_RTOLS
-        for rtol in rtols:
-            atol = rtol * ATOL_FACTOR
-            walls, sol = [], None
-            while True:
-                t0 = time.perf_counter()
-                sol = solve(method, rtol, atol, T_EVAL)
-                walls.append(time.perf_counter() - t0)
-                if quick or walls[0] > 2.0 or len(walls) >= 3 or not sol.success:
-                    break
-            row = {"method": f"lambdify+{method}", "rtol": rtol, "atol": atol,
-                   "repeats": len(walls), "nfev": int(sol.nfev),
-                   "njev": int(getattr(sol, "njev", 0) or 0), "success": bool(sol.success)}
-            if sol.success:
-                row["wall_s"] = median(walls)
-                row["error"] = err(sol.y[:, -1], x_ref)
-                if energy_model is not None and walls[0] <= diag_limit:
-                    dense = solve(method, rtol, atol, dense_grid())
-                    if dense.success:
-                        row.update(trajectory_diagnostics(energy_model, dense.t, dense.y.T))
-                elif energy_model is not None:
-                    row["note"] = (f"residual and drift not measured (run > {diag_limit:g} s, "
-                                   "no dense run)")
-            else:
-                row["error"] = math.inf
-                row["failed"] = sol.message
-                row["stopped_after_s"] = walls[0]
-            rows.append(row)
-            log(f"  {row['method']:16s} rtol={rtol:g} {walls[0]:8.3f} s  "
-                f"err {row['error']:.2e}  nfev {row['nfev']}  {row.get('failed', '')}")
-            if walls[0] > budget or getattr(sol, "over_budget", False):
-                skipped = [r for r in rtols if r < rtol]
-                if skipped:
-                    log(f"  {method}: over the {budget:g} s budget, skipping rtol {skipped}")
-                    rows.append(skipped_row(f"lambdify+{method}", skipped,
-                                            f"a run at rtol={rtol:g} took {walls[0]:.1f} s "
-                                            f"(≥ {budget:g} s budget)"))
+    def __call__(self, label: str, method: str, rtol: float, atol: float) -> tuple[dict, float]:
+        walls, sol = [], None
+        while True:
+            t0 = time.perf_counter()
+            sol = self.solve(method, rtol, atol, T_EVAL)
+            walls.append(time.perf_counter() - t0)
+            if self.quick or walls[0] > 2.0 or len(walls) >= 3 or not sol.success:
                 break
-    return rows
+        row = {"method": label, "rtol": rtol, "atol": atol, "repeats": len(walls),
+               "nfev": int(sol.nfev), "njev": int(getattr(sol, "njev", 0) or 0),
+               "success": bool(sol.success)}
+        if sol.success:
+            row["wall_s"] = median(walls)
+            row["error"] = err(sol.y[:, -1], self.x_ref)
+            if self.energy_model is not None and walls[0] <= self.diag_limit:
+                dense = self.solve(method, rtol, atol, dense_grid())
+                if dense.success:
+                    row.update(trajectory_diagnostics(self.energy_model, dense.t, dense.y.T))
+            elif self.energy_model is not None:
+                row["note"] = (f"residual and drift not measured (run > {self.diag_limit:g} "
+                               "s, no dense run)")
+        else:
+            row["error"] = math.inf
+            row["failed"] = sol.message
+            row["stopped_after_s"] = walls[0]
+            row["over_budget"] = bool(getattr(sol, "over_budget", False))
+        return row, walls[0]
 
 
 def skipped_row(method: str, rtols: list[float], reason: str) -> dict:
@@ -412,6 +501,19 @@ def peers_at_equal_error(ours: list[dict], peers: dict[str, list[dict]],
     """Per peer (name -> its rows, one or more methods): ``equal_error_comparison`` of our
     fastest method against the peer's fastest at final-state error ``target``."""
     return {name: equal_error_comparison(ours, rows, target) for name, rows in peers.items()}
+
+
+def same_formulation(ours: list[dict], baseline_rows: list[dict],
+                     target: float = 1e-8) -> dict:
+    """``equal_error_comparison`` with both sides on one formulation: the paper's equations
+    (our curves without projection against lambdify on the scene), and no Baumgarte (our
+    projection curves against lambdify on the scene with the gains at 0)."""
+    mine = {"the paper's equations (Baumgarte)": [r for r in ours if not variant(r["method"])[1]],
+            "no Baumgarte": [r for r in ours if variant(r["method"])[1]]}
+    theirs = {"the paper's equations (Baumgarte)":
+              [r for r in baseline_rows if not r["method"].endswith(NO_BAUMGARTE)],
+              "no Baumgarte": [r for r in baseline_rows if r["method"].endswith(NO_BAUMGARTE)]}
+    return {k: equal_error_comparison(mine[k], theirs[k], target) for k in mine}
 
 
 # ---------------------------------------------------------------------- method choice

@@ -456,13 +456,14 @@ class WPRow(NamedTuple):
 
 def work_precision(reference_final_state, tolerances=(1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12), *,
                    method: str = "odeint", peer: PydyPeer | None = None, model=None,
-                   atol_factor: float = ATOL_FACTOR, repeats: int = 5, t_final: float = T_FINAL,
+                   atol_factor: float = ATOL_FACTOR, atol: float | None = None,
+                   repeats: int = 5, t_final: float = T_FINAL,
                    details: list | None = None) -> list[WPRow]:
     """Wall time against final-state error of the PyDy peer, one row per ``rtol`` in ``tolerances``.
 
     Each run starts from ``grasping_sym``'s initial state and integrates ``t_final`` seconds with
     ``method`` (``'odeint'``, as ``pydy.system.System`` does, or a ``solve_ivp`` method),
-    ``atol = rtol * atol_factor`` (as ``benchmarks.work_precision``). Wall time: median of
+    ``atol = rtol * atol_factor`` (as ``benchmarks.work_precision``) unless ``atol`` is given. Wall time: median of
     ``repeats`` runs after one untimed run, outputs at ``[0, t_final]`` only. Error: max-norm over
     ``grasping_sym``'s state ``(theta, q1, q2, dtheta, dq1, dq2, s)`` against
     ``reference_final_state`` (ordered so). Constraint residual: one more run with outputs every
@@ -483,7 +484,8 @@ def work_precision(reference_final_state, tolerances=(1e-6, 1e-7, 1e-8, 1e-9, 1e
     rows = []
     dense = np.linspace(0.0, t_final, round(t_final / DENSE_DT) + 1)
     for tol in tolerances:
-        kw = {"rtol": tol, "atol": tol * atol_factor, "method": method}
+        kw = {"rtol": tol, "atol": tol * atol_factor if atol is None else atol,
+              "method": method}
         peer.simulate(t_final, **kw)
         walls = []
         for _ in range(repeats):
