@@ -9,8 +9,10 @@ Modules, one concern each:
 - ``rhs_cost``: cost of one right-hand-side evaluation along every call path;
 - ``work_precision``: wall time against final-state error for every integrator (and, with
   projection, on the scene without Baumgarte stabilisation) and the lambdify +
-  ``scipy.integrate.solve_ivp`` baseline, with constraint residual and energy drift; the
-  comparison at equal error and the method choice per accuracy band;
+  ``scipy.integrate.solve_ivp`` baseline (on the paper's equations and without Baumgarte),
+  with constraint residual and energy drift; the (rtol, atol) grid near error 1e-8 searched
+  alike for ours and the peers; the comparison at equal error (also with both sides on one
+  formulation) and the method choice per accuracy band;
 - ``peer_curves``: the peers of ``peers/`` (CasADi uncompiled, PyDy Cython) as work-precision
   rows, their residual and drift measured by our compiled outputs;
 - ``paper3d``: the same for the 3D scene;
