@@ -89,7 +89,7 @@ def pydy_rows(energy_model, x_ref: np.ndarray, *, quick: bool, log=print) -> tup
     # the same (rtol, atol) grid near error 1e-8 as our methods
     for method in PYDY_METHODS:
         label = f"PyDy+{method}"
-        for kw in wp.grid_settings(quick, wp._taken(rows, label)):
+        for kw in wp.grid_settings(quick, wp.taken_settings(rows, label)):
             rows.append({**measure(label, method, kw["rtol"], kw["atol"]), "grid": True})
             _log(rows[-1], log)
     return rows, info

@@ -224,7 +224,8 @@ def grid_settings(quick: bool, taken: set | None = None) -> list[dict]:
             if not any(math.isclose(r, tr) and math.isclose(a, ta) for tr, ta in taken)]
 
 
-def _taken(rows: list[dict], method: str) -> set:
+def taken_settings(rows: list[dict], method: str) -> set:
+    """The (rtol, atol) pairs of ``method`` already in ``rows``."""
     return {(r["rtol"], r["atol"]) for r in rows if r.get("method") == method and "rtol" in r}
 
 
@@ -238,7 +239,7 @@ def compiled_grid(model, energy_model, x_ref: np.ndarray, sweep_rows: list[dict]
         if projected and proj_model is None:
             continue
         m = proj_model if projected else model
-        for kw in grid_settings(quick, _taken(sweep_rows, label)):
+        for kw in grid_settings(quick, taken_settings(sweep_rows, label)):
             kw = {**kw, "project": True} if projected else kw
             row = time_setting(m, proj_model if projected else energy_model, method, kw,
                                x_ref, repeats=repeats, label=label)
@@ -353,7 +354,7 @@ def baseline_grid(reference_model, x0: np.ndarray, x_ref: np.ndarray, sweep_rows
     rows = []
     for method in methods:
         label = f"lambdify+{method}{suffix}"
-        for kw in grid_settings(quick, _taken(sweep_rows, label)):
+        for kw in grid_settings(quick, taken_settings(sweep_rows, label)):
             row, first = run(label, method, kw["rtol"], kw["atol"])
             row["grid"] = True
             rows.append(row)
