@@ -126,8 +126,9 @@ def run(*, quick: bool) -> dict:
 
     _log("3. work-precision, compiled methods")
     # the same scene without Baumgarte stabilisation, for the curves with projection
-    proj_model = gs.build(gs.scenes.paper2d(name="paper2d_proj", gf=0.0, gl=0.0, wf=0.0, wl=0.0,
-                                            outputs=energy_outputs))
+    nb_scene = gs.scenes.paper2d(name="paper2d_proj", gf=0.0, gl=0.0, wf=0.0, wl=0.0,
+                                 outputs=energy_outputs)
+    proj_model = gs.build(nb_scene)
     res["compiled"] = wp.compiled_methods(model, energy_model, x_ref, quick=quick,
                                           proj_model=proj_model, log=_log)
     _log("3b. (rtol, atol) grid near error 1e-8, compiled methods")
@@ -138,8 +139,7 @@ def run(*, quick: bool) -> dict:
 
     _log("4. baseline: lambdify + solve_ivp, the paper's equations and without Baumgarte")
     x0 = model.initial_state()
-    nb_scene = gs.scenes.paper2d(name="paper2d_proj", gf=0.0, gl=0.0, wf=0.0, wl=0.0)
-    nb_reference = ReferenceModel(nb_scene)
+    nb_reference = ReferenceModel(nb_scene)   # the lambdify baseline without Baumgarte
     if not np.allclose(proj_model.initial_state(), x0, rtol=0.0, atol=1e-15):
         raise RuntimeError("the scene without Baumgarte terms starts elsewhere")
     res["baseline"] = wp.baseline(reference_model, x0, x_ref, quick=quick,
