@@ -815,10 +815,15 @@ static const double gs_rd_P[3][3] = {
 #endif
 /* First step size for an error estimate of order `order` (Hairer-Norsett-Wanner I, II.4, as
  * scipy's select_initial_step): h with h^(order+1) max(|f|, |f'|) = 0.01 in the weighted
- * RMS norm, at most 100 times the explicit Euler probe and at most `interval`. */
+ * RMS norm, at most `interval` and, when probe_cap > 0, at most probe_cap times the
+ * explicit Euler probe 0.01 |y| / |f|.  That probe assumes every component changes
+ * relative to its own size: a start at rest (zero speeds, non-zero accelerations) makes
+ * it ~1e-8 s, and the step then needs ~6 steps of 8x growth to reach the dynamics' scale.
+ * gs_radau5 passes probe_cap = 0 (a too large first step costs one rejected step there:
+ * its first rejection divides h by 10); gs_dopri5 keeps scipy's 100. */
 static int gs_initial_step(gs_work* wk, double t0, const double* y, const double* f,
                            const double* p, double rtol, double atol, double interval,
-                           int order, double* st, double* h_out) {
+                           int order, double probe_cap, double* st, double* h_out) {
   double scale[GS_NX], tmp[GS_NX], fnew[GS_NX];
   for (int i = 0; i < GS_NX; ++i) scale[i] = atol + fabs(y[i]) * rtol;
   const double d0 = gs_rms(y, scale, GS_NX), d1 = gs_rms(f, scale, GS_NX);
@@ -836,7 +841,7 @@ static int gs_initial_step(gs_work* wk, double t0, const double* y, const double
     h1 = fmax(1e-6, hh * 1e-3);
   else
     h1 = pow(0.01 / fmax(d1, d2), 1.0 / (order + 1));
-  double h = fmin(fmin(100.0 * hh, h1), interval);
+  double h = fmin(probe_cap > 0.0 ? fmin(probe_cap * hh, h1) : h1, interval);
   if (!isfinite(h) || h <= 0.0) h = 1e-6 * interval;
   *h_out = h;
   return 0;
@@ -967,7 +972,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   /* Initial step (scipy's select_initial_step with error order 3). */
   if (h0 > 0.0)
     h = h0;
-  else if ((rc = gs_initial_step(wk, t0, y, f, p, rtol, atol, t_end - t0, 3, st, &h)))
+  else if ((rc = gs_initial_step(wk, t0, y, f, p, rtol, atol, t_end - t0, 3, 0.0, st, &h)))
     goto fail;
   for (int i = 0; i < n * n; ++i) M->J[i] = 0.0;
 
@@ -1099,7 +1104,9 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
 #endif
           if (theta < 0.99) {
             faccon = theta / (1.0 - theta);
-            const double dyth = faccon * dyno * pow(theta, nit - 1 - newt) / fnewt;
+            double thpow = 1.0; /* theta^(nit - 1 - newt), without libm's pow */
+            for (int k = newt; k < nit - 1; ++k) thpow *= theta;
+            const double dyth = faccon * dyno * thpow / fnewt;
             if (dyth >= 1.0) { /* predicted not to converge in time: smaller h */
               const double qnewt = fmax(1e-4, fmin(20.0, dyth));
               h *= 0.8 * pow(qnewt, -1.0 / (4.0 + nit - 1 - newt));
@@ -1141,7 +1148,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
 #endif
           /* New step size, 1/FACL <= h_new / h <= 1/FACR. */
           const double fac = fmin(GS_RADAU_SAFE, cfac / (newt + 2 * nit));
-          double quot = fmax(GS_RADAU_FACR, fmin(GS_RADAU_FACL, pow(err_norm, 0.25) / fac));
+          double quot = fmax(GS_RADAU_FACR, fmin(GS_RADAU_FACL, sqrt(sqrt(err_norm)) / fac));
           hnew = h / quot;
           if (!(err_norm < 1.0)) { /* error test failed */
             h = first ? 0.1 * h : hnew;
@@ -1149,7 +1156,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
           }
           /* Accepted: Gustafsson's predictive controller. */
           if (st[0] >= 1.0) {
-            double facgus = (hacc / h) * pow(err_norm * err_norm / erracc, 0.25) / GS_RADAU_SAFE;
+            double facgus = (hacc / h) * sqrt(sqrt(err_norm * err_norm / erracc)) / GS_RADAU_SAFE;
             facgus = fmax(GS_RADAU_FACR, fmin(GS_RADAU_FACL, facgus));
             quot = fmax(quot, facgus);
             hnew = h / quot;
@@ -1212,7 +1219,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
       if (theta_meas > 0.0 && GS_RADAU_THETA_TARGET > 0.0) {
         /* Newton-aware limit: the contraction rate grows like h^THETA_EXP; keep the
          * predicted rate of the next step near THETA_TARGET. */
-        const double cap = fmax(0.5, pow(GS_RADAU_THETA_TARGET / theta_meas, 1.0 / GS_RADAU_THETA_EXP));
+        const double ratio = GS_RADAU_THETA_TARGET / theta_meas;
+        const double cap = fmax(0.5, GS_RADAU_THETA_EXP == 3.0 ? cbrt(ratio) : pow(ratio, 1.0 / GS_RADAU_THETA_EXP));
         hnew = fmin(hnew, cap * h);
       }
       if (reject) hnew = fmin(hnew, h);
@@ -1387,7 +1395,7 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
     }
   if (h0 > 0.0)
     h = fmin(h0, interval);
-  else if ((rc = gs_initial_step(wk, t0, y, k1, p, rtol, atol, interval, 4, st, &h)))
+  else if ((rc = gs_initial_step(wk, t0, y, k1, p, rtol, atol, interval, 4, 100.0, st, &h)))
     goto fail;
 
   while (1) { /* one attempted step per pass */
