@@ -44,7 +44,7 @@ QUICK_BASELINE = {"LSODA": [1e-5, 1e-7], "Radau": [1e-3, 1e-5], "DOP853": [1e-5]
 #: the peers alike (the sweeps tie atol to rtol; the cheapest setting reaching 1e-8 is
 #: often off that line, so every side gets the same search). Settings already in a sweep
 #: are not repeated.
-GRID_RTOLS = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7)
+GRID_RTOLS = (3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7)
 GRID_ATOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
 QUICK_GRID_RTOLS, QUICK_GRID_ATOLS = (1e-4,), (1e-7,)
 #: Our methods searched on the grid (plain dopri5 and rk4 are left out: the first is stiff

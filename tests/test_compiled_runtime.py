@@ -1,4 +1,4 @@
-"""Tests of the compiled runtime: driver.c + compiler.py + runtime/compiled.py."""
+"""Tests of the compiled runtime: driver.c + codegen/library.py + runtime/compiled.py and c_loops.py."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,7 +10,8 @@ from scipy.integrate import solve_ivp
 
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
 from grasping_sym.errors import CompileError, IntegratorError
-from grasping_sym.runtime.compiled import CompiledLibrary, build_library, driver_defines
+from grasping_sym.codegen.library import build_library, driver_defines
+from grasping_sym.runtime.compiled import CompiledLibrary
 
 
 def _dae_rhs(name: str, x: ca.SX, p: ca.SX, ode: ca.SX) -> ca.Function:

@@ -192,7 +192,7 @@ def test_hashed_sources_cover_the_3d_pipeline():
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
     imported = {os.path.relpath(f, PACKAGE_DIR) for f in json.loads(out)}
     shaping = {f for f in imported if f.split("/")[0] in ("derive", "codegen", "model")
-               or f in ("geometry/curves.py", "geometry/surfaces.py", "pipeline.py", "runtime/compiled.py")}
+               or f in ("geometry/curves.py", "geometry/surfaces.py", "pipeline.py")}
     shaping -= {f for f in shaping if f.endswith("__init__.py")}
     shaping -= {"codegen/cache.py"}
     # the NumPy references are imported for solid_ellipsoid_inertia and the error class only

@@ -10,7 +10,8 @@ import pytest
 
 import grasping_sym as gs
 from grasping_sym.errors import ContactLeftContourError, IntegratorError
-from grasping_sym.runtime.compiled import CompiledLibrary, build_library, driver_defines
+from grasping_sym.codegen.library import build_library, driver_defines
+from grasping_sym.runtime.compiled import CompiledLibrary
 
 T_FINAL = 3.0
 
@@ -95,6 +96,51 @@ def test_bad_arguments(paper2d_model):
         lib.radau5(x0, [0.0, 1.0], rtol=0.0)
     with pytest.raises(ValueError, match="shape"):
         lib.radau5(x0[:3], [0.0, 1.0])
+
+
+def test_fast_path_matches_ctypes_path(paper2d_model):
+    """radau5 / dopri5 through the CPython fast path give the ctypes path's results, bit for
+    bit, and the same failure (the same C function runs behind both)."""
+    fast = paper2d_model.library
+    assert fast.fast
+    slow = CompiledLibrary(fast.path, state_names=fast.state_names, use_fast=False)
+    x0 = paper2d_model.initial_state()
+    t_out = [0.0, 0.5, 1.0]
+    for name, kw in (("radau5", dict(rtol=1e-6, atol=1e-9)),
+                     ("dopri5", dict(rtol=1e-10, atol=1e-12))):
+        runs = [getattr(lib, name)(x0, t_out, lo=paper2d_model.lower, hi=paper2d_model.upper, **kw)
+                for lib in (fast, slow)]
+        np.testing.assert_array_equal(runs[0][1], runs[1][1])
+        assert {k: v for k, v in runs[0][2].items() if k != "wall_time"} == \
+            {k: v for k, v in runs[1][2].items() if k != "wall_time"}
+    messages = []
+    for lib in (fast, slow):
+        with pytest.raises(IntegratorError, match=r"too many steps \(3\)") as info:
+            lib.radau5(x0, t_out, max_steps=3)
+        messages.append(str(info.value))
+    assert messages[0] == messages[1]
+
+
+def test_fast_path_rejects_bad_low_level_arguments(paper2d_model):
+    ext = paper2d_model.library._ext
+    nx = paper2d_model.library.nx
+    t, x0 = np.array([0.0, 1.0]), paper2d_model.initial_state()
+    out, stats = np.empty((3, nx)), np.zeros(16)
+    args = [0, t, x0, None, 1e-6, 1e-9, 0.0, 100_000, 0, None, None, None, 0.0, out, stats]
+    assert ext.adaptive(*args)[0] == 2
+    for i, bad, match in ((1, t.astype(np.float32), "t_out must be a C-contiguous"),
+                          (2, x0[:3].copy(), "x0 must have shape"),
+                          (13, np.empty((2, nx)), "out must have shape"),
+                          (14, np.zeros(16)[::2], "stats must be a C-contiguous"),
+                          (0, 7, "method must be 0")):
+        bad_args = list(args)
+        bad_args[i] = bad
+        with pytest.raises((TypeError, ValueError), match=match):
+            ext.adaptive(*bad_args)
+    read_only = np.zeros(16)
+    read_only.flags.writeable = False
+    with pytest.raises(TypeError, match="writeable"):
+        ext.adaptive(*args[:14], read_only)
 
 
 def test_max_steps_failure_names_time(paper2d_model):

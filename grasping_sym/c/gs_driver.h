@@ -25,6 +25,14 @@ int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
 int gs_outputs(const double* x, const double* p, double* y);
 int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
 #endif
+long gs_radau5(double t0, long n_out, const double* t_out, const double* x0, const double* p,
+               double rtol, double atol, double h0, long max_steps, const double* lo,
+               const double* hi, const int* proj_mask, double proj_tol, double* out,
+               double* stats, double* t_fail);
+long gs_dopri5(double t0, long n_out, const double* t_out, const double* x0, const double* p,
+               double rtol, double atol, double h0, long max_steps, long nstiff,
+               const double* lo, const double* hi, const int* proj_mask, double proj_tol,
+               double* out, double* stats, double* t_fail);
 int gs_con_info(long* nc);
 #if GS_HAS_CON
 int gs_constraints(const double* x, const double* p, double* C, double* JC, double* Cd,

@@ -15,9 +15,19 @@
  *   rhs_batch(X, p=None)      -> ndarray (n, nx)
  *   outputs(x, p=None)        -> ndarray (ny,)      (only if GS_HAS_OUT)
  *   outputs_batch(X, p=None)  -> ndarray (n, ny)    (only if GS_HAS_OUT)
+ *   adaptive(method, t_out, x0, p, rtol, atol, h0, max_steps, nstiff, lo, hi, mask,
+ *            proj_tol, out, stats) -> (rc, t_fail)
+ *       gs_radau5 (method 0) or gs_dopri5 (method 1) with the GIL released; the
+ *       low-level call behind CompiledLibrary.radau5 / dopri5, which validate the
+ *       arguments and turn rc into results or errors.  Arrays are not converted:
+ *       t_out, x0, p, lo, hi float64 C-contiguous 1-D (p, lo, hi, mask may be None),
+ *       mask int32, out a writeable float64 C-contiguous (len(t_out) + 1, nx) array
+ *       and stats a writeable float64 array of GS_NSTATS entries; a wrong type or
+ *       shape raises TypeError / ValueError.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <math.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
@@ -198,7 +208,91 @@ static PyObject* py_outputs_batch(PyObject* self, PyObject* const* args, Py_ssiz
 }
 #endif
 
+/* The array argument `name` of adaptive(): NULL with an exception unless it is an ndarray of
+ * `type`, C-contiguous and aligned (writeable if `write`), with ndim 1 and n entries
+ * (n < 0: any), or ndim 2 and shape (n, nx) when ndim2 (n < 0: at least -n rows).
+ * None gives *ptr = NULL when `optional`. */
+static int array_arg(PyObject* obj, const char* name, int type, int ndim2, npy_intp n,
+                     int write, int optional, void** ptr) {
+  *ptr = NULL;
+  if (obj == Py_None && optional) return 0;
+  if (!PyArray_Check(obj)) {
+    PyErr_Format(PyExc_TypeError, "adaptive(): %s must be a numpy array, got %R", name,
+                 (PyObject*)Py_TYPE(obj));
+    return -1;
+  }
+  PyArrayObject* a = (PyArrayObject*)obj;
+  const int flags = GS_FAST_FLAGS | (write ? NPY_ARRAY_WRITEABLE : 0);
+  if (PyArray_TYPE(a) != type || !PyArray_CHKFLAGS(a, flags) || !PyArray_ISNOTSWAPPED(a)) {
+    PyErr_Format(PyExc_TypeError, "adaptive(): %s must be a C-contiguous%s %s array", name,
+                 write ? ", writeable" : "", type == NPY_DOUBLE ? "float64" : "int32");
+    return -1;
+  }
+  int ok;
+  if (ndim2)
+    ok = PyArray_NDIM(a) == 2 && PyArray_DIM(a, 1) == GS_NX &&
+         (n >= 0 ? PyArray_DIM(a, 0) == n : PyArray_DIM(a, 0) >= -n);
+  else
+    ok = PyArray_NDIM(a) == 1 && (n < 0 || PyArray_DIM(a, 0) == n);
+  if (!ok) {
+    shape_error(name, ndim2 ? "(rows, nx) with enough rows" : "(n,) of the model's size", a);
+    return -1;
+  }
+  *ptr = PyArray_DATA(a);
+  return 0;
+}
+
+static PyObject* py_adaptive(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+  (void)self;
+  if (nargs != 15) {
+    PyErr_Format(PyExc_TypeError, "adaptive() takes 15 positional arguments (%zd given)", nargs);
+    return NULL;
+  }
+  const long method = PyLong_AsLong(args[0]);
+  const double rtol = PyFloat_AsDouble(args[4]), atol = PyFloat_AsDouble(args[5]);
+  const double h0 = PyFloat_AsDouble(args[6]);
+  const long max_steps = PyLong_AsLong(args[7]), nstiff = PyLong_AsLong(args[8]);
+  const double proj_tol = PyFloat_AsDouble(args[12]);
+  if (PyErr_Occurred()) return NULL;
+  if (method != 0 && method != 1) {
+    PyErr_Format(PyExc_ValueError, "adaptive(): method must be 0 (radau5) or 1 (dopri5), got %ld", method);
+    return NULL;
+  }
+  void *t_out, *x0, *p, *lo, *hi, *mask, *out, *stats;
+  if (array_arg(args[1], "t_out", NPY_DOUBLE, 0, -1, 0, 0, &t_out)) return NULL;
+  const npy_intp m = PyArray_DIM((PyArrayObject*)args[1], 0);
+  if (m < 2) {
+    PyErr_SetString(PyExc_ValueError, "adaptive(): t_out needs at least two times");
+    return NULL;
+  }
+  if (array_arg(args[2], "x0", NPY_DOUBLE, 0, GS_NX, 0, 0, &x0) ||
+      array_arg(args[3], "p", NPY_DOUBLE, 0, GS_NP, 0, GS_NP == 0, &p) ||
+      array_arg(args[9], "lo", NPY_DOUBLE, 0, GS_NX, 0, 1, &lo) ||
+      array_arg(args[10], "hi", NPY_DOUBLE, 0, GS_NX, 0, 1, &hi) ||
+      array_arg(args[11], "mask", NPY_INT32, 0, GS_NX, 0, 1, &mask) ||
+      array_arg(args[13], "out", NPY_DOUBLE, 1, -(m + 1), 1, 0, &out) ||
+      array_arg(args[14], "stats", NPY_DOUBLE, 0, GS_NSTATS, 1, 0, &stats))
+    return NULL;
+  double t_fail = NAN;
+  const double* t = (const double*)t_out;
+  long rc;
+  Py_BEGIN_ALLOW_THREADS
+  if (method == 0)
+    rc = gs_radau5(t[0], (long)m, t, (const double*)x0, (const double*)p, rtol, atol, h0,
+                   max_steps, (const double*)lo, (const double*)hi, (const int*)mask, proj_tol,
+                   (double*)out, (double*)stats, &t_fail);
+  else
+    rc = gs_dopri5(t[0], (long)m, t, (const double*)x0, (const double*)p, rtol, atol, h0,
+                   max_steps, nstiff, (const double*)lo, (const double*)hi, (const int*)mask,
+                   proj_tol, (double*)out, (double*)stats, &t_fail);
+  Py_END_ALLOW_THREADS
+  return Py_BuildValue("(ld)", rc, t_fail);
+}
+
 static PyMethodDef gs_methods[] = {
+    {"adaptive", (PyCFunction)(void (*)(void))py_adaptive, METH_FASTCALL,
+     "adaptive(method, t_out, x0, p, rtol, atol, h0, max_steps, nstiff, lo, hi, mask, "
+     "proj_tol, out, stats) -> (rc, t_fail): gs_radau5 (0) / gs_dopri5 (1), arrays as-is"},
     {"rhs", (PyCFunction)(void (*)(void))py_rhs, METH_FASTCALL | METH_KEYWORDS,
      "rhs(x, p=None) -> xdot, shape (nx,)"},
     {"rhs_batch", (PyCFunction)(void (*)(void))py_rhs_batch, METH_FASTCALL | METH_KEYWORDS,

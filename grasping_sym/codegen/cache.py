@@ -28,7 +28,7 @@ HASHED_SOURCES = (
     "geometry/curves.py", "model/planar.py", "derive/system.py",
     "derive/contour_functions.py", "derive/planar.py", "codegen/translate.py",
     "codegen/functions.py", "codegen/cwriter.py", "codegen/templates.py",
-    "codegen/compiler.py", "c/driver.c", "c/pyfast.c", "c/gs_driver.h", "runtime/compiled.py", "pipeline.py",
+    "codegen/compiler.py", "c/driver.c", "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "pipeline.py",
 )
 
 #: The 3D models' code-shaping modules, hashed (with ``HASHED_SOURCES``) for 3D scenes only.

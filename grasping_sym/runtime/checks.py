@@ -17,6 +17,7 @@ linearly between the samples around it.
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 
@@ -42,7 +43,13 @@ FRAME_DENOMINATOR_RELATIVE = 1e-6
 
 
 def _matching(names, pattern: str) -> list[str]:
-    return [n for n in names if re.fullmatch(pattern, n)]
+    return list(_matching_cached(tuple(names), pattern))
+
+
+@functools.lru_cache(maxsize=256)
+def _matching_cached(names: tuple[str, ...], pattern: str) -> tuple[str, ...]:
+    # cached: simulate() asks for the same few output names on every call
+    return tuple(n for n in names if re.fullmatch(pattern, n))
 
 
 def curvature_outputs(names) -> list[str]:

@@ -1,0 +1,155 @@
+"""Compile a model library: the CasADi-generated C, the hand-written driver and, optionally,
+the CPython fast-call front end (``c/pyfast.c``), into one shared library.
+
+``driver_defines`` derives the driver's preprocessor macros from the CasADi functions (they are
+stored in a model's manifest so that a cached or committed C file compiles without the CasADi
+functions at hand); ``compile_model`` compiles given those macros; ``build_library`` does both.
+The result is loaded by ``runtime/compiled.py::CompiledLibrary``.
+"""
+from __future__ import annotations
+
+import sysconfig
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from grasping_sym.codegen.compiler import compile_shared
+
+__all__ = ["DRIVER_C", "PYFAST_C", "build_library", "compile_model", "driver_defines"]
+
+_C_DIR = Path(__file__).resolve().parent.parent / "c"
+#: The hand-written C driver compiled next to the CasADi-generated file.
+DRIVER_C: Path = _C_DIR / "driver.c"
+#: The optional CPython extension giving the sub-microsecond call path.
+PYFAST_C: Path = _C_DIR / "pyfast.c"
+
+
+def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
+                   jac_fn: Any | None = None,
+                   constraints_fn: Any | None = None) -> dict[str, str | int]:
+    """Preprocessor macros for ``driver.c`` from the CasADi functions used.
+
+    Parameters
+    ----------
+    rhs_fn : casadi.Function
+        The DAE right-hand side ``<prefix>_rhs`` with inputs (t, x, z, p, u).
+    outputs_fn : casadi.Function, optional
+        ``<prefix>_outputs`` with inputs (x, p) and one output y.
+    jac_fn : casadi.Function, optional
+        ``rhs_fn.jacobian()`` (named ``jac_<prefix>_rhs``): inputs (t, x, z, p, u,
+        nominal outputs...), one output block per (output, input) pair; the block
+        ``jac_ode_x`` (d ode / d x, nx x nx) is used by ``gs_radau5``.  Without it
+        ``gs_radau5`` falls back to a finite-difference Jacobian.
+    constraints_fn : casadi.Function, optional
+        ``<prefix>_constraints`` with inputs (x, p) and outputs (C, dC_dx, Cdot,
+        dCdot_dx), both Jacobians dense ``nc x nx``: needed by the projection.
+
+    Returns
+    -------
+    dict
+        ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_HAS_JAC, [GS_JAC,
+        GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_HAS_CON, [GS_CON, GS_NC,] GS_SZ_ARG,
+        GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes are maxima over all the functions given.
+    """
+    fns = [rhs_fn] + [f for f in (outputs_fn, jac_fn, constraints_fn) if f is not None]
+    defines: dict[str, str | int] = {
+        "GS_RHS": rhs_fn.name(),
+        "GS_NX": int(rhs_fn.numel_in(1)),
+        "GS_NP": int(rhs_fn.numel_in(3)),
+        "GS_HAS_OUT": int(outputs_fn is not None),
+    }
+    if outputs_fn is not None:
+        if outputs_fn.numel_in(0) != defines["GS_NX"] or outputs_fn.numel_in(1) != defines["GS_NP"]:
+            raise ValueError(
+                f"outputs function {outputs_fn.name()!r} must take x[{defines['GS_NX']}], "
+                f"p[{defines['GS_NP']}]; got x[{outputs_fn.numel_in(0)}], p[{outputs_fn.numel_in(1)}]"
+            )
+        defines["GS_OUT"] = outputs_fn.name()
+        defines["GS_NY"] = int(outputs_fn.numel_out(0))
+    defines["GS_HAS_JAC"] = int(jac_fn is not None)
+    if jac_fn is not None:
+        nx = defines["GS_NX"]
+        names_out = [jac_fn.name_out(i) for i in range(jac_fn.n_out())]
+        block = names_out.index("jac_ode_x") if "jac_ode_x" in names_out else 1
+        names_in = [jac_fn.name_in(i) for i in range(min(5, jac_fn.n_in()))]
+        if (jac_fn.n_in() < 5 or names_in[1] != rhs_fn.name_in(1) or names_in[3] != rhs_fn.name_in(3)
+                or jac_fn.n_out() <= block or jac_fn.size_out(block) != (nx, nx)):
+            raise ValueError(
+                f"Jacobian function {jac_fn.name()!r} must be {rhs_fn.name()!r}.jacobian(): inputs "
+                f"(t, x, z, p, u, ...) and an output jac_ode_x of shape ({nx}, {nx}); got inputs "
+                f"{names_in}, outputs {names_out[:3]}..."
+            )
+        defines.update({"GS_JAC": jac_fn.name(), "GS_JAC_NIN": int(jac_fn.n_in()),
+                        "GS_JAC_NOUT": int(jac_fn.n_out()), "GS_JAC_BLOCK": int(block)})
+    defines["GS_HAS_CON"] = int(constraints_fn is not None)
+    if constraints_fn is not None:
+        nx, nc = defines["GS_NX"], int(constraints_fn.numel_out(0))
+        shapes = [constraints_fn.size_out(i) for i in range(constraints_fn.n_out())]
+        dense = all(constraints_fn.sparsity_out(i).is_dense() for i in (1, 3)) if len(shapes) == 4 else False
+        if (constraints_fn.n_in() != 2 or constraints_fn.numel_in(0) != nx
+                or constraints_fn.numel_in(1) != defines["GS_NP"] or nc < 1
+                or shapes != [(nc, 1), (nc, nx), (nc, 1), (nc, nx)] or not dense):
+            raise ValueError(
+                f"constraints function {constraints_fn.name()!r} must take (x[{nx}], "
+                f"p[{defines['GS_NP']}]) and return (C[nc], dC_dx[nc x {nx}], Cdot[nc], "
+                f"dCdot_dx[nc x {nx}]) with dense Jacobians; got outputs {shapes}"
+            )
+        defines.update({"GS_CON": constraints_fn.name(), "GS_NC": nc})
+    for key, meth in (("GS_SZ_ARG", "sz_arg"), ("GS_SZ_RES", "sz_res"), ("GS_SZ_IW", "sz_iw"), ("GS_SZ_W", "sz_w")):
+        defines[key] = max(int(getattr(f, meth)()) for f in fns)
+    return defines
+
+
+def _python_include_dirs() -> list[str]:
+    return [sysconfig.get_paths()["include"], np.get_include()]
+
+
+def build_library(
+    casadi_c: Path | str,
+    out: Path | str,
+    rhs_fn: Any,
+    outputs_fn: Any | None = None,
+    fast: bool = True,
+    jac_fn: Any | None = None,
+    constraints_fn: Any | None = None,
+) -> Path:
+    """Compile a CasADi-generated C file with the driver into ``out``.
+
+    Parameters
+    ----------
+    casadi_c : Path
+        The CasADi-generated ``<prefix>.c``.
+    out : Path
+        Destination shared library (replaced atomically).
+    rhs_fn, outputs_fn : casadi.Function
+        The functions generated into ``casadi_c`` (for names and work sizes).
+    fast : bool
+        Also compile ``pyfast.c`` so the library doubles as a CPython extension
+        (needs ``Python.h``; the result is then tied to this interpreter's ABI,
+        so include ``sys.version`` and the NumPy version in cache keys).
+    jac_fn : casadi.Function, optional
+        ``rhs_fn.jacobian()`` if it was generated into ``casadi_c``: used by
+        :meth:`CompiledLibrary.radau5` (finite differences otherwise).
+    constraints_fn : casadi.Function, optional
+        ``<prefix>_constraints`` if it was generated into ``casadi_c`` (projection).
+
+    Returns
+    -------
+    Path
+        The library path.
+    """
+    return compile_model(casadi_c, out, driver_defines(rhs_fn, outputs_fn, jac_fn, constraints_fn),
+                         fast=fast)
+
+
+def compile_model(casadi_c: Path | str, out: Path | str, defines: dict,
+                  fast: bool = True) -> Path:
+    """Compile a CasADi-generated C file with the driver, given the driver's macros.
+
+    ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
+    committed C file compiles without the CasADi functions at hand).
+    """
+    sources = [Path(casadi_c), DRIVER_C] + ([PYFAST_C] if fast else [])
+    include_dirs = _python_include_dirs() if fast else []
+    return compile_shared(sources, Path(out), defines, include_dirs=include_dirs)

@@ -1,0 +1,244 @@
+"""The integrators whose whole loop runs in C (``gs_rk4``, ``gs_radau5``, ``gs_dopri5``): argument
+checks, the call into the compiled library and the translation of its return codes into results
+or named errors. ``CompiledLibrary.rk4`` / ``radau5`` / ``dopri5`` are the documented entry points;
+the C calls themselves are ``CompiledLibrary._c_rk4`` and ``CompiledLibrary._call_adaptive`` (the
+CPython fast path when the library has it, ctypes otherwise).
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+from time import perf_counter
+from typing import Any
+
+import numpy as np
+
+from grasping_sym.errors import IntegratorError
+
+# Return codes of gs_rk4, gs_radau5, gs_dopri5 and gs_project (see driver.c).
+_ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
+_ERR_PROJECT, _ERR_STIFF = -7, -8
+ERR_PROJECT = _ERR_PROJECT
+_RK4_EXTRA_ROWS = 2
+_ADAPTIVE_EXTRA_ROWS = 1
+NSTATS = 16  # GS_NSTATS
+_STATS = {"radau": ("n_steps", "n_rejected", "n_rhs", "n_jac", "n_lu", "n_newton"),
+          "dopri5": ("n_steps", "n_rejected", "n_rhs")}
+#: Hairer's DOPRI5 default: the stiffness test runs on every 1000th accepted step.
+NSTIFF = 1000
+_T_OUT = "t_out must be a finite, strictly increasing 1-D array of at least two times"
+_double = ctypes.c_double
+
+
+def as_vector(a: Any, n: int, name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype=float)
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got shape {arr.shape}")
+    return arr
+
+
+def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: Any = None,
+        lo: Any = None, hi: Any = None, proj_mask: Any = None, proj_tol: float = 0.0,
+        stats: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``CompiledLibrary.rk4`` (documented there)."""
+    x0a = as_vector(x0, lib.nx, "x0")
+    pa = lib._p(p)
+    lo_a = np.full(lib.nx, -np.inf) if lo is None else as_vector(lo, lib.nx, "lo")
+    hi_a = np.full(lib.nx, np.inf) if hi is None else as_vector(hi, lib.nx, "hi")
+    t0, t_final, h = float(t0), float(t_final), float(h)
+    stride = int(stride)
+    if not (math.isfinite(t0) and math.isfinite(t_final) and t_final > t0):
+        raise ValueError(f"need finite t0 < t_final, got t0 = {t0}, t_final = {t_final}")
+    if not (math.isfinite(h) and h > 0):
+        raise ValueError(f"step h must be finite and > 0, got {h}")
+    if stride < 1:
+        raise ValueError(f"stride must be >= 1, got {stride}")
+    mask = lib._mask(proj_mask, float(proj_tol))
+
+    bad = violation(x0a, lo_a, hi_a)
+    if bad:
+        raise IntegratorError(t0, x0a, f"initial state: {bad}", lib.state_names)
+
+    nblocks = max(1, math.ceil((t_final - t0) / (h * stride) - 1e-9))
+    nsteps = nblocks * stride
+    h_eff = (t_final - t0) / nsteps
+    rows = nblocks + 1
+    out = np.empty((rows + _RK4_EXTRA_ROWS, lib.nx))
+    t_fail = _double(math.nan)
+    stats_a = np.zeros(NSTATS)
+    rc = lib._c_rk4(
+        t0, h_eff, nsteps, stride, x0a.ctypes.data, lib._ptr(pa),
+        lo_a.ctypes.data, hi_a.ctypes.data, lib._ptr(mask), float(proj_tol),
+        out.ctypes.data, stats_a.ctypes.data, ctypes.byref(t_fail),
+    )
+    if stats is not None:
+        stats.update({"n_steps": int(stats_a[0]), "n_rhs": int(stats_a[2])})
+        if mask is not None:
+            stats.update(projection_stats(stats_a))
+    if rc >= 0:
+        if rc != rows:
+            raise RuntimeError(f"gs_rk4 wrote {rc} rows, expected {rows}")
+        t = t0 + h_eff * stride * np.arange(rows)
+        t[-1] = t_final
+        return t, out[:rows].copy()
+    if rc == _ERR_ARGS:
+        raise ValueError(f"gs_rk4 rejected its arguments (h = {h_eff}, nsteps = {nsteps}, stride = {stride})")
+
+    tf = t_fail.value
+    k = int(round((tf - t0) / h_eff))
+    r = k // stride + 1
+    x_good = out[r].copy()
+    x_bad = out[r + 1].copy()
+    if rc == _ERR_NONFINITE:
+        idx = np.flatnonzero(~np.isfinite(x_bad)).tolist()
+        reason = f"state component(s) {idx} became non-finite in the step to t = {tf + h_eff:.6g} s"
+    elif rc == _ERR_BOUNDS:
+        reason = violation(x_bad, lo_a, hi_a) + f" in the step to t = {tf + h_eff:.6g} s"
+    elif rc == _ERR_EVAL:
+        reason = f"the CasADi function reported an evaluation error in the step to t = {tf + h_eff:.6g} s"
+    elif rc == _ERR_PROJECT:
+        reason = projection_reason(stats_a, proj_tol, f"in the step to t = {tf + h_eff:.6g} s")
+    else:
+        reason = f"gs_rk4 returned unknown code {rc}"
+    err = IntegratorError(tf, x_good, reason, lib.state_names)
+    err.t_rejected = tf + h_eff  # type: ignore[attr-defined]
+    err.x_rejected = x_bad  # type: ignore[attr-defined]
+    err.code = int(rc)  # type: ignore[attr-defined]
+    t_stored = t0 + h_eff * stride * np.arange(r)
+    err.trajectory = (t_stored, out[:r].copy())  # type: ignore[attr-defined]
+    raise err
+
+
+def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: float,
+             h0: float, max_steps: int, lo: Any, hi: Any, proj_mask: Any, proj_tol: float,
+             nstiff: int = 0) -> tuple[np.ndarray, np.ndarray, dict]:
+    """``CompiledLibrary.radau5`` (``method='radau'``) or ``dopri5`` (documented there).
+
+    The checks here are the cheap ones (shapes, scalars, the initial state's bounds); the C
+    code validates ``t_out`` (finite, strictly increasing) itself, and a rejection is
+    explained afterwards, so that a short run does not pay for NumPy reductions over it.
+    """
+    x0a = as_vector(x0, lib.nx, "x0")
+    pa = lib._p(p)
+    t_arr = np.ascontiguousarray(t_out, dtype=float)
+    if t_arr.ndim != 1 or t_arr.size < 2:
+        raise ValueError(_T_OUT)
+    lo_a = None if lo is None else as_vector(lo, lib.nx, "lo")
+    hi_a = None if hi is None else as_vector(hi, lib.nx, "hi")
+    rtol, atol, h0, proj_tol = float(rtol), float(atol), float(h0), float(proj_tol)
+    if not (math.isfinite(rtol) and rtol > 0 and math.isfinite(atol) and atol >= 0):
+        raise ValueError(f"need finite rtol > 0 and atol >= 0, got rtol = {rtol}, atol = {atol}")
+    if not (math.isfinite(h0) and h0 >= 0):
+        raise ValueError(f"h0 must be finite and >= 0 (0 = automatic), got {h0}")
+    max_steps = int(max_steps)
+    if max_steps < 1:
+        raise ValueError(f"max_steps must be >= 1, got {max_steps}")
+    mask = lib._mask(proj_mask, proj_tol)
+    t0 = float(t_arr[0])
+    bad = violation(x0a, lo_a, hi_a)
+    if bad:
+        raise IntegratorError(t0, x0a, f"initial state: {bad}", lib.state_names)
+
+    m = t_arr.size
+    out = np.empty((m + _ADAPTIVE_EXTRA_ROWS, lib.nx))
+    stats_a = np.zeros(NSTATS)
+    start = perf_counter()
+    rc, tf = lib._call_adaptive(method, t_arr, x0a, pa, rtol, atol, h0, max_steps, int(nstiff),
+                                lo_a, hi_a, mask, proj_tol, out, stats_a)
+    wall = perf_counter() - start
+    stats: dict = {k: int(stats_a[i]) for i, k in enumerate(_STATS[method])}
+    stats["h_last"] = float(stats_a[7])
+    stats["wall_time"] = wall
+    if mask is not None:
+        stats.update(projection_stats(stats_a))
+    if method == "dopri5":
+        stats["h_lambda"] = float(stats_a[13])
+        stats["n_stiff_tests"] = int(stats_a[14])
+    c_name = "gs_radau5" if method == "radau" else "gs_dopri5"
+    if rc >= 0:
+        if rc != m:
+            raise RuntimeError(f"{c_name} returned {rc}, expected {m}")
+        return t_arr.copy(), out[:m].copy(), stats
+    if rc == _ERR_ARGS:
+        if not (np.all(np.isfinite(t_arr)) and np.all(np.diff(t_arr) > 0)):
+            raise ValueError(_T_OUT)
+        raise ValueError(f"{c_name} rejected its arguments (rtol = {rtol}, atol = {atol}, "
+                         f"h0 = {h0}, max_steps = {max_steps}, proj_tol = {proj_tol})")
+    raise _failure(lib, method, c_name, rc, tf, t_arr, out, stats, stats_a, lo_a, hi_a,
+                   max_steps, proj_tol)
+
+
+def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarray,
+             out: np.ndarray, stats: dict, stats_a: np.ndarray, lo_a: np.ndarray | None,
+             hi_a: np.ndarray | None, max_steps: int, proj_tol: float) -> IntegratorError:
+    """The ``IntegratorError`` of an adaptive run that returned ``rc < 0``."""
+    r = int(stats_a[6])
+    x_good = out[r].copy()
+    x_bad = out[r + 1].copy()
+    after = f"after t = {tf:.6g} s"
+    if rc == _ERR_NONFINITE:
+        if np.all(np.isfinite(x_bad)):
+            reason = (f"{method}: the right-hand side became non-finite at the end of the "
+                      f"step {after} (state {x_bad.tolist()})")
+        else:
+            idx = np.flatnonzero(~np.isfinite(x_bad)).tolist()
+            reason = f"{method}: state component(s) {idx} became non-finite in the step {after}"
+    elif rc == _ERR_BOUNDS:
+        reason = f"{method}: " + violation(x_bad, lo_a, hi_a) + f" in the step {after}"
+    elif rc == _ERR_EVAL:
+        reason = f"{method}: the CasADi function reported an evaluation error in the step {after}"
+    elif rc == _ERR_STEP:
+        why = ("Newton iteration or error test failed repeatedly" if method == "radau"
+               else "error test failed repeatedly or the right-hand side is non-finite "
+                    "inside the steps")
+        reason = (f"{method}: step size fell below the minimum at t = {tf:.6g} s ({why}: "
+                  "a blow-up, a singularity, or tolerances too tight)")
+    elif rc == _ERR_MAXSTEPS:
+        reason = (f"{method}: too many steps ({max_steps}) before reaching t = {t_arr[-1]:.6g} s "
+                  f"(stopped at t = {tf:.6g} s; raise max_steps or loosen rtol/atol)")
+    elif rc == _ERR_PROJECT:
+        reason = f"{method}: " + projection_reason(stats_a, proj_tol, after)
+    elif rc == _ERR_STIFF:
+        reason = (f"dopri5: the system is stiff at t = {tf:.6g} s: the explicit method's step "
+                  f"is limited by its stability, not by accuracy (h |lambda| = "
+                  f"{stats_a[13]:.3g} > 3.25 on 15 steps, h = {stats_a[7]:.3g} s; DOPRI5's "
+                  "stiffness test), so it would crawl: use method='radau' or 'cvodes'")
+    else:
+        reason = f"{method}: {c_name} returned unknown code {rc}"
+    err = IntegratorError(tf, x_good, reason, lib.state_names)
+    err.code = int(rc)  # type: ignore[attr-defined]
+    err.stats = stats  # type: ignore[attr-defined]
+    if rc in (_ERR_NONFINITE, _ERR_BOUNDS, _ERR_PROJECT):
+        err.x_rejected = x_bad  # type: ignore[attr-defined]
+    err.trajectory = (t_arr[:r].copy(), out[:r].copy())  # type: ignore[attr-defined]
+    return err
+
+
+def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None) -> str:
+    """Empty string if ``x`` is finite and in bounds (``None``: unbounded), else the reason."""
+    if (np.isfinite(x).all() and (lo is None or (x >= lo).all())
+            and (hi is None or (x <= hi).all())):
+        return ""
+    nonfinite = np.flatnonzero(~np.isfinite(x))
+    if nonfinite.size:
+        return f"state component(s) {nonfinite.tolist()} are non-finite"
+    lo = np.full(x.shape, -np.inf) if lo is None else lo
+    hi = np.full(x.shape, np.inf) if hi is None else hi
+    i = int(np.flatnonzero((x < lo) | (x > hi))[0])
+    return f"state component {i} left [{lo[i]:g}, {hi[i]:g}] (value {x[i]:.6g})"
+
+
+def projection_stats(stats_a: np.ndarray) -> dict:
+    return {"n_constraint_evals": int(stats_a[8]), "max_drift": float(stats_a[9]),
+            "max_drift_rate": float(stats_a[10])}
+
+
+def projection_reason(stats_a: np.ndarray, tol: float, after: str) -> str:
+    what = ("the position constraints C" if stats_a[11] == 1
+            else "the velocity constraints Cdot")
+    where = f" {after}" if after else ""
+    return (f"the projection onto {what} failed{where}: max residual {stats_a[12]:.3g} > "
+            f"tolerance {tol:.3g} after Gauss-Newton (not converging, a singular constraint "
+            "Jacobian, or non-finite values): the contact configuration is singular, or the "
+            "tolerance is below the rounding level of the constraints (use a larger "
+            "projection tolerance, e.g. simulate(..., project=1e-10))")
