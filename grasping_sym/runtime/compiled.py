@@ -39,7 +39,7 @@ from grasping_sym.codegen.compiler import compile_shared
 from grasping_sym.errors import IntegratorError
 
 __all__ = [
-    "DRIVER_C",
+    "DRIVER_SOURCES",
     "PYFAST_C",
     "CompiledLibrary",
     "build_library",
@@ -47,8 +47,9 @@ __all__ = [
 ]
 
 _C_DIR = Path(__file__).resolve().parent.parent / "c"
-#: The hand-written C driver compiled next to the CasADi-generated file.
-DRIVER_C: Path = _C_DIR / "driver.c"
+#: The hand-written C driver compiled next to the CasADi-generated file (one object each).
+DRIVER_SOURCES: tuple[Path, ...] = tuple(
+    _C_DIR / f for f in ("driver.c", "project.c", "rk4.c", "radau5.c", "jac.c", "lu.c", "dopri5.c"))
 #: The optional CPython extension giving the sub-microsecond call path.
 PYFAST_C: Path = _C_DIR / "pyfast.c"
 
@@ -193,7 +194,7 @@ def compile_model(casadi_c: Path | str, out: Path | str, defines: dict,
     ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
     committed C file compiles without the CasADi functions at hand).
     """
-    sources = [Path(casadi_c), DRIVER_C] + ([PYFAST_C] if fast else [])
+    sources = [Path(casadi_c), *DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
     return compile_shared(sources, Path(out), defines, include_dirs=include_dirs)
 
