@@ -28,7 +28,9 @@ HASHED_SOURCES = (
     "geometry/curves.py", "model/planar.py", "derive/system.py",
     "derive/contour_functions.py", "derive/planar.py", "codegen/translate.py",
     "codegen/functions.py", "codegen/cwriter.py", "codegen/templates.py",
-    "codegen/compiler.py", "c/driver.c", "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "pipeline.py",
+    "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c", "c/radau5.c", "c/radau5.h",
+    "c/jac.c", "c/lu.c", "c/dopri5.c", "c/gs_internal.h", "c/pyfast.c", "c/gs_driver.h",
+    "codegen/library.py", "pipeline.py",
 )
 
 #: The 3D models' code-shaping modules, hashed (with ``HASHED_SOURCES``) for 3D scenes only.

@@ -16,11 +16,13 @@ import numpy as np
 
 from grasping_sym.codegen.compiler import compile_shared
 
-__all__ = ["DRIVER_C", "PYFAST_C", "build_library", "compile_model", "driver_defines"]
+__all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines"]
 
 _C_DIR = Path(__file__).resolve().parent.parent / "c"
-#: The hand-written C driver compiled next to the CasADi-generated file.
-DRIVER_C: Path = _C_DIR / "driver.c"
+#: The hand-written C driver compiled next to the CasADi-generated file (``driver.c`` first:
+#: its header comment maps the macros and the other files).
+DRIVER_SOURCES: tuple[Path, ...] = tuple(
+    _C_DIR / f for f in ("driver.c", "project.c", "rk4.c", "radau5.c", "jac.c", "lu.c", "dopri5.c"))
 #: The optional CPython extension giving the sub-microsecond call path.
 PYFAST_C: Path = _C_DIR / "pyfast.c"
 
@@ -28,7 +30,7 @@ PYFAST_C: Path = _C_DIR / "pyfast.c"
 def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
                    jac_fn: Any | None = None,
                    constraints_fn: Any | None = None) -> dict[str, str | int]:
-    """Preprocessor macros for ``driver.c`` from the CasADi functions used.
+    """Preprocessor macros of the C driver (``c/driver.c`` documents them) from the CasADi functions used.
 
     Parameters
     ----------
@@ -150,6 +152,6 @@ def compile_model(casadi_c: Path | str, out: Path | str, defines: dict,
     ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
     committed C file compiles without the CasADi functions at hand).
     """
-    sources = [Path(casadi_c), DRIVER_C] + ([PYFAST_C] if fast else [])
+    sources = [Path(casadi_c), *DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
     return compile_shared(sources, Path(out), defines, include_dirs=include_dirs)

@@ -15,7 +15,7 @@ import numpy as np
 
 from grasping_sym.errors import IntegratorError
 
-# Return codes of gs_rk4, gs_radau5, gs_dopri5 and gs_project (see driver.c).
+# Return codes of gs_rk4, gs_radau5, gs_dopri5 and gs_project (see c/gs_internal.h).
 _ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
 _ERR_PROJECT, _ERR_STIFF = -7, -8
 ERR_PROJECT = _ERR_PROJECT

@@ -1,4 +1,4 @@
-"""Load a compiled model library (CasADi code + ``c/driver.c``, built by
+"""Load a compiled model library (CasADi code + the C driver in ``c/``, built by
 ``codegen/library.py``) and call it fast.
 
 Two call paths exist:
@@ -14,7 +14,7 @@ Two call paths exist:
 
 The integrators (whole loop in C, GIL released; argument checks and error translation in
 ``runtime/c_loops.py``) can project every step onto the model's constraints (``proj_mask``,
-``proj_tol``; see ``driver.c::gs_project`` and ``runtime/projection.py``).
+``proj_tol``; see ``c/project.c::gs_project`` and ``runtime/projection.py``).
 
 Both paths have the same semantics: inputs are converted with
 ``np.ascontiguousarray(dtype=float)``, shapes are checked (``ValueError`` naming
@@ -57,7 +57,7 @@ class CompiledLibrary:
     Parameters
     ----------
     path : Path
-        Shared library built from a CasADi file and ``driver.c`` (e.g. by
+        Shared library built from a CasADi file and the C driver (e.g. by
         :func:`grasping_sym.codegen.library.build_library`).
     state_names : sequence of str, optional
         Names used in integrator error messages.

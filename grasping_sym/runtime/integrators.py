@@ -34,7 +34,7 @@ import numpy as np
 from grasping_sym.errors import IntegratorError
 
 METHODS = ("cvodes", "idas", "rk4", "radau", "dopri5")
-#: The methods whose whole loop runs in C (``driver.c``).
+#: The methods whose whole loop runs in C (``c/rk4.c``, ``c/radau5.c``, ``c/dopri5.c``).
 C_LOOPS = ("rk4", "radau", "dopri5")
 
 

@@ -4,7 +4,7 @@ Every generated model has ``{name}_constraints(x, p) -> (C, dC/dx, Cdot, dCdot/d
 position constraints C (the planar ``(Q, R)``, the 3D gaps ``(Qn, Qb, Qe)`` per contact, in m),
 their total time derivative along the closed loop and both Jacobians. With
 ``simulate(..., project=True)`` the C integration loops ('radau', 'dopri5', 'rk4') project
-after every accepted step (``driver.c::gs_project``):
+after every accepted step (``c/project.c::gs_project``):
 
 1. Gauss-Newton onto ``C(x) = 0`` with the least-norm change of the *position states* (those
    C depends on), until ``max|C| <= tol``;

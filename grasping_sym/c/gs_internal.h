@@ -1,0 +1,285 @@
+/*
+ * grasping_sym driver internals, shared by the driver's translation units (pyfast.c needs
+ * only gs_driver.h).  Every file is compiled with the same -D macros, documented at the
+ * top of driver.c.  The files:
+ *
+ *   driver.c   the macros' documentation; gs_info, gs_rhs, gs_rhs_batch, gs_outputs,
+ *              gs_outputs_batch, gs_con_info, gs_constraints, gs_rhs_loop_ns
+ *   project.c  projection onto the constraints: gs_project, gs_project_state
+ *   rk4.c      fixed-step classic Runge-Kutta: gs_rk4
+ *   radau5.c   adaptive Radau IIA of order 5: gs_radau5 (its coefficients and tuning
+ *              defaults in radau5.h)
+ *   jac.c      gs_radau5's Jacobian d f / d x: gs_eval_jac (compiled) or gs_fd_jac
+ *              (forward differences)
+ *   lu.c       gs_radau5's dense real and complex LU factorisations
+ *   dopri5.c   adaptive Dormand-Prince 5(4): gs_dopri5
+ *
+ * Helpers used by several files are static inline here; the functions defined in one
+ * file and called from another are declared here with GS_HIDDEN, so the shared library
+ * exports exactly the GS_EXPORT functions (and the CasADi-generated ones).
+ */
+#ifndef GS_INTERNAL_H
+#define GS_INTERNAL_H
+
+#include <math.h>
+#include <stddef.h>
+
+#ifndef GS_RHS
+#error "define GS_RHS (name of the CasADi right-hand-side function)"
+#endif
+#ifndef GS_NX
+#error "define GS_NX (number of states)"
+#endif
+#ifndef GS_NP
+#error "define GS_NP (number of parameters)"
+#endif
+#if !defined(GS_SZ_ARG) || !defined(GS_SZ_RES) || !defined(GS_SZ_IW) || !defined(GS_SZ_W)
+#error "define GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW and GS_SZ_W (CasADi work sizes)"
+#endif
+#include "gs_driver.h"
+#ifndef GS_CASADI_INT
+#define GS_CASADI_INT long long int
+#endif
+#if GS_HAS_OUT && !defined(GS_OUT)
+#error "GS_HAS_OUT is 1 but GS_OUT (name of the outputs function) is not defined"
+#endif
+#ifndef GS_HAS_JAC
+#define GS_HAS_JAC 0
+#endif
+#if GS_HAS_JAC && (!defined(GS_JAC) || !defined(GS_JAC_NIN) || !defined(GS_JAC_NOUT))
+#error "GS_HAS_JAC is 1 but GS_JAC, GS_JAC_NIN or GS_JAC_NOUT is not defined"
+#endif
+#ifndef GS_JAC_BLOCK
+#define GS_JAC_BLOCK 1
+#endif
+#if GS_HAS_JAC && (GS_JAC_NIN < 5 || GS_JAC_NIN > GS_SZ_ARG || GS_JAC_NOUT <= GS_JAC_BLOCK || GS_JAC_NOUT > GS_SZ_RES)
+#error "GS_JAC_NIN / GS_JAC_NOUT / GS_JAC_BLOCK inconsistent with each other or with GS_SZ_ARG / GS_SZ_RES"
+#endif
+
+#if GS_HAS_CON && (!defined(GS_CON) || !defined(GS_NC))
+#error "GS_HAS_CON is 1 but GS_CON (name of the constraints function) or GS_NC is not defined"
+#endif
+#if GS_HAS_CON && GS_SZ_RES < 4
+#error "GS_SZ_RES must be at least 4 (the constraints function has four outputs)"
+#endif
+
+#define GS_EXPORT __attribute__((visibility("default")))
+/* Functions shared between the driver's files, not exported from the library. */
+#define GS_HIDDEN __attribute__((visibility("hidden")))
+
+/* Error codes. */
+#define GS_ERR_NONFINITE (-1) /* a state component became NaN or +-inf       */
+#define GS_ERR_BOUNDS    (-2) /* a state component left [lo[i], hi[i]]      */
+#define GS_ERR_EVAL      (-3) /* the CasADi function returned non-zero       */
+#define GS_ERR_ARGS      (-4) /* invalid arguments (h, nsteps, stride, n)    */
+#define GS_ERR_STEP      (-5) /* step size too small (Newton / error test)    */
+#define GS_ERR_MAXSTEPS  (-6) /* max_steps reached before the end time       */
+#define GS_ERR_PROJECT   (-7) /* projection onto the constraints failed      */
+#define GS_ERR_STIFF     (-8) /* gs_dopri5: the problem is stiff             */
+
+/* Entries of the stats array (GS_NSTATS doubles). */
+#define GS_ST_STEPS 0       /* accepted steps                                      */
+#define GS_ST_REJECTED 1    /* rejected steps                                      */
+#define GS_ST_RHS 2         /* right-hand-side evaluations                         */
+#define GS_ST_JAC 3         /* Jacobian evaluations (gs_radau5)                    */
+#define GS_ST_LU 4          /* LU decompositions (gs_radau5)                       */
+#define GS_ST_NEWTON 5      /* Newton iterations (gs_radau5)                       */
+#define GS_ST_ROWS 6        /* output rows written                                 */
+#define GS_ST_HLAST 7       /* last step size                                      */
+#define GS_ST_CON_EVALS 8   /* evaluations of GS_CON by the projection             */
+#define GS_ST_DRIFT_C 9     /* largest max|C| found before a projection            */
+#define GS_ST_DRIFT_CDOT 10 /* largest max|Cdot| found before a velocity projection */
+#define GS_ST_PROJ_PHASE 11 /* projection failure: 1 positions, 2 velocities       */
+#define GS_ST_PROJ_RES 12   /* projection failure: the residual left               */
+#define GS_ST_HLAMBDA 13    /* gs_dopri5: last stiffness estimate h |lambda|       */
+#define GS_ST_STIFF 14      /* gs_dopri5: stiffness tests with h |lambda| > 3.25   */
+
+#define GS_EPS 2.220446049250313e-16
+
+/* Work arrays of at most this many bytes go on the stack; larger ones use
+ * thread-local static storage (still thread-safe, never overflows the stack). */
+#ifndef GS_WORK_ON_STACK_MAX
+#define GS_WORK_ON_STACK_MAX (256L * 1024L)
+#endif
+
+#define GS_MAX1(n) ((n) > 0 ? (n) : 1)
+/* Upper estimate for the preprocessor (no sizeof in #if): 8 bytes per entry. */
+#define GS_WORK_BYTES \
+  (8L * (GS_MAX1(GS_SZ_ARG) + GS_MAX1(GS_SZ_RES) + GS_MAX1(GS_SZ_IW) + GS_MAX1(GS_SZ_W)))
+
+typedef struct {
+  const double* arg[GS_MAX1(GS_SZ_ARG)];
+  double* res[GS_MAX1(GS_SZ_RES)];
+  GS_CASADI_INT iw[GS_MAX1(GS_SZ_IW)];
+  double w[GS_MAX1(GS_SZ_W)];
+} gs_work;
+
+#if GS_WORK_BYTES > GS_WORK_ON_STACK_MAX
+#define GS_DECLARE_WORK(name) static _Thread_local gs_work name##_storage; gs_work* name = &name##_storage
+#else
+#define GS_DECLARE_WORK(name) gs_work name##_storage; gs_work* name = &name##_storage
+#endif
+
+/* Prototypes of the CasADi-generated functions (standard calling convention). */
+int GS_RHS(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+#if GS_HAS_OUT
+int GS_OUT(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+#endif
+#if GS_HAS_JAC
+#define GS_PASTE2(a, b) a##b
+#define GS_PASTE(a, b) GS_PASTE2(a, b)
+#define GS_JAC_SPARSITY_OUT GS_PASTE(GS_JAC, _sparsity_out)
+int GS_JAC(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+const GS_CASADI_INT* GS_JAC_SPARSITY_OUT(GS_CASADI_INT i);
+#endif
+
+#if GS_HAS_CON
+int GS_CON(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+#endif
+
+/* xdot = f(t, x, p) using the caller's work arrays. */
+static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, const double* p,
+                              double* xdot) {
+  wk->arg[0] = t;
+  wk->arg[1] = x;
+  wk->arg[2] = NULL;
+  wk->arg[3] = p;
+  wk->arg[4] = NULL;
+  wk->res[0] = xdot;
+  wk->res[1] = NULL;
+  wk->res[2] = NULL;
+  wk->res[3] = NULL;
+  return GS_RHS(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+}
+
+#if GS_HAS_OUT
+static inline int gs_eval_out(gs_work* wk, const double* x, const double* p, double* y) {
+  wk->arg[0] = x;
+  wk->arg[1] = p;
+  wk->res[0] = y;
+  return GS_OUT(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+}
+#endif
+
+#if GS_HAS_CON
+/* C, dC/dx, Cdot, dCdot/dx at x (a result pointer may be NULL: that result is skipped). */
+static inline int gs_eval_con(gs_work* wk, const double* x, const double* p, double* C,
+                              double* JC, double* Cd, double* JCd) {
+  wk->arg[0] = x;
+  wk->arg[1] = p;
+  wk->res[0] = C;
+  wk->res[1] = JC;
+  wk->res[2] = Cd;
+  wk->res[3] = JCd;
+  return GS_CON(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+}
+#endif
+
+/* 0 if x is finite and inside [lo, hi]; otherwise GS_ERR_NONFINITE / GS_ERR_BOUNDS.
+ * lo / hi may be NULL (unbounded). */
+static inline int gs_check(const double* x, const double* lo, const double* hi) {
+  for (int i = 0; i < GS_NX; ++i)
+    if (!isfinite(x[i])) return GS_ERR_NONFINITE;
+  for (int i = 0; i < GS_NX; ++i)
+    if ((lo && x[i] < lo[i]) || (hi && x[i] > hi[i])) return GS_ERR_BOUNDS;
+  return 0;
+}
+
+/* max |v[i]| over m entries; +inf when an entry is not finite. */
+static inline double gs_max_abs(const double* v, int m) {
+  double r = 0.0;
+  for (int i = 0; i < m; ++i) {
+    if (!isfinite(v[i])) return INFINITY;
+    r = fmax(r, fabs(v[i]));
+  }
+  return r;
+}
+
+/* Root-mean-square norm of v / scale over m entries. */
+static inline double gs_rms(const double* v, const double* scale, int m) {
+  double s = 0.0;
+  for (int i = 0; i < m; ++i) {
+    const double q = v[i] / scale[i % GS_NX];
+    s += q * q;
+  }
+  return sqrt(s / (double)m);
+}
+
+/* Validity of the projection arguments of the integrators. */
+static inline int gs_proj_args_ok(const int* proj_mask, double proj_tol) {
+  return !proj_mask || (GS_HAS_CON && proj_tol > 0.0 && isfinite(proj_tol));
+}
+
+/* First step size for an error estimate of order `order` (Hairer-Norsett-Wanner I, II.4, as
+ * scipy's select_initial_step): h with h^(order+1) max(|f|, |f'|) = 0.01 in the weighted
+ * RMS norm, at most `interval` and, when probe_cap > 0, at most probe_cap times the
+ * explicit Euler probe 0.01 |y| / |f|.  That probe assumes every component changes
+ * relative to its own size: a start at rest (zero speeds, non-zero accelerations) makes
+ * it ~1e-8 s, and the step then needs ~6 steps of 8x growth to reach the dynamics' scale.
+ * gs_radau5 passes probe_cap = 0 (a too large first step costs one rejected step there:
+ * its first rejection divides h by 10); gs_dopri5 keeps scipy's 100. */
+static inline int gs_initial_step(gs_work* wk, double t0, const double* y, const double* f,
+                                  const double* p, double rtol, double atol, double interval,
+                                  int order, double probe_cap, double* st, double* h_out) {
+  double scale[GS_NX], tmp[GS_NX], fnew[GS_NX];
+  for (int i = 0; i < GS_NX; ++i) scale[i] = atol + fabs(y[i]) * rtol;
+  const double d0 = gs_rms(y, scale, GS_NX), d1 = gs_rms(f, scale, GS_NX);
+  double hh = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+  if (hh > interval) hh = interval;
+  for (int i = 0; i < GS_NX; ++i) tmp[i] = y[i] + hh * f[i];
+  const double t1 = t0 + hh;
+  const int rc = gs_eval_rhs(wk, &t1, tmp, p, fnew);
+  if (rc) return rc;
+  st[GS_ST_RHS] += 1;
+  for (int i = 0; i < GS_NX; ++i) tmp[i] = fnew[i] - f[i];
+  const double d2 = gs_rms(tmp, scale, GS_NX) / hh;
+  double h1;
+  if (d1 <= 1e-15 && d2 <= 1e-15)
+    h1 = fmax(1e-6, hh * 1e-3);
+  else
+    h1 = pow(0.01 / fmax(d1, d2), 1.0 / (order + 1));
+  double h = fmin(probe_cap > 0.0 ? fmin(probe_cap * hh, h1) : h1, interval);
+  if (!isfinite(h) || h <= 0.0) h = 1e-6 * interval;
+  *h_out = h;
+  return 0;
+}
+
+/* ---- Defined in project.c ---- */
+#if GS_HAS_CON
+/* Project x in place onto C(x) = 0 and then Cdot(x) = 0 (see gs_project); counts into st.
+ * *changed (may be NULL) is set to 1 when x was modified. */
+GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const int* mask,
+                               double tol, double* st, int* changed);
+
+/* After an accepted step: project x when proj_mask is given, then re-check the bounds.
+ * For the integrators: expects rc, wk, p, proj_mask, proj_tol, st, lo, hi in scope and a
+ * label fail. */
+#define GS_PROJECT_STEP(x, changed)                                                   \
+  do {                                                                                \
+    if (proj_mask) {                                                                  \
+      if ((rc = gs_project_state(wk, (x), p, proj_mask, proj_tol, st, (changed))))    \
+        goto fail;                                                                    \
+      if ((rc = gs_check((x), lo, hi))) goto fail;                                    \
+    }                                                                                 \
+  } while (0)
+#else
+#define GS_PROJECT_STEP(x, changed) ((void)0)
+#endif
+
+/* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major) ---- */
+#if GS_HAS_JAC
+GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const double* p,
+                          double* J);
+#else
+GS_HIDDEN int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double* p,
+                        const double* f, double atol, double* J);
+#endif
+
+/* ---- Defined in lu.c (used by gs_radau5): dense n x n LU, n = GS_NX, row-major ---- */
+GS_HIDDEN int gs_lu_real(double* A, int* piv);
+GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b);
+GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv);
+GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
+                                   double* br, double* bi);
+
+#endif /* GS_INTERNAL_H */

@@ -1,0 +1,445 @@
+/* grasping_sym driver: adaptive Radau IIA of order 5, gs_radau5.  Its coefficients and
+ * tuning defaults are in radau5.h, its Jacobian in jac.c, its LU factorisations in lu.c. */
+#include "gs_internal.h"
+#include "radau5.h"
+#ifdef GS_RADAU_DEBUG
+#include <stdio.h>
+#endif
+
+/* ========================================================================== */
+/*  Radau IIA (order 5) with adaptive steps: gs_radau5                        */
+/* ========================================================================== */
+/*
+ * The algorithm is a port of scipy.integrate.Radau
+ * (scipy/integrate/_ivp/radau.py, BSD-3-Clause, (c) the SciPy developers), which
+ * follows E. Hairer, G. Wanner, "Solving Ordinary Differential Equations II:
+ * Stiff and Differential-Algebraic Problems", 2nd ed., Springer 1996, Sec. IV.8
+ * (the RADAU5 code): simplified Newton iteration on the collocation system
+ * transformed with the eigen-decomposition of the Radau IIA matrix A (one real
+ * n x n and one complex n x n linear system per iteration), Jacobian reuse
+ * across steps (the Jacobian is re-evaluated only when the Newton iteration
+ * converged slowly or failed), the embedded third-order error estimate with
+ * its stiff filtering by (mu_real/h - J)^-1, Gustafsson's predictive step-size
+ * control and the collocation polynomial as dense output.  The C code here is
+ * our own; the constants are those of the reference.
+ */
+
+/* Work storage of gs_radau5: a few n x n matrices, on the stack when small. */
+typedef struct {
+  double J[GS_NX * GS_NX];           /* d f / d x, row-major                     */
+  double LUr[GS_NX * GS_NX];         /* LU of mu_real/h I - J (row-major)        */
+  double LUcr[GS_NX * GS_NX];        /* LU of mu_complex/h I - J (row-major), */
+  double LUci[GS_NX * GS_NX];        /* real and imaginary parts              */
+  int pr[GS_NX], pc[GS_NX];          /* row pivots                               */
+} gs_radau_mats;
+
+#define GS_RADAU_MATS_BYTES (8L * 4L * GS_NX * GS_NX + 8L * GS_NX)
+#if GS_RADAU_MATS_BYTES > GS_WORK_ON_STACK_MAX
+#define GS_DECLARE_MATS(name) static _Thread_local gs_radau_mats name##_storage; gs_radau_mats* name = &name##_storage
+#else
+#define GS_DECLARE_MATS(name) gs_radau_mats name##_storage; gs_radau_mats* name = &name##_storage
+#endif
+
+/*
+ * Adaptive Radau IIA (order 5) integration of x' = f(t, x, p), see the comment above.
+ *
+ * Step control (Hairer's RADAU5, H&W IV.8): the Newton contraction rate theta is
+ * estimated from successive increments; convergence is declared when
+ * theta / (1 - theta) * |dW| <= fnewt (the rate of the previous step is used for the
+ * first iteration, so a step may converge after one iteration); a step whose Newton
+ * iteration is predicted not to converge within GS_RADAU_NIT iterations is retried
+ * with a smaller h (by the predicted amount, or halved on divergence); the Jacobian
+ * is re-evaluated after a step whose rate exceeded GS_RADAU_THET and after every
+ * rejection, the LU factors are reused when h does not change; after a rejection the
+ * next step may not grow; the error estimate and Gustafsson's predictive controller
+ * are those of scipy / RADAU5 (weights atol + rtol max(|x_old|, |x_new|), RMS norm).
+ *
+ * Arguments
+ *   t0          initial time; x0[nx] the initial state (not checked against lo / hi)
+ *   n_out,t_out output times, strictly increasing, t_out[0] >= t0 (t_out[0] == t0 allowed);
+ *               the integration ends at t_out[n_out - 1] exactly (never steps beyond it);
+ *               states between steps come from the collocation polynomial (order 3
+ *               accurate in the step, continuous), a state at a step end is the step's.
+ *   p           parameters (may be NULL when np == 0)
+ *   rtol, atol  scalar tolerances, local error measured with atol + rtol |x| (RMS norm);
+ *               rtol is raised to 100 eps if smaller.
+ *   h0          first step; <= 0 selects it automatically (Hairer-Norsett-Wanner I, II.4,
+ *               as scipy's select_initial_step with the error order 3)
+ *   max_steps   maximum number of accepted steps (>= 1)
+ *   lo, hi      bounds checked on every accepted step's end state (may be NULL)
+ *   proj_mask, proj_tol
+ *               NULL, or project every accepted step's end state and every output
+ *               between steps onto the constraints (see gs_project; needs GS_HAS_CON)
+ *   out         row-major, nx columns, at least n_out + 1 rows (see failures)
+ *   stats       NULL or GS_NSTATS doubles (GS_ST_*): [0] accepted steps, [1] rejected
+ *               steps (error test or Newton failures), [2] right-hand-side evaluations,
+ *               [3] Jacobian evaluations, [4] LU decompositions (real and complex each
+ *               count 1), [5] Newton iterations, [6] output rows written, [7] last step
+ *               size, [8..12] projection counts and residuals
+ *   t_fail      receives the last accepted time on failure (may be NULL)
+ *
+ * Returns n_out on success.  On failure, with r = the number of output rows written
+ * (also stats[6]; they are the rows with t_out <= *t_fail),
+ *   row r      = the last accepted state x(*t_fail),
+ *   row r + 1  = for GS_ERR_NONFINITE / GS_ERR_BOUNDS / GS_ERR_PROJECT the rejected state
+ *                (the end of the step that failed the check or the projection, or the
+ *                state whose derivative was non-finite), otherwise NaN,
+ * and the return value is
+ *   GS_ERR_NONFINITE (-1)  a state or its derivative became NaN / +-inf,
+ *   GS_ERR_BOUNDS    (-2)  a component left [lo[i], hi[i]] at the end of a step,
+ *   GS_ERR_EVAL      (-3)  a CasADi function returned an error,
+ *   GS_ERR_ARGS      (-4)  invalid arguments (nothing written),
+ *   GS_ERR_STEP      (-5)  the step size fell below 10 ulp(t) (repeated Newton
+ *                          failures, error-test failures or singular matrices),
+ *   GS_ERR_MAXSTEPS  (-6)  max_steps steps were taken before the end,
+ *   GS_ERR_PROJECT   (-7)  the projection failed.
+ */
+GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const double* x0,
+                         const double* p, double rtol, double atol, double h0, long max_steps,
+                         const double* lo, const double* hi, const int* proj_mask,
+                         double proj_tol, double* out, double* stats, double* t_fail) {
+  enum { n = GS_NX, nit = GS_RADAU_NIT };
+  GS_DECLARE_WORK(wk);
+  GS_DECLARE_MATS(M);
+  double y[n], f[n], ynew[n], fnew[n], scale[n], tmp[n], err[n], ze[n];
+  double Z[3][n], W[3][n], F[3][n], dW[3][n], Q[n][3], yold[n];
+  double st[GS_NSTATS] = {0};
+  long row = 0;
+  int rc = 0, have_sol = 0, lu_valid = 0, caljac = 0, need_jac = 1, reject = 0, first = 1;
+  int nsing = 0;
+  double t = t0, told = t0, hsol = 0.0, h;
+  double faccon = 1.0, theta = GS_RADAU_THET, theta_meas = 0.0, hacc = 0.0, erracc = 0.0;
+  const double t_end = t_out ? t_out[n_out > 0 ? n_out - 1 : 0] : t0;
+  const double cfac = GS_RADAU_SAFE * (1 + 2 * nit);
+  double fnewt;
+
+  if (n_out < 1 || !t_out || !x0 || !out || max_steps < 1 || !isfinite(t0) || !isfinite(rtol) ||
+      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0) ||
+      !gs_proj_args_ok(proj_mask, proj_tol))
+    return GS_ERR_ARGS;
+  for (long k = 1; k < n_out; ++k)
+    if (!(t_out[k] > t_out[k - 1]) || !isfinite(t_out[k])) return GS_ERR_ARGS;
+  if (!isfinite(t_end)) return GS_ERR_ARGS;
+  if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
+  fnewt = fmax(GS_RADAU_FNEWT_MIN, fmax(10.0 * GS_EPS / rtol, fmin(GS_RADAU_FNEWT_MAX, sqrt(rtol))));
+
+  for (int i = 0; i < n; ++i) {
+    y[i] = x0[i];
+    ynew[i] = NAN;
+    yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
+  }
+  while (row < n_out && t_out[row] <= t0) {
+    for (int i = 0; i < n; ++i) out[row * n + i] = y[i];
+    ++row;
+  }
+  if (row == n_out) goto done;
+
+  if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
+  st[2] += 1;
+  for (int i = 0; i < n; ++i)
+    if (!isfinite(f[i])) {
+      for (int j = 0; j < n; ++j) ynew[j] = y[j];
+      rc = GS_ERR_NONFINITE;
+      goto fail;
+    }
+
+  /* Initial step (scipy's select_initial_step with error order 3). */
+  if (h0 > 0.0)
+    h = h0;
+  else if ((rc = gs_initial_step(wk, t0, y, f, p, rtol, atol, t_end - t0, 3, 0.0, st, &h)))
+    goto fail;
+  for (int i = 0; i < n * n; ++i) M->J[i] = 0.0;
+
+  while (1) { /* one attempted step per pass */
+    if (st[0] >= (double)max_steps) {
+      rc = GS_ERR_MAXSTEPS;
+      goto fail;
+    }
+    if (t + h >= t_end || t_end - (t + h) < 1e-12 * fabs(t_end)) {
+      if (h != t_end - t) lu_valid = 0;
+      h = t_end - t;
+    }
+    if (need_jac) {
+      /* J at the state predicted (by the previous step's collocation polynomial) at
+       * t + GS_RADAU_JAC_AT h: the simplified Newton iteration contracts faster with
+       * a Jacobian from the middle of the step than from its start when J varies
+       * along the step (constraint-stabilised models: curvature times large gains). */
+      const double tj = t + GS_RADAU_JAC_AT * h;
+      const double* yj = y;
+      if (have_sol && GS_RADAU_JAC_AT > 0.0) {
+        const double x = (tj - told) / hsol;
+        const double x2 = x * x, x3 = x2 * x;
+        for (int i = 0; i < n; ++i) tmp[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
+        yj = tmp;
+      }
+#if GS_HAS_JAC
+      if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J))) goto fail;
+#else
+      if (yj != y) {
+        if ((rc = gs_eval_rhs(wk, &tj, yj, p, fnew))) goto fail;
+        st[2] += 1;
+        if ((rc = gs_fd_jac(wk, &tj, yj, p, fnew, atol, M->J))) goto fail;
+      } else if ((rc = gs_fd_jac(wk, &t, y, p, f, atol, M->J))) {
+        goto fail;
+      }
+      st[2] += n;
+#endif
+      st[3] += 1;
+      need_jac = 0;
+      caljac = 1;
+      lu_valid = 0;
+    }
+    double hnew = h;
+    const double min_step = 10.0 * fabs(nextafter(t, INFINITY) - t);
+    if (!(h >= min_step)) {
+      rc = GS_ERR_STEP;
+      goto fail;
+    }
+    const double mr = GS_MU_REAL / h;
+    const double mcr = GS_MU_CRE / h, mci = GS_MU_CIM / h;
+    if (!lu_valid) {
+      for (int i = 0; i < n * n; ++i) {
+        M->LUr[i] = -M->J[i];
+        M->LUcr[i] = -M->J[i];
+        M->LUci[i] = 0.0;
+      }
+      for (int i = 0; i < n; ++i) {
+        M->LUr[i * n + i] += mr;
+        M->LUcr[i * n + i] += mcr;
+        M->LUci[i * n + i] = mci;
+      }
+      st[4] += 2;
+      if (gs_lu_real(M->LUr, M->pr) || gs_lu_complex(M->LUcr, M->LUci, M->pc)) {
+        if (++nsing >= 5) {
+          rc = GS_ERR_STEP;
+          goto fail;
+        }
+        goto unexpected; /* singular: halve h */
+      }
+      lu_valid = 1;
+    }
+
+    /* Starting guess: the previous step's collocation polynomial, extrapolated. */
+    if (have_sol) {
+      for (int s = 0; s < 3; ++s) {
+        const double x = (t + h * gs_rd_C[s] - told) / hsol;
+        const double x2 = x * x, x3 = x2 * x;
+        for (int i = 0; i < n; ++i)
+          Z[s][i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3 - y[i];
+      }
+    } else {
+      for (int s = 0; s < 3; ++s)
+        for (int i = 0; i < n; ++i) Z[s][i] = 0.0;
+    }
+    for (int s = 0; s < 3; ++s)
+      for (int i = 0; i < n; ++i)
+        W[s][i] = gs_rd_TI[s][0] * Z[0][i] + gs_rd_TI[s][1] * Z[1][i] + gs_rd_TI[s][2] * Z[2][i];
+    for (int i = 0; i < n; ++i) scale[i] = atol + fabs(y[i]) * rtol;
+
+    /* Simplified Newton iteration on the transformed collocation system. */
+    faccon = pow(fmax(faccon, GS_EPS), 0.8);
+    theta = GS_RADAU_THET;
+    theta_meas = 0.0;
+    {
+      int newt = 0;
+      double dynold = 0.0, thqold = 0.0;
+      while (1) {
+        if (newt >= nit) goto unexpected;
+        int finite = 1;
+        for (int s = 0; s < 3; ++s) {
+          const double ts = t + h * gs_rd_C[s];
+          for (int i = 0; i < n; ++i) tmp[i] = y[i] + Z[s][i];
+          if ((rc = gs_eval_rhs(wk, &ts, tmp, p, F[s]))) goto fail;
+          for (int i = 0; i < n; ++i) finite &= isfinite(F[s][i]);
+        }
+        st[2] += 3;
+        st[5] += 1;
+        if (!finite) goto unexpected;
+        for (int i = 0; i < n; ++i) {
+          dW[0][i] = gs_rd_TI[0][0] * F[0][i] + gs_rd_TI[0][1] * F[1][i] +
+                     gs_rd_TI[0][2] * F[2][i] - mr * W[0][i];
+          const double re = gs_rd_TI[1][0] * F[0][i] + gs_rd_TI[1][1] * F[1][i] + gs_rd_TI[1][2] * F[2][i];
+          const double im = gs_rd_TI[2][0] * F[0][i] + gs_rd_TI[2][1] * F[1][i] + gs_rd_TI[2][2] * F[2][i];
+          /* (re + i im) - (mcr + i mci) (W1 + i W2) */
+          dW[1][i] = re - (mcr * W[1][i] - mci * W[2][i]);
+          dW[2][i] = im - (mcr * W[2][i] + mci * W[1][i]);
+        }
+        gs_lu_solve_real(M->LUr, M->pr, dW[0]);
+        gs_lu_solve_complex(M->LUcr, M->LUci, M->pc, dW[1], dW[2]);
+        ++newt;
+        const double dyno = gs_rms(&dW[0][0], scale, 3 * n);
+        if (newt > 1 && newt < nit) {
+          const double thq = dyno / dynold;
+          theta = newt == 2 ? thq : sqrt(thq * thqold);
+          theta_meas = theta;
+          thqold = thq;
+#ifdef GS_RADAU_DEBUG
+          fprintf(stderr, "   newt=%d dyno=%.3g dynold=%.3g theta=%.3g fnewt=%.3g h=%.3g\n", newt, dyno, dynold, theta, fnewt, h);
+#endif
+          if (theta < 0.99) {
+            faccon = theta / (1.0 - theta);
+            double thpow = 1.0; /* theta^(nit - 1 - newt), without libm's pow */
+            for (int k = newt; k < nit - 1; ++k) thpow *= theta;
+            const double dyth = faccon * dyno * thpow / fnewt;
+            if (dyth >= 1.0) { /* predicted not to converge in time: smaller h */
+              const double qnewt = fmax(1e-4, fmin(20.0, dyth));
+              h *= 0.8 * pow(qnewt, -1.0 / (4.0 + nit - 1 - newt));
+              goto rejected;
+            }
+          } else {
+            goto unexpected;
+          }
+        }
+        dynold = fmax(dyno, GS_EPS);
+        for (int s = 0; s < 3; ++s)
+          for (int i = 0; i < n; ++i) W[s][i] += dW[s][i];
+        for (int s = 0; s < 3; ++s)
+          for (int i = 0; i < n; ++i)
+            Z[s][i] = gs_rd_T[s][0] * W[0][i] + gs_rd_T[s][1] * W[1][i] + gs_rd_T[s][2] * W[2][i];
+        if (faccon * dyno <= fnewt) {
+          /* Error estimate (H&W IV.8 (8.19)-(8.20)), filtered by (mu_real/h - J)^-1. */
+          for (int i = 0; i < n; ++i) {
+            ynew[i] = y[i] + Z[2][i];
+            ze[i] = (gs_rd_E[0] * Z[0][i] + gs_rd_E[1] * Z[1][i] + gs_rd_E[2] * Z[2][i]) / h;
+            err[i] = f[i] + ze[i];
+          }
+          gs_lu_solve_real(M->LUr, M->pr, err);
+          for (int i = 0; i < n; ++i) scale[i] = atol + fmax(fabs(y[i]), fabs(ynew[i])) * rtol;
+          double err_norm = gs_rms(err, scale, n);
+          if (!(err_norm < 1.0) && (first || reject)) {
+            for (int i = 0; i < n; ++i) tmp[i] = y[i] + err[i];
+            if ((rc = gs_eval_rhs(wk, &t, tmp, p, fnew))) goto fail;
+            st[2] += 1;
+            for (int i = 0; i < n; ++i) err[i] = fnew[i] + ze[i];
+            gs_lu_solve_real(M->LUr, M->pr, err);
+            err_norm = gs_rms(err, scale, n);
+          }
+          if (!isfinite(err_norm)) goto unexpected;
+          err_norm = fmax(err_norm, 1e-10);
+#ifdef GS_RADAU_DEBUG
+          fprintf(stderr, "t=%.6g h=%.4g newt=%d theta=%.3g err=%.3g caljac=%d\n", t, h, newt, theta,
+                  err_norm, caljac);
+#endif
+          /* New step size, 1/FACL <= h_new / h <= 1/FACR. */
+          const double fac = fmin(GS_RADAU_SAFE, cfac / (newt + 2 * nit));
+          double quot = fmax(GS_RADAU_FACR, fmin(GS_RADAU_FACL, sqrt(sqrt(err_norm)) / fac));
+          hnew = h / quot;
+          if (!(err_norm < 1.0)) { /* error test failed */
+            h = first ? 0.1 * h : hnew;
+            goto rejected;
+          }
+          /* Accepted: Gustafsson's predictive controller. */
+          if (st[0] >= 1.0) {
+            double facgus = (hacc / h) * sqrt(sqrt(err_norm * err_norm / erracc)) / GS_RADAU_SAFE;
+            facgus = fmax(GS_RADAU_FACR, fmin(GS_RADAU_FACL, facgus));
+            quot = fmax(quot, facgus);
+            hnew = h / quot;
+          }
+          hacc = h;
+          erracc = fmax(1e-2, err_norm);
+          break;
+        }
+      }
+    }
+
+    /* Accepted step from t to t + h. */
+    st[0] += 1;
+    {
+      const double tnew = (h == t_end - t) ? t_end : t + h;
+      if ((rc = gs_check(ynew, lo, hi))) goto fail;
+      GS_PROJECT_STEP(ynew, NULL); /* the dense output below is the unprojected step's */
+      if ((rc = gs_eval_rhs(wk, &tnew, ynew, p, fnew))) goto fail;
+      st[2] += 1;
+      for (int i = 0; i < n; ++i)
+        if (!isfinite(fnew[i])) {
+          rc = GS_ERR_NONFINITE;
+          goto fail;
+        }
+      /* Dense output of this step: Q = Z^T P. */
+      for (int i = 0; i < n; ++i) {
+        yold[i] = y[i];
+        y[i] = ynew[i];
+        f[i] = fnew[i];
+        for (int m = 0; m < 3; ++m)
+          Q[i][m] = Z[0][i] * gs_rd_P[0][m] + Z[1][i] * gs_rd_P[1][m] + Z[2][i] * gs_rd_P[2][m];
+      }
+      told = t;
+      hsol = h;
+      have_sol = 1;
+      t = tnew;
+      st[7] = h;
+      while (row < n_out && t_out[row] <= t) {
+        double* o = out + row * n;
+        if (t_out[row] == t) {
+          for (int i = 0; i < n; ++i) o[i] = y[i];
+        } else {
+          const double x = (t_out[row] - told) / hsol;
+          const double x2 = x * x, x3 = x2 * x;
+          for (int i = 0; i < n; ++i) o[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
+#if GS_HAS_CON
+          if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
+            for (int i = 0; i < n; ++i) ynew[i] = o[i];
+            goto fail;
+          }
+#endif
+        }
+        ++row;
+      }
+      if (t >= t_end) break;
+
+      /* Next step size: hnew (no growth right after a rejection); keep h and the LU
+       * when the change would be small and the Newton iteration converged fast;
+       * re-evaluate J (at the new point) when it converged slowly. */
+      if (theta_meas > 0.0 && GS_RADAU_THETA_TARGET > 0.0) {
+        /* Newton-aware limit: the contraction rate grows like h^THETA_EXP; keep the
+         * predicted rate of the next step near THETA_TARGET. */
+        const double ratio = GS_RADAU_THETA_TARGET / theta_meas;
+        const double cap = fmax(0.5, GS_RADAU_THETA_EXP == 3.0 ? cbrt(ratio) : pow(ratio, 1.0 / GS_RADAU_THETA_EXP));
+        hnew = fmin(hnew, cap * h);
+      }
+      if (reject) hnew = fmin(hnew, h);
+      reject = 0;
+      first = 0;
+      const double qt = hnew / h;
+      if (!(theta <= GS_RADAU_THET && qt >= GS_RADAU_QUOT1 && qt <= GS_RADAU_QUOT2)) {
+        h = hnew;
+        lu_valid = 0;
+      }
+      if (theta > GS_RADAU_THET) need_jac = 1;
+      caljac = 0;
+    }
+    continue;
+
+  unexpected: /* Newton divergence, too many iterations, non-finite values, singular matrix */
+#ifdef GS_RADAU_DEBUG
+    fprintf(stderr, "t=%.6g h=%.4g UNEXPECTED theta=%.3g\n", t, h, theta);
+#endif
+    h *= 0.5;
+  rejected:
+#ifdef GS_RADAU_DEBUG
+    fprintf(stderr, "t=%.6g REJECT -> h=%.4g theta=%.3g\n", t, h, theta);
+#endif
+    st[1] += 1;
+    reject = 1;
+    lu_valid = 0;
+    if (!caljac) need_jac = 1;
+  }
+
+done:
+  st[6] = (double)row;
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
+  return n_out;
+
+fail:
+  if (t_fail) *t_fail = t;
+  st[6] = (double)row;
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
+  for (int i = 0; i < n; ++i) {
+    out[row * n + i] = y[i];
+    out[(row + 1) * n + i] =
+        (rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT) ? ynew[i] : NAN;
+  }
+  return rc;
+}
