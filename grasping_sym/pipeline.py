@@ -23,9 +23,9 @@ from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, templates
 from grasping_sym.codegen.compiler import COMPILER_FLAGS
 from grasping_sym.codegen.functions import compose, sx_model, sympy_op_counts
+from grasping_sym.codegen.library import compile_model, driver_defines
 from grasping_sym.derive.planar import derive_planar, has_gravity, parameter_values
 from grasping_sym.model.planar import PlanarFingerScene
-from grasping_sym.codegen.library import compile_model, driver_defines
 from grasping_sym.runtime.model import Model
 
 Progress = Callable[[str], None]

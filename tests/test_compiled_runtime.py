@@ -9,8 +9,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
-from grasping_sym.errors import CompileError, IntegratorError
 from grasping_sym.codegen.library import build_library, driver_defines
+from grasping_sym.errors import CompileError, IntegratorError
 from grasping_sym.runtime.compiled import CompiledLibrary
 
 

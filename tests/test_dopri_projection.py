@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
+from grasping_sym.codegen.library import build_library
 from grasping_sym.errors import ContactLeftContourError, IntegratorError
 from grasping_sym.runtime import projection
-from grasping_sym.codegen.library import build_library
 from grasping_sym.runtime.compiled import CompiledLibrary
 
 T_FINAL = 3.0

@@ -64,7 +64,8 @@ typedef struct {
  *   rtol, atol  scalar tolerances, local error measured with atol + rtol |x| (RMS norm);
  *               rtol is raised to 100 eps if smaller.
  *   h0          first step; <= 0 selects it automatically (Hairer-Norsett-Wanner I, II.4,
- *               as scipy's select_initial_step with the error order 3)
+ *               as scipy's select_initial_step with the error order 3, without its cap at
+ *               100 explicit-Euler probes: see gs_initial_step)
  *   max_steps   maximum number of accepted steps (>= 1)
  *   lo, hi      bounds checked on every accepted step's end state (may be NULL)
  *   proj_mask, proj_tol
@@ -143,7 +144,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
       goto fail;
     }
 
-  /* Initial step (scipy's select_initial_step with error order 3). */
+  /* Initial step (scipy's select_initial_step with error order 3, no probe cap). */
   if (h0 > 0.0)
     h = h0;
   else if ((rc = gs_initial_step(wk, t0, y, f, p, rtol, atol, t_end - t0, 3, 0.0, st, &h)))

@@ -339,7 +339,8 @@ class CompiledLibrary:
             ``rtol`` below 100 machine epsilon is raised to it.
         h0 : float
             First step (s); 0 chooses it automatically (scipy's
-            ``select_initial_step``).
+            ``select_initial_step`` without its cap at 100 explicit-Euler probes, which
+            starts a system at rest with steps of ~1e-8 s; see ``c/gs_internal.h``).
         max_steps : int
             Maximum number of accepted steps.
         lo, hi : array_like, shape (nx,), optional
