@@ -96,13 +96,9 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
   const double t_end = t_out ? t_out[n_out > 0 ? n_out - 1 : 0] : t0;
   const double expo1 = 0.2 - GS_DOPRI_BETA * 0.75;
 
-  if (n_out < 1 || !t_out || !x0 || !out || max_steps < 1 || !isfinite(t0) || !isfinite(rtol) ||
-      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0) ||
-      !gs_proj_args_ok(proj_mask, proj_tol))
+  if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
+                           proj_tol))
     return GS_ERR_ARGS;
-  for (long k = 1; k < n_out; ++k)
-    if (!(t_out[k] > t_out[k - 1]) || !isfinite(t_out[k])) return GS_ERR_ARGS;
-  if (!isfinite(t_end)) return GS_ERR_ARGS;
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   const double interval = t_end - t0;
 

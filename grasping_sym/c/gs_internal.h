@@ -210,6 +210,21 @@ static inline int gs_proj_args_ok(const int* proj_mask, double proj_tol) {
   return !proj_mask || (GS_HAS_CON && proj_tol > 0.0 && isfinite(proj_tol));
 }
 
+/* Validity of the arguments gs_radau5 and gs_dopri5 share (see gs_radau5): finite scalars,
+ * rtol, atol >= 0, output times finite, strictly increasing and starting at or after t0. */
+static inline int gs_adaptive_args_ok(double t0, long n_out, const double* t_out,
+                                      const double* x0, const double* out, long max_steps,
+                                      double rtol, double atol, double h0,
+                                      const int* proj_mask, double proj_tol) {
+  if (n_out < 1 || !t_out || !x0 || !out || max_steps < 1 || !isfinite(t0) || !isfinite(rtol) ||
+      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0) ||
+      !gs_proj_args_ok(proj_mask, proj_tol))
+    return 0;
+  for (long k = 1; k < n_out; ++k)
+    if (!(t_out[k] > t_out[k - 1]) || !isfinite(t_out[k])) return 0;
+  return isfinite(t_out[n_out - 1]);
+}
+
 /* First step size for an error estimate of order `order` (Hairer-Norsett-Wanner I, II.4, as
  * scipy's select_initial_step): h with h^(order+1) max(|f|, |f'|) = 0.01 in the weighted
  * RMS norm, at most `interval` and, when probe_cap > 0, at most probe_cap times the

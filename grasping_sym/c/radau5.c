@@ -114,13 +114,9 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   const double cfac = GS_RADAU_SAFE * (1 + 2 * nit);
   double fnewt;
 
-  if (n_out < 1 || !t_out || !x0 || !out || max_steps < 1 || !isfinite(t0) || !isfinite(rtol) ||
-      !isfinite(atol) || !(rtol >= 0.0) || !(atol >= 0.0) || !isfinite(h0) || !(t_out[0] >= t0) ||
-      !gs_proj_args_ok(proj_mask, proj_tol))
+  if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
+                           proj_tol))
     return GS_ERR_ARGS;
-  for (long k = 1; k < n_out; ++k)
-    if (!(t_out[k] > t_out[k - 1]) || !isfinite(t_out[k])) return GS_ERR_ARGS;
-  if (!isfinite(t_end)) return GS_ERR_ARGS;
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   fnewt = fmax(GS_RADAU_FNEWT_MIN, fmax(10.0 * GS_EPS / rtol, fmin(GS_RADAU_FNEWT_MAX, sqrt(rtol))));
 
