@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from grasping_sym.codegen import compiler
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
 from grasping_sym.codegen.library import build_library, driver_defines
 from grasping_sym.errors import CompileError, IntegratorError
@@ -195,6 +196,62 @@ def test_compile_error_has_stderr(tmp_path):
     assert "-DFOO=1" in msg and "-O2" in msg  # the full command
     assert not (tmp_path / "bad.so").exists()
     assert [p.name for p in tmp_path.iterdir()] == ["bad.c"]  # no temporary files left
+
+
+V3_FLAGS = "fpu sse2 cx16 lahf_lm popcnt sse4_1 sse4_2 ssse3 avx avx2 bmi1 bmi2 f16c fma abm movbe xsave"
+
+
+@pytest.mark.parametrize(("machine", "flags", "env", "level"), [
+    ("x86_64", V3_FLAGS, None, "x86-64-v3"),
+    ("x86_64", V3_FLAGS, "auto", "x86-64-v3"),
+    ("x86_64", V3_FLAGS, "baseline", "baseline"),
+    ("x86_64", V3_FLAGS.replace(" fma", ""), None, "baseline"),  # an AVX CPU without FMA
+    ("x86_64", "", None, "baseline"),  # no /proc/cpuinfo
+    ("aarch64", V3_FLAGS, None, "baseline"),
+])
+def test_isa_level(monkeypatch, machine, flags, env, level):
+    monkeypatch.setattr(compiler.platform, "machine", lambda: machine)
+    monkeypatch.setattr(compiler, "_cpu_flags", lambda: frozenset(flags.split()))
+    if env is None:
+        monkeypatch.delenv("GRASPING_SYM_ISA", raising=False)
+    else:
+        monkeypatch.setenv("GRASPING_SYM_ISA", env)
+    assert compiler.isa_level() == level
+    assert bool(compiler.isa_flags()) == (level != "baseline")
+    from grasping_sym.pipeline import _library_tag  # noqa: PLC0415
+    assert _library_tag().endswith("-" + level)  # the level is part of the library's name
+
+
+def test_isa_setting_unknown(monkeypatch):
+    monkeypatch.setenv("GRASPING_SYM_ISA", "avx512")
+    with pytest.raises(ValueError, match="GRASPING_SYM_ISA='avx512'.*'auto'.*'baseline'"):
+        compiler.isa_level()
+
+
+def test_isa_flags_old_compiler(monkeypatch):
+    """A compiler that rejects -march=x86-64-v3 (gcc < 11) builds for the baseline."""
+    monkeypatch.setattr(compiler.platform, "machine", lambda: "x86_64")
+    monkeypatch.setattr(compiler, "_cpu_flags", lambda: frozenset(V3_FLAGS.split()))
+    monkeypatch.setattr(compiler, "_compiler_accepts", lambda cc, flag: False)
+    monkeypatch.delenv("GRASPING_SYM_ISA", raising=False)
+    assert compiler.isa_level() == "x86-64-v3" and compiler.isa_flags() == ()
+
+
+@pytest.mark.skipif(compiler.isa_level() == "baseline", reason="this CPU has no x86-64-v3")
+def test_isa_build_is_bit_identical_to_baseline(tmp_path, pendulum, monkeypatch):
+    """The x86-64-v3 build fuses no multiply-add: every result equals the baseline build's."""
+    rhs, out, _ = pendulum
+    c_file = _generate(tmp_path, "pend", [rhs, rhs.jacobian(), out])
+    libs = {}
+    for level in ("auto", "baseline"):
+        monkeypatch.setenv("GRASPING_SYM_ISA", level)
+        libs[level] = CompiledLibrary(build_library(c_file, tmp_path / level / "pend.so", rhs, out))
+    X = np.random.default_rng(0).uniform(-3, 3, (200, 2))
+    a, b = (libs[k].rhs_batch(X, P) for k in ("auto", "baseline"))
+    assert np.array_equal(a, b)
+    t, xa, _ = libs["auto"].radau5([0.3, 0.1], np.linspace(0, 2, 5), P, rtol=1e-8, atol=1e-10)
+    _, xb, _ = libs["baseline"].radau5([0.3, 0.1], t, P, rtol=1e-8, atol=1e-10)
+    assert np.array_equal(xa, xb)
 
 
 def test_missing_compiler(tmp_path, monkeypatch):
