@@ -51,8 +51,9 @@
  *   GS_HAS_CON    1 if a constraints function is compiled in, else 0  default 0
  *   GS_CON        its name, e.g. paper2d_constraints: inputs (x[nx], p[np]), outputs
  *                 C[nc] (position constraints, zero on the motion), dC/dx (nc x nx),
- *                 Cdot[nc] (d C / dt along the closed loop), dCdot/dx (nc x nx); both
- *                 Jacobians dense, column-major (CasADi's storage)   needed if GS_HAS_CON
+ *                 Cdot[nc] (d C / dt along the closed loop), dCdot/dv (nc x nx: the
+ *                 speeds' columns of dCdot/dx, the others unused); both Jacobians
+ *                 dense, column-major (CasADi's storage)             needed if GS_HAS_CON
  *   GS_NC         number of constraints nc (>= 1)                  needed if GS_HAS_CON
  *                 (the GS_SZ_* maxima must include GS_CON's work sizes)
  *

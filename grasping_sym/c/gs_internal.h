@@ -162,7 +162,7 @@ static inline int gs_eval_out(gs_work* wk, const double* x, const double* p, dou
 #endif
 
 #if GS_HAS_CON
-/* C, dC/dx, Cdot, dCdot/dx at x (a result pointer may be NULL: that result is skipped). */
+/* C, dC/dx, Cdot, dCdot/dv at x (a result pointer may be NULL: that result is skipped). */
 static inline int gs_eval_con(gs_work* wk, const double* x, const double* p, double* C,
                               double* JC, double* Cd, double* JCd) {
   wk->arg[0] = x;

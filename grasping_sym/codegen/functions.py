@@ -4,9 +4,10 @@ Names (also the C symbols): ``{name}_rhs`` with CasADi's DAE signature
 ``(t, x, z, p, u) -> (ode, alg, quad, zero)`` so that CVODES/IDAS can use the compiled code
 directly; ``jac_{name}_rhs`` (CasADi's naming rule for a compiled function's Jacobian);
 ``{name}_outputs`` ``(x, p) -> y``, only when outputs were requested;
-``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dx)``, the position constraints, their
-total time derivative along the closed loop and both Jacobians (dense), for the projection of
-the C integration loops (``runtime/projection.py``).
+``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dv)``, the position constraints, their
+total time derivative along the closed loop and the Jacobians the projection of the C
+integration loops uses (``runtime/projection.py``): ``dC_dx``, and ``dCdot_dv``, the columns of
+dCdot/dx for the speeds (zero elsewhere; the others would cost second derivatives).
 """
 from __future__ import annotations
 
@@ -203,9 +204,10 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
     integrators then difference the compiled rhs), ``{name}_outputs`` (only when ``outputs``
     is not empty) and, given the position ``constraints`` C(x, p) (a column, zero on the
-    motion), ``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dx)`` with
-    ``Cdot = jtimes(C, x, xdot)`` (the total time derivative along the closed loop) and both
-    Jacobians as dense ``nc x nx`` matrices; with the SX instruction counts before and after CSE.
+    motion), ``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dv)`` with
+    ``Cdot = jtimes(C, x, xdot)`` (the total time derivative along the closed loop), ``dC_dx``
+    and ``dCdot_dv`` (the columns of dCdot/dx for the velocity states, zero elsewhere) as dense
+    ``nc x nx`` matrices; with the SX instruction counts before and after CSE.
     """
     t = ca.SX.sym("t")
     empty = ca.SX(0, 1)
@@ -243,6 +245,12 @@ def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,
     not, on which Cdot depends affinely (no column of dCdot/dx among them depends on any of
     them): the speeds. A frame angle that enters Cdot nonlinearly through the contact rates
     (3D ``psi``) is a configuration variable, not a speed, and is left alone.
+
+    The function returns the Jacobians the projection uses and no more: ``dC_dx`` (its
+    non-zero columns are the position states) and ``dCdot_dv``, the velocity states' columns
+    of dCdot/dx, zero elsewhere.  The position columns of dCdot/dx would need the second
+    derivatives of the contact kinematics: half of the function's instructions (paper2d:
+    1381 against 698), paid after every integration step.
     """
     nc = C.numel()
     if names is None:
@@ -261,9 +269,12 @@ def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,
         if kept == velocity:
             break
         velocity = kept
+    JCv = ca.SX.zeros(JCd.shape)  # dense; only the speeds' columns are computed
+    for i in velocity:
+        JCv[:, i] = JCd[:, i]
     fn = ca.Function(f"{name}_constraints", [x, p],
-                     [C, ca.densify(JC), Cdot, ca.densify(JCd)],
-                     ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dx"], FUNCTION_OPTIONS)
+                     [C, ca.densify(JC), Cdot, ca.densify(JCv)],
+                     ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"], FUNCTION_OPTIONS)
     return fn, {"names": list(names), "position_states": position, "velocity_states": velocity}
 
 

@@ -45,7 +45,7 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
         ``gs_radau5`` falls back to a finite-difference Jacobian.
     constraints_fn : casadi.Function, optional
         ``<prefix>_constraints`` with inputs (x, p) and outputs (C, dC_dx, Cdot,
-        dCdot_dx), both Jacobians dense ``nc x nx``: needed by the projection.
+        dCdot_dv), both Jacobians dense ``nc x nx``: needed by the projection.
 
     Returns
     -------
@@ -95,7 +95,7 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
             raise ValueError(
                 f"constraints function {constraints_fn.name()!r} must take (x[{nx}], "
                 f"p[{defines['GS_NP']}]) and return (C[nc], dC_dx[nc x {nx}], Cdot[nc], "
-                f"dCdot_dx[nc x {nx}]) with dense Jacobians; got outputs {shapes}"
+                f"dCdot_dv[nc x {nx}]) with dense Jacobians; got outputs {shapes}"
             )
         defines.update({"GS_CON": constraints_fn.name(), "GS_NC": nc})
     for key, meth in (("GS_SZ_ARG", "sz_arg"), ("GS_SZ_RES", "sz_res"), ("GS_SZ_IW", "sz_iw"), ("GS_SZ_W", "sz_w")):

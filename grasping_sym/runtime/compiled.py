@@ -473,7 +473,9 @@ class CompiledLibrary:
         dC_dx : shape (nc, nx)
         Cdot : shape (nc,)
             dC/dt along the closed loop, ``dC_dx @ rhs(x)``.
-        dCdot_dx : shape (nc, nx)
+        dCdot_dv : shape (nc, nx)
+            The columns of dCdot/dx for the velocity states (the manifest's
+            ``constraints["velocity_states"]``), zero elsewhere.
         """
         self._need_constraints()
         x = as_vector(x, self.nx, "x")

@@ -1,8 +1,9 @@
 """Projection onto the contact constraints after each step (an alternative to Baumgarte).
 
-Every generated model has ``{name}_constraints(x, p) -> (C, dC/dx, Cdot, dCdot/dx)``: the
+Every generated model has ``{name}_constraints(x, p) -> (C, dC/dx, Cdot, dCdot/dv)``: the
 position constraints C (the planar ``(Q, R)``, the 3D gaps ``(Qn, Qb, Qe)`` per contact, in m),
-their total time derivative along the closed loop and both Jacobians. With
+their total time derivative along the closed loop, the Jacobian of C and the speeds' columns
+of the Jacobian of Cdot. With
 ``simulate(..., project=True)`` the C integration loops ('radau', 'dopri5', 'rk4') project
 after every accepted step (``c/project.c::gs_project``):
 
@@ -68,10 +69,13 @@ def mask(model) -> np.ndarray:
 
 
 def constraints(model, x, params: dict[str, float] | None = None) -> dict[str, np.ndarray]:
-    """``C``, ``dC_dx``, ``Cdot``, ``dCdot_dx`` of ``model`` at the state ``x``."""
+    """``C``, ``dC_dx``, ``Cdot``, ``dCdot_dv`` of ``model`` at the state ``x``.
+
+    ``dCdot_dv`` holds the columns of dCdot/dx for the velocity states (those the projection
+    changes to zero Cdot); its other columns are zero."""
     mask(model)
     C, JC, Cd, JCd = model.library.constraints(x, model.params(params))
-    return {"C": C, "dC_dx": JC, "Cdot": Cd, "dCdot_dx": JCd}
+    return {"C": C, "dC_dx": JC, "Cdot": Cd, "dCdot_dv": JCd}
 
 
 def project(model, x, params: dict[str, float] | None = None,
