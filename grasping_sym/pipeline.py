@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym import __version__
-from grasping_sym.codegen import cache, cwriter, templates
+from grasping_sym.codegen import cache, cwriter, lanes, templates
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, isa_level
 from grasping_sym.codegen.functions import compose, sx_model, sympy_op_counts
 from grasping_sym.codegen.library import compile_model, driver_defines
@@ -61,13 +61,15 @@ def generate(scene: PlanarFingerScene, directory: Path, *, count_ops: bool = Tru
     cm, timings = planar_casadi(scene, say)
     say(f"writing C into {directory}")
     t0 = time.perf_counter()
-    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__)
+    lane_c = lanes.rhs_lanes_c(cm.rhs)  # radau's three stages in one call
+    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__, extra_c=lane_c)
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
     if count_ops:
         ops.update(sympy_op_counts(derive_planar(scene)))
     lower, upper = _bounds(scene)
     manifest = _manifest(scene, digest, cm, scene.initial_state(), lower, upper,
+                         rhs_lanes=lanes.lanes_symbol(cm.rhs) if lane_c else None,
                          pivot=list(scene.pivot), op_counts=ops)
     cwriter.write_manifest(directory, manifest)
     manifest["timings"] = timings
@@ -94,8 +96,11 @@ def planar_casadi(scene: PlanarFingerScene, progress: Progress | None = None):
                 "compose": t3 - t2}
 
 
-def _manifest(scene, digest: dict, cm, x0, lower: list, upper: list, **extra) -> dict:
-    """What every manifest records: names, sizes, start, domains and how to compile it."""
+def _manifest(scene, digest: dict, cm, x0, lower: list, upper: list,
+              rhs_lanes: str | None = None, **extra) -> dict:
+    """What every manifest records: names, sizes, start, domains and how to compile it.
+    ``rhs_lanes``: the C name of the 4-lane rhs when the C file has one (planar scenes; the
+    3D rhs, 14k instructions, is left without: radau is not the 3D method of choice)."""
     return {
         "name": scene.name,
         "hash": digest["hash"],
@@ -108,7 +113,7 @@ def _manifest(scene, digest: dict, cm, x0, lower: list, upper: list, **extra) ->
         "lower": lower,
         "upper": upper,
         "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac,
-                                         constraints_fn=cm.constraints),
+                                         constraints_fn=cm.constraints, rhs_lanes=rhs_lanes),
         "c_symbols": [f.name() for f in cm.functions()],
         "constraints": _constraints_entry(cm, scene.state_names),
         **extra,

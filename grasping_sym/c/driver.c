@@ -56,6 +56,12 @@
  *                 dense, column-major (CasADi's storage)             needed if GS_HAS_CON
  *   GS_NC         number of constraints nc (>= 1)                  needed if GS_HAS_CON
  *                 (the GS_SZ_* maxima must include GS_CON's work sizes)
+ *   GS_HAS_RHS_LANES  1 if the 4-lane rhs is compiled in, else 0  default 0
+ *   GS_RHS_LANES  its name, e.g. paper2d_rhs_lanes (codegen/lanes.py): int f(const double*
+ *                 t, const double* const* x, const double* p, double* const* xdot), the
+ *                 rhs at four (t[s], x[s]) at once, bit-identical to four GS_RHS calls;
+ *                 gs_radau5 evaluates its three stages with one call
+ *                                                           needed if GS_HAS_RHS_LANES
  *
  * Exported functions (all prefixed gs_, default visibility; helpers shared between the
  * files have hidden visibility):

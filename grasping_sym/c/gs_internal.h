@@ -56,6 +56,13 @@
 #error "GS_JAC_NIN / GS_JAC_NOUT / GS_JAC_BLOCK inconsistent with each other or with GS_SZ_ARG / GS_SZ_RES"
 #endif
 
+#ifndef GS_HAS_RHS_LANES
+#define GS_HAS_RHS_LANES 0
+#endif
+#if GS_HAS_RHS_LANES && !defined(GS_RHS_LANES)
+#error "GS_HAS_RHS_LANES is 1 but GS_RHS_LANES (name of the 4-lane rhs) is not defined"
+#endif
+
 #if GS_HAS_CON && (!defined(GS_CON) || !defined(GS_NC))
 #error "GS_HAS_CON is 1 but GS_CON (name of the constraints function) or GS_NC is not defined"
 #endif
@@ -136,6 +143,9 @@ const GS_CASADI_INT* GS_JAC_SPARSITY_OUT(GS_CASADI_INT i);
 #if GS_HAS_CON
 int GS_CON(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
 #endif
+#if GS_HAS_RHS_LANES
+int GS_RHS_LANES(const double* t, const double* const* x, const double* p, double* const* xdot);
+#endif
 
 /* xdot = f(t, x, p) using the caller's work arrays. */
 static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, const double* p,
@@ -150,6 +160,25 @@ static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, con
   wk->res[2] = NULL;
   wk->res[3] = NULL;
   return GS_RHS(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+}
+
+/* xdot[s] = f(t[s], x[s], p) for s = 0, 1, 2: one call of the 4-lane rhs when the library
+ * has it (codegen/lanes.py; bit-identical to three calls of GS_RHS), else three calls. */
+static inline int gs_eval_rhs3(gs_work* wk, const double* t, const double* const* x,
+                               const double* p, double* const* xdot) {
+#if GS_HAS_RHS_LANES
+  (void)wk;
+  double spare[GS_NX];
+  const double tl[4] = {t[0], t[1], t[2], t[2]};
+  const double* xl[4] = {x[0], x[1], x[2], x[2]};
+  double* yl[4] = {xdot[0], xdot[1], xdot[2], spare};
+  return GS_RHS_LANES(tl, xl, p, yl) ? GS_ERR_EVAL : 0;
+#else
+  int rc;
+  for (int s = 0; s < 3; ++s)
+    if ((rc = gs_eval_rhs(wk, t + s, x[s], p, xdot[s]))) return rc;
+  return 0;
+#endif
 }
 
 #if GS_HAS_OUT

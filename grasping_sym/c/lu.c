@@ -2,28 +2,39 @@
  * of n x n matrices, n = GS_NX, for the Newton iteration of gs_radau5 (radau5.c). */
 #include "gs_internal.h"
 
+/* n = GS_NX is a compile-time constant (7 for paper2d): for n <= 16 the real routines'
+ * loops are unrolled, and the real factorisation runs in 43 ns instead of 65 and a solve in
+ * 20 instead of 44 (gcc 12, x86-64-v3); the arithmetic and its order are unchanged, so are
+ * the results.  (Unrolling the complex routines or the solve's pivot loop measured no
+ * faster; for larger n the code would only grow.) */
+#if defined(__GNUC__) && !defined(__clang__) && GS_NX <= 16
+#define GS_UNROLL _Pragma("GCC unroll 16")
+#else
+#define GS_UNROLL
+#endif
+
 /* LU with partial pivoting of the row-major n x n matrix A (in place).
  * Returns 0, or 1 if a pivot is exactly zero (singular). */
 GS_HIDDEN int gs_lu_real(double* A, int* piv) {
   const int n = GS_NX;
-  for (int k = 0; k < n; ++k) {
+  GS_UNROLL for (int k = 0; k < n; ++k) {
     int m = k;
     double amax = fabs(A[k * n + k]);
-    for (int i = k + 1; i < n; ++i)
+    GS_UNROLL for (int i = k + 1; i < n; ++i)
       if (fabs(A[i * n + k]) > amax) amax = fabs(A[i * n + k]), m = i;
     piv[k] = m;
     if (amax == 0.0) return 1;
     if (m != k)
-      for (int j = 0; j < n; ++j) {
+      GS_UNROLL for (int j = 0; j < n; ++j) {
         double tmp = A[k * n + j];
         A[k * n + j] = A[m * n + j];
         A[m * n + j] = tmp;
       }
     const double inv = 1.0 / A[k * n + k];
-    for (int i = k + 1; i < n; ++i) {
+    GS_UNROLL for (int i = k + 1; i < n; ++i) {
       const double l = (A[i * n + k] *= inv);
       if (l != 0.0)
-        for (int j = k + 1; j < n; ++j) A[i * n + j] -= l * A[k * n + j];
+        GS_UNROLL for (int j = k + 1; j < n; ++j) A[i * n + j] -= l * A[k * n + j];
     }
   }
   return 0;
@@ -39,14 +50,14 @@ GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b) {
       b[pk] = tmp;
     }
   }
-  for (int i = 1; i < n; ++i) {
+  GS_UNROLL for (int i = 1; i < n; ++i) {
     double s = b[i];
-    for (int j = 0; j < i; ++j) s -= LU[i * n + j] * b[j];
+    GS_UNROLL for (int j = 0; j < i; ++j) s -= LU[i * n + j] * b[j];
     b[i] = s;
   }
-  for (int i = n - 1; i >= 0; --i) {
+  GS_UNROLL for (int i = n - 1; i >= 0; --i) {
     double s = b[i];
-    for (int j = i + 1; j < n; ++j) s -= LU[i * n + j] * b[j];
+    GS_UNROLL for (int j = i + 1; j < n; ++j) s -= LU[i * n + j] * b[j];
     b[i] = s / LU[i * n + i];
   }
 }

@@ -243,12 +243,18 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
       while (1) {
         if (newt >= nit) goto unexpected;
         int finite = 1;
-        for (int s = 0; s < 3; ++s) {
-          const double ts = t + h * gs_rd_C[s];
-          for (int i = 0; i < n; ++i) tmp[i] = y[i] + Z[s][i];
-          if ((rc = gs_eval_rhs(wk, &ts, tmp, p, F[s]))) goto fail;
-          for (int i = 0; i < n; ++i) finite &= isfinite(F[s][i]);
+        {
+          double ts[3], ys[3][GS_NX];
+          for (int s = 0; s < 3; ++s) {
+            ts[s] = t + h * gs_rd_C[s];
+            for (int i = 0; i < n; ++i) ys[s][i] = y[i] + Z[s][i];
+          }
+          const double* yp[3] = {ys[0], ys[1], ys[2]};
+          double* fp[3] = {F[0], F[1], F[2]};
+          if ((rc = gs_eval_rhs3(wk, ts, yp, p, fp))) goto fail;
         }
+        for (int s = 0; s < 3; ++s)
+          for (int i = 0; i < n; ++i) finite &= isfinite(F[s][i]);
         st[2] += 3;
         st[5] += 1;
         if (!finite) goto unexpected;

@@ -23,8 +23,10 @@ HEADER = (
 MANIFEST = "manifest.json"
 
 
-def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str) -> list[Path]:
-    """Generate ``{name}.c`` and ``{name}.h`` into ``directory`` (created if needed)."""
+def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
+            extra_c: str | None = None) -> list[Path]:
+    """Generate ``{name}.c`` and ``{name}.h`` into ``directory`` (created if needed);
+    ``extra_c`` (e.g. the 4-lane rhs of ``codegen.lanes``) is appended to the C file."""
     directory.mkdir(parents=True, exist_ok=True)
     cg = ca.CodeGenerator(f"{name}.c", {"with_header": True, "casadi_int": "long long int"})
     for f in model.functions():
@@ -37,7 +39,8 @@ def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version
     for suffix in (".c", ".h"):
         src = tmp / f"{name}{suffix}"
         dst = directory / f"{name}{suffix}"
-        dst.write_text(header + src.read_text())
+        extra = extra_c if (suffix == ".c" and extra_c) else ""
+        dst.write_text(header + src.read_text() + extra)
         src.unlink()
         out.append(dst)
     tmp.rmdir()

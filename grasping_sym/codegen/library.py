@@ -29,7 +29,8 @@ PYFAST_C: Path = _C_DIR / "pyfast.c"
 
 def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
                    jac_fn: Any | None = None,
-                   constraints_fn: Any | None = None) -> dict[str, str | int]:
+                   constraints_fn: Any | None = None,
+                   rhs_lanes: str | None = None) -> dict[str, str | int]:
     """Preprocessor macros of the C driver (``c/driver.c`` documents them) from the CasADi functions used.
 
     Parameters
@@ -46,13 +47,16 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
     constraints_fn : casadi.Function, optional
         ``<prefix>_constraints`` with inputs (x, p) and outputs (C, dC_dx, Cdot,
         dCdot_dv), both Jacobians dense ``nc x nx``: needed by the projection.
+    rhs_lanes : str, optional
+        C name of the 4-lane rhs (``codegen.lanes.rhs_lanes_c``) when the C file has it.
 
     Returns
     -------
     dict
         ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_HAS_JAC, [GS_JAC,
-        GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_HAS_CON, [GS_CON, GS_NC,] GS_SZ_ARG,
-        GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes are maxima over all the functions given.
+        GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_HAS_CON, [GS_CON, GS_NC,]
+        GS_HAS_RHS_LANES, [GS_RHS_LANES,] GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes
+        are maxima over all the functions given.
     """
     fns = [rhs_fn] + [f for f in (outputs_fn, jac_fn, constraints_fn) if f is not None]
     defines: dict[str, str | int] = {
@@ -98,6 +102,9 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
                 f"dCdot_dv[nc x {nx}]) with dense Jacobians; got outputs {shapes}"
             )
         defines.update({"GS_CON": constraints_fn.name(), "GS_NC": nc})
+    defines["GS_HAS_RHS_LANES"] = int(rhs_lanes is not None)
+    if rhs_lanes is not None:
+        defines["GS_RHS_LANES"] = rhs_lanes
     for key, meth in (("GS_SZ_ARG", "sz_arg"), ("GS_SZ_RES", "sz_res"), ("GS_SZ_IW", "sz_iw"), ("GS_SZ_W", "sz_w")):
         defines[key] = max(int(getattr(f, meth)()) for f in fns)
     return defines
@@ -115,6 +122,7 @@ def build_library(
     fast: bool = True,
     jac_fn: Any | None = None,
     constraints_fn: Any | None = None,
+    rhs_lanes: str | None = None,
 ) -> Path:
     """Compile a CasADi-generated C file with the driver into ``out``.
 
@@ -135,13 +143,16 @@ def build_library(
         :meth:`CompiledLibrary.radau5` (finite differences otherwise).
     constraints_fn : casadi.Function, optional
         ``<prefix>_constraints`` if it was generated into ``casadi_c`` (projection).
+    rhs_lanes : str, optional
+        C name of the 4-lane rhs (``codegen.lanes``) if ``casadi_c`` has it.
 
     Returns
     -------
     Path
         The library path.
     """
-    return compile_model(casadi_c, out, driver_defines(rhs_fn, outputs_fn, jac_fn, constraints_fn),
+    return compile_model(casadi_c, out, driver_defines(rhs_fn, outputs_fn, jac_fn, constraints_fn,
+                                                         rhs_lanes),
                          fast=fast)
 
 
