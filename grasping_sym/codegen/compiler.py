@@ -93,8 +93,10 @@ def compiler_version() -> str:
     return (proc.stdout.splitlines() or [""])[0].strip()
 
 
+@functools.lru_cache(maxsize=1)
 def _cpu_flags() -> frozenset[str]:
-    """The CPU's feature flags from /proc/cpuinfo (empty where there is none)."""
+    """The CPU's feature flags from /proc/cpuinfo (empty where there is none); read once per
+    process (every ``build`` names its library with the level, cached loads included)."""
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
             for line in fh:
