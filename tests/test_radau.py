@@ -98,6 +98,32 @@ def test_bad_arguments(paper2d_model):
         lib.radau5(x0[:3], [0.0, 1.0])
 
 
+@pytest.mark.parametrize("name", ["radau5", "dopri5"])
+def test_initial_state_refused_in_c(paper2d_model, name):
+    """The C integrators check x0 themselves (finite, inside the bounds) before any step
+    or output row; the wrapper names the state component."""
+    lib = paper2d_model.library
+    lo, hi = paper2d_model.lower, paper2d_model.upper
+    i = int(np.flatnonzero(np.isfinite(hi))[0])
+    x0 = paper2d_model.initial_state()
+    outside = x0.copy()
+    outside[i] = hi[i] + 1e-3
+    with pytest.raises(IntegratorError, match=rf"initial state: state component {i} left"):
+        getattr(lib, name)(outside, [0.0, 0.5], lo=lo, hi=hi)
+    nan = x0.copy()
+    nan[1] = np.nan
+    with pytest.raises(IntegratorError, match=r"initial state: state component\(s\) \[1\]"):
+        getattr(lib, name)(nan, [0.0, 0.5])
+    # the return code itself, on the CPython fast path (rows with t_out <= t0 not written)
+    out, stats = np.full((3, lib.nx), 7.0), np.zeros(16)
+    rc, t_fail = lib._call_adaptive(name[:-1] if name == "radau5" else name,
+                                    np.array([0.0, 0.5]), outside, None, 1e-6, 1e-9, 0.0,
+                                    1000, 0, lo, hi, None, 0.0, out, stats)
+    assert rc == -2 and t_fail == 0.0 and stats[0] == stats[2] == 0
+    np.testing.assert_array_equal(out[0], outside)
+    np.testing.assert_array_equal(out[1], outside)
+
+
 def test_fast_path_matches_ctypes_path(paper2d_model):
     """radau5 / dopri5 through the CPython fast path give the ctypes path's results, bit for
     bit, and the same failure (the same C function runs behind both)."""

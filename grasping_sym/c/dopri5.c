@@ -106,6 +106,10 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
     y[i] = x0[i];
     y1[i] = NAN;
   }
+  if ((rc = gs_check(y, lo, hi))) { /* the initial state itself: nothing written */
+    for (int i = 0; i < n; ++i) y1[i] = y[i];
+    goto fail;
+  }
   while (row < n_out && t_out[row] <= t0) {
     for (int i = 0; i < n; ++i) out[row * n + i] = y[i];
     ++row;

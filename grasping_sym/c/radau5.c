@@ -55,7 +55,8 @@ typedef struct {
  * are those of scipy / RADAU5 (weights atol + rtol max(|x_old|, |x_new|), RMS norm).
  *
  * Arguments
- *   t0          initial time; x0[nx] the initial state (not checked against lo / hi)
+ *   t0          initial time; x0[nx] the initial state, checked like every step's end
+ *               (finite, inside [lo, hi]: else GS_ERR_NONFINITE / GS_ERR_BOUNDS, no row written)
  *   n_out,t_out output times, strictly increasing, t_out[0] >= t0 (t_out[0] == t0 allowed);
  *               the integration ends at t_out[n_out - 1] exactly (never steps beyond it);
  *               states between steps come from the collocation polynomial (order 3
@@ -124,6 +125,10 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
     y[i] = x0[i];
     ynew[i] = NAN;
     yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
+  }
+  if ((rc = gs_check(y, lo, hi))) { /* the initial state itself: nothing written */
+    for (int i = 0; i < n; ++i) ynew[i] = y[i];
+    goto fail;
   }
   while (row < n_out && t_out[row] <= t0) {
     for (int i = 0; i < n; ++i) out[row * n + i] = y[i];

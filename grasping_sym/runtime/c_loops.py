@@ -114,9 +114,10 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
              nstiff: int = 0) -> tuple[np.ndarray, np.ndarray, dict]:
     """``CompiledLibrary.radau5`` (``method='radau'``) or ``dopri5`` (documented there).
 
-    The checks here are the cheap ones (shapes, scalars, the initial state's bounds); the C
-    code validates ``t_out`` (finite, strictly increasing) itself, and a rejection is
-    explained afterwards, so that a short run does not pay for NumPy reductions over it.
+    The checks here are the cheap ones (shapes, scalars); the C code validates ``t_out``
+    (finite, strictly increasing) and the initial state (finite, inside the bounds) itself,
+    and a rejection is explained afterwards, so that a short run does not pay for NumPy
+    reductions over them.
     """
     x0a = as_vector(x0, lib.nx, "x0")
     pa = lib._p(p)
@@ -134,11 +135,6 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
     if max_steps < 1:
         raise ValueError(f"max_steps must be >= 1, got {max_steps}")
     mask = lib._mask(proj_mask, proj_tol)
-    t0 = float(t_arr[0])
-    bad = violation(x0a, lo_a, hi_a)
-    if bad:
-        raise IntegratorError(t0, x0a, f"initial state: {bad}", lib.state_names)
-
     m = t_arr.size
     out = np.empty((m + _ADAPTIVE_EXTRA_ROWS, lib.nx))
     stats_a = np.zeros(NSTATS)
@@ -164,6 +160,9 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
             raise ValueError(_T_OUT)
         raise ValueError(f"{c_name} rejected its arguments (rtol = {rtol}, atol = {atol}, "
                          f"h0 = {h0}, max_steps = {max_steps}, proj_tol = {proj_tol})")
+    bad = violation(x0a, lo_a, hi_a) if stats_a[0] == 0 else ""
+    if bad:  # the C code refused the initial state itself
+        raise IntegratorError(float(t_arr[0]), x0a, f"initial state: {bad}", lib.state_names)
     raise _failure(lib, method, c_name, rc, tf, t_arr, out, stats, stats_a, lo_a, hi_a,
                    max_steps, proj_tol)
 
