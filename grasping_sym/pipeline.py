@@ -21,7 +21,7 @@ import numpy as np
 
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, templates
-from grasping_sym.codegen.compiler import COMPILER_FLAGS, isa_level
+from grasping_sym.codegen.compiler import COMPILER_FLAGS, isa_level, vector_libm
 from grasping_sym.codegen.functions import compose, sx_model, sympy_op_counts
 from grasping_sym.codegen.library import compile_model, driver_defines
 from grasping_sym.derive.planar import derive_planar, has_gravity, parameter_values
@@ -33,8 +33,10 @@ Progress = Callable[[str], None]
 
 def _library_tag() -> str:
     """What ties a compiled library to this interpreter (the fast path is an extension) and
-    to the instruction set it was compiled for (``compiler.isa_level``)."""
-    return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}"
+    to the instruction set it was compiled for (``compiler.isa_level``, with ``-mvec`` when
+    it calls glibc's vector libm, ``compiler.vector_libm``)."""
+    mvec = "-mvec" if vector_libm() else ""
+    return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}{mvec}"
 
 
 def _is_3d(scene) -> bool:

@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from grasping_sym.codegen import lanes
+from grasping_sym.codegen import lanes, vecmath
 from grasping_sym.codegen.library import build_library, compile_model
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary
@@ -37,8 +37,11 @@ def _lanes_call(lib: CompiledLibrary, symbol: str, T, X, p) -> np.ndarray:
     return Y
 
 
-def test_every_supported_operation_is_bit_identical(tmp_path):
-    """One rhs using every translated operation: the lanes equal four scalar calls exactly."""
+@pytest.mark.parametrize("vecmath_env", ["auto", "off"])
+def test_every_supported_operation_is_bit_identical(tmp_path, monkeypatch, vecmath_env):
+    """One rhs using every translated operation: the lanes equal four scalar calls exactly,
+    with glibc's vector libm (both call it) and without (both call the scalar functions)."""
+    monkeypatch.setenv("GRASPING_SYM_VECMATH", vecmath_env)
     x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 2)
     a, b, c = x[0], x[1], x[2]
     terms = [ca.sin(a) * p[0], ca.cos(b), ca.tan(0.3 * c), ca.asin(0.5 * ca.tanh(a)),
@@ -56,7 +59,7 @@ def test_every_supported_operation_is_bit_identical(tmp_path):
     cg.add(rhs)
     cg.generate(str(tmp_path) + "/")
     c_file = tmp_path / "ops.c"
-    c_file.write_text(c_file.read_text() + code)
+    c_file.write_text(vecmath.batch_libm_calls(c_file.read_text()) + code)  # as cwriter
     lib = CompiledLibrary(build_library(c_file, tmp_path / "ops.so", rhs,
                                         rhs_lanes=lanes.lanes_symbol(rhs)))
     rng = np.random.default_rng(7)

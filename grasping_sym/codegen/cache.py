@@ -30,7 +30,7 @@ HASHED_SOURCES = (
     "codegen/functions.py", "codegen/cwriter.py", "codegen/templates.py",
     "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c", "c/radau5.c", "c/radau5.h",
     "c/jac.c", "c/lu.c", "c/dopri5.c", "c/gs_internal.h", "c/pyfast.c", "c/gs_driver.h",
-    "codegen/library.py", "codegen/lanes.py", "pipeline.py",
+    "codegen/library.py", "codegen/lanes.py", "codegen/vecmath.py", "pipeline.py",
 )
 
 #: The 3D models' code-shaping modules, hashed (with ``HASHED_SOURCES``) for 3D scenes only.

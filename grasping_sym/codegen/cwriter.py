@@ -13,6 +13,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from grasping_sym.codegen import vecmath
 from grasping_sym.codegen.functions import CasadiModel
 
 HEADER = (
@@ -25,8 +26,9 @@ MANIFEST = "manifest.json"
 
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
             extra_c: str | None = None) -> list[Path]:
-    """Generate ``{name}.c`` and ``{name}.h`` into ``directory`` (created if needed);
-    ``extra_c`` (e.g. the 4-lane rhs of ``codegen.lanes``) is appended to the C file."""
+    """Generate ``{name}.c`` and ``{name}.h`` into ``directory`` (created if needed), the
+    libm calls of the C grouped by ``codegen.vecmath``; ``extra_c`` (e.g. the 4-lane rhs of
+    ``codegen.lanes``) is appended to the C file."""
     directory.mkdir(parents=True, exist_ok=True)
     cg = ca.CodeGenerator(f"{name}.c", {"with_header": True, "casadi_int": "long long int"})
     for f in model.functions():
@@ -39,8 +41,10 @@ def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version
     for suffix in (".c", ".h"):
         src = tmp / f"{name}{suffix}"
         dst = directory / f"{name}{suffix}"
-        extra = extra_c if (suffix == ".c" and extra_c) else ""
-        dst.write_text(header + src.read_text() + extra)
+        text = src.read_text()
+        if suffix == ".c":  # libm calls in groups of four (see codegen.vecmath)
+            text = vecmath.batch_libm_calls(text) + (extra_c or "")
+        dst.write_text(header + text)
         src.unlink()
         out.append(dst)
     tmp.rmdir()

@@ -7,10 +7,12 @@ code is rewritten over GCC vector types (``double __attribute__((vector_size(32)
 understood by clang), so that its arithmetic runs on four states at once in AVX registers.
 
 Every lane computes exactly what the scalar function computes: additions, products,
-quotients and square roots are IEEE operations lane by lane, and each libm call (``sin``,
-``asinh``, ...) is made per lane with the scalar function, so the results are bit-identical
-to four scalar calls (tested). On paper2d the three stage evaluations take 0.33 µs instead
-of 0.52 (gcc 12, x86-64-v3).
+quotients and square roots are IEEE operations lane by lane (square roots four at once where
+AVX is), and each libm call (``sin``, ``asinh``, ...) goes to the function the scalar code
+calls for that value: with glibc's vector libm (``GS_VECMATH``, see ``codegen.vecmath``) one
+call of its 4-lane version, otherwise the scalar function lane by lane. The results are
+therefore bit-identical to four scalar calls (tested, both ways). On paper2d the three stage
+evaluations take 0.33 µs instead of 0.52 with scalar libm (gcc 12, x86-64-v3).
 
 Only the operations listed in :data:`UNARY` and :data:`BINARY` and the four arithmetic
 operators are translated; a function with anything else (comparisons, ``if_else``, work
@@ -22,6 +24,8 @@ from __future__ import annotations
 import re
 
 import casadi as ca
+
+from grasping_sym.codegen import vecmath
 
 __all__ = ["BINARY", "UNARY", "lanes_symbol", "rhs_lanes_c"]
 
@@ -51,7 +55,31 @@ typedef double gs_lane4 __attribute__((vector_size(32)));
     return (gs_lane4){{f(a[0]), f(a[1]), f(a[2]), f(a[3])}}; }}
 #define GS_L4_2(f) static inline gs_lane4 gs_l4_##f(gs_lane4 a, gs_lane4 b) {{ \\
     return (gs_lane4){{f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])}}; }}
+#ifndef GS_VECMATH
+#define GS_VECMATH 0
+#endif
+#if GS_VECMATH || defined(__AVX__)
+#include <immintrin.h>
+#endif
+#if GS_VECMATH /* libmvec, as the scalar functions' batched calls (codegen.vecmath) */
+#define GS_L4_V1(f) static inline gs_lane4 gs_l4_##f(gs_lane4 a) {{ \\
+    return (gs_lane4)_ZGVdN4v_##f((__m256d)a); }}
+#define GS_L4_V2(f) static inline gs_lane4 gs_l4_##f(gs_lane4 a, gs_lane4 b) {{ \\
+    return (gs_lane4)_ZGVdN4vv_##f((__m256d)a, (__m256d)b); }}
+{declarations}
+#else
+#define GS_L4_V1(f) GS_L4_1(f)
+#define GS_L4_V2(f) GS_L4_2(f)
+#endif
 """
+
+
+#: Square roots four at a time where AVX is (IEEE, so bit-identical to sqrt per lane).
+_SQRT = """#ifdef __AVX__
+static inline gs_lane4 gs_l4_sqrt(gs_lane4 a) { return (gs_lane4)_mm256_sqrt_pd((__m256d)a); }
+#else
+GS_L4_1(sqrt)
+#endif"""
 
 
 def lanes_symbol(rhs: ca.Function) -> str:
@@ -132,9 +160,13 @@ def rhs_lanes_c(rhs: ca.Function) -> str | None:
         return None
     symbol = lanes_symbol(rhs)
     helpers = ["static inline gs_lane4 gs_l4_casadi_sq(gs_lane4 a) { return a * a; }"]
-    helpers += [f"GS_L4_1({f})" for f in UNARY if f in used]
-    helpers += [f"GS_L4_2({f})" for f in BINARY if f in used]
+    vec = {f for f in used if f in vecmath.VECTOR_FUNCTIONS}
+    helpers += [_SQRT if f == "sqrt" else f"GS_L4_{'V' if f in vec else ''}1({f})"
+                for f in UNARY if f in used]
+    helpers += [f"GS_L4_{'V' if f in vec else ''}2({f})" for f in BINARY if f in used]
     sig = (f"int {symbol}(const double* t, const double* const* x, const double* p, "
            "double* const* xdot)")
-    return (_PRELUDE.format(symbol=symbol, rhs=rhs.name()) + "\n".join(helpers) + "\n"
+    prelude = _PRELUDE.format(symbol=symbol, rhs=rhs.name(),
+                              declarations=vecmath.vector_declarations(vec))
+    return (prelude + "\n".join(helpers) + "\n"
             + sig + " {\n" + "\n".join("  " + s for s in body) + "\n  return 0;\n}\n")
