@@ -126,6 +126,16 @@ def _compiler_accepts(cc: tuple[str, ...], flag: str) -> bool:
     return proc.returncode == 0
 
 
+def _setting(env: str, choices: dict[str, str]) -> str:
+    """The value of ``$env`` (lower case; unset or empty: the first choice), one of
+    ``choices`` (value -> what it means), else a ValueError naming them."""
+    choice = os.environ.get(env, "").strip().lower() or next(iter(choices))
+    if choice not in choices:
+        known = " or ".join(f"{k!r} ({v})" for k, v in choices.items())
+        raise ValueError(f"{env}={os.environ[env]!r} is not a known setting; use {known}")
+    return choice
+
+
 def isa_level() -> str:
     """The CPU's instruction-set level that libraries are built for: ``"x86-64-v3"`` or
     ``"baseline"``.
@@ -140,11 +150,8 @@ def isa_level() -> str:
     ValueError
         If ``$GRASPING_SYM_ISA`` is set to something other than ``auto`` or ``baseline``.
     """
-    choice = os.environ.get(_ISA_ENV, "auto").strip().lower() or "auto"
-    if choice not in ("auto", "baseline"):
-        raise ValueError(f"{_ISA_ENV}={os.environ[_ISA_ENV]!r} is not a known setting; use "
-                         "'auto' (x86-64-v3 where the CPU has it) or 'baseline' (the "
-                         "compiler's default target)")
+    choice = _setting(_ISA_ENV, {"auto": "x86-64-v3 where the CPU has it",
+                                 "baseline": "the compiler's default target"})
     if choice == "baseline" or platform.machine().lower() not in ("x86_64", "amd64"):
         return "baseline"
     return "x86-64-v3" if _X86_64_V3_CPU_FLAGS <= _cpu_flags() else "baseline"
@@ -175,11 +182,9 @@ def vector_libm() -> bool:
     ValueError
         If ``$GRASPING_SYM_VECMATH`` is set to something other than ``auto`` or ``off``.
     """
-    choice = os.environ.get(_VECMATH_ENV, "auto").strip().lower() or "auto"
-    if choice not in ("auto", "off"):
-        raise ValueError(f"{_VECMATH_ENV}={os.environ[_VECMATH_ENV]!r} is not a known "
-                         "setting; use 'auto' (glibc's libmvec where the CPU and the C "
-                         "library have it) or 'off' (scalar libm calls)")
+    choice = _setting(_VECMATH_ENV, {
+        "auto": "glibc's libmvec where the CPU and the C library have it",
+        "off": "scalar libm calls"})
     return choice == "auto" and isa_level() == "x86-64-v3" and _libmvec_complete()
 
 
