@@ -142,19 +142,20 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
     rc, tf = lib._call_adaptive(method, t_arr, x0a, pa, rtol, atol, h0, max_steps, int(nstiff),
                                 lo_a, hi_a, mask, proj_tol, out, stats_a)
     wall = perf_counter() - start
-    stats: dict = {k: int(stats_a[i]) for i, k in enumerate(_STATS[method])}
-    stats["h_last"] = float(stats_a[7])
+    st = stats_a.tolist()  # Python floats: cheaper to pick from than the array
+    stats: dict = dict(zip(_STATS[method], map(int, st)))
+    stats["h_last"] = st[7]
     stats["wall_time"] = wall
     if mask is not None:
-        stats.update(projection_stats(stats_a))
+        stats.update(projection_stats(st))
     if method == "dopri5":
-        stats["h_lambda"] = float(stats_a[13])
-        stats["n_stiff_tests"] = int(stats_a[14])
+        stats["h_lambda"] = st[13]
+        stats["n_stiff_tests"] = int(st[14])
     c_name = "gs_radau5" if method == "radau" else "gs_dopri5"
     if rc >= 0:
         if rc != m:
             raise RuntimeError(f"{c_name} returned {rc}, expected {m}")
-        return t_arr.copy(), out[:m].copy(), stats
+        return t_arr.copy(), out[:m], stats  # out is ours: a view of it, no copy
     if rc == _ERR_ARGS:
         if not (np.all(np.isfinite(t_arr)) and np.all(np.diff(t_arr) > 0)):
             raise ValueError(_T_OUT)
@@ -227,7 +228,8 @@ def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None) -> st
     return f"state component {i} left [{lo[i]:g}, {hi[i]:g}] (value {x[i]:.6g})"
 
 
-def projection_stats(stats_a: np.ndarray) -> dict:
+def projection_stats(stats_a) -> dict:
+    """The projection's entries of the GS_NSTATS array (or its ``tolist()``)."""
     return {"n_constraint_evals": int(stats_a[8]), "max_drift": float(stats_a[9]),
             "max_drift_rate": float(stats_a[10])}
 
