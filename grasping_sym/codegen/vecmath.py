@@ -1,13 +1,13 @@
 """Batch the libm calls of generated C four at a time, for glibc's vector math library.
 
 CasADi's C for an SX function is straight-line code with one libm call per statement
-(``a12=sin(a6);``). Calls of the same function whose arguments are all known before the
-first of them are independent, and four of them can run as one call of glibc's AVX2 vector
-function (``_ZGVdN4v_sin``, libmvec): about the cost of one scalar call for four values.
-:func:`batch_libm_calls` rewrites every such function of a C file: each group of up to four
-calls becomes one macro call placed before the group's first statement, which writes fresh
-temporaries, and each original statement becomes a copy of its temporary
-(``a12=gs_vm3;``). The macros are defined at the top of the file (:data:`PRELUDE`):
+(``a12=sin(a6);``). Calls of one function that do not depend on each other can run four at
+a time as one call of glibc's AVX2 vector function (``_ZGVdN4v_sin``, libmvec): about the
+cost of one scalar call for four values. :func:`batch_libm_calls` rewrites every such
+function of a C file in single-assignment form (``v12=sin(v6)`` style names), groups the
+independent calls in fours (see ``_batch_body``) and emits each group as one macro call
+(``GS_VM1_3(sin, v12, v6, v40, v33, v51, v47);``). The macros are defined at the top of the
+file:
 
 - compiled with ``-DGS_VECMATH=1`` (``codegen.compiler`` does so on an x86-64-v3 CPU whose
   glibc has libmvec, and links it) a group is one vector call;
@@ -28,7 +28,7 @@ from __future__ import annotations
 import heapq
 import re
 
-__all__ = ["PRELUDE", "VECTOR_FUNCTIONS", "batch_libm_calls", "vector_declarations"]
+__all__ = ["VECTOR_FUNCTIONS", "batch_libm_calls", "vector_declarations"]
 
 #: Functions with a 4-lane AVX2 version in glibc's libmvec (since glibc 2.35), by arity.
 VECTOR_FUNCTIONS: dict[str, int] = {
@@ -94,10 +94,6 @@ def _prelude(used: set[str]) -> str:
     return "\n".join(lines)
 
 
-#: The macros for every function (the file's own prelude declares only those it uses).
-PRELUDE = _prelude(set(VECTOR_FUNCTIONS))
-
-
 def _batch_body(stmts: list[str], used: set[str]) -> list[str] | None:
     """The statements in single-assignment form with the libm calls grouped, or None when
     the body is not plain straight-line code.
@@ -121,7 +117,7 @@ def _batch_body(stmts: list[str], used: set[str]) -> list[str] | None:
         d = _DEF.match(s)
         if (store is None and d is None) or not s.endswith(";") or s.count(";") != 1:
             return None
-        head, eq, rhs = (("", "", s) if store else s.partition("="))
+        rhs = s if store else s.partition("=")[2]
         uses = [version[v] for v in _VAR.findall(rhs) if v in version]
         if len(uses) != len(_VAR.findall(rhs)):
             return None  # a variable read before it is assigned: not CasADi's usual code
