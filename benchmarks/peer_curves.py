@@ -42,7 +42,7 @@ def casadi_rows(scene, model, energy_model, x_ref: np.ndarray, rtols, *, quick: 
     grid = wp.dense_grid()
     rows = []
     for f in found:
-        X, _ = cu.simulate(rhs, x0, wp.T_FINAL, f["rtol"], f["atol"], grid=grid)
+        X, _ = cu.simulate(rhs, x0, wp.T_FINAL, f["rtol"], f["atol"], p=model.default_params, grid=grid)
         row = {"method": CASADI_METHOD, "peer": CASADI, "rtol": f["rtol"], "atol": f["atol"],
                "wall_s": f["wall"], "repeats": f["runs"], "error": f["error"],
                **wp.trajectory_diagnostics(energy_model, grid, X)}

@@ -3,13 +3,41 @@
 >>> import grasping_sym as gs
 >>> model = gs.build(gs.scenes.paper2d())
 >>> res = model.simulate(t_final=3.0)
+
+The package's names are imported on first use (module ``__getattr__``): ``import
+grasping_sym as gs; gs.load(path)`` runs a built model without importing SymPy.
 """
+from __future__ import annotations
+
+import importlib
+
 __version__ = "0.1.0"
 
-from grasping_sym import scenes  # noqa: E402
-from grasping_sym.geometry import library as curves  # noqa: E402
-from grasping_sym.geometry.curves import PlanarCurve  # noqa: E402
-from grasping_sym.pipeline import build  # noqa: E402
-from grasping_sym.runtime.result import SimulationResult  # noqa: E402
+#: Public name -> (module, attribute or None for the module itself).
+_LAZY = {
+    "build": ("grasping_sym.pipeline", "build"),
+    "load": ("grasping_sym.runtime.loader", "load"),
+    "scenes": ("grasping_sym.scenes", None),
+    "curves": ("grasping_sym.geometry.library", None),
+    "PlanarCurve": ("grasping_sym.geometry.curves", "PlanarCurve"),
+    "SimulationResult": ("grasping_sym.runtime.result", "SimulationResult"),
+    "Model": ("grasping_sym.runtime.model", "Model"),
+}
 
-__all__ = ["build", "scenes", "curves", "PlanarCurve", "SimulationResult", "__version__"]
+__all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
+           "__version__"]
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'grasping_sym' has no attribute {name!r}")
+    module, attr = _LAZY[name]
+    value = importlib.import_module(module)
+    if attr is not None:
+        value = getattr(value, attr)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

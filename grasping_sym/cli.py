@@ -47,21 +47,14 @@ def _scene_factory(name: str):
     return scenes[name]
 
 
-#: Defaults of ``simulate`` by scene kind (``scene.kind``; 2D scenes have none): simulated
-#: time (s), integrator, and (rtol, atol) by integrator (others: ``DEFAULT_TOLERANCES``). 3D
-#: scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA at
-#: moderate tolerances is the fast choice there (a 5 s paper3d run in ~0.1 s).
-SIMULATE_DEFAULTS: dict[str, dict] = {
-    "planar": {"t_final": 3.0, "method": "cvodes", "tolerances": {}},
-    "grasp3d": {"t_final": 5.0, "method": "radau", "tolerances": {"radau": (1e-6, 1e-9)}},
-}
+#: Tolerances of ``simulate`` where the scene's ``simulate_defaults`` name none.
 DEFAULT_TOLERANCES = (1e-10, 1e-12)
 
 
 def simulate_settings(args: argparse.Namespace, scene) -> tuple[float, str, float, float]:
     """``(t_final, method, rtol, atol)``: the values given on the command line, else the
-    defaults of the scene's kind (``SIMULATE_DEFAULTS``)."""
-    d = SIMULATE_DEFAULTS[getattr(scene, "kind", "planar")]
+    scene's defaults (``scene.simulate_defaults``: simulated time, integrator, tolerances)."""
+    d = scene.simulate_defaults
     method = args.method or d["method"]
     rtol, atol = d["tolerances"].get(method, DEFAULT_TOLERANCES)
     return (args.t_final or d["t_final"], method, args.rtol or rtol, args.atol or atol)
@@ -92,7 +85,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     factory = _scene_factory(args.name)
     _say(f"defining scene {args.name}")
     scene = factory()
-    is_3d = getattr(scene, "kind", "planar") == "grasp3d"
     t_final, method, rtol, atol = simulate_settings(args, scene)
     model = build(scene, progress=_say)
     info = model.build_info
@@ -103,17 +95,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     csv_path = result.write_csv(out / "trajectory.csv")
-    if is_3d:
-        from grasping_sym.plots3d import write_figures3d
-
-        _say(f"deriving the scene's geometry (SymPy) and writing figures into {out}")
-        figures = write_figures3d(scene, result, out,
-                                  r_bar0=model.manifest.get("start", {}).get("r_bar0"))
-    else:
-        from grasping_sym.plots import write_figures
-
-        _say(f"writing figures into {out}")
-        figures = write_figures(scene, result, out)
+    _say(f"writing figures into {out}")
+    figures = scene.write_figures(result, out)
 
     stats = result.stats
     lines = [
@@ -130,29 +113,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     for key in ("s", "u0", "u1"):
         if key in result.state_names:
             lines.append(f"final {key:<11}{float(result[key][-1]):.6e}")
-    if is_3d:
-        lines += _summary_3d(scene, result)
+    lines += scene.summary_lines(result)
     lines.append(f"trajectory       {csv_path}")
-    if is_3d:
+    if len(figures) <= 6:
         lines += [f"figure           {path}" for path in figures]
     lines.append(f"figures          {len(figures)} PNG files in {out}")
     print("\n".join(lines))
     return 0
-
-
-def _summary_3d(scene, result) -> list[str]:
-    from grasping_sym.plots3d import contact_traces
-
-    lines = []
-    if "constraint_residual" in result.outputs:
-        lines.append(f"max residual     {float(result.outputs['constraint_residual'].max()):.3e} m")
-    for i in range(1, scene.n_contacts + 1):
-        if f"f{i}" in result.outputs:
-            lines.append(f"{f'min f{i}':<17}{float(result.outputs[f'f{i}'].min()):.6e} N")
-    for tr in contact_traces(scene, result):
-        lines.append(f"{f'trace {tr.i}':<17}{1e3 * tr.s_object[-1]:.6f} mm on the object, "
-                     f"{1e3 * tr.s_tip[-1]:.6f} mm on fingertip {tr.i}")
-    return lines
 
 
 # ---------------------------------------------------------------------------- generate
@@ -169,12 +136,14 @@ def cmd_generate(args: argparse.Namespace) -> int:
     differ = generate_committed(names, check=args.check)
     stale = False
     for name in ["templates", *names]:
-        files = list(differ.get(name, [])) if isinstance(differ, dict) else []
+        files = differ.get(name, {})
         if not files:
             print(f"{name}: up to date")
         elif args.check:
             stale = True
             print(f"{name}: out of date: {', '.join(files)} (run `{PROG} generate {name}`)")
+            for diff in files.values():
+                print(diff)
         else:
             print(f"{name}: regenerated {', '.join(files)}")
     return 1 if stale else 0

@@ -51,17 +51,15 @@ def _color(i: int) -> str:
 
 
 # ---------------------------------------------------------------------------- geometry
-def geometry_function(scene: GraspScene3D, r_bar0: Sequence[float] | None = None):
+def geometry_function(scene: GraspScene3D):
     """The scene's uncompiled ``geometry`` CasADi Function ``(x, p) -> R, pos, joints{i}, ...``.
 
-    Derives the scene with SymPy (``derive.grasp3d``, 1-3 s). ``r_bar0`` (m, the centre
-    spring's rest point, ``model.manifest["start"]["r_bar0"]``) does not change the geometry;
-    zeros when not given.
+    Derives the scene with SymPy (``derive.grasp3d``, 1-3 s). The geometry does not depend on
+    ``p``: pass the model's ``default_params``, or zeros.
     """
     from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415 - slow import
 
-    r0 = np.zeros(3) if r_bar0 is None else np.asarray(r_bar0, dtype=float)
-    return derive_grasp3d(scene, r0).function("geometry", "geometry")
+    return derive_grasp3d(scene).function("geometry", "geometry")
 
 
 def geometry_at(geo, scene: GraspScene3D, result: SimulationResult,
@@ -69,7 +67,9 @@ def geometry_at(geo, scene: GraspScene3D, result: SimulationResult,
     """``geo`` at the samples ``rows`` of ``result``: one dict of arrays per row (vectors
     ``(3,)``, matrices ``(3, k)``)."""
     rows = list(rows)
-    p = np.array([result.params.get(k, scene.params[k]) for k in scene.runtime], dtype=float)
+    # the start's parameters (the centre spring's rest point) do not enter the geometry
+    p = np.array([result.params.get(k, scene.params[k]) for k in scene.runtime]
+                 + [0.0] * len(scene.start_param_names), dtype=float)
     out = geo.map(len(rows))(x=result.x[rows].T, p=np.tile(p[:, None], (1, len(rows))))
     out = {k: np.asarray(v) for k, v in out.items()}
     width = {name: a.shape[1] // len(rows) for name, a in out.items()}
@@ -348,15 +348,15 @@ def arclength_figure(scene: GraspScene3D, result: SimulationResult, traces: list
 
 
 def write_figures3d(scene: GraspScene3D, result: SimulationResult, out_dir: Path | str, *,
-                    r_bar0: Sequence[float] | None = None, geo=None) -> list[Path]:
+                    geo=None) -> list[Path]:
     """Write ``snapshots.png``, ``contact_traces.png``, ``multipliers.png`` (when the model
     generated multipliers) and ``arclengths_residuals.png`` into ``out_dir``.
 
-    ``geo``: the scene's geometry function (default: ``geometry_function(scene, r_bar0)``).
+    ``geo``: the scene's geometry function (default: ``geometry_function(scene)``).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    geo = geometry_function(scene, r_bar0) if geo is None else geo
+    geo = geometry_function(scene) if geo is None else geo
     traces = contact_traces(scene, result)
     figures = {"snapshots": snapshot_figure3d(scene, result, geo),
                "contact_traces": traces_figure(scene, traces),
@@ -366,3 +366,17 @@ def write_figures3d(scene: GraspScene3D, result: SimulationResult, out_dir: Path
         if fig is not None:
             fig.savefig(out_dir / f"{name}.png", dpi=110)
     return [out_dir / f"{name}.png" for name, fig in figures.items() if fig is not None]
+
+
+def summary_lines(scene: GraspScene3D, result: SimulationResult) -> list[str]:
+    """What ``grasping-sym simulate`` prints of a 3D run: residual, normal forces, traces."""
+    lines = []
+    if "constraint_residual" in result.outputs:
+        lines.append(f"max residual     {float(result.outputs['constraint_residual'].max()):.3e} m")
+    for i in range(1, scene.n_contacts + 1):
+        if f"f{i}" in result.outputs:
+            lines.append(f"{f'min f{i}':<17}{float(result.outputs[f'f{i}'].min()):.6e} N")
+    for tr in contact_traces(scene, result):
+        lines.append(f"{f'trace {tr.i}':<17}{1e3 * tr.s_object[-1]:.6f} mm on the object, "
+                     f"{1e3 * tr.s_tip[-1]:.6f} mm on fingertip {tr.i}")
+    return lines

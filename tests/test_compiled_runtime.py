@@ -218,10 +218,10 @@ def test_isa_level(monkeypatch, machine, flags, env, level):
         monkeypatch.setenv("GRASPING_SYM_ISA", env)
     assert compiler.isa_level() == level
     assert bool(compiler.isa_flags()) == (level != "baseline")
-    from grasping_sym.pipeline import _library_tag  # noqa: PLC0415
+    from grasping_sym.runtime.loader import library_tag  # noqa: PLC0415
     mvec = "-mvec" if compiler.vector_libm() else ""  # glibc's vector libm (test_vecmath)
     assert mvec == "" or level == "x86-64-v3"
-    assert _library_tag().endswith("-" + level + mvec)  # the level is part of the name
+    assert library_tag().endswith("-" + level + mvec)  # the level is part of the name
 
 
 def test_isa_setting_unknown(monkeypatch):

@@ -1,4 +1,5 @@
-"""Golden test: the committed generated C equals a fresh generation, byte for byte.
+"""Golden test: the committed generated C equals a fresh generation, byte for byte, and the
+committed start (solved numbers) equals a fresh solve to a tolerance.
 
 To accept a deliberate change, run ``make generate`` (or set GRASPING_SYM_UPDATE_GOLDEN=1
 for this test), then commit ``generated/``.
@@ -19,14 +20,16 @@ def test_committed_generated_code_is_current():
         generate_committed()
     differ = generate_committed(check=True)
     stale = {k: v for k, v in differ.items() if v}
+    report = "\n".join(d for files in stale.values() for d in files.values())
     assert not stale, (
-        f"generated/ is stale for {stale}: run `make generate` and commit generated/"
+        f"generated/ is stale for {({k: sorted(v) for k, v in stale.items()})}: run `make generate` "
+        f"and commit generated/\n{report}"
     )
 
 
 def test_every_builtin_scene_has_committed_code():
     for name in BUILTIN:
-        for f in (f"{name}.c", f"{name}.h", "manifest.json"):
+        for f in (f"{name}.c", f"{name}.h", "manifest.json", "start.json"):
             assert (REPO_GENERATED / name / f).is_file(), f"generated/{name}/{f} missing"
 
 

@@ -186,7 +186,11 @@ def test_integrators_agree_on_final_state(paper2d_model, paper2d_result):
 # ------------------------------------------------------------------ run-time parameters
 def test_runtime_parameters_give_the_folded_rhs(paper2d_model, paper2d_result, runtime_model):
     assert runtime_model.param_names == ("fd", "c")
-    np.testing.assert_array_equal(runtime_model.default_params, [0.5, 0.006])
+    # the compiled functions' p: the run-time parameters, then the pivot the start fixes
+    assert runtime_model.input_names == ("fd", "c", "xm", "ym")
+    pivot = gs.scenes.paper2d().pivot
+    np.testing.assert_array_equal(runtime_model.default_params, [0.5, 0.006, *pivot])
+    assert runtime_model.start_params == {"xm": pivot[0], "ym": pivot[1]}
     X = _manifold_states(paper2d_result, 25, seed=1)
     p = np.array([0.5, 0.006])
     folded = np.array([paper2d_model.rhs(x) for x in X])

@@ -115,7 +115,7 @@ def test_compiled_equals_uncompiled_on_the_manifold(paper3d_scalar_libm, run5):
     paper3d_model = paper3d_scalar_libm
 
     scene = gs.scenes.paper3d()
-    system = derive_grasp3d(scene, np.array(paper3d_model.manifest["start"]["r_bar0"]))
+    system = derive_grasp3d(scene)
     f = system.function("check", "outputs")
     import casadi as ca
 
@@ -123,11 +123,11 @@ def test_compiled_equals_uncompiled_on_the_manifold(paper3d_scalar_libm, run5):
     rng = np.random.default_rng(3)
     for k in rng.choice(len(run5.t), 6, replace=False):
         x = run5.x[k]
-        ref = np.asarray(xdot(x, []), float).ravel()
+        ref = np.asarray(xdot(x, paper3d_model.default_params), float).ravel()
         got = paper3d_model.rhs(x)
         assert np.max(np.abs(got - ref)) <= 1e-12 * (1 + np.max(np.abs(ref)))
         y = paper3d_model.outputs(x)
-        yr = f(x=x, p=[])
+        yr = f(x=x, p=paper3d_model.default_params)
         for name in ("f1", "f2", "constraint_residual"):
             assert abs(y[name] - float(yr[name])) <= 1e-10 * (1 + abs(float(yr[name])))
 
@@ -215,7 +215,8 @@ def test_hashed_sources_cover_the_3d_pipeline():
         "print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items() "
         "if n.startswith('grasping_sym') and getattr(m, '__file__', None))))"
     )
-    from grasping_sym.codegen.cache import HASHED_SOURCES, HASHED_SOURCES_3D, PACKAGE_DIR
+    from grasping_sym.codegen.cache import HASHED_SOURCES, PACKAGE_DIR
+    from grasping_sym.model.grasp3d import GraspScene3D
 
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
     imported = {os.path.relpath(f, PACKAGE_DIR) for f in json.loads(out)}
@@ -225,5 +226,6 @@ def test_hashed_sources_cover_the_3d_pipeline():
     shaping -= {"codegen/cache.py"}
     # the NumPy references are imported for solid_ellipsoid_inertia and the error class only
     shaping -= {"derive/reference3d.py", "derive/reference3d_paper.py"}
-    missing = shaping - set(HASHED_SOURCES) - set(HASHED_SOURCES_3D)
-    assert not missing, f"add to HASHED_SOURCES_3D: {sorted(missing)}"
+    hashed = set(HASHED_SOURCES) | set(GraspScene3D.hashed_sources) | set(GraspScene3D.start_sources)
+    missing = shaping - hashed
+    assert not missing, f"add to GraspScene3D.hashed_sources (or start_sources): {sorted(missing)}"

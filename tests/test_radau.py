@@ -117,7 +117,7 @@ def test_initial_state_refused_in_c(paper2d_model, name):
     # the return code itself, on the CPython fast path (rows with t_out <= t0 not written)
     out, stats = np.full((3, lib.nx), 7.0), np.zeros(16)
     rc, t_fail = lib._call_adaptive(name[:-1] if name == "radau5" else name,
-                                    np.array([0.0, 0.5]), outside, None, 1e-6, 1e-9, 0.0,
+                                    np.array([0.0, 0.5]), outside, lib.default_p, 1e-6, 1e-9, 0.0,
                                     1000, 0, lo, hi, None, 0.0, out, stats)
     assert rc == -2 and t_fail == 0.0 and stats[0] == stats[2] == 0
     np.testing.assert_array_equal(out[0], outside)
@@ -129,7 +129,8 @@ def test_fast_path_matches_ctypes_path(paper2d_model):
     bit, and the same failure (the same C function runs behind both)."""
     fast = paper2d_model.library
     assert fast.fast
-    slow = CompiledLibrary(fast.path, state_names=fast.state_names, use_fast=False)
+    slow = CompiledLibrary(fast.path, state_names=fast.state_names, use_fast=False,
+                           default_p=fast.default_p)
     x0 = paper2d_model.initial_state()
     t_out = [0.0, 0.5, 1.0]
     for name, kw in (("radau5", dict(rtol=1e-6, atol=1e-9)),
@@ -152,7 +153,8 @@ def test_fast_path_rejects_bad_low_level_arguments(paper2d_model):
     nx = paper2d_model.library.nx
     t, x0 = np.array([0.0, 1.0]), paper2d_model.initial_state()
     out, stats = np.empty((3, nx)), np.zeros(16)
-    args = [0, t, x0, None, 1e-6, 1e-9, 0.0, 100_000, 0, None, None, None, 0.0, out, stats]
+    p = paper2d_model.default_params  # the pivot: a run-time input fixed by the start
+    args = [0, t, x0, p, 1e-6, 1e-9, 0.0, 100_000, 0, None, None, None, 0.0, out, stats]
     assert ext.adaptive(*args)[0] == 2
     for i, bad, match in ((1, t.astype(np.float32), "t_out must be a C-contiguous"),
                           (2, x0[:3].copy(), "x0 must have shape"),

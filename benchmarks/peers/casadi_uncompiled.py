@@ -17,22 +17,15 @@ import casadi as ca
 import numpy as np
 
 from benchmarks.timing import median
-from grasping_sym.codegen.functions import sx_model
-from grasping_sym.pipeline import planar_casadi
 
 
 def rhs_function(scene, model) -> ca.Function:
     """The scene's rhs as an uncompiled CasADi Function with the DAE signature.
 
-    ``model`` (the built model) supplies the 3D start (the centre spring's rest point).
+    Its input ``p`` is the model's ``default_params`` (run-time and start values).
     """
-    if getattr(scene, "kind", "planar") == "grasp3d":
-        from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
-
-        system = derive_grasp3d(scene, np.array(model.manifest["start"]["r_bar0"]))
-        return sx_model(system.x, system.p, system.xdot, {}, f"{scene.name}_vm", jacobian=False).rhs
-    cm, _ = planar_casadi(replace(scene, outputs=(), name=f"{scene.name}_vm"))
-    return cm.rhs
+    fns = replace(scene, outputs=(), name=f"{scene.name}_vm").casadi_functions()
+    return fns.model.rhs
 
 
 def simulate(rhs: ca.Function, x0: np.ndarray, t_final: float, rtol: float, atol: float,
@@ -60,7 +53,7 @@ def work_precision(scene, model, x_ref: np.ndarray, rtols, *, t_final: float = 3
         atol = rtol * atol_factor
         times, xf = [], None
         for _ in range(repeats):
-            xf, wall = simulate(rhs, x0, t_final, rtol, atol)
+            xf, wall = simulate(rhs, x0, t_final, rtol, atol, p=model.default_params)
             times.append(wall)
             if wall > budget:
                 break

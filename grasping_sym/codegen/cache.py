@@ -20,23 +20,19 @@ import casadi as ca
 
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 REPO_GENERATED = PACKAGE_DIR.parent / "generated"
-#: Sources whose text enters the hash: every module that shapes a planar scene's generated
-#: code, its manifest or its compiled library. Modules of other models (the 3D ones) are not
-#: listed, so work on them does not invalidate the planar artifacts; list a module here as
+#: Sources whose text enters the hash of every scene's code: every module that shapes a
+#: planar scene's generated code, its manifest or its compiled library, and the ones all
+#: scenes share. A scene class adds the modules of its own model (``scene.hashed_sources``),
+#: so work on the 3D modules does not invalidate the planar artifacts; list a module here as
 #: soon as the planar pipeline imports it.
 HASHED_SOURCES = (
-    "geometry/curves.py", "model/planar.py", "derive/system.py",
+    "geometry/curves.py", "model/planar.py", "model/names.py", "derive/system.py",
     "derive/contour_functions.py", "derive/planar.py", "codegen/translate.py",
     "codegen/functions.py", "codegen/cwriter.py", "codegen/templates.py",
-    "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c", "c/radau5.c", "c/radau5.h",
-    "c/jac.c", "c/lu.c", "c/dopri5.c", "c/gs_internal.h", "c/pyfast.c", "c/gs_driver.h",
-    "codegen/library.py", "codegen/lanes.py", "codegen/vecmath.py", "pipeline.py",
-)
-
-#: The 3D models' code-shaping modules, hashed (with ``HASHED_SOURCES``) for 3D scenes only.
-HASHED_SOURCES_3D = (
-    "model/grasp3d.py", "model/chains.py", "geometry/surfaces.py", "derive/grasp3d.py",
-    "derive/initial3d.py", "derive/spatial.py", "derive/contact3d.py",
+    "codegen/scene_functions.py", "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c",
+    "c/radau5.c", "c/radau5.h", "c/jac.c", "c/lu.c", "c/dopri5.c", "c/gs_internal.h",
+    "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "codegen/lanes.py",
+    "codegen/vecmath.py", "pipeline.py",
 )
 
 

@@ -154,11 +154,12 @@ def _darboux(kg, tg, kn):
 
 
 # ------------------------------------------------------------------ the closed loop
-def derive_grasp3d(scene: GraspScene3D, r_bar0: np.ndarray | None = None) -> Grasp3DSystem:
+def derive_grasp3d(scene: GraspScene3D) -> Grasp3DSystem:
     """The scene's closed loop as SX.
 
-    ``r_bar0`` (m): the mean of the fingertip centres at the start, where the centre spring
-    of the controller is at rest (``initial3d`` computes it); unused when ``k_center = 0``.
+    ``p`` holds the run-time parameters ``scene.runtime``, then ``scene.start_param_names``:
+    ``r_bar0`` (m), the mean of the fingertip centres at the start, where the centre spring
+    of the controller is at rest (``initial3d`` computes it; absent when ``k_center = 0``).
     """
     paper = scene.formulation == "paper"
     N = scene.n_contacts
@@ -168,9 +169,11 @@ def derive_grasp3d(scene: GraspScene3D, r_bar0: np.ndarray | None = None) -> Gra
     n_eta = 23 if paper else 5
     nx = len(scene.state_names)
     x = ca.SX.sym("x", nx)
-    p = ca.SX.sym("p", len(scene.runtime))
+    p_names = (*scene.runtime, *scene.start_param_names)
+    p = ca.SX.sym("p", len(p_names))
     prm = {k: (p[scene.runtime.index(k)] if k in scene.runtime else ca.SX(v))
            for k, v in scene.params.items()}
+    r_bar0 = ca.vertcat(*[p[p_names.index(k)] for k in scene.start_param_names])
     k = 0
     q = x[k:k + nQ]
     k += nQ
@@ -252,8 +255,8 @@ def derive_grasp3d(scene: GraspScene3D, r_bar0: np.ndarray | None = None) -> Gra
         else:
             pull = (prm["fd"] / scene.r_ctrl) * sum((rs[i] - rs[j] for j in range(N) if j != i),
                                                     ca.DM.zeros(3))
-        if scene.k_center > 0 or "k_center" in scene.runtime:
-            pull = pull + (prm["k_center"] / N) * (r_bar - ca.DM(np.asarray(r_bar0, float)))
+        if scene.start_param_names:
+            pull = pull + (prm["k_center"] / N) * (r_bar - r_bar0)
         ui = -prm["c"] * fin["dq"] - fin["J"].T @ pull
         if g is not None:
             ui = ui + fin["dP"]
@@ -316,7 +319,7 @@ def derive_grasp3d(scene: GraspScene3D, r_bar0: np.ndarray | None = None) -> Gra
     pieces = {"M": Mm, "h": h, "tau": tau, "A": A, "Ahat": Ahat, "bhat": bhat, "Cdot": Cdot,
               "C": C, "sigma": sigma, "mu": mu, "acc": acc, "eta_reg": eta_reg}
     return Grasp3DSystem(x=x, p=p, xdot=xdot, outputs=outputs, pieces=pieces, geometry=geometry,
-                         param_names=tuple(scene.runtime))
+                         param_names=p_names)
 
 
 def _paper_tracking(scene, x, xdot_body, etas, contacts, fingers, R, om):

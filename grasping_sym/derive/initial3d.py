@@ -158,10 +158,12 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
     regular = (dataclasses.replace(scene, formulation="regular", outputs=()) if scene.formulation != "regular"
                else scene)
     x = regular_state(regular, conf)
-    system = derive_grasp3d(regular, r_bar0=np.zeros(3))
+    system = derive_grasp3d(regular)
     fn = system.function("start_pieces", "pieces")
     geo = system.function("start_geometry", "geometry")
-    p = np.array([regular.params[k] for k in regular.runtime], float)
+    # the centre spring's rest point is what this solve finds: zero here (it does not enter
+    # the geometry, nor A or M)
+    p = np.array([regular.params[k] for k in regular.runtime] + [0.0] * len(regular.start_param_names))
     info = {"residual": conf["residual"], "iterations": conf["iterations"],
             "r_bar0": np.asarray(geo(x=x, p=p)["r_bar"], float).ravel()}
     nQ = len(conf["q"])

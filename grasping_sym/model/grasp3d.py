@@ -28,12 +28,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain
+from grasping_sym.model.names import name_problems
 
 FORMULATIONS = ("regular", "paper")
 SUPPORTS = ("free", "pivot")
@@ -144,7 +146,7 @@ class GraspScene3D:
 
     # ------------------------------------------------------------------ validation
     def _problems(self) -> list[str]:
-        p: list[str] = []
+        p: list[str] = name_problems(self.name)
         if not self.fingers:
             p.append("no fingers: give at least one Finger3D")
         for i, f in enumerate(self.fingers, start=1):
@@ -199,9 +201,6 @@ class GraspScene3D:
         return p
 
     # ------------------------------------------------------------------ names
-    #: Which pipeline builds it (``pipeline``).
-    kind = "grasp3d"
-
     @property
     def n_contacts(self) -> int:
         return len(self.fingers)
@@ -246,16 +245,95 @@ class GraspScene3D:
     def params(self) -> dict[str, float]:
         return {"fd": self.fd, "c": self.c, "k_center": self.k_center, "gain": self.gain}
 
-    def key(self) -> str:
-        """Canonical text of the whole definition, for content hashing."""
-        parts = [self.name, self.support, self.formulation, repr(self.mass), repr(self.inertia),
-                 repr(self.position), repr(self.rotation), repr(self.gravity), repr(self.params),
-                 repr(self.r_ctrl), repr(self.dq0), repr(self.spin_damping), ",".join(self.outputs),
-                 ",".join(self.runtime),
-                 self.object_surface.key()]
+    def code_key(self) -> str:
+        """Canonical text of what the generated code depends on.
+
+        The start -- the guesses ``rotation``, ``q0``, ``tip_contact``, ``object_contact``,
+        ``dq0`` and, for a free object, ``position`` -- is not in it: it enters the code only
+        through the run-time rest point of the centre spring (``start_param_names``).
+        """
+        parts = ["grasp3d-v2", self.name, self.support, self.formulation, repr(self.mass),
+                 repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),
+                 repr(self.params), repr(self.r_ctrl), repr(self.spin_damping), ",".join(self.outputs),
+                 ",".join(self.runtime), self.object_surface.key()]
         for f in self.fingers:
-            parts += [repr(f.chain), f.tip.key(), repr(f.q0), repr(f.tip_contact), repr(f.object_contact)]
+            parts += [repr(f.chain), f.tip.key()]
         return "\n".join(parts)
+
+    def key(self) -> str:
+        """Canonical text of the whole definition: the code's and the start's."""
+        parts = [self.code_key(), repr(self.position), repr(self.rotation), repr(self.dq0)]
+        for f in self.fingers:
+            parts += [repr(f.q0), repr(f.tip_contact), repr(f.object_contact)]
+        return "\n".join(parts)
+
+    @property
+    def start_param_names(self) -> tuple[str, ...]:
+        """Run-time parameters that the start fixes: the rest point ``r_bar0`` (m, world) of
+        the controller's centre spring, when the scene has one."""
+        if self.k_center > 0 or "k_center" in self.runtime:
+            return ("r_bar0_x", "r_bar0_y", "r_bar0_z")
+        return ()
+
+
+    # ------------------------------------------------------------------ scene protocol
+    #: Package sources (relative to the package) whose text enters the code's hash, on top
+    #: of the ones every scene's does (``codegen.cache.HASHED_SOURCES``).
+    hashed_sources: ClassVar[tuple[str, ...]] = (
+        "model/grasp3d.py", "model/chains.py", "geometry/surfaces.py", "derive/grasp3d.py",
+        "derive/spatial.py", "derive/contact3d.py", "codegen/scene_functions.py",
+    )
+    #: 3D scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA
+    #: at moderate tolerances is the fast choice (a 5 s paper3d run in ~0.1 s).
+    simulate_defaults: ClassVar[dict] = {"t_final": 5.0, "method": "radau",
+                                         "tolerances": {"radau": (1e-6, 1e-9)}}
+
+    def casadi_functions(self, progress=None):
+        """The scene's CasADi functions (``codegen.scene_functions.grasp3d_functions``)."""
+        from grasping_sym.codegen.scene_functions import grasp3d_functions  # noqa: PLC0415
+
+        return grasp3d_functions(self, progress)
+
+    def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
+        """``(x0, start values, info)``: the consistent start nearest the guesses
+        (``derive.initial3d``, Gauss-Newton) and the centre spring's rest point."""
+        from grasping_sym.derive import initial3d  # noqa: PLC0415
+
+        x0, info = initial3d.initial_state(self)
+        values = dict(zip(self.start_param_names, map(float, info["r_bar0"])))
+        return x0, values, {"residual": float(info["residual"]), "iterations": int(info["iterations"])}
+
+    def write_figures(self, result, out_dir) -> list:
+        """The figures of a run (``plots3d.write_figures3d``; derives the geometry, 1-3 s)."""
+        from grasping_sym.plots3d import write_figures3d  # noqa: PLC0415
+
+        return write_figures3d(self, result, out_dir)
+
+    def summary_lines(self, result) -> list[str]:
+        """Lines ``grasping-sym simulate`` prints of a 3D run (``plots3d.summary_lines``)."""
+        from grasping_sym.plots3d import summary_lines  # noqa: PLC0415
+
+        return summary_lines(self, result)
+
+    def manifest_extra(self) -> dict:
+        """What a 3D scene adds to its manifest: its formulation."""
+        return {"kind": "grasp3d", "formulation": self.formulation}
+
+    #: Package sources that the start's solution depends on beyond ``hashed_sources``.
+    start_sources: ClassVar[tuple[str, ...]] = ("derive/initial3d.py",)
+
+    def bounds(self) -> tuple[list, list]:
+        """Per-state bounds (None: unbounded): the surface coordinates of each contact stay
+        inside their surfaces' domains."""
+        lower: list = [None] * len(self.state_names)
+        upper: list = [None] * len(self.state_names)
+        for i, f in enumerate(self.fingers, start=1):
+            for name, (lo, hi) in ((f"u_f{i}", f.tip.domain[0]), (f"v_f{i}", f.tip.domain[1]),
+                                   (f"u_o{i}", self.object_surface.domain[0]),
+                                   (f"v_o{i}", self.object_surface.domain[1])):
+                k = self.state_names.index(name)
+                lower[k], upper[k] = lo, hi
+        return lower, upper
 
 
 def _matrix(m) -> tuple[tuple[float, float, float], ...]:

@@ -18,11 +18,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import ClassVar
 
 import numpy as np
 
 from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
+from grasping_sym.model.names import name_problems
 
 #: Parameters of the 2D scene, with their units.
 PARAMETERS: dict[str, str] = {
@@ -85,9 +87,10 @@ class ExtraFinger:
     lengths: tuple[float, float] = (0.065, 0.065)
     masses: tuple[float, float] = (0.045, 0.040)
 
-    def key(self) -> str:
-        return "|".join([self.fingertip.key(), repr((tuple(map(float, self.base)), float(self.u1_0),
-                                                     float(self.u0_0), tuple(map(float, self.lengths)),
+    def code_key(self) -> str:
+        """What the generated code depends on (not the start contact ``u1_0``, ``u0_0``)."""
+        return "|".join([self.fingertip.key(), repr((tuple(map(float, self.base)),
+                                                     tuple(map(float, self.lengths)),
                                                      tuple(map(float, self.masses))))])
 
 
@@ -237,8 +240,7 @@ class PlanarFingerScene:
     def _parameter_problems(self) -> list[str]:
         """Checks that need no numeric evaluation of the contours."""
         problems: list[str] = []
-        if not self.name.isidentifier():
-            problems.append(f"name {self.name!r} must be a C identifier (letters, digits, _)")
+        problems += name_problems(self.name)
         missing = [k for k in PARAMETERS if k not in self.params]
         unknown = [k for k in self.params if k not in PARAMETERS]
         if missing:
@@ -291,15 +293,92 @@ class PlanarFingerScene:
                 )
         return problems
 
-    def key(self) -> str:
-        """Canonical text of everything that determines the generated code."""
+    def code_key(self) -> str:
+        """Canonical text of everything that determines the generated code.
+
+        The start (``q1_0``, ``theta_0``, ``u0_0``, ``u1_0``, the extra fingers' contacts) is
+        not in it: it enters the code only through the run-time pivot (``START_PARAMS``), so a
+        new start reuses the compiled model. Whether one state ``s`` serves both contours is.
+        """
         params = ";".join(f"{k}={float(self.params[k])!r}" for k in sorted(self.params))
         return "|".join([
-            "planar-finger-v1", self.name, self.fingertip.key(), self.object.key(), params,
+            "planar-finger-v2", self.name, self.fingertip.key(), self.object.key(), params,
             ",".join(self.runtime), ",".join(self.outputs), repr(self.gravity),
-            repr((self.q1_0, self.theta_0, self.u0_0, self.u1_0)),
-            *[f.key() for f in self.extra_fingers],
+            f"shared={self.shared_parameter}", *[f.code_key() for f in self.extra_fingers],
         ])
+
+    def key(self) -> str:
+        """Canonical text of the whole definition: the code's and the start's."""
+        start = repr((self.q1_0, self.theta_0, self.u0_0, self.u1_0,
+                      *[(f.u1_0, f.u0_0) for f in self.extra_fingers]))
+        return f"{self.code_key()}|start={start}"
+
+    #: Run-time parameters that the start fixes: the pivot ``Om`` (m).
+    start_param_names: ClassVar[tuple[str, ...]] = ("xm", "ym")
+
+    def start_values(self) -> dict[str, float]:
+        """Values of ``start_param_names``: the pivot solved from the initial contact."""
+        xm, ym = self.pivot
+        return {"xm": float(xm), "ym": float(ym)}
+
+    # ------------------------------------------------------------------ scene protocol
+    #: Package sources (relative to the package) whose text enters the code's hash.
+    hashed_sources: ClassVar[tuple[str, ...]] = ()
+    #: What ``grasping-sym simulate`` does by default: simulated time (s), integrator and
+    #: its tolerances (none given: the integrator's own defaults).
+    simulate_defaults: ClassVar[dict] = {"t_final": 3.0, "method": "cvodes", "tolerances": {}}
+
+    def casadi_functions(self, progress=None):
+        """The scene's CasADi functions (``codegen.scene_functions.planar_functions``)."""
+        from grasping_sym.codegen.scene_functions import planar_functions  # noqa: PLC0415
+
+        return planar_functions(self, progress)
+
+    def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
+        """``(x0, start values, info)``: the consistent start at rest and the pivot."""
+        self.validate()
+        return self.initial_state(), self.start_values(), {}
+
+    def write_figures(self, result, out_dir) -> list:
+        """The figures of a run (``plots.write_figures``)."""
+        from grasping_sym.plots import write_figures  # noqa: PLC0415
+
+        return write_figures(self, result, out_dir)
+
+    def summary_lines(self, result) -> list[str]:
+        """Lines ``grasping-sym simulate`` prints of a run beyond the common ones: none."""
+        return []
+
+    def manifest_extra(self) -> dict:
+        """What this kind of scene adds to its manifest: nothing."""
+        return {}
+
+    def sympy_op_counts(self) -> dict[str, int]:
+        """Operation counts of the SymPy pieces before and after SymPy's CSE."""
+        from grasping_sym.codegen.functions import sympy_op_counts  # noqa: PLC0415
+        from grasping_sym.derive.planar import derive_planar  # noqa: PLC0415
+
+        return sympy_op_counts(derive_planar(self))
+
+    #: Package sources that the start's solution depends on beyond ``hashed_sources``.
+    start_sources: ClassVar[tuple[str, ...]] = ()
+
+    def bounds(self) -> tuple[list, list]:
+        """Per-state bounds (None: unbounded): each contact parameter stays inside its
+        contours' domains."""
+        n = len(self.state_names)
+        lower: list = [None] * n
+        upper: list = [None] * n
+        if self.shared_parameter:
+            lower[-1] = max(self.fingertip.domain[0], self.object.domain[0])
+            upper[-1] = min(self.fingertip.domain[1], self.object.domain[1])
+            return lower, upper
+        for i, tip in enumerate(self.fingertips, start=1):
+            tag = "" if self.n_fingers == 1 else f"_{i}"
+            k0, k1 = self.state_names.index(f"u0{tag}"), self.state_names.index(f"u1{tag}")
+            lower[k0], upper[k0] = tip.domain
+            lower[k1], upper[k1] = self.object.domain
+        return lower, upper
 
     def initial_state(self) -> np.ndarray:
         """The consistent initial state at rest, ordered as ``state_names``."""

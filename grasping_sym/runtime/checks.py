@@ -66,17 +66,22 @@ def denominator_outputs(names) -> list[str]:
 
 def _scene_size(model) -> float:
     """``|Om|`` (m): the 2D object's pivot's distance from the finger base, 0 if unknown."""
-    pivot = model.manifest.get("pivot")
-    try:
-        return float(np.hypot(*pivot)) if pivot is not None else 0.0
-    except (TypeError, ValueError):
+    start = model.start_params
+    if "xm" not in start or "ym" not in start:
         return 0.0
+    return float(np.hypot(start["xm"], start["ym"]))
 
 
 def _denominator_thresholds(model) -> dict[str, float]:
-    d0 = model.manifest.get("checks", {}).get("frame_denominators", [])
-    return {f"frame_denominator{i}": FRAME_DENOMINATOR_RELATIVE * abs(v)
-            for i, v in enumerate(d0, start=1)}
+    """Thresholds of the paper formulation's frame denominators: a fraction of their values
+    at the model's own start (evaluated once per model by the compiled outputs)."""
+    cached = getattr(model, "_denominator_thresholds", None)
+    if cached is None:
+        names = denominator_outputs(model.output_names)
+        y = model.outputs(model.initial_state()) if names else {}
+        cached = {k: FRAME_DENOMINATOR_RELATIVE * abs(y[k]) for k in names}
+        model._denominator_thresholds = cached
+    return cached
 
 
 def _frame_error(model, name: str, t: float, x, value: float, threshold: float, extra: str = ""):

@@ -51,6 +51,19 @@ def _as_matrix(a: Any, n: int, name: str) -> np.ndarray:
     return arr
 
 
+def _with_default_p(fn, default_p):
+    """The extension's ``fn(x, p=None)`` with ``default_p`` where no ``p`` is given (the bare
+    extension function when there is no default)."""
+    if default_p is None:
+        return fn
+
+    def call(x, p=None):
+        return fn(x, default_p if p is None else p)
+
+    call.__doc__ = fn.__doc__
+    return call
+
+
 class CompiledLibrary:
     """A compiled model: closed-loop right-hand side, outputs, constraints and integrators in C.
 
@@ -82,7 +95,8 @@ class CompiledLibrary:
     ``(x, p=None)`` exactly like the methods documented here.
     """
 
-    def __init__(self, path: Path | str, state_names: Sequence[str] | None = None, use_fast: bool = True):
+    def __init__(self, path: Path | str, state_names: Sequence[str] | None = None, use_fast: bool = True,
+                 default_p: Any = None):
         self.path = Path(path).absolute()
         if not self.path.is_file():
             raise FileNotFoundError(f"compiled model library not found: {self.path}")
@@ -139,16 +153,16 @@ class CompiledLibrary:
         self._c_loop.argtypes = [_long, _dp, _dp]
         self._c_loop.restype = _double
 
+        #: ``p`` used when a call passes none (the model's run-time and start values)
+        self.default_p = None if default_p is None else as_vector(default_p, self.np, "default_p")
         self.fast = False
         self._ext = None
         self._mask_checked: np.ndarray | None = None
         if use_fast and hasattr(lib, "PyInit__gs_fast"):
             self._ext = self._load_extension()
-            self.rhs = self._ext.rhs  # type: ignore[method-assign]
-            self.rhs_batch = self._ext.rhs_batch  # type: ignore[method-assign]
-            if self.has_outputs:
-                self.outputs = self._ext.outputs  # type: ignore[method-assign]
-                self.outputs_batch = self._ext.outputs_batch  # type: ignore[method-assign]
+            names = ["rhs", "rhs_batch"] + (["outputs", "outputs_batch"] if self.has_outputs else [])
+            for name in names:
+                setattr(self, name, _with_default_p(getattr(self._ext, name), self.default_p))
             self.fast = True
 
     def _load_extension(self) -> Any:
@@ -169,6 +183,8 @@ class CompiledLibrary:
 
     # -- helpers ---------------------------------------------------------------
     def _p(self, p: Any) -> np.ndarray | None:
+        if p is None and self.default_p is not None:
+            return self.default_p
         if p is None:
             if self.np:
                 raise ValueError(f"this model has np = {self.np} parameters: pass p of shape ({self.np},)")

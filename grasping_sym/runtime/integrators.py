@@ -28,7 +28,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
 from grasping_sym.errors import IntegratorError
@@ -46,6 +45,8 @@ RECOVERY_MAX_STEPS = 20_000
 def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray,
              rtol: float, atol: float, max_steps: int) -> tuple[np.ndarray, np.ndarray, dict]:
     """Integrate with CVODES or IDAS through CasADi, reporting at ``t_eval``."""
+    import casadi as ca  # noqa: PLC0415 - only the SUNDIALS methods need CasADi at run time
+
     key = (method, float(rtol), float(atol), int(max_steps), t_eval.tobytes())
     integ = model._integrators.get(key)
     if integ is None:
@@ -78,6 +79,7 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
     before that time, with a bounded step budget (``err.trajectory``, ``err.x`` its last
     state). This only runs on the failure path.
     """
+    import casadi as ca  # noqa: PLC0415
     reason = _sundials_reason(message)
     opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps}
     grid = [float(t) for t in t_eval[1:]]

@@ -4,7 +4,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
 from grasping_sym.errors import (
@@ -23,30 +22,43 @@ class Model:
     Attributes
     ----------
     name, state_names, output_names, param_names
-        As recorded at build time. ``param_names`` are the run-time parameters (inputs of
-        the compiled functions); all other parameters are folded into the code.
+        As recorded at build time. ``param_names`` are the run-time parameters the user
+        chose (inputs of the compiled functions); all other parameters are folded into the
+        code.
+    start_params
+        The run-time values the start fixes (2D: the pivot ``xm, ym``; 3D: the centre
+        spring's rest point ``r_bar0_*``), by name: inputs of the compiled functions after
+        the ``param_names``, solved with the start and never folded into the code.
     library
         The loaded ``CompiledLibrary`` (fast calls, RK4 in C).
     directory
-        Where the C, the manifest and the compiled library live.
+        Where the C, the manifest, the start and the compiled library live
+        (``grasping_sym.load(directory)`` loads it again, in any process).
     """
 
-    def __init__(self, directory: Path, manifest: dict, library_path: Path):
+    def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict):
         self.directory = Path(directory)
         self.manifest = manifest
+        self.start = start
         self.name: str = manifest["name"]
         self.state_names: tuple[str, ...] = tuple(manifest["state_names"])
         self.output_names: tuple[str, ...] = tuple(manifest["output_names"])
         self.param_names: tuple[str, ...] = tuple(manifest["param_names"])
-        self.default_params = np.array(manifest["param_values"], dtype=float)
-        self._x0 = np.array(manifest["initial_state"], dtype=float)
+        start_names = tuple(manifest.get("start_param_names", ()))
+        self.start_params: dict[str, float] = {k: float(start["start_params"][k]) for k in start_names}
+        #: every input ``p`` of the compiled functions: ``param_names``, then the start's
+        self.input_names: tuple[str, ...] = self.param_names + start_names
+        self.default_params = np.array([*manifest["param_values"], *self.start_params.values()],
+                                       dtype=float)
+        self._x0 = np.array(start["initial_state"], dtype=float)
         self.lower = np.array([-math.inf if v is None else v for v in manifest["lower"]])
         self.upper = np.array([math.inf if v is None else v for v in manifest["upper"]])
         self.library_path = Path(library_path)
-        self.library = CompiledLibrary(self.library_path, self.state_names)
+        self.library = CompiledLibrary(self.library_path, self.state_names,
+                                       default_p=self.default_params if self.input_names else None)
         self._external = None
         self._integrators: dict = {}
-        if not self.param_names:
+        if not self.input_names:
             # bind the compiled calls directly: no Python wrapper in the way
             self.rhs = self.library.rhs
             self.rhs_batch = self.library.rhs_batch
@@ -56,14 +68,20 @@ class Model:
                 f"outputs={self.output_names}, runtime params={self.param_names})")
 
     # ------------------------------------------------------------------ calls
+    @property
+    def path(self) -> Path:
+        """The model's directory: ``grasping_sym.load(model.path)`` loads it again."""
+        return self.directory
+
     def params(self, params: dict[str, float] | None = None) -> np.ndarray | None:
-        """Run-time parameter vector: the scene's values, overridden by ``params``."""
-        if not self.param_names:
-            if params:
-                raise ValueError(
-                    f"parameters {sorted(params)} are folded into this model's code; build the "
-                    "scene with runtime=(...) naming them to vary them without a rebuild"
-                )
+        """The compiled functions' input ``p`` (``input_names``): the scene's values of the
+        run-time parameters, overridden by ``params``, then the start's values."""
+        if params and not self.param_names:
+            raise ValueError(
+                f"parameters {sorted(params)} are folded into this model's code; build the "
+                "scene with runtime=(...) naming them to vary them without a rebuild"
+            )
+        if not self.input_names:
             return None
         p = self.default_params.copy()
         for k, v in (params or {}).items():
@@ -78,12 +96,15 @@ class Model:
         return self._x0.copy()
 
     def rhs(self, x, p=None) -> np.ndarray:  # replaced by the compiled call when np == 0
-        """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``."""
-        return self.library.rhs(x, self.default_params if p is None else p)
+        """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``.
+
+        ``p``: values of ``param_names`` (the start's values are appended), or of every
+        ``input_names``; default the model's."""
+        return self.library.rhs(x, self._p(p))
 
     def rhs_batch(self, X, p=None) -> np.ndarray:
         """``rhs`` for every row of ``X`` (shape ``(n, n_states)``) in one C loop."""
-        return self.library.rhs_batch(X, self.default_params if p is None else p)
+        return self.library.rhs_batch(X, self._p(p))
 
     def outputs(self, x, p=None) -> dict[str, float]:
         """The requested outputs at one state."""
@@ -98,16 +119,25 @@ class Model:
         return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
 
     def _p(self, p):
-        return (self.default_params if p is None else p) if self.param_names else None
+        """``p`` completed with the start's values when it holds only ``param_names``'."""
+        if not self.input_names:
+            return None
+        if p is None:
+            return self.default_params
+        if self.start_params and np.ndim(p) == 1 and len(p) == len(self.param_names):
+            return np.concatenate([np.asarray(p, dtype=float), list(self.start_params.values())])
+        return p
 
     def _need_outputs(self) -> None:
         if not self.output_names:
             raise AttributeError(f"model {self.name!r} was built with no outputs: build the "
                                  "scene with outputs=(...) naming the ones you need")
 
-    def external_rhs(self) -> ca.Function:
+    def external_rhs(self):
         """The compiled right-hand side as a CasADi Function (for CVODES/IDAS)."""
         if self._external is None:
+            import casadi as ca  # noqa: PLC0415 - loading a model needs no CasADi
+
             has_jac = bool(self.manifest.get("driver_defines", {}).get("GS_HAS_JAC", 1))
             # without a generated Jacobian, CasADi differences the compiled rhs: forward
             # differences (nx + 1 calls) cost a quarter of its default central scheme and,

@@ -1,0 +1,43 @@
+"""Load a built model from its directory: the compiled library, ``manifest.json`` and
+``start.json`` (``runtime.stored``). Imports neither SymPy nor the code generation."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from grasping_sym.codegen.compiler import isa_level, vector_libm
+from grasping_sym.runtime import stored
+from grasping_sym.runtime.model import Model
+
+
+def library_tag() -> str:
+    """What ties a compiled library to this interpreter (the fast path is an extension) and
+    to the instruction set it was compiled for (``compiler.isa_level``, with ``-mvec`` when
+    it calls glibc's vector libm, ``compiler.vector_libm``)."""
+    mvec = "-mvec" if vector_libm() else ""
+    return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}{mvec}"
+
+
+def library_name(name: str) -> str:
+    """File name of a model's compiled library for this interpreter and CPU."""
+    return f"lib{name}.{library_tag()}.so"
+
+
+def load(path: Path | str) -> Model:
+    """The built model in ``path`` (a model's ``directory``, ``model.path``) with the start
+    it was last built with. Needs no SymPy, no derivation and no compiler: the library must
+    have been compiled for this interpreter, NumPy and CPU level (``gs.build`` does that).
+    """
+    directory = Path(path)
+    manifest = stored.read_manifest(directory)
+    start = stored.read_json(directory / stored.START)
+    if manifest is None or start is None:
+        raise FileNotFoundError(f"{directory} holds no built model (manifest.json and start.json): "
+                                "pass a model's directory (model.path) after gs.build(scene)")
+    lib = directory / library_name(manifest["name"])
+    if not lib.exists():
+        raise FileNotFoundError(f"{lib} is missing: the model was built by another Python, NumPy or "
+                                "CPU level; build it here with gs.build(scene)")
+    return Model(directory, manifest, lib, start)

@@ -1,0 +1,75 @@
+"""The files of a built model's directory that the runtime reads: no SymPy, no code generation.
+
+- ``manifest.json``: what the C is (names, sizes, domains, how to compile it) and the content
+  hash of the exact inputs it was generated from. A function of exact inputs only, so it is
+  byte-identical on every machine.
+- ``start.json``: the start layer, numbers solved numerically from the scene's start (the
+  consistent initial state and the values of the run-time parameters the start fixes, e.g. the
+  2D pivot ``Om``). Solves go through BLAS and libm, whose last digits differ between CPUs, so
+  these numbers are kept apart from the manifest and compared with a tolerance
+  (``START_RTOL``), never byte for byte. The build cache keeps one start per scene definition
+  under ``starts/<key>.json``; ``start.json`` is the latest built (``grasping_sym.load``'s
+  default).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+MANIFEST = "manifest.json"
+START = "start.json"
+STARTS_DIR = "starts"
+#: Relative tolerance of two solved starts that count as the same (on top of an absolute
+#: 1e-12 for entries near zero): far above the last-digit differences between CPUs.
+START_RTOL = 1e-9
+START_ATOL = 1e-12
+
+
+def write_json(path: Path, data: dict) -> Path:
+    """Write ``data`` as stable JSON (sorted keys), atomically (temporary file, then rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+    tmp.replace(path)
+    return path
+
+
+def read_json(path: Path) -> dict | None:
+    """The JSON object in ``path``, or None when absent or unreadable."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def read_manifest(directory: Path) -> dict | None:
+    return read_json(Path(directory) / MANIFEST)
+
+
+def write_manifest(directory: Path, manifest: dict) -> Path:
+    return write_json(Path(directory) / MANIFEST, manifest)
+
+
+def start_record(x0, values: dict[str, float], key: str, info: dict | None = None) -> dict:
+    """The content of a start file: the initial state, the start's parameter values, the
+    hash ``key`` of the scene definition it was solved for, and what the solver reports."""
+    return {"key": key, "initial_state": [float(v) for v in x0],
+            "start_params": {k: float(v) for k, v in values.items()}, "info": dict(info or {})}
+
+
+def starts_agree(a: dict, b: dict) -> list[str]:
+    """Where two start records differ beyond ``START_RTOL`` (empty when they agree)."""
+    problems = []
+    xa, xb = a.get("initial_state", []), b.get("initial_state", [])
+    pa, pb = a.get("start_params", {}), b.get("start_params", {})
+    if len(xa) != len(xb) or sorted(pa) != sorted(pb):
+        return [f"different shapes: {len(xa)} vs {len(xb)} states, params {sorted(pa)} vs {sorted(pb)}"]
+    pairs = [(f"initial_state[{i}]", u, v) for i, (u, v) in enumerate(zip(xa, xb))]
+    pairs += [(f"start_params[{k}]", pa[k], pb[k]) for k in sorted(pa)]
+    for label, u, v in pairs:
+        if not math.isclose(u, v, rel_tol=START_RTOL, abs_tol=START_ATOL):
+            problems.append(f"{label}: {u!r} vs {v!r}")
+    return problems
