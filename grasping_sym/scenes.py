@@ -105,10 +105,10 @@ def paper3d(**overrides) -> "GraspScene3D":
 
     Any field of ``GraspScene3D`` may be overridden by keyword (e.g. ``formulation='paper'``).
     """
-    from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
     from grasping_sym.geometry import surface_library  # noqa: PLC0415
     from grasping_sym.model import chains  # noqa: PLC0415
     from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
+    from grasping_sym.model.inertia import solid_ellipsoid_inertia  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     rot = _axis_angle((1.0, 1.0, 1.0), 0.2)
@@ -143,10 +143,10 @@ def pivot3d(**overrides) -> "GraspScene3D":
     """One finger (``chains.finger1``, spherical tip of 0.010 m) rolling on an ellipsoid
     (0.020, 0.025, 0.030) m that turns about its centre, fixed; no gravity. The controller pulls
     the fingertip centre toward the pivot (the 2D law (32)). The smallest 3D scene."""
-    from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
     from grasping_sym.geometry import surface_library  # noqa: PLC0415
     from grasping_sym.model import chains  # noqa: PLC0415
     from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
+    from grasping_sym.model.inertia import solid_ellipsoid_inertia  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     fingers = (Finger3D(chain=chains.finger1(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip"),

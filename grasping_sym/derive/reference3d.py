@@ -58,6 +58,7 @@ from grasping_sym.derive.system import assemble
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 from grasping_sym.model.chains import FINGER1_Q_OPPOSED, finger1
+from grasping_sym.model.inertia import solid_ellipsoid_inertia
 
 STATE_NAMES = ("q11", "q12", "qw", "qx", "qy", "qz", "dq11", "dq12", "omegaX", "omegaY", "omegaZ",
                *c3.CONTACT_COORDS)
@@ -84,11 +85,6 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
         q[1 + b] = (R[b, a] + R[a, b]) / (4 * s)
         q[1 + c] = (R[c, a] + R[a, c]) / (4 * s)
     return q if q[0] >= 0 else -q
-
-
-def solid_ellipsoid_inertia(mass: float, a: float, b: float, c: float) -> np.ndarray:
-    """kg m^2, inertia of a solid ellipsoid about its centre in its axes: ``m/5 (b^2 + c^2, ...)``."""
-    return mass / 5 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
 
 
 @dataclass(frozen=True)
