@@ -96,6 +96,20 @@ def test_paper_formulation_refuses_a_start_at_rest(paper3d_paper_model):
         paper3d_paper_model.simulate(0.1, x0=x0)
 
 
+def test_paper_formulation_refuses_a_scene_without_initial_speeds():
+    """Building the paper formulation's start needs moving contacts: the error names the contact,
+    its frame denominator (0 at rest), the threshold (> 0) and the two ways out."""
+    from grasping_sym.derive.initial3d import initial_state
+
+    with pytest.raises(MovingFrameSingularityError) as info:
+        initial_state(gs.scenes.paper3d(formulation="paper", dq0=None))
+    err = info.value
+    assert (err.contact, err.denominator, err.threshold) == ("frame_denominator1", 0.0, 0.0)
+    msg = str(err)
+    assert "contact 1 does not move" in msg and "|frame_denominator1| > 0" in msg
+    assert "dq0" in msg and "formulation='regular'" in msg
+
+
 @pytest.fixture(scope="module")
 def paper3d_scalar_libm(paper3d_model):
     """paper3d built with the scalar libm calls (``GRASPING_SYM_VECMATH=off``); the default
