@@ -161,10 +161,10 @@ def test_vector_libm_build_follows_the_scalar_one(paper3d_model, paper3d_scalar_
 
 
 def test_pivot3d_matches_the_numpy_reference():
-    """One finger on a pivoted ellipsoid: the compiled model against ``derive.reference3d``
+    """One finger on a pivoted ellipsoid: the compiled model against ``tests/oracles/reference3d``
     (NumPy assembly of the closed loop) at states on the constraint manifold."""
-    from grasping_sym.derive.reference3d import Reference3D
-    from grasping_sym.derive.reference3d_paper import rolling_start
+    from tests.oracles.reference3d import Reference3D
+    from tests.oracles.reference3d_paper import rolling_start
 
     ref = Reference3D()
     model = gs.build(gs.scenes.pivot3d(position=tuple(ref.pivot), name="pivot3d_ref"))

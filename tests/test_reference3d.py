@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from grasping_sym.derive import contact3d as c3
-from grasping_sym.derive.reference3d import SL_ETA, SL_QUAT, Reference3D, Scene3D
+from tests.oracles.reference3d import SL_ETA, SL_QUAT, Reference3D, Scene3D
 
 TOL = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
 

@@ -1,5 +1,5 @@
 """The paper's moving-frame formulation (Arimoto-Yoshida 2011, (25)-(33), (Es), (Efs)) of
-the one-finger scene of :mod:`grasping_sym.derive.reference3d`.
+the one-finger scene of :mod:`tests.oracles.reference3d`.
 
 The bodies (finger ``q``, object quaternion, speeds), the constraints ``(Qn, Qb, Qe)``, the
 multipliers, Baumgarte and the controller are reference3d's, evaluated by
@@ -51,9 +51,9 @@ import casadi as ca
 import numpy as np
 
 from grasping_sym.codegen.translate import SympyToCasadi
-from grasping_sym.derive.reference3d import SL_DQ, SL_OM, SL_QUAT, Reference3D, Scene3D
 from grasping_sym.errors import MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from tests.oracles.reference3d import SL_DQ, SL_OM, SL_QUAT, Reference3D, Scene3D
 
 N_STATE = 34
 SL_BODY, SL_UV, SL_S, SL_PSI0, SL_PSI1 = slice(0, 11), slice(11, 15), 15, slice(16, 25), slice(25, 34)
@@ -253,5 +253,5 @@ def rolling_start(ref: Reference3D, speed: float = 3.0) -> np.ndarray:
     return ref.initial_state(V0 * speed / np.linalg.norm(V0[:2]))
 
 
-__all__ = ["rolling_start", "MovingFrameSingularityError", "PaperReference3D", "N_STATE", "SL_BODY", "SL_UV", "SL_S",
+__all__ = ["rolling_start", "PaperReference3D", "N_STATE", "SL_BODY", "SL_UV", "SL_S",
            "SL_PSI0", "SL_PSI1"]
