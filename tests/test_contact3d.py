@@ -2,7 +2,7 @@
 
 The finger is fixed; the object's pose (position and unit quaternion) is integrated from the
 prescribed relative motion together with the contact coordinates, and the two are compared:
-exactly known rotations for a sphere on a plane (MODELS.md section 3), and the constraints
+exactly known rotations for a sphere on a plane (docs/conventions.md section 3), and the constraints
 "points coincide, normals opposite, frames differ by psi" for arbitrary surfaces.
 """
 from __future__ import annotations
@@ -157,7 +157,7 @@ def test_relative_motion_round_trip():
     assert np.allclose(v2, v, atol=1e-14) and np.allclose(w2, w, atol=1e-14)
 
 
-# ------------------------------------------------------------------ MODELS.md section 3
+# ------------------------------------------------------------------ docs/conventions.md section 3
 def _circle_setup(r: float, Rc: float):
     """Sphere (object) of radius r on the plane z = 0 (finger, fixed at the identity).
 
@@ -181,7 +181,7 @@ def _circle_setup(r: float, Rc: float):
 
 
 def test_sphere_rolls_once_round_a_circle_without_spin():
-    """MODELS.md section 3: one lap turns the sphere by 2 pi sqrt(1 + (R/r)^2) about C -> O.
+    """docs/conventions.md section 3: one lap turns the sphere by 2 pi sqrt(1 + (R/r)^2) about C -> O.
 
     Measured: ``R_end R_start^T`` (world) against the rotation by ``2 pi sqrt(1 + (R/r)^2)``,
     right-handed about the unit vector from the sphere's centre C to the circle's centre O,

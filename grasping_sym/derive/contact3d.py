@@ -1,7 +1,7 @@
 """Kinematics of rolling and sliding contact between two smooth surfaces (Montana 1988).
 
 D. J. Montana, "The kinematics of contact and grasp", Int. J. Robotics Research 7(3), 1988.
-This is the formulation regular at rest of MODELS.md section 2: the contact is described by
+This is the formulation regular at rest of docs/conventions.md section 2: the contact is described by
 surface coordinates on both bodies and the angle between the two tangent frames, and their
 rates are linear in the relative velocity, so they are zero (not 0/0) when the contact stops.
 
