@@ -84,8 +84,8 @@ def run(*, quick: bool) -> dict:
     from benchmarks import build_stages, rhs_cost
     from benchmarks import work_precision as wp
     from benchmarks.machine import machine_info
-    from grasping_sym.derive.reference import ReferenceModel
     from grasping_sym.model.planar import DEFAULT_OUTPUTS
+    from tests.oracles.reference import ReferenceModel
 
     t_start = time.perf_counter()
     res: dict = {"quick": quick, "machine": machine_info()}

@@ -147,7 +147,7 @@ def trajectory_diagnostics(energy_model, t: np.ndarray, X: np.ndarray) -> dict:
 def outputs_diagnostics(t: np.ndarray, out) -> dict:
     """Max constraint residual (output ``constraint_residual``) and energy-balance drift.
 
-    Energy balance (MODELS.md): ``d/dt (kinetic + potential) = power``; drift is
+    Energy balance (docs/conventions.md): ``d/dt (kinetic + potential) = power``; drift is
     ``max_t |E(t) - E(0) - int_0^t power dt|`` with Simpson's rule on the grid ``t`` (J).
     """
     energy = out["kinetic_energy"] + out["potential_energy"]

@@ -1,6 +1,8 @@
 """Exceptions raised by grasping_sym. Each message names the problem, its value and the fix."""
 from __future__ import annotations
 
+import math
+
 
 class GraspingSymError(Exception):
     """Base class of every error this package raises on purpose."""
@@ -93,8 +95,14 @@ class MovingFrameSingularityError(IntegratorError):
     """The paper's moving-frame formulation is 0/0: ``D = omega0.e0 + omega1.e1 = -(kn0 + kn1) s'``
     fell to its threshold (the contact has stopped; the trace direction is undefined).
 
-    ``t`` (s), ``denominator`` (rad/s) and ``threshold`` (rad/s); ``contact`` names the output.
+    ``t`` (s), ``denominator`` (rad/s) and ``threshold`` (rad/s); ``contact`` names the output
+    (``frame_denominator{i}``), ``None`` if unknown.
     """
+
+    def __init__(self, t: float, x, reason: str, state_names=None, *, denominator: float = math.nan,
+                 threshold: float = math.nan, contact: str | None = None):
+        super().__init__(t, x, reason, state_names)
+        self.denominator, self.threshold, self.contact = float(denominator), float(threshold), contact
 
 
 class InconsistentInitialStateError(GraspingSymError, ValueError):

@@ -1,7 +1,7 @@
 """Figures of a 2D simulation: the scene drawn at a state, and the paper's time plots.
 
 Reproduces Yoshida, Arimoto, Tahara 2009, Fig. 5 (snapshots) and Figs 6-14 (time
-histories). Frames as in ``grasping_sym.model.planar`` (``shared/MODELS.md`` section 1):
+histories). Frames as in ``grasping_sym.model.planar`` (``docs/conventions.md`` section 1):
 
 - finger joint 1 at the origin, joint 2 at ``l11 (sin q1, cos q1)``, fingertip centre
   ``O01 = joint2 + l12 (sin(q1+q2), cos(q1+q2))``;

@@ -11,7 +11,7 @@ from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
     from grasping_sym.model.grasp3d import GraspScene3D
 
-#: Paper Tables 1 and 2 plus the choices of MODELS.md section 1 (SI units).
+#: Paper Tables 1 and 2 plus the choices of docs/conventions.md section 1 (SI units).
 PAPER2D_PARAMS: dict[str, float] = {
     "l11": 0.065, "l12": 0.065, "m11": 0.045, "m12": 0.040,
     "I": 0.040 * 0.02**2 / 2,          # M r^2 / 2 with M = 0.040 kg, r = 0.02 m
@@ -48,7 +48,7 @@ def planar_finger(
 
 
 def paper2d(**overrides) -> PlanarFingerScene:
-    """Yoshida-Arimoto-Tahara 2009: the paper's catenary fingertip and object (MODELS.md 1).
+    """Yoshida-Arimoto-Tahara 2009: the paper's catenary fingertip and object (docs/conventions.md section 1).
 
     Any argument of ``planar_finger`` (contours, parameters, initial state, ``runtime``,
     ``outputs``) may be overridden by keyword.
@@ -65,7 +65,7 @@ BUILTIN = {"paper2d": paper2d}
 
 # ---------------------------------------------------------------------- 3D
 #: The object of ``paper3d``: a solid ellipsoid with three different semi-axes (m), 0.040 kg
-#: (MODELS.md section 2), touched at the ends of its X axis.
+#: (docs/conventions.md section 2), touched at the ends of its X axis.
 PAPER3D_SEMI_AXES: tuple[float, float, float] = (0.020, 0.025, 0.030)
 PAPER3D_MASS: float = 0.040
 #: m, radius of the hemispherical fingertips (the 2D paper's fingertip scale).
@@ -73,7 +73,7 @@ PAPER3D_TIP_RADIUS: float = 0.010
 
 
 def paper3d(**overrides) -> "GraspScene3D":
-    """Arimoto-Yoshida 2011: two fingers grasp a free ellipsoid under gravity (MODELS.md 2).
+    """Arimoto-Yoshida 2011: two fingers grasp a free ellipsoid under gravity (docs/conventions.md section 2).
 
     Every value, chosen because the paper gives no numbers (SI units):
 
@@ -105,10 +105,10 @@ def paper3d(**overrides) -> "GraspScene3D":
 
     Any field of ``GraspScene3D`` may be overridden by keyword (e.g. ``formulation='paper'``).
     """
-    from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
     from grasping_sym.geometry import surface_library  # noqa: PLC0415
     from grasping_sym.model import chains  # noqa: PLC0415
     from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
+    from grasping_sym.model.inertia import solid_ellipsoid_inertia  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     rot = _axis_angle((1.0, 1.0, 1.0), 0.2)
@@ -143,10 +143,10 @@ def pivot3d(**overrides) -> "GraspScene3D":
     """One finger (``chains.finger1``, spherical tip of 0.010 m) rolling on an ellipsoid
     (0.020, 0.025, 0.030) m that turns about its centre, fixed; no gravity. The controller pulls
     the fingertip centre toward the pivot (the 2D law (32)). The smallest 3D scene."""
-    from grasping_sym.derive.reference3d import solid_ellipsoid_inertia  # noqa: PLC0415
     from grasping_sym.geometry import surface_library  # noqa: PLC0415
     from grasping_sym.model import chains  # noqa: PLC0415
     from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
+    from grasping_sym.model.inertia import solid_ellipsoid_inertia  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     fingers = (Finger3D(chain=chains.finger1(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip"),

@@ -33,9 +33,9 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.derive.reference import ReferenceModel
 from grasping_sym.geometry import library
 from grasping_sym.model.planar import OUTPUTS
+from tests.oracles.reference import ReferenceModel
 
 GAINS = ("gf", "gl", "wf", "wl")
 PAPER_GAINS = np.array([1500.0, 3000.0, 225.0e4, 900.0e4])

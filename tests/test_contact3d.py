@@ -2,7 +2,7 @@
 
 The finger is fixed; the object's pose (position and unit quaternion) is integrated from the
 prescribed relative motion together with the contact coordinates, and the two are compared:
-exactly known rotations for a sphere on a plane (MODELS.md section 3), and the constraints
+exactly known rotations for a sphere on a plane (docs/conventions.md section 3), and the constraints
 "points coincide, normals opposite, frames differ by psi" for arbitrary surfaces.
 """
 from __future__ import annotations
@@ -17,6 +17,7 @@ from scipy.integrate import solve_ivp
 from grasping_sym.derive import contact3d as c3
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from tests.oracles import contact3d_numeric as c3n
 
 RNG = np.random.default_rng(3)
 TOL = {"rtol": 1e-12, "atol": 1e-14, "method": "DOP853"}
@@ -68,7 +69,7 @@ def integrate(surf_f, pose_f, surf_o, eta0, t_span, w_of_t, v_of_t=None, t_eval=
     The twist is ``omega_o = C_f w``, ``p_o' = C_f v - omega_o x (c - p_o)`` (finger fixed);
     state ``(eta, p_o, q_o)``. Returns the solution and ``pose(y)``.
     """
-    R0, p0 = c3.object_pose_from_contact(surf_f, pose_f, surf_o, eta0)
+    R0, p0 = c3n.object_pose_from_contact(surf_f, pose_f, surf_o, eta0)
     y0 = np.concatenate([eta0, p0, quat_of(R0)])
 
     calls = [0]
@@ -79,9 +80,9 @@ def integrate(surf_f, pose_f, surf_o, eta0, t_span, w_of_t, v_of_t=None, t_eval=
             raise RuntimeError(f"more than {MAX_RHS_CALLS} right-hand-side calls by t = {t:.6g}")
         w = w_of_t(t)
         v = np.zeros(3) if v_of_t is None else v_of_t(t)
-        cf = c3.contact_frame_world(surf_f, *pose_f, y[0], y[1])
-        omega, p_dot = c3.object_twist(cf.frame, cf.point, y[5:8], w, v)
-        return np.concatenate([c3.contact_rates(surf_f, surf_o, y[:5], w, v[:2]), p_dot, quat_rate(omega, y[8:])])
+        cf = c3n.contact_frame_world(surf_f, *pose_f, y[0], y[1])
+        omega, p_dot = c3n.object_twist(cf.frame, cf.point, y[5:8], w, v)
+        return np.concatenate([c3n.contact_rates(surf_f, surf_o, y[:5], w, v[:2]), p_dot, quat_rate(omega, y[8:])])
 
     sol = solve_ivp(rhs, t_span, y0, t_eval=t_eval, **TOL)
     assert sol.success, sol.message
@@ -89,7 +90,7 @@ def integrate(surf_f, pose_f, surf_o, eta0, t_span, w_of_t, v_of_t=None, t_eval=
 
 
 def residual_max(surf_f, pose_f, surf_o, sol) -> float:
-    return max(c3.contact_residuals(surf_f, pose_f, surf_o, (rot_of(y[8:]), y[5:8]), y[:5])["max"]
+    return max(c3n.contact_residuals(surf_f, pose_f, surf_o, (rot_of(y[8:]), y[5:8]), y[:5])["max"]
                for y in sol.y.T)
 
 
@@ -106,19 +107,19 @@ def test_sphere_on_plane_signs():
     r, plane, ball = 0.05, sl.plane(1, 1), sl.sphere(0.05)
     eta = [0.1, -0.2, 0.4, 0.3, 0.7]
     g = ball.evaluate(0.4, 0.3)
-    d = c3.contact_rates(plane, ball, eta, [0.0, 2.0, 0.0])
+    d = c3n.contact_rates(plane, ball, eta, [0.0, 2.0, 0.0])
     assert d[0] == pytest.approx(r * 2.0) and abs(d[1]) < 1e-15
     assert d[4] == pytest.approx(g["T_p"] @ g["M_p"] @ d[2:4], abs=1e-14)  # only the chart frame turns
-    d = c3.contact_rates(plane, ball, eta, [-2.0, 0.0, 0.0])
+    d = c3n.contact_rates(plane, ball, eta, [-2.0, 0.0, 0.0])
     assert d[1] == pytest.approx(r * 2.0) and abs(d[0]) < 1e-15
-    d = c3.contact_rates(plane, ball, eta, [0.0, 0.0, 1.5])
+    d = c3n.contact_rates(plane, ball, eta, [0.0, 0.0, 1.5])
     assert np.allclose(d, [0, 0, 0, 0, -1.5], atol=1e-15)
     # pure translation of the ball along +x: the contact follows it on the plane, stays on the ball
-    d = c3.contact_rates(plane, ball, eta, [0, 0, 0], [0.3, 0.0])
+    d = c3n.contact_rates(plane, ball, eta, [0, 0, 0], [0.3, 0.0])
     assert np.allclose(d[:2], [0.3, 0.0], atol=1e-15) and np.allclose(d[2:], 0, atol=1e-15)
     # a plane (object) sliding by +x over a fixed ball (finger): the contact stays on the ball and
     # moves by -v over the plane, in the plane's frame: R_psi M_o alpha_o' = -v
-    d = c3.contact_rates(ball, plane, [0.4, 0.3, 0.1, -0.2, 0.7], [0, 0, 0], [0.3, 0.0])
+    d = c3n.contact_rates(ball, plane, [0.4, 0.3, 0.1, -0.2, 0.7], [0, 0, 0], [0.3, 0.0])
     assert np.allclose(d[:2], 0, atol=1e-15)
     assert np.allclose(c3.r_psi(0.7) @ d[2:4], [-0.3, 0.0], atol=1e-14)
 
@@ -134,16 +135,16 @@ def test_symbolic_equals_numeric():
     for _ in range(5):
         eta = [*RNG.uniform(-1, 1, 4), RNG.uniform(-3, 3)]
         w, v = RNG.normal(size=3), RNG.normal(size=2) * 0.02
-        vals = [*c3.MontanaForms.from_evaluation(fin.evaluate(*eta[:2])).entries(),
-                *c3.MontanaForms.from_evaluation(obj.evaluate(*eta[2:4])).entries()]
+        vals = [*c3n.forms_from_evaluation(fin.evaluate(*eta[:2])).entries(),
+                *c3n.forms_from_evaluation(obj.evaluate(*eta[2:4])).entries()]
         sym = np.array(fn(*vals, eta[4], *w, *v))
-        assert np.allclose(sym, c3.contact_rates(fin, obj, eta, w, v), rtol=1e-11, atol=1e-12)
+        assert np.allclose(sym, c3n.contact_rates(fin, obj, eta, w, v), rtol=1e-11, atol=1e-12)
     # the surface-specific equations (a sphere on a torus: small expressions)
     tor, ball = sl.torus(0.06, 0.02), sl.sphere(0.03)
     eq = c3.contact_equations(tor, ball, sliding=True)
     f2 = sp.lambdify([*eq.coords, *eq.w, *eq.v], list(eq.rates.vector), "math")
     eta, w, v = [0.3, 0.2, -0.5, 0.4, 1.1], [0.3, -0.7, 0.2], [0.01, -0.02]
-    assert np.allclose(f2(*eta, *w, *v), c3.contact_rates(tor, ball, eta, w, v), rtol=1e-11, atol=1e-12)
+    assert np.allclose(f2(*eta, *w, *v), c3n.contact_rates(tor, ball, eta, w, v), rtol=1e-11, atol=1e-12)
 
 
 def test_relative_motion_round_trip():
@@ -151,12 +152,12 @@ def test_relative_motion_round_trip():
     C = rot(RNG.normal(size=3), 1.1)
     c, p_o = RNG.normal(size=3), RNG.normal(size=3)
     w, v = RNG.normal(size=3), np.array([*RNG.normal(size=2), 0.0])
-    omega, p_dot = c3.object_twist(C, c, p_o, w, v)
-    v2, w2 = c3.relative_motion(C, c, (np.zeros(3), np.zeros(3), np.zeros(3)), (omega, p_dot, p_o))
+    omega, p_dot = c3n.object_twist(C, c, p_o, w, v)
+    v2, w2 = c3n.relative_motion(C, c, (np.zeros(3), np.zeros(3), np.zeros(3)), (omega, p_dot, p_o))
     assert np.allclose(v2, v, atol=1e-14) and np.allclose(w2, w, atol=1e-14)
 
 
-# ------------------------------------------------------------------ MODELS.md section 3
+# ------------------------------------------------------------------ docs/conventions.md section 3
 def _circle_setup(r: float, Rc: float):
     """Sphere (object) of radius r on the plane z = 0 (finger, fixed at the identity).
 
@@ -180,7 +181,7 @@ def _circle_setup(r: float, Rc: float):
 
 
 def test_sphere_rolls_once_round_a_circle_without_spin():
-    """MODELS.md section 3: one lap turns the sphere by 2 pi sqrt(1 + (R/r)^2) about C -> O.
+    """docs/conventions.md section 3: one lap turns the sphere by 2 pi sqrt(1 + (R/r)^2) about C -> O.
 
     Measured: ``R_end R_start^T`` (world) against the rotation by ``2 pi sqrt(1 + (R/r)^2)``,
     right-handed about the unit vector from the sphere's centre C to the circle's centre O,
@@ -253,7 +254,7 @@ def test_holonomy_of_a_geodesic_triangle():
     d = Rb.T @ [1.0, 0, 0]
     eta = np.array([0.01, -0.02, math.atan2(d[1], d[0]), math.asin(d[2]), 0.3])
     pose_f = (np.eye(3), np.zeros(3))
-    R0, _ = c3.object_pose_from_contact(plane, pose_f, ball, eta)
+    R0, _ = c3n.object_pose_from_contact(plane, pose_f, ball, eta)
     # Without slip the contact moves in the same world direction over both surfaces, so the
     # first leg runs along the world image of body e_y (tangent at r e_x) to reach r e_y.
     d0 = R0 @ [0.0, 1.0, 0.0]
@@ -319,7 +320,7 @@ def test_constraints_hold_along_arbitrary_motion(case):
     assert np.all(moved > 0.15), f"the contact hardly moved: {moved}"
     assert np.all(np.abs(sol.y[[1, 3]]) < 1.25)               # kept away from the charts' poles
     for y in sol.y.T[::10]:
-        rep = c3.relative_curvature_report(surf_f.evaluate(*y[:2])["K_p"], surf_o.evaluate(*y[2:4])["K_p"], y[4])
+        rep = c3n.relative_curvature_report(surf_f.evaluate(*y[:2])["K_p"], surf_o.evaluate(*y[2:4])["K_p"], y[4])
         assert rep.name == "regular" and rep.min_eigenvalue > 0
 
 
@@ -332,10 +333,10 @@ def _concave(surface: ParametricSurface) -> ParametricSurface:
 
 def test_flat_on_flat_is_reported():
     plane = sl.plane(1, 1)
-    rep = c3.relative_curvature_report(plane.evaluate(0, 0)["K_p"], plane.evaluate(0.1, 0.2)["K_p"], 0.4)
+    rep = c3n.relative_curvature_report(plane.evaluate(0, 0)["K_p"], plane.evaluate(0.1, 0.2)["K_p"], 0.4)
     assert rep.singular and rep.name == "flat on flat" and rep.det == 0
-    with pytest.raises(c3.RelativeCurvatureSingularError, match="flat on flat") as exc:
-        c3.contact_rates(plane, plane, [0, 0, 0.1, 0.2, 0.4], [0.0, 1.0, 0.0])
+    with pytest.raises(c3n.RelativeCurvatureSingularError, match="flat on flat") as exc:
+        c3n.contact_rates(plane, plane, [0, 0, 0.1, 0.2, 0.4], [0.0, 1.0, 0.0])
     assert exc.value.report.name == "flat on flat" and exc.value.eta[4] == 0.4
 
 
@@ -344,14 +345,14 @@ def test_matched_concave_on_convex_is_reported():
     ball, cup = sl.sphere(r), _concave(sl.sphere(r))
     assert np.allclose(cup.evaluate(0.3, 0.2)["K_p"], -np.eye(2) / r)
     eta = [0.2, 0.1, 0.1, 0.3, 1.3]
-    with pytest.raises(c3.RelativeCurvatureSingularError, match="matched concave on convex"):
-        c3.contact_rates(ball, cup, eta, [0.5, 0.0, 0.0])
+    with pytest.raises(c3n.RelativeCurvatureSingularError, match="matched concave on convex"):
+        c3n.contact_rates(ball, cup, eta, [0.5, 0.0, 0.0])
     # a larger cup is regular, a smaller one would interpenetrate
     big = _concave(sl.sphere(2 * r))
-    rep = c3.relative_curvature_report(ball.evaluate(0.2, 0.1)["K_p"], big.evaluate(0.1, 0.3)["K_p"], 1.3)
+    rep = c3n.relative_curvature_report(ball.evaluate(0.2, 0.1)["K_p"], big.evaluate(0.1, 0.3)["K_p"], 1.3)
     assert rep.name == "regular" and np.allclose(rep.eigenvalues, 1 / (2 * r))
     small = _concave(sl.sphere(r / 2))
-    rep = c3.relative_curvature_report(ball.evaluate(0.2, 0.1)["K_p"], small.evaluate(0.1, 0.3)["K_p"], 1.3)
+    rep = c3n.relative_curvature_report(ball.evaluate(0.2, 0.1)["K_p"], small.evaluate(0.1, 0.3)["K_p"], 1.3)
     assert rep.name == "interpenetrating" and not rep.singular
     # the symbolic relative curvature is identically singular too
     eq = c3.contact_equations(ball, cup)
@@ -361,7 +362,7 @@ def test_matched_concave_on_convex_is_reported():
 def test_cylinder_on_plane_is_a_line_contact():
     r = 0.02
     cyl = ParametricSurface((r * sp.cos(U), r * sp.sin(U), V), (U, V), ((-3, 3), (-0.1, 0.1)), "cylinder")
-    rep = c3.relative_curvature_report(sl.plane(1, 1).evaluate(0, 0)["K_p"], cyl.evaluate(0.2, 0.0)["K_p"], 0.0)
+    rep = c3n.relative_curvature_report(sl.plane(1, 1).evaluate(0, 0)["K_p"], cyl.evaluate(0.2, 0.0)["K_p"], 0.0)
     assert rep.singular and rep.name == "line contact"
 
 
@@ -376,24 +377,24 @@ def test_constraints_hold_with_a_moving_finger():
     surf_f, surf_o = sl.superquadric(0.03, 0.04, 0.035, 4), sl.ellipsoid(0.05, 0.035, 0.02)
     eta0 = np.array([0.3, -0.2, -0.4, 0.3, 0.8])
     Rf0, pf0 = rot([1.0, 0.2, -0.4], 1.2), np.array([0.02, 0.01, -0.03])
-    R0, p0 = c3.object_pose_from_contact(surf_f, (Rf0, pf0), surf_o, eta0)
+    R0, p0 = c3n.object_pose_from_contact(surf_f, (Rf0, pf0), surf_o, eta0)
     w_of_t, vv, wf_of_t, vf_of_t = (_smooth_random(3, s, k) for s, k in ((1.0, 21), (0.01, 22), (1.0, 23), (0.05, 24)))
 
     def rhs(t, y):
         p_o, q_o, p_f, q_f = y[5:8], y[8:12], y[12:15], y[15:19]
-        cf = c3.contact_frame_world(surf_f, rot_of(q_f), p_f, y[0], y[1])
+        cf = c3n.contact_frame_world(surf_f, rot_of(q_f), p_f, y[0], y[1])
         omega_f, pdot_f = wf_of_t(t), vf_of_t(t)
         w, v = w_of_t(t), np.array([*vv(t)[:2], 0.0])
         omega_o = omega_f + cf.frame @ w
         pdot_o = pdot_f + np.cross(omega_f, cf.point - p_f) + cf.frame @ v - np.cross(omega_o, cf.point - p_o)
-        v_rel, w_rel = c3.relative_motion(cf.frame, cf.point, (omega_f, pdot_f, p_f), (omega_o, pdot_o, p_o))
-        return np.concatenate([c3.contact_rates(surf_f, surf_o, y[:5], w_rel, v_rel), pdot_o,
+        v_rel, w_rel = c3n.relative_motion(cf.frame, cf.point, (omega_f, pdot_f, p_f), (omega_o, pdot_o, p_o))
+        return np.concatenate([c3n.contact_rates(surf_f, surf_o, y[:5], w_rel, v_rel), pdot_o,
                                quat_rate(omega_o, q_o), pdot_f, quat_rate(omega_f, q_f)])
 
     y0 = np.concatenate([eta0, p0, quat_of(R0), pf0, quat_of(Rf0)])
     sol = solve_ivp(rhs, (0.0, 1.0), y0, t_eval=np.linspace(0, 1, 41), **TOL)
     assert sol.success, sol.message
-    res = max(c3.contact_residuals(surf_f, (rot_of(y[15:]), y[12:15]), surf_o, (rot_of(y[8:12]), y[5:8]), y[:5])["max"]
+    res = max(c3n.contact_residuals(surf_f, (rot_of(y[15:]), y[12:15]), surf_o, (rot_of(y[8:12]), y[5:8]), y[:5])["max"]
               for y in sol.y.T)
     assert res < 1e-9
     assert np.all(np.ptp(sol.y[:4], axis=1) > 0.1) and np.all(np.abs(sol.y[[1, 3]]) < 1.25)

@@ -1,4 +1,4 @@
-"""Cases with exact answers (MODELS.md section 3) for circular contours.
+"""Cases with exact answers (docs/conventions.md section 3) for circular contours.
 
 The circles are placed off the body origins (fingertip centre O01, object pivot Om) so that
 the controller's pull of O01 toward Om has a lever arm and the contact rolls a long way.

@@ -107,7 +107,7 @@ def test_paper_curvatures_at_start_sum_to_check_value():
     k1 = -float(library.paper_object().evaluate(0.0)["curvature"])
     assert k0 == pytest.approx(40.0, rel=1e-13)
     assert k1 == pytest.approx(89.84, abs=5e-3)
-    assert k0 + k1 == pytest.approx(129.84, abs=5e-3)  # MODELS.md check value
+    assert k0 + k1 == pytest.approx(129.84, abs=5e-3)  # docs/conventions.md check value
 
 
 def test_paper_contours_match_models_md_formulas():

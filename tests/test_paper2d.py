@@ -1,6 +1,6 @@
-"""The paper's 2D scene (MODELS.md section 1): check values, settling, invariants, energy.
+"""The paper's 2D scene (docs/conventions.md section 1): check values, settling, invariants, energy.
 
-Expected values come from MODELS.md, the paper's figures, or closed-form formulas written
+Expected values come from docs/conventions.md, the paper's figures, or closed-form formulas written
 here from the contour definitions (paper eqs 37-40), never from the package's own output.
 """
 from __future__ import annotations
@@ -78,7 +78,7 @@ def test_initial_state_vector(paper2d_model):
 
 
 def test_initial_lengths_check_values():
-    """ln0 + ln1 and lb0 + lb1 of MODELS.md, and their relation to O01 - Om (paper 7-10)."""
+    """ln0 + ln1 and lb0 + lb1 of docs/conventions.md, and their relation to O01 - Om (paper 7-10)."""
     scene = gs.scenes.paper2d()
     X0, Y0, dX0, dY0 = _fingertip(0.0)
     X, Y, dX, dY = _object(0.0)
@@ -89,7 +89,7 @@ def test_initial_lengths_check_values():
     ln1 = -X * math.cos(th1) + Y * math.sin(th1)
     assert ln0 + ln1 == pytest.approx(0.029488, abs=5e-7)
     assert lb0 + lb1 == pytest.approx(-0.003069, abs=5e-7)
-    # on the manifold (MODELS.md): with (x, y) = Om, (x01, y01) = O01, theta = 0
+    # on the manifold (docs/conventions.md): with (x, y) = Om, (x01, y01) = O01, theta = 0
     q1, q2 = math.pi / 6, scene.q2_0
     x01 = 0.065 * (math.sin(q1) + math.sin(q1 + q2))
     y01 = 0.065 * (math.cos(q1) + math.cos(q1 + q2))
@@ -157,7 +157,7 @@ def test_tangency_defect_output_stays_zero(energy_result):
 
 
 def test_energy_balance(energy_result):
-    """MODELS.md 3: with no gravity and the constraints held, d/dt KE = q'.u ('power').
+    """docs/conventions.md section 3: with no gravity and the constraints held, d/dt KE = q'.u ('power').
 
     KE(t) - KE(0) is compared with the integral of the power (cumulative Simpson on the
     0.1 ms output grid). Tolerance 1e-11 J, i.e. 5e-7 of the peak kinetic energy

@@ -65,7 +65,7 @@ def test_two_fingers_compiled_equal_the_symbolic_reference():
     derivation, at states along a run (on the constraint manifold). Stabilisation gains 0:
     with the paper's (~1e7 1/s^2) the one-ulp rounding of Q and R alone makes the two
     evaluations differ by ~1e-9 (see tests/test_compiled_vs_symbolic.py)."""
-    from grasping_sym.derive.reference import ReferenceModel
+    from tests.oracles.reference import ReferenceModel
 
     xm, ym = _pivot()
     scene = _scene("pair", (ExtraFinger(_tip("tip2"), base=(2 * xm, 0.0), u1_0=0.35),), ("f1", "f2"),

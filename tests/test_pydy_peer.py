@@ -56,7 +56,7 @@ def test_state_maps(peer, paper2d_model):
     assert peer.state_names == ("s", "q1", "q2", "theta", "ds", "dq1", "dq2", "dtheta")
     x = np.array([0.1, 0.5, 0.7, 0.2, -0.3, 0.4, -1e-3])
     assert np.array_equal(peer.to_ours(peer.from_ours(x)), x)
-    # the constants are grasping_sym's, the pivot its solved Om (MODELS.md check value)
+    # the constants are grasping_sym's, the pivot its solved Om (docs/conventions.md check value)
     assert peer.p[peer_mod.PARAM_NAMES.index("xm")] == pytest.approx(0.12303738, abs=1e-8)
     x0 = paper2d_model.initial_state()
     xp0 = peer.from_ours(x0)

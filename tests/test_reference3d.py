@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from grasping_sym.derive import contact3d as c3
-from grasping_sym.derive.reference3d import SL_ETA, SL_QUAT, Reference3D, Scene3D
+from tests.oracles import contact3d_numeric as c3n
+from tests.oracles.reference3d import SL_ETA, SL_QUAT, Reference3D, Scene3D
 
 TOL = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
 
@@ -76,8 +76,8 @@ def test_constraint_rows_are_relative_velocity(model_name, request):
         # contact3d's relative motion (object relative to finger) is the opposite velocity,
         # with (Qn, Qb, Qe) along (n_f, x_f, y_f)
         uf, vf = x[SL_ETA][:2]
-        cf = c3.contact_frame_world(m.fingertip, p["Pi"], p["r"], uf, vf)
-        v_rel, _ = c3.relative_motion(cf.frame, cf.point, (p["W"] @ V[:2], p["J"] @ V[:2], p["r"]),
+        cf = c3n.contact_frame_world(m.fingertip, p["Pi"], p["r"], uf, vf)
+        v_rel, _ = c3n.relative_motion(cf.frame, cf.point, (p["W"] @ V[:2], p["J"] @ V[:2], p["r"]),
                                       (p["R"] @ V[2:], np.zeros(3), m.pivot))
         # (off the manifold by |C| ~ 1e-12 m the two differ by O(|C| curvature |V|))
         assert np.linalg.norm(AV + v_rel[[2, 0, 1]]) <= 1e-9 * scale

@@ -1,4 +1,4 @@
-"""The paper's moving-frame formulation (``derive/reference3d_paper.py``) against reference3d.
+"""The paper's moving-frame formulation (``tests/oracles/reference3d_paper.py``) against reference3d.
 
 (1) While the contact moves, both formulations agree on the bodies and the contact points;
 (2) the moving frames stay orthonormal and matched (n1 = -n0, b1 = b0); (3) toward rest the
@@ -13,14 +13,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from grasping_sym.derive.reference3d import Reference3D, Scene3D
-from grasping_sym.derive.reference3d_paper import (
-    SL_UV,
-    MovingFrameSingularityError,
-    PaperReference3D,
-    rolling_start,
-)
-from grasping_sym.errors import GraspingSymError
+from grasping_sym.errors import GraspingSymError, MovingFrameSingularityError
+from tests.oracles.reference3d import Reference3D, Scene3D
+from tests.oracles.reference3d_paper import SL_UV, PaperReference3D, rolling_start
 
 TOL = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
 

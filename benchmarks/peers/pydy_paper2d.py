@@ -1,6 +1,6 @@
 """The paper2d scene written as a multibody user would: ``sympy.physics.mechanics`` + PyDy (Cython).
 
-A peer for the benchmarks: the same scene as ``grasping_sym.scenes.paper2d()`` (MODELS.md section 1,
+A peer for the benchmarks: the same scene as ``grasping_sym.scenes.paper2d()`` (docs/conventions.md section 1,
 Yoshida-Arimoto-Tahara 2009), derived with ``KanesMethod`` and compiled with PyDy's
 ``generate_ode_function(..., generator='cython')``, the way ``pydy.system.System`` does it.
 
@@ -15,7 +15,7 @@ its pivot and its initial state come from ``grasping_sym``):
 - frames: ``N`` inertial; link 1 ``A`` = ``N`` turned by ``-q1`` about z (the paper measures joint
   angles clockwise from +y; the link runs along ``A.y``); link 2 ``B`` = ``A`` turned by ``-q2``;
   the fingertip frame ``F`` (fixed in link 2) = ``B`` turned by ``+pi/2`` (so that ``F`` is ``N``
-  turned by ``pi/2 - q1 - q2``, MODELS.md); the object frame ``Ob`` = ``N`` turned by ``-theta``;
+  turned by ``pi/2 - q1 - q2``, docs/conventions.md); the object frame ``Ob`` = ``N`` turned by ``-theta``;
 - bodies: uniform rods (mass centre at mid-length, ``m l^2/12`` about it) and the object pivoted
   at ``Om`` with inertia ``I`` about it; no gravity;
 - contours, written from the paper's eqs (37)-(40), both unit-speed in the one contact parameter

@@ -82,15 +82,6 @@ def leaf_expressions(fns: ContourFunctions, curve: PlanarCurve) -> dict[type, sp
     }
 
 
-def substitute_leaves(expr, leaves: dict[type, sp.Expr]):
-    """Replace every abstract function application by its concrete expression."""
-    repl = {}
-    for cls, concrete in leaves.items():
-        for app in expr.atoms(cls):
-            repl[app] = concrete.subs(T, app.args[0])
-    return expr.xreplace(repl)
-
-
 FINGERTIP = make_contour_functions("0")
 OBJECT = make_contour_functions("1")
 _EXTRA_FINGERTIPS: dict[int, ContourFunctions] = {}

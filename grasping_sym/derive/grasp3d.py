@@ -28,7 +28,7 @@ Contact tracking, by ``scene.formulation``:
   equations for rolling (``contact3d``): linear in the relative angular velocity, zero at rest.
 * ``'paper'``: ``eta_i = (u_f, v_f, u_o, v_o, s, Psi0 (9), Psi1 (9))``, the paper's (Es),
   (Efs) with the geodesic curvatures of (31)-(32) (and the geodesic torsion the printed (Efs)
-  omits, see ``derive.reference3d_paper``). The bodies' accelerations come from the same
+  omits, see the oracle ``tests/oracles/reference3d_paper.py``). The bodies' accelerations come from the same
   Lagrangian pieces, evaluated at the contact points carried by the paper's states and the
   frame angle read from the two surfaces' frames there. It divides by
   ``D_i = omega0.e0 + omega1.e1`` (output ``frame_denominator{i}``), 0/0 at rest.

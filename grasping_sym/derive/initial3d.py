@@ -19,12 +19,13 @@ formulation's rates, so the paper formulation cannot start at rest (it is 0/0 th
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from grasping_sym.errors import InvalidSceneError
+from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
 from grasping_sym.model.grasp3d import GraspScene3D
 
 #: m, largest contact residual accepted at the start.
@@ -194,8 +195,7 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
         st = f.tip.evaluate(uf, vf)
         d = _tangent(scene.object_surface, uo, vo) @ sigma[5 * i + 2:5 * i + 4]
         if not np.linalg.norm(d) > 0:
-            from grasping_sym.derive.reference3d_paper import MovingFrameSingularityError  # noqa: PLC0415
-            raise MovingFrameSingularityError(0.0, 0.0, 0.0, 0.0)
+            raise _contact_at_rest(i + 1, float(np.linalg.norm(d)), x, regular.state_names)
         b_w = R @ d / np.linalg.norm(R @ d)
         Pi = np.asarray(g[f"Pi{i + 1}"], float)
         no_w, nf_w = R @ so["normal"], Pi @ st["normal"]
@@ -204,6 +204,23 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
         contact += [conf["eta"][i, :4], [0.0], (R.T @ F0).ravel(order="F"), (Pi.T @ F1).ravel(order="F")]
     xp = np.concatenate([x[:nz + nV], *[np.asarray(c, float) for c in contact]])
     return xp, info
+
+
+def _contact_at_rest(k: int, speed: float, x: np.ndarray, state_names) -> MovingFrameSingularityError:
+    """The paper formulation's start refused: contact ``k`` does not move (``speed`` = ``|s'|``, m/s)."""
+    name = f"frame_denominator{k}"
+    denominator = 0.0 if speed == 0 else math.nan      # -(kn0 + kn1) s'
+    return MovingFrameSingularityError(
+        0.0, x,
+        f"the paper formulation cannot start at rest: contact {k} does not move at t = 0 (the speed "
+        f"of its contact point over the object surface is |s'| = {speed:.3e} m/s), so {name} = "
+        f"omega0.e0 + omega1.e1 = -(kn0 + kn1) s' = {denominator:.3e} rad/s, and the moving frames "
+        f"need |{name}| > 0 at the start: their trace direction b is the direction of the contact's "
+        "motion and the geodesic curvatures (31)-(32) divide by it (simulate() then stops where it "
+        "falls to a small fraction of its start value, runtime.checks.FRAME_DENOMINATOR_RELATIVE). "
+        "Give the scene initial joint speeds dq0 that move every contact (paper3d's default dq0 "
+        "does), or use formulation='regular', which is regular at rest",
+        state_names, denominator=denominator, threshold=0.0, contact=name)
 
 
 def _tangent(surface, u, v) -> np.ndarray:

@@ -1,6 +1,6 @@
 """SymPy derivation of the 2D finger-object model (Yoshida-Arimoto-Tahara 2009).
 
-Conventions: ``grasping_sym.model.planar`` and MODELS.md section 1. With unit tangents
+Conventions: ``grasping_sym.model.planar`` and docs/conventions.md section 1. With unit tangents
 ``T0 = c0'/|c0'|`` (fingertip) and ``T1 = c1'/|c1'|`` (object), the paper's angles are
 ``sin psi0 = T0x, cos psi0 = T0y`` and ``sin theta1 = T1x, cos theta1 = T1y``, so no arctangent
 is needed except in the tangency defect. In the inertial frame
@@ -21,7 +21,7 @@ at the contact. The equations of motion are
     G(q) q'' + (G'/2 + S) q' + f dQ/dq + lam dR/dq = u_c                 (paper 27-28)
     u_c = -c q' - J01^T (fd/r)(O01 - Om)                                 (paper 32)
 
-so that at equilibrium f = -(fd/r) Q1 and lam = -(fd/r) R1 (MODELS.md signs). The contact
+so that at equilibrium f = -(fd/r) Q1 and lam = -(fd/r) R1 (docs/conventions.md signs). The contact
 moves by the update law (29) in arclength, ``s' = (q1' + q2' - theta')/(kappa0 + kappa1)``,
 written for any parameterisation as ``u0' = s'/|c0'(u0)|``, ``u1' = s'/|c1'(u1)|``.
 """

@@ -1,6 +1,6 @@
 """SymPy kinematics and dynamics of spatial finger chains and of a free rigid body (3D model).
 
-Conventions (Arimoto & Yoshida 2011, section 2; MODELS.md section 2; ``model.chains``):
+Conventions (Arimoto & Yoshida 2011, section 2; docs/conventions.md section 2; ``model.chains``):
 
 Fingers. ``Rot(a, q) = I + sin q [a]x + (1 - cos q) [a]x^2`` (Rodrigues, exact); link frames
 ``R_k = R_(k-1) Rot(a_k, q_k)`` map link-k coordinates to the inertial frame O-xyz. The fingertip

@@ -2,7 +2,7 @@
 
 Frames (all right-handed, SI units):
 
-- inertial frame O-xyz; gravity of the 3D scene along -y (MODELS.md section 2);
+- inertial frame O-xyz; gravity of the 3D scene along -y (docs/conventions.md section 2);
 - link ``k`` (k = 1..n) of a chain has the frame ``R_k = R_(k-1) Rot(a_k, q_k)`` with
   ``R_0 = I`` (the base frame is parallel to O-xyz) and ``Rot(a, q)`` the right-handed rotation
   by the angle ``q`` about the unit axis ``a`` (Rodrigues). The joint axis ``a_k`` is given in the

@@ -1,6 +1,6 @@
 """The 2D scene: one planar two-joint finger rolling on an object pivoted at a point.
 
-Frames and signs follow ``shared/MODELS.md`` section 1 (Yoshida, Arimoto, Tahara 2009):
+Frames and signs follow ``docs/conventions.md`` section 1 (Yoshida, Arimoto, Tahara 2009):
 
 - inertial frame O-xy, ``Rot(a) = [[cos a, -sin a], [sin a, cos a]]``;
 - finger joints at the origin, fingertip centre

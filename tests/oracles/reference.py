@@ -13,14 +13,10 @@ import numpy as np
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
-from grasping_sym.derive.contour_functions import (
-    OBJECT,
-    fingertip_functions,
-    leaf_expressions,
-    substitute_leaves,
-)
+from grasping_sym.derive.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.derive.system import ConstrainedSystem, assemble
+from grasping_sym.geometry.curves import T
 from grasping_sym.model.planar import PlanarFingerScene
 
 _NUMPY = dict(
@@ -29,6 +25,16 @@ _NUMPY = dict(
     mul=lambda a, b: a * b,
     transpose=lambda a: a.T,
 )
+
+
+def substitute_leaves(expr, leaves: dict[type, sp.Expr]):
+    """Replace every abstract contour function application in ``expr`` by its concrete
+    expression (``contour_functions.leaf_expressions``) at that application's argument."""
+    repl = {}
+    for cls, concrete in leaves.items():
+        for app in expr.atoms(cls):
+            repl[app] = concrete.subs(T, app.args[0])
+    return expr.xreplace(repl)
 
 
 class _ExactFloatPrinter(NumPyPrinter):

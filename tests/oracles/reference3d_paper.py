@@ -1,5 +1,5 @@
 """The paper's moving-frame formulation (Arimoto-Yoshida 2011, (25)-(33), (Es), (Efs)) of
-the one-finger scene of :mod:`grasping_sym.derive.reference3d`.
+the one-finger scene of :mod:`tests.oracles.reference3d`.
 
 The bodies (finger ``q``, object quaternion, speeds), the constraints ``(Qn, Qb, Qe)``, the
 multipliers, Baumgarte and the controller are reference3d's, evaluated by
@@ -50,10 +50,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from grasping_sym import errors
 from grasping_sym.codegen.translate import SympyToCasadi
-from grasping_sym.derive.reference3d import SL_DQ, SL_OM, SL_QUAT, Reference3D, Scene3D
+from grasping_sym.errors import MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from tests.oracles.reference3d import SL_DQ, SL_OM, SL_QUAT, Reference3D, Scene3D
 
 N_STATE = 34
 SL_BODY, SL_UV, SL_S, SL_PSI0, SL_PSI1 = slice(0, 11), slice(11, 15), 15, slice(16, 25), slice(25, 34)
@@ -61,20 +61,18 @@ FRAME_GAIN = 50.0          # 1/s, damping of the frames' orthonormality drift
 SINGULARITY_TOL = 1e-6     # relative threshold on |D| / ((kn0 + kn1) * speed_scale)
 
 
-class MovingFrameSingularityError(errors.MovingFrameSingularityError):
-    """``errors.MovingFrameSingularityError`` raised by this NumPy reference.
-
-    Attributes: ``denominator`` (rad/s), ``threshold`` (rad/s), ``s_dot`` (m/s), ``t`` (s, NaN if unknown).
-    """
-
-    def __init__(self, denominator: float, threshold: float, s_dot: float, t: float | None = None):
-        when = f" at t = {t:.6g} s" if t is not None else ""
-        super().__init__(
-            float("nan") if t is None else t, None,
-            f"moving-frame formulation singular{when}: |omega0.e0 + omega1.e1| = {abs(denominator):.3e} rad/s "
-            f"< {threshold:.3e} rad/s (s' = {s_dot:.3e} m/s); the trace direction b is undefined as the "
-            "contact stops. Use the regular formulation (reference3d).")
-        self.denominator, self.threshold, self.s_dot = denominator, threshold, s_dot
+def _singular(denominator: float, threshold: float, s_dot: float, t: float | None = None,
+              reason: str | None = None) -> MovingFrameSingularityError:
+    """``errors.MovingFrameSingularityError`` with ``denominator`` (rad/s), ``threshold`` (rad/s),
+    and ``s_dot`` (m/s) set; ``t`` (s) NaN if unknown."""
+    reason = reason or (
+        f"moving-frame formulation singular: |omega0.e0 + omega1.e1| = {abs(denominator):.3e} rad/s "
+        f"< {threshold:.3e} rad/s (s' = {s_dot:.3e} m/s); the trace direction b is undefined as the "
+        "contact stops. Use the regular formulation (Reference3D)")
+    err = MovingFrameSingularityError(float("nan") if t is None else t, None, reason,
+                                      denominator=denominator, threshold=threshold)
+    err.s_dot = s_dot
+    return err
 
 
 def _darboux(kg, tg, kn):
@@ -169,7 +167,7 @@ class PaperReference3D:
         psi, D, ksum, sdot, Dn = (float(v) for v in self._geom(x)[:5])
         thr = SINGULARITY_TOL * abs(ksum) * self.speed_scale
         if not abs(D) >= thr:          # also catches NaN
-            raise MovingFrameSingularityError(D, thr, sdot, t)
+            raise _singular(D, thr, sdot, t)
         xr = np.concatenate([x[SL_BODY], x[SL_UV], [psi]])
         xdot_ref, _ = self.ref._solve(xr)
         acc = xdot_ref[6:11]
@@ -180,7 +178,10 @@ class PaperReference3D:
         xdot = np.asarray(self._rates(x, acc, kgv)[0].full(), float).ravel()
         xdot[SL_QUAT] = xdot_ref[SL_QUAT]
         if not np.all(np.isfinite(xdot)):
-            raise MovingFrameSingularityError(D, thr, sdot, t)
+            raise _singular(D, thr, sdot, t, reason=(
+                f"moving-frame formulation: non-finite rates at |omega0.e0 + omega1.e1| = {abs(D):.3e} "
+                f"rad/s (threshold {thr:.3e} rad/s, s' = {sdot:.3e} m/s). Use the regular formulation "
+                "(Reference3D)"))
         return xdot
 
     def __call__(self, t: float, x: np.ndarray) -> np.ndarray:
@@ -203,8 +204,11 @@ class PaperReference3D:
         R, Pi, sigma = p["R"], p["Pi"], p["sigma"]
         geo = self._geom(np.concatenate([x_ref[:15], np.zeros(19)]))
         vc = R @ np.asarray(geo[11].full(), float) @ sigma[2:4]   # world contact velocity on the object
-        if np.linalg.norm(vc) == 0:
-            raise MovingFrameSingularityError(0.0, 0.0, 0.0, 0.0)
+        if not np.linalg.norm(vc) > 0:
+            raise _singular(0.0, 0.0, float(np.linalg.norm(vc)), 0.0, reason=(
+                f"the paper formulation cannot start at rest: the contact does not move at x_ref (its "
+                f"speed over the object surface is |s'| = {np.linalg.norm(vc):.3e} m/s), so b is undefined "
+                "and D = -(kn0 + kn1) s' = 0; start from a rolling state (rolling_start)"))
         b = vc / np.linalg.norm(vc)
         nf_w, no_w = np.asarray(geo[9].full(), float).ravel(), np.asarray(geo[10].full(), float).ravel()
         F0 = np.column_stack([no_w, b, np.cross(no_w, b)])
@@ -249,5 +253,5 @@ def rolling_start(ref: Reference3D, speed: float = 3.0) -> np.ndarray:
     return ref.initial_state(V0 * speed / np.linalg.norm(V0[:2]))
 
 
-__all__ = ["rolling_start", "MovingFrameSingularityError", "PaperReference3D", "N_STATE", "SL_BODY", "SL_UV", "SL_S",
+__all__ = ["rolling_start", "PaperReference3D", "N_STATE", "SL_BODY", "SL_UV", "SL_S",
            "SL_PSI0", "SL_PSI1"]

@@ -58,6 +58,8 @@ from grasping_sym.derive.system import assemble
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 from grasping_sym.model.chains import FINGER1_Q_OPPOSED, finger1
+from grasping_sym.model.inertia import solid_ellipsoid_inertia
+from tests.oracles import contact3d_numeric as c3n
 
 STATE_NAMES = ("q11", "q12", "qw", "qx", "qy", "qz", "dq11", "dq12", "omegaX", "omegaY", "omegaZ",
                *c3.CONTACT_COORDS)
@@ -84,11 +86,6 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
         q[1 + b] = (R[b, a] + R[a, b]) / (4 * s)
         q[1 + c] = (R[c, a] + R[a, c]) / (4 * s)
     return q if q[0] >= 0 else -q
-
-
-def solid_ellipsoid_inertia(mass: float, a: float, b: float, c: float) -> np.ndarray:
-    """kg m^2, inertia of a solid ellipsoid about its centre in its axes: ``m/5 (b^2 + c^2, ...)``."""
-    return mass / 5 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
 
 
 @dataclass(frozen=True)
@@ -144,7 +141,7 @@ class Reference3D:
         fk = sp.lambdify([list(kin.q)], [kin.r, kin.Pi], "numpy")
         r0, Pi0 = (np.asarray(m, float) for m in fk(list(s.q0)))
         self._eta0 = np.array([*s.contact_f, *s.contact_o, s.psi0], float)
-        R0, p0 = c3.object_pose_from_contact(self.fingertip, (Pi0, r0.ravel()), self.object_surface, self._eta0)
+        R0, p0 = c3n.object_pose_from_contact(self.fingertip, (Pi0, r0.ravel()), self.object_surface, self._eta0)
         self.pivot = np.asarray(p0, float)
         self._quat0 = quat_from_matrix(R0)
         self._build(kin, dyn)
@@ -268,7 +265,7 @@ class Reference3D:
         """Diagnostics at ``x``.
 
         ``Qn, Qb, Qe`` (m); ``f, lam, eta`` (N, the multipliers); ``point, normal, frame,
-        angle, residual_max`` from ``contact3d.contact_residuals`` (normals opposite, frames
+        angle, residual_max`` from ``contact3d_numeric.contact_residuals`` (normals opposite, frames
         differing by psi); ``quat_norm_error = |quat| - 1``; ``orthonormality`` =
         ``max |R^T R - I|``; ``kinetic_energy`` (J); ``power = q' . u`` (W);
         ``krel_min_eig`` (1/m) and ``krel_name`` from ``relative_curvature_report``;
@@ -277,10 +274,10 @@ class Reference3D:
         x = np.asarray(x, float)
         p = self.pieces(x)
         xdot, mu = self._solve(x)
-        res = c3.contact_residuals(self.fingertip, (p["Pi"], p["r"]), self.object_surface,
+        res = c3n.contact_residuals(self.fingertip, (p["Pi"], p["r"]), self.object_surface,
                                    (p["R"], self.pivot), x[SL_ETA])
         uf, vf, uo, vo, psi = x[SL_ETA]
-        rep = c3.relative_curvature_report(self.fingertip.evaluate(uf, vf)["K_p"],
+        rep = c3n.relative_curvature_report(self.fingertip.evaluate(uf, vf)["K_p"],
                                            self.object_surface.evaluate(uo, vo)["K_p"], psi)
         out = {"Qn": p["C"][0], "Qb": p["C"][1], "Qe": p["C"][2],
                "f": mu[0], "lam": mu[1], "eta": mu[2],
