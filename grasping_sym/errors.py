@@ -111,3 +111,13 @@ class InconsistentInitialStateError(GraspingSymError, ValueError):
     def __init__(self, residual: float, message: str):
         self.residual = float(residual)
         super().__init__(message)
+
+
+class UnreachableStartError(GraspingSymError, ValueError):
+    """A starting pose asked of ``model.initial_state(...)`` has no consistent state near it:
+    the given coordinates cannot all hold while the bodies touch (``residual``, m, is the
+    smallest constraint violation reached), or the contact would leave a contour's domain."""
+
+    def __init__(self, message: str, residual: float = math.nan):
+        self.residual = float(residual)
+        super().__init__(message)

@@ -106,6 +106,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
                                          rhs_lanes=lanes.lanes_symbol(cm.rhs) if lane_c else None),
         "c_symbols": [f.name() for f in cm.functions()],
         "constraints": _constraints_entry(cm, scene.state_names),
+        "start_conditions": list(cm.start_names),
         "op_counts": ops,
         **scene.manifest_extra(),
     }

@@ -43,9 +43,14 @@ class CasadiModel:
     #: ``names`` of the constraints, ``position_states`` (the states C depends on) and
     #: ``velocity_states`` (those Cdot depends on affinely and C not at all), by name index.
     constraint_info: dict = field(default_factory=dict)
+    #: ``{name}_start`` ``(x, p) -> (G, dG_dx)``: every condition of a consistent contact
+    #: (C and the tangency the update law keeps), for starts solved at run time.
+    start: ca.Function | None = None
+    start_names: tuple[str, ...] = ()
 
     def functions(self) -> list[ca.Function]:
-        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints) if f is not None]
+        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start)
+                if f is not None]
 
 
 def _casadi_backend():
@@ -181,7 +186,10 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
     y = {k: y_all[template.output_names.index(k)] for k in outputs}
     names = planar_constraint_names(template.output_names)
     C = ca.vertcat(*[y_all[template.output_names.index(k)] for k in names])
-    return sx_model(x, p, xdot, y, name, constraints=C, constraint_names=names)
+    tangency = tuple(k for k in template.output_names if k.startswith("tangency_defect"))
+    G = ca.vertcat(C, *[y_all[template.output_names.index(k)] for k in tangency])
+    return sx_model(x, p, xdot, y, name, constraints=C, constraint_names=names,
+                    start_conditions=G, start_names=names + tangency)
 
 
 def planar_constraint_names(output_names: tuple[str, ...]) -> tuple[str, ...]:
@@ -200,7 +208,8 @@ def planar_constraint_names(output_names: tuple[str, ...]) -> tuple[str, ...]:
 
 def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: str, *,
              jacobian: bool = True, constraints: ca.SX | None = None,
-             constraint_names: tuple[str, ...] | None = None) -> CasadiModel:
+             constraint_names: tuple[str, ...] | None = None,
+             start_conditions: ca.SX | None = None, start_names: tuple[str, ...] = ()) -> CasadiModel:
     """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
 
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
@@ -235,8 +244,15 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
     if constraints is not None:
         con_fn, con_info = _constraints_function(x, p, xdot, constraints, constraint_names, name)
         op_counts["constraints_sx_instructions"] = con_fn.n_instructions()
+    start_fn = None
+    if start_conditions is not None:
+        start_fn = ca.Function(f"{name}_start", [x, p],
+                               [start_conditions, ca.densify(ca.jacobian(start_conditions, x))],
+                               ["x", "p"], ["G", "dG_dx"], FUNCTION_OPTIONS)
+        op_counts["start_sx_instructions"] = start_fn.n_instructions()
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=tuple(outputs),
-                       op_counts=op_counts, constraints=con_fn, constraint_info=con_info)
+                       op_counts=op_counts, constraints=con_fn, constraint_info=con_info,
+                       start=start_fn, start_names=tuple(start_names))
 
 
 def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,

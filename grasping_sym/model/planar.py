@@ -350,8 +350,9 @@ class PlanarFingerScene:
         return []
 
     def manifest_extra(self) -> dict:
-        """What this kind of scene adds to its manifest: nothing."""
-        return {}
+        """What this kind of scene adds to its manifest: a start solved at run time
+        (``runtime.start``) holds the object's angle unless it is given or must move."""
+        return {"start_hold": ["theta"]}
 
     def sympy_op_counts(self) -> dict[str, int]:
         """Operation counts of the SymPy pieces before and after SymPy's CSE."""

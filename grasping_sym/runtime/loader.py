@@ -26,13 +26,17 @@ def library_name(name: str) -> str:
 
 
 def load(path: Path | str) -> Model:
-    """The built model in ``path`` (a model's ``directory``, ``model.path``) with the start
-    it was last built with. Needs no SymPy, no derivation and no compiler: the library must
+    """The built model at ``path``: ``model.path`` (its start file, ``<directory>/starts/
+    <key>.json``: the same model, start included), or a model's ``directory`` (the start it
+    was last built with). Needs no SymPy, no derivation and no compiler: the library must
     have been compiled for this interpreter, NumPy and CPU level (``gs.build`` does that).
     """
-    directory = Path(path)
+    path = Path(path)
+    if path.is_file() and path.parent.name == stored.STARTS_DIR:
+        directory, start = path.parent.parent, stored.read_json(path)
+    else:
+        directory, start = path, stored.read_json(path / stored.START)
     manifest = stored.read_manifest(directory)
-    start = stored.read_json(directory / stored.START)
     if manifest is None or start is None:
         raise FileNotFoundError(f"{directory} holds no built model (manifest.json and start.json): "
                                 "pass a model's directory (model.path) after gs.build(scene)")

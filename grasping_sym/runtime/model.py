@@ -11,7 +11,7 @@ from grasping_sym.errors import (
     IntegratorError,
 )
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import integrators, projection
+from grasping_sym.runtime import integrators, projection, stored
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
 
@@ -70,8 +70,9 @@ class Model:
     # ------------------------------------------------------------------ calls
     @property
     def path(self) -> Path:
-        """The model's directory: ``grasping_sym.load(model.path)`` loads it again."""
-        return self.directory
+        """Where the model is stored, its start included: ``grasping_sym.load(model.path)``
+        loads the same model again, in any process (``<directory>/starts/<key>.json``)."""
+        return self.directory / stored.STARTS_DIR / f"{self.start['key'][:16]}.json"
 
     def params(self, params: dict[str, float] | None = None) -> np.ndarray | None:
         """The compiled functions' input ``p`` (``input_names``): the scene's values of the
@@ -91,9 +92,21 @@ class Model:
             p[self.param_names.index(k)] = float(v)
         return p
 
-    def initial_state(self) -> np.ndarray:
-        """The scene's consistent initial state at rest (a fresh copy)."""
-        return self._x0.copy()
+    def initial_state(self, **values: float) -> np.ndarray:
+        """A consistent initial state, ordered as ``state_names`` (a fresh array).
+
+        Without arguments: the scene's start (stored with the model). With state components
+        by name, e.g. ``initial_state(q1=0.6)`` or ``initial_state(theta=0.2, s=0.001)``:
+        those values held, the other coordinates and speeds solved onto the contact
+        constraints nearest the scene's start, with no rebuild (``runtime.start``; 2D
+        scenes, with the pivot fixed by the scene). Raises ``UnreachableStartError`` for a
+        pose the bodies cannot take.
+        """
+        if not values:
+            return self._x0.copy()
+        from grasping_sym.runtime import start  # noqa: PLC0415
+
+        return start.solve(self, values)
 
     def rhs(self, x, p=None) -> np.ndarray:  # replaced by the compiled call when np == 0
         """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``.
