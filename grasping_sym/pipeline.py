@@ -231,7 +231,15 @@ def generate_committed(names=None, *, check: bool = False,
     from grasping_sym.codegen import templates  # noqa: PLC0415
     from grasping_sym.scenes import BUILTIN  # noqa: PLC0415
 
-    root = Path(root) if root is not None else cache.REPO_GENERATED
+    if root is None:
+        checkout = cache.source_checkout()
+        if checkout is None and not check:
+            raise RuntimeError(
+                f"generate writes the committed code into a source checkout, and this package is an "
+                f"installed copy ({cache.PACKAGE_DIR}): run it in a clone of the repository "
+                "(pip install -e .), or pass root= a directory of your own")
+        root = checkout / "generated" if checkout is not None else cache.generated_dir()
+    root = Path(root)
     differ: dict[str, dict[str, str]] = {"templates": {}}
     for shared, gravity in templates.PLANAR_STRUCTURES:
         name = f"{templates.template_name(shared, gravity)}.json"

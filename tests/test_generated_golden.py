@@ -10,7 +10,7 @@ import os
 import subprocess
 import sys
 
-from grasping_sym.codegen.cache import REPO_GENERATED
+from grasping_sym.codegen.cache import generated_dir
 from grasping_sym.pipeline import generate_committed
 from grasping_sym.scenes import BUILTIN
 
@@ -30,7 +30,7 @@ def test_committed_generated_code_is_current():
 def test_every_builtin_scene_has_committed_code():
     for name in BUILTIN:
         for f in (f"{name}.c", f"{name}.h", "manifest.json", "start.json"):
-            assert (REPO_GENERATED / name / f).is_file(), f"generated/{name}/{f} missing"
+            assert (generated_dir() / name / f).is_file(), f"generated/{name}/{f} missing"
 
 
 def test_generation_does_not_depend_on_hash_seed(tmp_path):

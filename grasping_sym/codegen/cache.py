@@ -1,6 +1,7 @@
 """Content hash of a scene's generated code, and where generated code lives.
 
-- Built-in scenes: ``<repository>/generated/<name>/`` (committed C + manifest).
+- Built-in scenes: ``<repository>/generated/<name>/`` (committed C + manifest), installed as
+  the package data ``grasping_sym.generated``.
 - Every built model: ``<cache root>/<name>-<hash16>/`` with the C, the manifest and the
   compiled library. The cache root is ``$GRASPING_SYM_CACHE`` if set, else
   ``$XDG_CACHE_HOME/grasping_sym`` (default ``~/.cache/grasping_sym``).
@@ -19,7 +20,23 @@ from pathlib import Path
 import casadi as ca
 
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
-REPO_GENERATED = PACKAGE_DIR.parent / "generated"
+
+
+def generated_dir() -> Path:
+    """The committed generated code: the package data ``grasping_sym.generated`` (the
+    repository's top-level ``generated/`` in a source checkout or an editable install)."""
+    from importlib.resources import files  # noqa: PLC0415
+
+    return Path(str(files("grasping_sym.generated")))
+
+
+def source_checkout() -> Path | None:
+    """The repository root when the package runs from a source checkout (``generated/`` and
+    ``pyproject.toml`` beside the package), else None (an installed copy)."""
+    root = PACKAGE_DIR.parent
+    if (root / "pyproject.toml").is_file() and generated_dir().resolve() == (root / "generated").resolve():
+        return root
+    return None
 #: Sources whose text enters the hash of every scene's code: every module that shapes a
 #: planar scene's generated code, its manifest or its compiled library, and the ones all
 #: scenes share. A scene class adds the modules of its own model (``scene.hashed_sources``),
@@ -73,4 +90,4 @@ def cache_dir(name: str, digest: str) -> Path:
 
 
 def committed_dir(name: str) -> Path:
-    return REPO_GENERATED / name
+    return generated_dir() / name

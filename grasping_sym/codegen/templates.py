@@ -36,7 +36,7 @@ def template_key(shared: bool, gravity: bool, n_fingers: int = 1) -> str:
 
 
 def committed_templates_dir() -> Path:
-    return cache.REPO_GENERATED / "templates"
+    return cache.generated_dir() / "templates"
 
 
 def _read(path: Path, key: str) -> Template | None:
