@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.build_fingers import _exponent
+from benchmarks.rhs_loop import rhs_loop_ns
 from benchmarks.timing import best_per_call, in_fresh_process, median
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -113,7 +114,7 @@ def model_metrics(scene, model) -> dict:
         if lo is not None and hi is not None:
             X[:, k] = np.linspace(lo + 0.01 * (hi - lo), hi - 0.01 * (hi - lo), len(X))
     batch = best_per_call(lambda: model.rhs_batch(X), number=3, repeat=5)
-    loop_ns = min(model.library.rhs_loop_ns(x0, 20_000) for _ in range(3))
+    loop_ns = min(rhs_loop_ns(model, x0, 20_000) for _ in range(3))
     pieces = len(scene.object.spline_data.breaks) - 1 if hasattr(scene.object, "spline_data") else None
     return {
         "op_counts": model.manifest["op_counts"], "c_bytes": c_file.stat().st_size,

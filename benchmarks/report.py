@@ -249,7 +249,7 @@ def _build_section(res: dict) -> list[str]:
 def _rhs_section(res: dict) -> list[str]:
     r = res["rhs"]
     rows = [
-        ["compiled C, loop in C (`library.rhs_loop_ns`)", f"{r['c_loop_ns'] / 1e3:.3f}", "1"],
+        ["compiled C, loop in C (`benchmarks/rhs_loop.py`)", f"{r['c_loop_ns'] / 1e3:.3f}", "1"],
         ["`model.rhs(x)` (one Python call)", f"{r['python_rhs_us']:.3f}", ""],
     ]
     for n, d in r["rhs_batch"].items():

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -11,9 +12,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_non_editable_install_uses_the_committed_code(tmp_path):
+    # a copy of what a source distribution holds, so that the build leaves nothing in the clone
+    src = tmp_path / "src"
+    for name in ("grasping_sym", "generated"):
+        shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, src / name)
     target = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-                    "--no-build-isolation", "--target", str(target), str(ROOT)],
+                    "--no-build-isolation", "--target", str(target), str(src)],
                    check=True, capture_output=True, cwd=tmp_path)
     for f in ("paper2d/paper2d.c", "paper2d/manifest.json", "paper2d/start.json",
               "paper3d/paper3d.c", "templates/planar-s-horizontal.json"):

@@ -6,7 +6,7 @@
  * library:
  *
  *   driver.c       this documentation; gs_info, gs_rhs, gs_rhs_batch, gs_outputs,
- *                  gs_outputs_batch, gs_con_info, gs_constraints, gs_rhs_loop_ns
+ *                  gs_outputs_batch, gs_con_info, gs_constraints
  *   project.c      gs_project (and gs_project_state, used by the integrators)
  *   rk4.c          gs_rk4
  *   radau5.c       gs_radau5 (radau5.h: its coefficients and tuning defaults;
@@ -90,7 +90,6 @@
  *                         double* Cd, double* JCd);                     (GS_HAS_CON)
  *   int    gs_project(double* x, const double* p, const int* mask, double tol,
  *                     double* stats);                                   (GS_HAS_CON)
- *   double gs_rhs_loop_ns(long n, const double* x, const double* p);
  *
  * Tuning macros (optional, with defaults): GS_WORK_ON_STACK_MAX (gs_internal.h),
  * GS_PROJ_MAXIT (project.c), GS_RADAU_* (radau5.h), GS_DOPRI_* (dopri5.c).
@@ -111,8 +110,6 @@
  * so every gs_ function is reentrant and may be called from several threads
  * at once.  p may be NULL when GS_NP == 0.
  */
-#include <time.h>
-
 #include "gs_internal.h"
 
 GS_EXPORT int gs_info(long* nx, long* np, long* ny) {
@@ -172,19 +169,3 @@ GS_EXPORT int gs_constraints(const double* x, const double* p, double* C, double
   return gs_eval_con(wk, x, p, C, JC, Cd, JCd);
 }
 #endif
-
-/* Evaluate gs_rhs n times in a C loop; returns wall-clock nanoseconds per call. */
-GS_EXPORT double gs_rhs_loop_ns(long n, const double* x, const double* p) {
-  double xdot[GS_NX];
-  volatile double sink = 0.0;
-  struct timespec a, b;
-  if (n <= 0) return 0.0;
-  clock_gettime(CLOCK_MONOTONIC, &a);
-  for (long k = 0; k < n; ++k) {
-    gs_rhs(x, p, xdot);
-    sink += xdot[k % GS_NX];
-  }
-  clock_gettime(CLOCK_MONOTONIC, &b);
-  (void)sink;
-  return ((double)(b.tv_sec - a.tv_sec) * 1e9 + (double)(b.tv_nsec - a.tv_nsec)) / (double)n;
-}

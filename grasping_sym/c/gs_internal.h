@@ -4,7 +4,7 @@
  * top of driver.c.  The files:
  *
  *   driver.c   the macros' documentation; gs_info, gs_rhs, gs_rhs_batch, gs_outputs,
- *              gs_outputs_batch, gs_con_info, gs_constraints, gs_rhs_loop_ns
+ *              gs_outputs_batch, gs_con_info, gs_constraints
  *   project.c  projection onto the constraints: gs_project, gs_project_state
  *   rk4.c      fixed-step classic Runge-Kutta: gs_rk4
  *   radau5.c   adaptive Radau IIA of order 5: gs_radau5 (its coefficients and tuning

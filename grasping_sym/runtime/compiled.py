@@ -9,7 +9,7 @@ Two call paths exist:
   call), and :meth:`CompiledLibrary.radau5` / :meth:`CompiledLibrary.dopri5` call the C loop
   through it (about 1 us of call overhead instead of ctypes' ~8 us);
 * **ctypes path** -- always available; used for :meth:`CompiledLibrary.rk4`,
-  :meth:`CompiledLibrary.rhs_loop_ns`, :meth:`CompiledLibrary.constraints` and
+  :meth:`CompiledLibrary.constraints` and
   :meth:`CompiledLibrary.project`, and as the fallback of everything else.
 
 The integrators (whole loop in C, GIL released; argument checks and error translation in
@@ -149,9 +149,6 @@ class CompiledLibrary:
             self._c_project = lib.gs_project
             self._c_project.argtypes = [_dp, _dp, _dp, _double, _dp]
             self._c_project.restype = ctypes.c_int
-        self._c_loop = lib.gs_rhs_loop_ns
-        self._c_loop.argtypes = [_long, _dp, _dp]
-        self._c_loop.restype = _double
 
         #: ``p`` used when a call passes none (the model's run-time and start values)
         self.default_p = None if default_p is None else as_vector(default_p, self.np, "default_p")
@@ -247,18 +244,6 @@ class CompiledLibrary:
         if self._c_out_batch(X.shape[0], X.ctypes.data, self._ptr(pa), out.ctypes.data):
             raise RuntimeError("outputs_batch: the CasADi function reported an evaluation error")
         return out
-
-    def rhs_loop_ns(self, x: Any, n: int = 100_000, p: Any = None) -> float:
-        """Time ``n`` evaluations of the right-hand side in a C loop.
-
-        Returns
-        -------
-        float
-            Nanoseconds per evaluation (wall clock, CLOCK_MONOTONIC).
-        """
-        x = as_vector(x, self.nx, "x")
-        pa = self._p(p)
-        return float(self._c_loop(int(n), x.ctypes.data, self._ptr(pa)))
 
     # -- integration -------------------------------------------------------------
     def rk4(
