@@ -5,7 +5,8 @@ the same on another CPU.
     python -m benchmarks.layers          # writes benchmarks/results/layers.md and layers.json
 
 Every build runs in a fresh interpreter (``import grasping_sym`` not counted) with a private
-cache. The rhs baseline is commit ``BASELINE`` (checked out into a temporary git worktree),
+cache, importing the package beside this file (``PYTHONPATH``), so a worktree benchmarks its
+own code. The rhs baseline is commit ``BASELINE`` (checked out into a temporary git worktree),
 built and timed in the same run, in the same way, as the current code.
 """
 from __future__ import annotations
@@ -84,7 +85,7 @@ def _builds(scenes: dict, runs: int, log) -> list[dict]:
     before it in the dict built (a structure built before is in the cache)."""
     rows = []
     per_run: list[list[dict]] = [[] for _ in scenes]
-    for r in range(runs):
+    for _ in range(runs):
         with tempfile.TemporaryDirectory(prefix="gs-bench-layers-") as cache:
             for k, (imports, expr) in enumerate(scenes.values()):
                 per_run[k].append(in_fresh_process(_BUILD.format(imports=imports, scene=expr), Path(cache)))
@@ -112,7 +113,7 @@ def _rhs_costs(log) -> list[dict]:
     try:
         for name, n in (("paper2d", 2_000_000), ("paper3d", 100_000)):
             got = {}
-            for label, pythonpath in (("baseline", str(base)), ("current", "")):
+            for label, pythonpath in (("baseline", str(base)), ("current", str(REPO))):
                 env_code = _RHS.format(scene=f"gs.scenes.{name}()", n=n)
                 with tempfile.TemporaryDirectory(prefix="gs-bench-rhs-") as cache:
                     old = os.environ.get("PYTHONPATH")
@@ -174,6 +175,7 @@ def _generate_check(log) -> list[dict]:
 
 
 def run(*, runs: int = 3, log=print) -> dict:
+    os.environ["PYTHONPATH"] = str(REPO)  # the fresh processes import this tree's package
     return {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version()},
             "builds_2d": _builds(SCENES_2D, runs, log),
             "builds_3d": _builds(SCENES_3D, max(1, runs - 1), log),

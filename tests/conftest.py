@@ -25,6 +25,13 @@ def paper2d_model(_private_cache):
 
 
 @pytest.fixture(scope="session")
+def paper3d_model(_private_cache):
+    import grasping_sym as gs
+
+    return gs.build(gs.scenes.paper3d())
+
+
+@pytest.fixture(scope="session")
 def paper2d_result(paper2d_model):
     return paper2d_model.simulate(
         3.0, rtol=1e-10, atol=1e-12,

@@ -28,11 +28,6 @@ BODY = slice(0, 23)          # q (5), position (3), quaternion (4), speeds (11) 
 
 
 @pytest.fixture(scope="module")
-def paper3d_model():
-    return gs.build(gs.scenes.paper3d())
-
-
-@pytest.fixture(scope="module")
 def paper3d_paper_model():
     return gs.build(gs.scenes.paper3d(formulation="paper"))
 

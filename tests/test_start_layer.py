@@ -60,6 +60,9 @@ def test_new_start_reuses_the_compiled_code(paper2d_model):
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
     again = gs.build(scene)
     assert again.build_info["start_source"] == "cache"
+    started = paper2d_model.with_start(theta=0.1)  # the pivot stays with the scene
+    assert started.start_params == paper2d_model.start_params
+    assert started.initial_state().tolist() == x.tolist()
 
 
 @pytest.mark.parametrize("given, match", [
@@ -79,10 +82,51 @@ def test_bad_start_values_are_refused(paper2d_model):
         paper2d_model.initial_state(q1=float("nan"))
 
 
-def test_3d_run_time_start_is_refused_by_name(tmp_path):
-    model = gs.build(gs.scenes.pivot3d())
-    assert model.initial_state().shape == (len(model.state_names),)
-    with pytest.raises(NotImplementedError, match="pivot3d_start"):
+@pytest.mark.parametrize("given", [{"q11": 0.6}, {"q12": 1.1, "dq11": 0.5}])
+def test_3d_run_time_start_is_on_the_contact_manifold(given):
+    """pivot3d started elsewhere at run time: the NumPy oracle (tests/oracles) finds the
+    bodies touching, normals opposed and the frame angle psi right; the admissible speeds
+    keep the contact; the run stays on the constraints."""
+    from tests.oracles.contact3d_numeric import contact_residuals
+    from tests.oracles.reference3d import Reference3D
+
+    ref = Reference3D()
+    model = gs.build(gs.scenes.pivot3d(position=tuple(ref.pivot), name="pivot3d_ref"))
+    moved = model.with_start(**given)
+    assert moved.library_path == model.library_path and moved.build_info["source"] == "run-time start"
+    x = moved.initial_state()
+    for k, v in given.items():
+        assert x[model.state_names.index(k)] == v
+    assert np.linalg.norm(x[2:6]) == pytest.approx(1.0, abs=1e-15)
+    pose_f, pose_o = ref.poses(x)
+    res = contact_residuals(ref.fingertip, pose_f, ref.object_surface, pose_o, x[11:16])
+    assert res["max"] <= 1e-12, res
+    assert np.max(np.abs(model.library.constraints(x)[2])) <= 1e-13   # Cdot: speeds admissible
+    run = moved.simulate(0.2, method="radau", rtol=1e-8, atol=1e-11)
+    assert run.outputs["constraint_residual"].max() <= 1e-9
+    assert gs.load(moved.path).initial_state().tolist() == x.tolist()
+
+
+def test_3d_new_start_moves_the_spring_rest_point(paper3d_model):
+    """paper3d's centre spring rests where the fingertip centres were at the start: the
+    compiled start function gives the stored rest point at the stored start, and a new one
+    at a new start."""
+    from grasping_sym.runtime.start import _conditions_function
+
+    x0 = paper3d_model.initial_state()
+    G, _, implied = _conditions_function(paper3d_model)(x0)
+    assert np.max(np.abs(G)) <= 1e-14
+    np.testing.assert_allclose(implied, list(paper3d_model.start_params.values()), rtol=0, atol=1e-15)
+    moved = paper3d_model.with_start(q11=float(x0[0]) + 0.05)
+    shift = np.subtract(list(moved.start_params.values()), list(paper3d_model.start_params.values()))
+    assert 1e-4 < np.linalg.norm(shift) < 1e-2
+    assert np.max(np.abs(paper3d_model.library.constraints(moved.initial_state())[0])) <= 1e-15
+
+
+def test_paper_formulation_run_time_start_is_refused_by_name():
+    model = gs.build(gs.scenes.pivot3d(formulation="paper", dq0=(1.0, -0.5), name="pivot3d_paper",
+                                       outputs=("constraint_residual",)))
+    with pytest.raises(NotImplementedError, match="formulation='regular'"):
         model.initial_state(q11=0.5)
 
 

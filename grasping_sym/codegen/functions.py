@@ -209,7 +209,8 @@ def planar_constraint_names(output_names: tuple[str, ...]) -> tuple[str, ...]:
 def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: str, *,
              jacobian: bool = True, constraints: ca.SX | None = None,
              constraint_names: tuple[str, ...] | None = None,
-             start_conditions: ca.SX | None = None, start_names: tuple[str, ...] = ()) -> CasadiModel:
+             start_conditions: ca.SX | None = None, start_names: tuple[str, ...] = (),
+             start_values: ca.SX | None = None) -> CasadiModel:
     """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
 
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
@@ -246,9 +247,10 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
         op_counts["constraints_sx_instructions"] = con_fn.n_instructions()
     start_fn = None
     if start_conditions is not None:
+        v = ca.SX(0, 1) if start_values is None else start_values
         start_fn = ca.Function(f"{name}_start", [x, p],
-                               [start_conditions, ca.densify(ca.jacobian(start_conditions, x))],
-                               ["x", "p"], ["G", "dG_dx"], FUNCTION_OPTIONS)
+                               [start_conditions, ca.densify(ca.jacobian(start_conditions, x)), v],
+                               ["x", "p"], ["G", "dG_dx", "v"], FUNCTION_OPTIONS)
         op_counts["start_sx_instructions"] = start_fn.n_instructions()
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=tuple(outputs),
                        op_counts=op_counts, constraints=con_fn, constraint_info=con_info,

@@ -53,6 +53,8 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
     """A 3D grasping scene: SymPy for the pieces, CasADi's AD for the constraint derivatives
     (``derive.grasp3d``). No generated Jacobian: 250k SX instructions that gcc needs minutes
     for; the integrators difference the compiled rhs instead."""
+    import casadi as ca  # noqa: PLC0415
+
     from grasping_sym.codegen.functions import sx_model  # noqa: PLC0415
     from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
 
@@ -62,8 +64,11 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
     system = derive_grasp3d(scene)
     t1 = time.perf_counter()
     names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
+    G = system.start_conditions
+    implied = system.geometry["r_bar"] if G and scene.start_param_names else None
     cm = sx_model(system.x, system.p, system.xdot, {k: system.outputs[k] for k in scene.outputs},
                   scene.name, jacobian=False, constraints=system.pieces["C"],
-                  constraint_names=names)
+                  constraint_names=names, start_conditions=ca.vertcat(*G.values()) if G else None,
+                  start_names=tuple(G), start_values=implied)
     t2 = time.perf_counter()
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": t2 - t1})

@@ -71,6 +71,10 @@ class Grasp3DSystem:
     geometry: dict[str, ca.SX]
     param_names: tuple[str, ...]
     timings: dict[str, float] = field(default_factory=dict)
+    #: every condition of a consistent contact, by name (regular formulation): the gaps C,
+    #: the normals opposed, the frame angle psi read from the surfaces' frames, a unit
+    #: quaternion; zero at a consistent start (``runtime.start``)
+    start_conditions: dict[str, ca.SX] = field(default_factory=dict)
 
     def function(self, name: str, which: str) -> ca.Function:
         """An (uncompiled) ``Function(x, p) -> dict`` of ``pieces``/``geometry``/``outputs``."""
@@ -313,13 +317,26 @@ def derive_grasp3d(scene: GraspScene3D) -> Grasp3DSystem:
     outputs["object_speed"] = ca.norm_2(vel) if free else ca.SX(0)
     outputs["object_angular_speed"] = ca.norm_2(om)
     geometry = {"R": R, "pos": pos if free else ca.SX(ca.DM(scene.position)), "r_bar": r_bar}
+    start_conditions: dict[str, ca.SX] = {}
+    if not paper:
+        for i, (c, eta) in enumerate(zip(contacts, etas), start=1):
+            xf, yf = c["Cf"][:, 0], c["Cf"][:, 1]
+            n_o, x_o = R @ c["so"]["n"], R @ c["so"]["x"]
+            psi = eta[4]
+            start_conditions.update({
+                f"Qn{i}": c["C"][0], f"Qb{i}": c["C"][1], f"Qe{i}": c["C"][2],
+                f"normal_x{i}": ca.dot(xf, n_o), f"normal_y{i}": ca.dot(yf, n_o),
+                # psi = atan2(-x_o.y_f, x_o.x_f), as sin/cos: no branch cut in the condition
+                f"frame_angle{i}": ca.sin(psi) * ca.dot(x_o, xf) + ca.cos(psi) * ca.dot(x_o, yf),
+            })
+        start_conditions["quaternion_norm"] = ca.dot(quat, quat) - 1
     for i, (fin, c) in enumerate(zip(fingers, contacts), start=1):
         geometry.update({f"joints{i}": fin["joints"], f"Pi{i}": fin["Pi"], f"p_f{i}": c["pf"],
                          f"p_o{i}": c["po"], f"psi{i}": c["psi"]})
     pieces = {"M": Mm, "h": h, "tau": tau, "A": A, "Ahat": Ahat, "bhat": bhat, "Cdot": Cdot,
               "C": C, "sigma": sigma, "mu": mu, "acc": acc, "eta_reg": eta_reg}
     return Grasp3DSystem(x=x, p=p, xdot=xdot, outputs=outputs, pieces=pieces, geometry=geometry,
-                         param_names=p_names)
+                         param_names=p_names, start_conditions=start_conditions)
 
 
 def _paper_tracking(scene, x, xdot_body, etas, contacts, fingers, R, om):

@@ -108,6 +108,19 @@ class Model:
 
         return start.solve(self, values)
 
+    def with_start(self, **values: float) -> Model:
+        """This model started elsewhere: ``initial_state(**values)`` as its start, with the
+        start's run-time values that it implies (3D: the centre spring's rest point moves to
+        the new mean fingertip centre; 2D: the pivot stays). Same compiled library, no
+        rebuild; stored beside the model, so ``grasping_sym.load(new.path)`` reloads it."""
+        from grasping_sym.runtime import start  # noqa: PLC0415
+
+        record = start.start_record(self, values)
+        stored.write_json(self.directory / stored.STARTS_DIR / f"{record['key'][:16]}.json", record)
+        model = Model(self.directory, self.manifest, self.library_path, record)
+        model.build_info = {"source": "run-time start", "from": self.start["key"]}
+        return model
+
     def rhs(self, x, p=None) -> np.ndarray:  # replaced by the compiled call when np == 0
         """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``.
 

@@ -22,6 +22,7 @@ with ``UnreachableStartError``.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -34,6 +35,21 @@ START_TOL = 1e-13
 MAX_ITERATIONS = 30
 #: Numbers of continuation steps tried in turn from the stored start to the given values.
 CONTINUATION_STEPS = (1, 4, 16, 64)
+
+
+def start_record(model, values: dict[str, float]) -> dict:
+    """A start record (``runtime.stored``) for the state solved by ``solve``: the values of the
+    start's run-time parameters that it implies (3D: the centre spring's rest point, the mean
+    fingertip centre there), or the model's own where the scene fixes them (2D: the pivot)."""
+    from grasping_sym.runtime import stored  # noqa: PLC0415
+
+    x = solve(model, values)
+    implied = _conditions_function(model)(x)[2]
+    start = dict(model.start_params)
+    if implied.size:
+        start = dict(zip(model.start_params, map(float, implied)))
+    key = hashlib.sha256(f"{model.start['key']}+{sorted(values.items())!r}".encode()).hexdigest()
+    return stored.start_record(x, start, key, {"given": dict(values), "from": model.start["key"]})
 
 
 def solve(model, values: dict[str, float]) -> np.ndarray:
@@ -50,8 +66,8 @@ def solve(model, values: dict[str, float]) -> np.ndarray:
     if not conditions or not model.library.has_constraints:
         raise NotImplementedError(
             f"model {model.name!r} has no compiled start conditions ({model.name}_start): its "
-            "kind of scene (3D) cannot solve a start at run time yet; give the new start in the "
-            "scene and build it")
+            "kind of scene (the paper's moving-frame formulation) cannot solve a start at run "
+            "time; give the new start in the scene and build it, or use formulation='regular'")
     x0 = model.initial_state()
     target = {names.index(k): float(v) for k, v in values.items()}
     positions = [names.index(k) for k in info["position_states"] if k not in values]
@@ -63,6 +79,9 @@ def solve(model, values: dict[str, float]) -> np.ndarray:
     x = _positions(_conditions_function(model), names, x0, target, positions)
     x = _speeds(model, x, speeds, p, sorted(values))
     _check_domain(model, x)
+    quat = [names.index(k) for k in ("qw", "qx", "qy", "qz") if k in names]
+    if quat:  # the norm condition holds to rounding; make it exact
+        x[quat] /= np.linalg.norm(x[quat])
     return x
 
 
@@ -76,8 +95,8 @@ def _conditions_function(model):
         p = model.default_params if model.input_names else np.zeros(0)
 
         def fn(x):
-            G, J = ext(x, p)
-            return np.asarray(G, float).ravel(), np.asarray(J, float)
+            G, J, v = ext(x, p)
+            return np.asarray(G, float).ravel(), np.asarray(J, float), np.asarray(v, float).ravel()
 
         model._start_conditions = fn
     return fn
