@@ -28,7 +28,7 @@ from pathlib import Path
 
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes
-from grasping_sym.codegen.compiler import COMPILER_FLAGS
+from grasping_sym.codegen.compiler import COMPILER_FLAGS, vector_libm
 from grasping_sym.codegen.library import compile_model, driver_defines
 from grasping_sym.runtime import stored
 from grasping_sym.runtime.loader import library_name
@@ -82,9 +82,12 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     cm, timings = fns.model, dict(fns.timings)
     say(f"writing C into {directory}")
     t0 = time.perf_counter()
-    lane_c = (lanes.rhs_lanes_c(cm.rhs) if cm.rhs.n_instructions() <= LANES_MAX_INSTRUCTIONS
-              else None)
-    cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__, extra_c=lane_c)
+    if cm.rhs.n_instructions() <= LANES_MAX_INSTRUCTIONS:
+        lane_c, lanes_status = lanes.rhs_lanes(cm.rhs)
+    else:
+        lane_c, lanes_status = None, (f"not made: the rhs has {cm.rhs.n_instructions()} > "
+                                      f"{LANES_MAX_INSTRUCTIONS} instructions")
+    grouped = cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__, extra_c=lane_c)
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
     if count_ops and hasattr(scene, "sympy_op_counts"):
@@ -107,6 +110,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "c_symbols": [f.name() for f in cm.functions()],
         "constraints": _constraints_entry(cm, scene.state_names),
         "start_conditions": list(cm.start_names),
+        # what the rewrites of the C did: the 4-lane rhs ("applied" or why not) and, per
+        # function, the libm calls grouped for the vector libm (codegen.lanes, .vecmath)
+        "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped},
         "op_counts": ops,
         **scene.manifest_extra(),
     }
@@ -191,6 +197,7 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
     if info["start_source"] != "cache" or stored.read_json(directory / stored.START) != start:
         write_start(directory, start)
     info["start"] = time.perf_counter() - t_s
+    info["rewrites"] = {**manifest.get("rewrites", {}), "vector_libm": bool(vector_libm())}
     model = Model(directory, manifest, lib, start)
     info["total"] = time.perf_counter() - t0
     model.build_info = info

@@ -29,7 +29,7 @@ def _c_file(directory, rhs: ca.Function, batch: bool):
     cg.generate(str(directory) + "/")
     c_file = directory / "f.c"
     if batch:
-        c_file.write_text(vecmath.batch_libm_calls(c_file.read_text()))
+        c_file.write_text(vecmath.batch_libm_calls(c_file.read_text(), [rhs])[0])
     return c_file
 
 
@@ -57,7 +57,7 @@ def test_batching_groups_independent_calls():
     cg = ca.CodeGenerator("f.c", {"casadi_int": "long long int"})
     cg.add(rhs)
     code = cg.dump()
-    out = vecmath.batch_libm_calls(code)
+    out, report = vecmath.batch_libm_calls(code, [rhs])
     calls = [ln.strip() for ln in out.splitlines() if ln.strip().startswith("GS_VM")]
     assert calls, out
     n_scalar = sum(code.count(f"={f}(") for f in vecmath.VECTOR_FUNCTIONS)
@@ -67,14 +67,31 @@ def test_batching_groups_independent_calls():
     assert len(calls) < n_scalar  # and some groups hold several
     assert not any(f"={f}(" in out.split("GS_VECMATH")[-1] for f in vecmath.VECTOR_FUNCTIONS)
     assert max(sizes) <= vecmath.WIDTH
+    assert report == {"chain_rhs": n_scalar}
 
 
-def test_non_plain_bodies_are_left_alone():
-    body = ("static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, "
-            "casadi_real* w, int mem) {\n  casadi_real a0, a1;\n  a0=arg[0]? arg[0][0] : 0;\n"
-            "  for (i=0; i<3; ++i) w[i]=a0;\n  a1=sin(a0);\n"
-            "  if (res[0]!=0) res[0][0]=a1;\n  return 0;\n}\n")
-    assert vecmath.batch_libm_calls(body) == body
+def test_functions_without_vector_calls_keep_casadis_body():
+    x = ca.SX.sym("x", 2)
+    rhs = _dae("poly_rhs", x, ca.vertcat(x[0] * x[1], ca.sqrt(1 + x[0] ** 2)))
+    cg = ca.CodeGenerator("f.c", {"casadi_int": "long long int"})
+    cg.add(rhs)
+    code = cg.dump()
+    assert vecmath.batch_libm_calls(code, [rhs]) == (code, {"poly_rhs": 0})
+
+
+def test_a_changed_layout_is_refused_not_skipped():
+    """If CasADi's file no longer holds a wrapper and a casadi_f<k> body per function, the
+    rewrite says so (no silent fall-back to the scalar code)."""
+    x = ca.SX.sym("x", 1)
+    rhs = _dae("one_rhs", x, ca.sin(x))
+    cg = ca.CodeGenerator("f.c", {"casadi_int": "long long int"})
+    cg.add(rhs)
+    code = cg.dump()
+    with pytest.raises(vecmath.VecmathError, match="layout changed"):
+        vecmath.batch_libm_calls(code.replace("casadi_f0(", "casadi_g0("), [rhs])
+    other = _dae("other_rhs", x, ca.cos(x))
+    with pytest.raises(vecmath.VecmathError, match="other_rhs"):
+        vecmath.batch_libm_calls(code, [rhs, other])
 
 
 def test_without_vecmath_the_bits_are_casadis(tmp_path, monkeypatch):

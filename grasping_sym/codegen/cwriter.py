@@ -25,10 +25,11 @@ MANIFEST = "manifest.json"
 
 
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
-            extra_c: str | None = None) -> list[Path]:
+            extra_c: str | None = None) -> dict[str, int]:
     """Generate ``{name}.c`` and ``{name}.h`` into ``directory`` (created if needed), the
     libm calls of the C grouped by ``codegen.vecmath``; ``extra_c`` (e.g. the 4-lane rhs of
-    ``codegen.lanes``) is appended to the C file."""
+    ``codegen.lanes``) is appended to the C file. Returns vecmath's report: per function, the
+    number of libm calls placed in groups."""
     directory.mkdir(parents=True, exist_ok=True)
     cg = ca.CodeGenerator(f"{name}.c", {"with_header": True, "casadi_int": "long long int"})
     for f in model.functions():
@@ -37,18 +38,18 @@ def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version
     tmp.mkdir(exist_ok=True)
     cg.generate(str(tmp) + os.sep)
     header = HEADER.format(version=version, name=name, digest=digest)
-    out = []
+    report: dict[str, int] = {}
     for suffix in (".c", ".h"):
         src = tmp / f"{name}{suffix}"
         dst = directory / f"{name}{suffix}"
         text = src.read_text()
         if suffix == ".c":  # libm calls in groups of four (see codegen.vecmath)
-            text = vecmath.batch_libm_calls(text) + (extra_c or "")
+            text, report = vecmath.batch_libm_calls(text, model.functions())
+            text += extra_c or ""
         dst.write_text(header + text)
         src.unlink()
-        out.append(dst)
     tmp.rmdir()
-    return out
+    return report
 
 
 def write_manifest(directory: Path, manifest: dict) -> Path:

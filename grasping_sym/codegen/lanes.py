@@ -1,10 +1,10 @@
 """A 4-lane version of a generated right-hand side: one call evaluates it at four states.
 
 Radau IIA evaluates the right-hand side at its three stage points in every Newton
-iteration. CasADi's generated C for an SX function is straight-line code (``a12=(a3*a7);``,
-``a5=sin(a4);``, loads ``arg[k]? arg[k][i] : 0`` and stores ``res[k][i]=a9``); here the same
-code is rewritten over GCC vector types (``double __attribute__((vector_size(32)))``, also
-understood by clang), so that its arithmetic runs on four states at once in AVX registers.
+iteration. An SX function is a straight-line program (``codegen.algorithm``: read through
+CasADi's instruction API); here that program is written in C over GCC vector types
+(``double __attribute__((vector_size(32)))``, also understood by clang), so that its
+arithmetic runs on four states at once in AVX registers.
 
 Every lane computes exactly what the scalar function computes: additions, products,
 quotients and square roots are IEEE operations lane by lane (square roots four at once where
@@ -14,20 +14,18 @@ call of its 4-lane version, otherwise the scalar function lane by lane. The resu
 therefore bit-identical to four scalar calls (tested, both ways). On paper2d the three stage
 evaluations take 0.33 µs instead of 0.52 with scalar libm (gcc 12, x86-64-v3).
 
-Only the operations listed in :data:`UNARY` and :data:`BINARY` and the four arithmetic
-operators are translated; a function with anything else (comparisons, ``if_else``, work
-arrays) gets no lane version (:func:`rhs_lanes_c` returns None) and the integrators call the
-scalar function three times, as before.
+Only the arithmetic operations of :data:`ARITHMETIC` and the calls of :data:`UNARY` and
+:data:`BINARY` are translated; a function with anything else (comparisons, ``if_else``) gets
+no lane version (:func:`rhs_lanes` says why) and the integrators call the scalar function
+three times, as before.
 """
 from __future__ import annotations
 
-import re
-
 import casadi as ca
 
-from grasping_sym.codegen import vecmath
+from grasping_sym.codegen import algorithm, vecmath
 
-__all__ = ["BINARY", "UNARY", "lanes_symbol", "rhs_lanes_c"]
+__all__ = ["ARITHMETIC", "BINARY", "UNARY", "lanes_symbol", "rhs_lanes", "rhs_lanes_c"]
 
 #: One-argument C functions translated lane by lane (CasADi's names).
 UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh",
@@ -36,13 +34,17 @@ UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "a
 #: Two-argument C functions translated lane by lane.
 BINARY = ("atan2", "pow", "fmod", "casadi_fmin", "casadi_fmax", "fmin", "fmax")
 
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_LOAD = re.compile(r"arg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")
-_STORE = re.compile(r"if \(res\[0\]!=0\) res\[0\]\[(\d+)\]=(a\d+);$")
-_CONST = re.compile(rf"(a\d+)=({_NUMBER});$")
-_ASSIGN = re.compile(r"a\d+=[^;]*;$")
-_CALL = re.compile(r"\b([A-Za-z_]\w*)\(")
-_FORBIDDEN = re.compile(r"[?<>=!&|\[]")
+#: Operations written with the vector types' own operators (IEEE lane by lane).
+ARITHMETIC: dict[str, str] = {
+    "ADD": "({0}+{1})", "SUB": "({0}-{1})", "MUL": "({0}*{1})", "DIV": "({0}/{1})",
+    "NEG": "(-{0})", "SQ": "({0}*{0})", "TWICE": "(2.*{0})", "INV": "(1./{0})",
+}
+#: Operations that are calls, and the lane function each becomes (``gs_l4_<name>``).
+_CALLS: dict[str, str] = {
+    **{op: f for op, f in algorithm.LIBM_CALLS.items() if f in UNARY or f in BINARY},
+    "FABS": "casadi_fabs", "FMIN": "casadi_fmin", "FMAX": "casadi_fmax",
+    "LOG1P": "casadi_log1p", "EXPM1": "casadi_expm1",
+}
 
 _PRELUDE = """
 /* ---- 4-lane right-hand side (grasping_sym.codegen.lanes): {symbol}(t, x, p, xdot)
@@ -87,79 +89,72 @@ def lanes_symbol(rhs: ca.Function) -> str:
     return f"{rhs.name()}_lanes"
 
 
-def _body(code: str) -> list[str] | None:
-    """The statements of the CasADi function ``casadi_f0`` in ``code`` (None if absent)."""
-    m = re.search(r"^static int casadi_f0\(.*?\) \{\n(.*?)\n  return 0;\n\}\n", code, re.S | re.M)
-    return None if m is None else [ln.strip() for ln in m.group(1).split("\n")]
-
-
-def _translate(stmts: list[str], used: set[str]) -> list[str] | None:
-    """The statements over lanes, or None at the first one outside the supported subset."""
+def _translate(program: list[algorithm.Instruction], used: set[str]) -> list[str]:
+    """The statements over lanes; raises ``UnsupportedAlgorithm`` at an operation outside
+    the supported subset or an input other than t, x and p."""
     out = []
-    for s in stmts:
-        if s.startswith("casadi_real "):
-            out.append("gs_lane4 " + s[len("casadi_real "):])
-            continue
-        m = _STORE.match(s)
-        if m:
-            i, v = m.groups()
+    for ins in program:
+        if ins.op == "INPUT":
+            k, i = ins.ins
+            if k == 0:    # t, one per lane
+                value = "((gs_lane4){t[0], t[1], t[2], t[3]})"
+            elif k == 1:  # x, one per lane
+                value = f"((gs_lane4){{x[0][{i}], x[1][{i}], x[2][{i}], x[3][{i}]}})"
+            elif k == 3:  # p, shared
+                value = f"GS_L4_SPLAT(p[{i}])"
+            else:
+                raise algorithm.UnsupportedAlgorithm(f"input {k} (only t, x and p are lanes)")
+            out.append(f"a{ins.out[0]}={value};")
+        elif ins.op == "OUTPUT":
+            k, i = ins.out
+            if k != 0:
+                raise algorithm.UnsupportedAlgorithm(f"output {k} (only ode is written)")
+            v = f"a{ins.ins[0]}"
             out.append(f"xdot[0][{i}] = {v}[0]; xdot[1][{i}] = {v}[1]; "
                        f"xdot[2][{i}] = {v}[2]; xdot[3][{i}] = {v}[3];")
-            continue
-        m = _CONST.match(s)
-        if m:
-            out.append(f"{m.group(1)}=GS_L4_SPLAT({m.group(2)});")
-            continue
-
-        def load(m: re.Match) -> str:
-            k, i = m.groups()
-            if k == "0":  # t, one per lane
-                return "((gs_lane4){t[0], t[1], t[2], t[3]})"
-            if k == "1":  # x, one per lane
-                return f"((gs_lane4){{x[0][{i}], x[1][{i}], x[2][{i}], x[3][{i}]}})"
-            if k == "3":  # p, shared
-                return f"GS_L4_SPLAT(p[{i}])"
-            raise LookupError(k)
-
-        if not _ASSIGN.match(s) or _FORBIDDEN.search(_LOAD.sub("a0", s).partition("=")[2]):
-            return None
-        try:
-            s = _LOAD.sub(load, s)
-        except LookupError:
-            return None
-        for name in _CALL.findall(s):
-            if name == "casadi_sq" or name in UNARY or name in BINARY:
-                used.add(name)
-            elif name != "GS_L4_SPLAT":
-                return None
-        out.append(_CALL.sub(lambda m: m.group(0) if m.group(1) == "GS_L4_SPLAT"
-                             else f"gs_l4_{m.group(1)}(", s))
+        elif ins.op == "CONST":
+            out.append(f"a{ins.out[0]}=GS_L4_SPLAT({algorithm.c_constant(ins.value)});")
+        elif ins.op in ARITHMETIC:
+            out.append(f"a{ins.out[0]}=" + ARITHMETIC[ins.op].format(*(f"a{i}" for i in ins.ins)) + ";")
+        elif ins.op in _CALLS:
+            name = _CALLS[ins.op]
+            used.add(name)
+            out.append(f"a{ins.out[0]}=gs_l4_{name}({','.join(f'a{i}' for i in ins.ins)});")
+        else:
+            raise algorithm.UnsupportedAlgorithm(f"operation {ins.op} has no lane version")
     return out
 
 
 def rhs_lanes_c(rhs: ca.Function) -> str | None:
+    """``rhs_lanes(rhs)``'s C source, or None when ``rhs`` has no lane version."""
+    code, _ = rhs_lanes(rhs)
+    return code
+
+
+def rhs_lanes(rhs: ca.Function) -> tuple[str | None, str]:
     """C source of ``int <rhs>_lanes(const double* t, const double* const* x,
     const double* p, double* const* xdot)`` (four states ``x[0..3]`` at times ``t[0..3]``,
-    results into ``xdot[0..3]``; returns 0), or None when ``rhs`` has an operation outside
-    the supported subset (see the module's docstring).
+    results into ``xdot[0..3]``; returns 0) and ``"applied"``; or None and the reason why
+    ``rhs`` has no lane version (an operation outside the supported subset, see the module's
+    docstring).
 
     ``rhs`` has CasADi's DAE signature ``(t, x, z, p, u) -> (ode, alg, quad, zero)`` with
     empty z, u, alg, quad and zero, as ``functions.sx_model`` makes it.
     """
     if (rhs.n_in() != 5 or rhs.n_out() != 4 or any(rhs.nnz_in(k) for k in (2, 4))
             or any(rhs.nnz_out(k) for k in (1, 2, 3)) or not rhs.sparsity_out(0).is_dense()):
-        return None
-    cg = ca.CodeGenerator("lanes.c", {"casadi_int": "long long int"})
-    cg.add(rhs)
-    stmts = _body(cg.dump())
-    if stmts is None:
-        return None
+        return None, "not a DAE right-hand side (t, x, z, p, u) -> ode with empty z, u, alg"
     used: set[str] = set()
-    body = _translate(stmts, used)
-    if body is None:
-        return None
+    try:
+        program = algorithm.read(rhs)
+        body = _translate(program, used)
+    except algorithm.UnsupportedAlgorithm as exc:
+        return None, str(exc)
+    n = algorithm.n_work(program)
+    decls = [f"gs_lane4 {', '.join(f'a{k}' for k in range(j, min(j + 12, n)))};" for j in range(0, n, 12)]
+    body = decls + body
     symbol = lanes_symbol(rhs)
-    helpers = ["static inline gs_lane4 gs_l4_casadi_sq(gs_lane4 a) { return a * a; }"]
+    helpers = []
     vec = {f for f in used if f in vecmath.VECTOR_FUNCTIONS}
     helpers += [_SQRT if f == "sqrt" else f"GS_L4_{'V' if f in vec else ''}1({f})"
                 for f in UNARY if f in used]
@@ -169,4 +164,4 @@ def rhs_lanes_c(rhs: ca.Function) -> str | None:
     prelude = _PRELUDE.format(symbol=symbol, rhs=rhs.name(),
                               declarations=vecmath.vector_declarations(vec))
     return (prelude + "\n".join(helpers) + "\n"
-            + sig + " {\n" + "\n".join("  " + s for s in body) + "\n  return 0;\n}\n")
+            + sig + " {\n" + "\n".join("  " + s for s in body) + "\n  return 0;\n}\n"), "applied"

@@ -1,13 +1,14 @@
 """Batch the libm calls of generated C four at a time, for glibc's vector math library.
 
-CasADi's C for an SX function is straight-line code with one libm call per statement
-(``a12=sin(a6);``). Calls of one function that do not depend on each other can run four at
-a time as one call of glibc's AVX2 vector function (``_ZGVdN4v_sin``, libmvec): about the
-cost of one scalar call for four values. :func:`batch_libm_calls` rewrites every such
-function of a C file in single-assignment form (``v12=sin(v6)`` style names), groups the
-independent calls in fours (see ``_batch_body``) and emits each group as one macro call
-(``GS_VM1_3(sin, v12, v6, v40, v33, v51, v47);``). The macros are defined at the top of the
-file:
+An SX function is a straight-line program with one libm call per call instruction
+(``codegen.algorithm``, read through CasADi's instruction API; CasADi prints it as
+``a12=sin(a6);``). Calls of one function that do not depend on each other can run four at a
+time as one call of glibc's AVX2 vector function (``_ZGVdN4v_sin``, libmvec): about the cost
+of one scalar call for four values. :func:`batch_libm_calls` writes the body of every such
+function of a C file anew from its instructions, in single-assignment form (``v12=sin(v6)``
+style names), groups the independent calls in fours (see ``_batch_body``) and emits each
+group as one macro call (``GS_VM1_3(sin, v12, v6, v40, v33, v51, v47);``). The macros are
+defined at the top of the file:
 
 - compiled with ``-DGS_VECMATH=1`` (``codegen.compiler`` does so on an x86-64-v3 CPU whose
   glibc has libmvec, and links it) a group is one vector call;
@@ -20,15 +21,19 @@ it occurs: the 4-lane right-hand side (``codegen.lanes``) uses it too, and stays
 bit-identical to the scalar right-hand side. libmvec's functions are accurate to 4 ulp
 (glibc's manual) instead of the scalar functions' 1; ``tests/test_vecmath.py`` measures it.
 
-A function body with anything but assignments, declarations and guarded stores (loops,
-work arrays) is left as it is.
+CasADi's file gives each function's body in a ``casadi_f<k>`` that its exported wrapper
+names; the rewrite replaces those bodies, and refuses (``VecmathError``) when the file does
+not hold a body and a wrapper per function, rather than falling back silently to the scalar
+code. A function that calls other functions (call nodes, e.g. splines) keeps CasADi's body.
 """
 from __future__ import annotations
 
 import heapq
 import re
 
-__all__ = ["VECTOR_FUNCTIONS", "batch_libm_calls", "vector_declarations"]
+from grasping_sym.codegen import algorithm
+
+__all__ = ["VECTOR_FUNCTIONS", "VecmathError", "batch_libm_calls", "vector_declarations"]
 
 #: Functions with a 4-lane AVX2 version in glibc's libmvec (since glibc 2.35), by arity.
 VECTOR_FUNCTIONS: dict[str, int] = {
@@ -39,16 +44,18 @@ VECTOR_FUNCTIONS: dict[str, int] = {
 #: Largest group: four doubles in an AVX2 register.
 WIDTH = 4
 
+#: The exported wrapper of a function, naming the ``casadi_f<k>`` that holds its body.
+_WRAPPER = re.compile(r"^CASADI_SYMBOL_EXPORT int (\w+)\(const casadi_real\*\* arg, casadi_real\*\* res, "
+                      r"casadi_int\* iw, casadi_real\* w, int mem\)\{\n  return casadi_f(\d+)\(", re.M)
+#: Where CasADi's file puts the body of its k-th function (only located, never parsed).
 _BODY = re.compile(
-    r"^(static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, "
+    r"^(static int casadi_f(\d+)\(const casadi_real\*\* arg, casadi_real\*\* res, "
     r"casadi_int\* iw, casadi_real\* w, int mem\) \{\n)(.*?)(\n  return 0;\n\}\n)",
     re.S | re.M)
-_DEF = re.compile(r"^(a\d+)=")
-_CALL1 = re.compile(r"^(a\d+)=(\w+)\((a\d+)\);$")
-_CALL2 = re.compile(r"^(a\d+)=(\w+)\((a\d+),(a\d+)\);$")
-_STORE = re.compile(r"^if \(res\[\d+\]!=0\) res\[\d+\]\[\d+\]=a\d+;$")
-_DECL = re.compile(r"^casadi_real [a\d, ]+;$")
-_VAR = re.compile(r"\ba\d+\b")
+
+
+class VecmathError(RuntimeError):
+    """CasADi's file does not have the layout the rewrite places bodies into."""
 
 
 def _macro(arity: int, n: int, vector: bool) -> str:
@@ -94,46 +101,51 @@ def _prelude(used: set[str]) -> str:
     return "\n".join(lines)
 
 
-def _batch_body(stmts: list[str], used: set[str]) -> list[str] | None:
-    """The statements in single-assignment form with the libm calls grouped, or None when
-    the body is not plain straight-line code.
-
-    CasADi reuses its variables (``a6=cos(a6);``) and loads inputs just before their
-    first use, so the calls are grouped on the dependency graph: every assignment gets its
-    own variable; a call's *depth* is the largest number of vector-function calls on a
-    dependency path ending at it (itself included), so calls of one function at one depth
-    never depend on each other; those are grouped (in fours, in their original order), and
-    the statements are emitted in a topological order that keeps the original order where
-    it can (each group at once, when the last argument of its members is known).
-    """
-    version: dict[str, str] = {}
-    nodes = []  # (text with {0}, {1}... for the used variables, uses, target, call)
+def _nodes(program: list[algorithm.Instruction]):
+    """One node per instruction: ``(C text with {} for the variables used, the variables used,
+    the variable defined or None for a store, the vector function called or None)``, every
+    definition a new variable (``v<k>``), and each variable's call depth."""
+    version: dict[int, str] = {}   # work index -> current variable
     depth: dict[str, int] = {}
-    n_calls = 0
-    for s in stmts:
-        if not s or _DECL.match(s):
-            continue
-        store = _STORE.match(s)
-        d = _DEF.match(s)
-        if (store is None and d is None) or not s.endswith(";") or s.count(";") != 1:
-            return None
-        rhs = s if store else s.partition("=")[2]
-        uses = [version[v] for v in _VAR.findall(rhs) if v in version]
-        if len(uses) != len(_VAR.findall(rhs)):
-            return None  # a variable read before it is assigned: not CasADi's usual code
-        tmpl = _VAR.sub("{}", rhs.replace("{", "{{").replace("}", "}}"))
-        target = None
+    nodes = []
+    for ins in program:
         call = None
-        if d is not None:
-            target = f"v{len(nodes)}"
-            m = _CALL1.match(s) or _CALL2.match(s)
-            if m and VECTOR_FUNCTIONS.get(m.group(2)) == len(m.groups()) - 2:
-                call = m.group(2)
-                n_calls += 1
-            depth[target] = max((depth[u] for u in uses), default=0) + (1 if call else 0)
-            version[d.group(1)] = target
-        nodes.append((tmpl, uses, target, call))
-    if not n_calls:
+        if ins.op == "OUTPUT":
+            k, i = ins.out
+            nodes.append((f"if (res[{k}]!=0) res[{k}][{i}]={{}};", [version[ins.ins[0]]], None, None))
+            continue
+        if ins.op == "INPUT":
+            k, i = ins.ins
+            text, uses = f"arg[{k}]? arg[{k}][{i}] : 0", []
+        elif ins.op == "CONST":
+            text, uses = algorithm.c_constant(ins.value), []
+        else:
+            uses = [version[w] for w in ins.ins]
+            text = algorithm.C_SCALAR[ins.op].format(*["{}"] * len(uses))
+            fname = algorithm.LIBM_CALLS.get(ins.op)
+            if fname in VECTOR_FUNCTIONS and VECTOR_FUNCTIONS[fname] == len(uses):
+                call = fname
+        target = f"v{len(nodes)}"
+        depth[target] = max((depth[u] for u in uses), default=0) + (1 if call else 0)
+        version[ins.out[0]] = target
+        nodes.append((text, uses, target, call))
+    return nodes, depth
+
+
+def _batch_body(program: list[algorithm.Instruction], used: set[str]) -> list[str] | None:
+    """The function's statements in single-assignment form with the libm calls grouped, or
+    None when it calls no vector function.
+
+    CasADi reuses its work variables and loads inputs just before their first use, so the
+    calls are grouped on the dependency graph: every assignment gets its own variable; a
+    call's *depth* is the largest number of vector-function calls on a dependency path ending
+    at it (itself included), so calls of one function at one depth never depend on each
+    other; those are grouped (in fours, in their original order), and the statements are
+    emitted in a topological order that keeps the original order where it can (each group at
+    once, when the last argument of its members is known).
+    """
+    nodes, depth = _nodes(program)
+    if not any(call for *_, call in nodes):
         return None
     # groups: calls of one function at one depth, in fours, in program order
     groups: dict[tuple[str, int], list[list[int]]] = {}
@@ -175,7 +187,7 @@ def _batch_body(stmts: list[str], used: set[str]) -> list[str] | None:
         else:
             tmpl, uses, target, _ = nodes[u]
             text = tmpl.format(*uses)
-            out.append(f"{target}={text}" if target else text)
+            out.append(f"{target}={text};" if target else text)
         for w in users[u]:
             deps[w].discard(u)
             if not deps[w]:
@@ -185,21 +197,41 @@ def _batch_body(stmts: list[str], used: set[str]) -> list[str] | None:
     return out
 
 
-def batch_libm_calls(code: str) -> str:
-    """``code`` (a CasADi-generated C file) with the libm calls of its functions grouped
-    (see the module's docstring) and the macros' prelude inserted before the first function;
-    ``code`` itself when nothing was grouped."""
+def batch_libm_calls(code: str, functions) -> tuple[str, dict[str, int]]:
+    """``code`` (a CasADi-generated C file holding ``functions``) with the libm calls of each
+    function grouped (see the module's docstring) and the macros' prelude inserted before the
+    first function; and, per function name, the number of vector-function calls now in
+    groups (0: none to group, or calls of other functions: its body left as CasADi wrote it).
+    """
+    bodies = {m.group(2): m for m in _BODY.finditer(code)}
+    index = {m.group(1): m.group(2) for m in _WRAPPER.finditer(code)}
+    missing = [f.name() for f in functions if index.get(f.name()) not in bodies]
+    if missing:
+        raise VecmathError(
+            f"CasADi's C has no wrapper and body (casadi_f<k>) for {missing}: its layout changed; "
+            "turn the rewrite off with GRASPING_SYM_VECMATH=off and report it")
     used: set[str] = set()
-
-    def one(m: re.Match) -> str:
-        stmts = [ln.strip() for ln in m.group(2).split("\n")]
-        new = _batch_body(stmts, used)
-        if new is None:
-            return m.group(0)
-        return m.group(1) + "\n".join("  " + s for s in new) + m.group(3)
-
-    out = _BODY.sub(one, code)
+    report: dict[str, int] = {}
+    new_bodies: dict[str, list[str]] = {}
+    for f in functions:
+        try:
+            stmts = _batch_body(algorithm.read(f), used)
+        except algorithm.UnsupportedAlgorithm:
+            stmts = None
+        report[f.name()] = 0 if stmts is None else sum(
+            int(re.match(r"GS_VM\d_(\d)", t).group(1)) for t in stmts if t.startswith("GS_VM"))
+        if stmts is not None:
+            new_bodies[index[f.name()]] = stmts
+    out, last = [], 0
+    for k, m in sorted(bodies.items(), key=lambda item: item[1].start()):
+        out.append(code[last:m.start()])
+        stmts = new_bodies.get(k)
+        out.append(m.group(0) if stmts is None else
+                   m.group(1) + "\n".join("  " + t for t in stmts) + m.group(4))
+        last = m.end()
+    out.append(code[last:])
+    text = "".join(out)
     if not used:
-        return code
-    first = _BODY.search(out)
-    return out[:first.start()] + _prelude(used) + "\n" + out[first.start():]
+        return code, report
+    first = _BODY.search(text)
+    return text[:first.start()] + _prelude(used) + "\n" + text[first.start():], report
