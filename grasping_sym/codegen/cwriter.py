@@ -1,13 +1,11 @@
 """Write the C of a scene's CasADi functions, with a do-not-edit header and a manifest.
 
-A generated directory holds ``{name}.c``, ``{name}.h`` and ``manifest.json``. The manifest
-records the content hash of the inputs (scene definition, package version, CasADi version,
-compiler flags, the package's model and code-generation sources) and what the runtime needs
-to load the model without deriving anything (names, sizes, initial state, domains).
+A generated directory holds ``{name}.c``, ``{name}.h`` and ``manifest.json`` (written by
+``runtime.stored``: the content hash of the inputs and what the runtime needs to load the
+model without deriving anything).
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -21,7 +19,6 @@ HEADER = (
     " * Regenerate with `make generate` (or grasping_sym.pipeline.generate_committed); content hash {digest}.\n"
     " * See manifest.json beside this file for the inputs the hash covers. */\n"
 )
-MANIFEST = "manifest.json"
 
 
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
@@ -50,20 +47,3 @@ def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version
         src.unlink()
     tmp.rmdir()
     return report
-
-
-def write_manifest(directory: Path, manifest: dict) -> Path:
-    """Write ``manifest.json`` (sorted keys, stable formatting for diffs)."""
-    path = directory / MANIFEST
-    tmp = path.with_suffix(f".tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
-    tmp.replace(path)
-    return path
-
-
-def read_manifest(directory: Path) -> dict | None:
-    """The manifest in ``directory``, or None when absent or unreadable."""
-    try:
-        return json.loads((directory / MANIFEST).read_text())
-    except (OSError, ValueError):
-        return None
