@@ -30,8 +30,10 @@ from __future__ import annotations
 
 import heapq
 import re
+from typing import TYPE_CHECKING
 
-from grasping_sym.codegen import algorithm
+if TYPE_CHECKING:  # the rewrite reads CasADi's functions; the runtime (compiler flags) does not
+    from grasping_sym.codegen import algorithm
 
 __all__ = ["VECTOR_FUNCTIONS", "VecmathError", "batch_libm_calls", "vector_declarations"]
 
@@ -105,6 +107,7 @@ def _nodes(program: list[algorithm.Instruction]):
     """One node per instruction: ``(C text with {} for the variables used, the variables used,
     the variable defined or None for a store, the vector function called or None)``, every
     definition a new variable (``v<k>``), and each variable's call depth."""
+    from grasping_sym.codegen import algorithm  # noqa: PLC0415 - needs CasADi
     version: dict[int, str] = {}   # work index -> current variable
     depth: dict[str, int] = {}
     nodes = []
@@ -203,6 +206,8 @@ def batch_libm_calls(code: str, functions) -> tuple[str, dict[str, int]]:
     first function; and, per function name, the number of vector-function calls now in
     groups (0: none to group, or calls of other functions: its body left as CasADi wrote it).
     """
+    from grasping_sym.codegen import algorithm  # noqa: PLC0415 - needs CasADi
+
     bodies = {m.group(2): m for m in _BODY.finditer(code)}
     index = {m.group(1): m.group(2) for m in _WRAPPER.finditer(code)}
     missing = [f.name() for f in functions if index.get(f.name()) not in bodies]
