@@ -87,7 +87,8 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     else:
         lane_c, lanes_status = None, (f"not made: the rhs has {cm.rhs.n_instructions()} > "
                                       f"{LANES_MAX_INSTRUCTIONS} instructions")
-    grouped = cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__, extra_c=lane_c)
+    files, grouped = cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__,
+                                     extra_c=lane_c)
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
     if count_ops and hasattr(scene, "sympy_op_counts"):
@@ -108,6 +109,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
                                          constraints_fn=cm.constraints,
                                          rhs_lanes=lanes.lanes_symbol(cm.rhs) if lane_c else None),
         "c_symbols": [f.name() for f in cm.functions()],
+        "files": files,
         "constraints": _constraints_entry(cm, scene.state_names),
         "start_conditions": list(cm.start_names),
         # what the rewrites of the C did: the 4-lane rhs ("applied" or why not) and, per
@@ -136,9 +138,9 @@ def _constraints_entry(cm, state_names) -> dict:
 
 
 def compile_library(directory: Path, manifest: dict) -> Path:
-    """Compile ``{name}.c`` with the driver (and the CPython fast-call extension)."""
-    name = manifest["name"]
-    return compile_model(directory / f"{name}.c", directory / library_name(name),
+    """Compile the model's C files with the driver (and the CPython fast-call extension)."""
+    sources = [directory / f for f in manifest["files"] if f.endswith(".c")]
+    return compile_model(sources, directory / library_name(manifest["name"]),
                          manifest["driver_defines"])
 
 
@@ -180,9 +182,8 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
         if not force and cm is not None and cm.get("hash") == digest:
             say(f"using committed C from {committed}")
             directory.mkdir(parents=True, exist_ok=True)
-            for suffix in (".c", ".h"):
-                shutil.copyfile(committed / f"{scene.name}{suffix}",
-                                directory / f"{scene.name}{suffix}")
+            for f in cm["files"]:
+                shutil.copyfile(committed / f, directory / f)
             stored.write_manifest(directory, cm)
             manifest, info = cm, {"source": "committed C"}
         else:
@@ -204,7 +205,6 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
     return model
 
 
-GENERATED_FILES = ("{name}.c", "{name}.h", "manifest.json")
 
 
 def _text_diff(old: Path, new: Path, label: str) -> str:
@@ -265,11 +265,13 @@ def generate_committed(names=None, *, check: bool = False,
         target = root / name
         with tempfile.TemporaryDirectory() as tmp:
             fresh = Path(tmp)
-            generate(scene, fresh, count_ops=True)
+            manifest = generate(scene, fresh, count_ops=True)
             record = solve_start(scene)
             stored.write_json(fresh / stored.START, record)
-            files = [f.format(name=name) for f in GENERATED_FILES]
+            files = [*manifest["files"], stored.MANIFEST]
             differ[name] = {f: d for f in files if (d := _text_diff(target / f, fresh / f, f"{name}/{f}"))}
+            stale = sorted(f.name for f in target.glob("*.[ch]") if f.name not in files)
+            differ[name].update({f: f"{name}/{f}: no longer generated" for f in stale})
             old = stored.read_json(target / stored.START)
             if old is None or old.get("key") != record["key"]:
                 differ[name][stored.START] = "start.json: missing, or solved for another scene definition"
@@ -280,6 +282,8 @@ def generate_committed(names=None, *, check: bool = False,
                 target.mkdir(parents=True, exist_ok=True)
                 for f in files:
                     shutil.copyfile(fresh / f, target / f)
+                for f in stale:
+                    (target / f).unlink()
                 if stored.START in differ[name]:  # keep the committed start when it agrees
                     shutil.copyfile(fresh / stored.START, target / stored.START)
     return differ

@@ -88,10 +88,11 @@ def test_paper2d_has_lanes_and_radau_is_unchanged(paper2d_model, tmp_path):
     radau with three scalar calls per Newton iteration (the library compiled without)."""
     defines = paper2d_model.manifest["driver_defines"]
     assert defines["GS_HAS_RHS_LANES"] == 1 and defines["GS_RHS_LANES"] == "paper2d_rhs_lanes"
-    c_file = paper2d_model.library.path.parent / "paper2d.c"
+    directory = paper2d_model.library.path.parent
+    c_files = [directory / f for f in paper2d_model.manifest["files"] if f.endswith(".c")]
     off = dict(defines, GS_HAS_RHS_LANES=0)
     off.pop("GS_RHS_LANES")
-    without = CompiledLibrary(compile_model(c_file, tmp_path / "off.so", off),
+    without = CompiledLibrary(compile_model(c_files, tmp_path / "off.so", off),
                               paper2d_model.state_names)
     with_ = paper2d_model.library
     x0, p = paper2d_model.initial_state(), paper2d_model.params()
@@ -106,7 +107,7 @@ def test_paper2d_has_lanes_and_radau_is_unchanged(paper2d_model, tmp_path):
     X = x0 + np.random.default_rng(1).normal(0, 0.01, (4, x0.size))
     Y = _lanes_call(with_, "paper2d_rhs_lanes", np.zeros(4), X, p if p is not None else [])
     assert np.array_equal(Y, np.array([with_.rhs(X[k], p) for k in range(4)]))
-    assert json.loads((c_file.parent / "manifest.json").read_text())["driver_defines"] == defines
+    assert json.loads((directory / "manifest.json").read_text())["driver_defines"] == defines
 
 
 def test_rewrites_are_applied_to_every_builtin_scene():

@@ -1,8 +1,9 @@
 """Write the C of a scene's CasADi functions, with a do-not-edit header and a manifest.
 
-A generated directory holds ``{name}.c``, ``{name}.h`` and ``manifest.json`` (written by
-``runtime.stored``: the content hash of the inputs and what the runtime needs to load the
-model without deriving anything).
+A generated directory holds the C of the generated functions in two files and their headers
+(``{name}_1.c``, ``{name}_2.c``, ...; listed in the manifest's ``files``) and
+``manifest.json`` (written by ``runtime.stored``: the content hash of the inputs and what the
+runtime needs to load the model without deriving anything).
 """
 from __future__ import annotations
 
@@ -21,29 +22,58 @@ HEADER = (
 )
 
 
+#: The generated functions are written into this many C files, balanced by instruction
+#: count, so that gcc compiles them side by side (a fixed number: generated/ must not depend
+#: on the machine). More files cost more than they gain: every file parses the same headers.
+C_FILES = 2
+
+
+def partition(functions: list, n: int = C_FILES) -> list[list]:
+    """``functions`` in at most ``n`` groups of about equal instruction counts (largest first
+    into the lightest group), each group in the functions' own order; the rhs's group first."""
+    groups: list[list] = [[] for _ in range(min(n, len(functions)))]
+    load = [0] * len(groups)
+    for f in sorted(functions, key=lambda f: -f.n_instructions()):
+        k = load.index(min(load))
+        groups[k].append(f)
+        load[k] += f.n_instructions()
+    order = {f.name(): i for i, f in enumerate(functions)}
+    groups = [sorted(g, key=lambda f: order[f.name()]) for g in groups if g]
+    return sorted(groups, key=lambda g: min(order[f.name()] for f in g))
+
+
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
-            extra_c: str | None = None) -> dict[str, int]:
-    """Generate ``{name}.c`` and ``{name}.h`` into ``directory`` (created if needed), the
-    libm calls of the C grouped by ``codegen.vecmath``; ``extra_c`` (e.g. the 4-lane rhs of
-    ``codegen.lanes``) is appended to the C file. Returns vecmath's report: per function, the
-    number of libm calls placed in groups."""
+            extra_c: str | None = None) -> tuple[list[str], dict[str, int]]:
+    """Generate the C of ``model``'s functions into ``directory`` (created if needed), in
+    ``C_FILES`` files ``{name}_1.c``, ``{name}_2.c`` (with their headers) that gcc compiles in
+    parallel; the libm calls are grouped by ``codegen.vecmath`` and ``extra_c`` (the 4-lane
+    rhs of ``codegen.lanes``) is appended to the rhs's file.
+
+    Returns the file names written (C, then header, per file) and vecmath's report: per
+    function, the number of libm calls placed in groups.
+    """
     directory.mkdir(parents=True, exist_ok=True)
-    cg = ca.CodeGenerator(f"{name}.c", {"with_header": True, "casadi_int": "long long int"})
-    for f in model.functions():
-        cg.add(f)
     tmp = directory / f".tmp-{os.getpid()}"
     tmp.mkdir(exist_ok=True)
-    cg.generate(str(tmp) + os.sep)
     header = HEADER.format(version=version, name=name, digest=digest)
+    files: list[str] = []
     report: dict[str, int] = {}
-    for suffix in (".c", ".h"):
-        src = tmp / f"{name}{suffix}"
-        dst = directory / f"{name}{suffix}"
-        text = src.read_text()
-        if suffix == ".c":  # libm calls in groups of four (see codegen.vecmath)
-            text, report = vecmath.batch_libm_calls(text, model.functions())
-            text += extra_c or ""
-        dst.write_text(header + text)
-        src.unlink()
+    for k, group in enumerate(partition(model.functions()), start=1):
+        part = f"{name}_{k}"
+        cg = ca.CodeGenerator(f"{part}.c", {"with_header": True, "casadi_int": "long long int"})
+        for f in group:
+            cg.add(f)
+        cg.generate(str(tmp) + os.sep)
+        for suffix in (".c", ".h"):
+            src = tmp / f"{part}{suffix}"
+            text = src.read_text()
+            if suffix == ".c":  # libm calls in groups of four (see codegen.vecmath)
+                text, grouped = vecmath.batch_libm_calls(text, group)
+                report.update(grouped)
+                if any(f is model.rhs for f in group):
+                    text += extra_c or ""
+            (directory / f"{part}{suffix}").write_text(header + text)
+            src.unlink()
+            files.append(f"{part}{suffix}")
     tmp.rmdir()
-    return report
+    return files, report

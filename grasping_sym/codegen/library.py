@@ -156,13 +156,14 @@ def build_library(
                          fast=fast)
 
 
-def compile_model(casadi_c: Path | str, out: Path | str, defines: dict,
-                  fast: bool = True) -> Path:
-    """Compile a CasADi-generated C file with the driver, given the driver's macros.
+def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True) -> Path:
+    """Compile CasADi-generated C (one file, or a list of files: compiled in parallel) with
+    the driver, given the driver's macros.
 
     ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
     committed C file compiles without the CasADi functions at hand).
     """
-    sources = [Path(casadi_c), *DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
+    generated = [Path(c) for c in casadi_c] if isinstance(casadi_c, (list, tuple)) else [Path(casadi_c)]
+    sources = [*generated, *DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
     return compile_shared(sources, Path(out), defines, include_dirs=include_dirs)
