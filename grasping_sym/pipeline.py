@@ -260,8 +260,20 @@ def generate_committed(names=None, *, check: bool = False,
                 if not check:
                     target.parent.mkdir(parents=True, exist_ok=True)
                     shutil.copyfile(fresh, target)
+    finger_files: set[str] = set()
     for name in names or sorted(BUILTIN):
         scene = BUILTIN[name]()
+        for file_name, key, build in scene.structure_templates():
+            finger_files.add(file_name)
+            with tempfile.TemporaryDirectory() as tmp:
+                fresh = Path(tmp) / file_name
+                templates.write_finger_template(fresh, build(), key)
+                target = root / "templates" / file_name
+                if not target.exists() or target.read_bytes() != fresh.read_bytes():
+                    differ["templates"][file_name] = f"{file_name}: differs (serialized CasADi function)"
+                    if not check:
+                        target.parent.mkdir(parents=True, exist_ok=True)
+                        shutil.copyfile(fresh, target)
         target = root / name
         with tempfile.TemporaryDirectory() as tmp:
             fresh = Path(tmp)
@@ -286,4 +298,10 @@ def generate_committed(names=None, *, check: bool = False,
                     (target / f).unlink()
                 if stored.START in differ[name]:  # keep the committed start when it agrees
                     shutil.copyfile(fresh / stored.START, target / stored.START)
+    if set(names or BUILTIN) == set(BUILTIN):  # finger templates no built-in scene uses are stale
+        for old in sorted((root / "templates").glob("finger-*.json")):
+            if old.name not in finger_files:
+                differ["templates"][old.name] = f"{old.name}: no longer used by a built-in scene"
+                if not check:
+                    old.unlink()
     return differ

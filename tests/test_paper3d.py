@@ -241,3 +241,25 @@ def test_hashed_sources_cover_the_3d_pipeline():
     hashed = set(HASHED_SOURCES) | set(GraspScene3D.hashed_sources) | set(GraspScene3D.start_sources)
     missing = shaping - hashed
     assert not missing, f"add to GraspScene3D.hashed_sources (or start_sources): {sorted(missing)}"
+
+
+def test_finger_templates_are_committed_and_equal_a_fresh_derivation():
+    """3D structure templates: the built-in scenes' finger chains load from the committed
+    templates (no SymPy), and evaluate as a fresh SymPy derivation does."""
+    import casadi as ca
+
+    from grasping_sym.codegen import templates
+    from grasping_sym.derive.grasp3d import finger_function
+
+    scene = gs.scenes.paper3d()
+    g = tuple(scene.gravity)
+    rng = np.random.default_rng(5)
+    for f in scene.fingers:
+        fn, source = templates.finger_template(f.chain, g, lambda: pytest.fail("derived again"))
+        assert source == "committed"
+        fresh = finger_function(f.chain, g)
+        for _ in range(3):
+            q, dq = rng.uniform(-1, 1, f.chain.n), rng.uniform(-2, 2, f.chain.n)
+            for a, b in zip(fn(q, dq), fresh(q, dq)):
+                np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+        assert isinstance(fn, ca.Function) and fn.n_out() == 9

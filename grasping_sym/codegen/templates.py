@@ -1,10 +1,14 @@
 """Where templates come from: the user cache, the committed ones, or a fresh derivation.
 
-A template (``functions.Template``) depends only on a scene's structure, so it is derived
-with SymPy once per structure and stored as serialized CasADi functions under
-``<cache root>/templates/`` (and, for the structures of the built-in scenes and their
-variants, committed under ``generated/templates/``). A new shape is then composed onto a
-stored template: no SymPy derivation on the way to C.
+A template depends only on a scene's structure, so it is derived with SymPy once per
+structure and stored as serialized CasADi functions under ``<cache root>/templates/`` (and,
+for the structures of the built-in scenes and their variants, committed under
+``generated/templates/``):
+
+- 2D: the closed loop of a planar structure (``functions.Template``); a new shape is composed
+  onto it, with no SymPy derivation on the way to C;
+- 3D: each finger chain's kinematics and Lagrangian dynamics (``finger_template``); a new
+  pair of surfaces derives only the surfaces' forms.
 """
 from __future__ import annotations
 
@@ -56,6 +60,48 @@ def write_template(path: Path, template: Template, key: str) -> None:
 
 def derive_and_build(shared: bool, gravity: bool, n_fingers: int = 1) -> Template:
     return build_template(derive_template(shared, gravity, n_fingers))
+
+
+#: Sources a finger template depends on (besides CasADi's version).
+FINGER_SOURCES = ("derive/spatial.py", "model/chains.py", "codegen/translate.py",
+                  "codegen/templates.py")
+
+
+def finger_template_key(chain, gravity) -> str:
+    """Hash of what a finger template depends on: the chain, gravity, sources, CasADi."""
+    text = f"finger|{chain!r}|{gravity!r}|{cache.sources_digest(FINGER_SOURCES)}|{ca.__version__}"
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def finger_template_name(chain, gravity) -> str:
+    return f"finger-{chain.name}-{'gravity' if gravity else 'horizontal'}-" \
+           f"{finger_template_key(chain, gravity)[:12]}.json"
+
+
+def finger_template(chain, gravity, build) -> tuple[ca.Function, str]:
+    """The finger template ``(q, dq) -> pieces`` of ``chain`` under ``gravity`` and where it
+    came from (``"cache"``, ``"committed"`` or ``"derived"``: then ``build()`` made it and it
+    is stored in the cache)."""
+    key = finger_template_key(chain, gravity)
+    name = finger_template_name(chain, gravity)
+    for source, directory in (("cache", cache.cache_root() / "templates"),
+                              ("committed", committed_templates_dir())):
+        try:
+            d = json.loads((directory / name).read_text())
+        except (OSError, ValueError):
+            continue
+        if d.get("key") == key:
+            return ca.Function.deserialize(d["function"]), source
+    fn = build()
+    write_finger_template(cache.cache_root() / "templates" / name, fn, key)
+    return fn, "derived"
+
+
+def write_finger_template(path: Path, fn: ca.Function, key: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp-{os.getpid()}")
+    tmp.write_text(json.dumps({"key": key, "function": fn.serialize()}, sort_keys=True) + "\n")
+    tmp.replace(path)
 
 
 def planar_template(shared: bool, gravity: bool, n_fingers: int = 1) -> tuple[Template, str]:

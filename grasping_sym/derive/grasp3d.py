@@ -90,9 +90,11 @@ def _finger_symbolic(chain, gravity):
     return kin, dyn
 
 
-def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
-    """The finger's kinematics and dynamics (SymPy, ``derive.spatial``) as SX in ``q, dq``."""
-    kin, dyn = _finger_symbolic(chain, None if gravity is None else tuple(gravity))
+def finger_function(chain, gravity) -> ca.Function:
+    """``(q, dq) -> r, Pi, J, W, G, h, joints[, dP, P]``: the finger's kinematics and
+    dynamics, derived with SymPy (``derive.spatial``) and translated to SX."""
+    kin, dyn = _finger_symbolic(chain, gravity)
+    q, dq = ca.SX.sym("q", chain.n), ca.SX.sym("dq", chain.n)
     tr = SympyToCasadi({**{kin.q[k]: q[k] for k in range(chain.n)},
                         **{kin.dq[k]: dq[k] for k in range(chain.n)}})
     out = {"r": tr(kin.r), "Pi": tr(kin.Pi), "J": tr(kin.J), "W": tr(kin.W), "G": tr(dyn.G),
@@ -100,7 +102,19 @@ def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
     if gravity is not None:
         out["dP"] = tr(dyn.gravity_gradient)
         out["P"] = tr(dyn.potential_energy)
-    return out
+    return ca.Function(f"finger_{chain.name}", [q, dq], list(out.values()), ["q", "dq"], list(out))
+
+
+def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
+    """The finger's kinematics and dynamics as SX in ``q, dq``: its template (derived with
+    SymPy once per chain and gravity, and stored, ``codegen.templates.finger_template``)
+    evaluated on ``q, dq``."""
+    from grasping_sym.codegen.templates import finger_template  # noqa: PLC0415
+
+    g = None if gravity is None else tuple(float(v) for v in gravity)
+    fn, _ = finger_template(chain, g, lambda: finger_function(chain, g))
+    outs = fn.call([q, dq])
+    return {fn.name_out(i): outs[i] for i in range(fn.n_out())}
 
 
 def surface_sx(surface: ParametricSurface, u, v, extra: bool = False) -> dict[str, ca.SX]:

@@ -322,6 +322,16 @@ class GraspScene3D:
     #: Package sources that the start's solution depends on beyond ``hashed_sources``.
     start_sources: ClassVar[tuple[str, ...]] = ("derive/initial3d.py",)
 
+    def structure_templates(self) -> list[tuple[str, str, object]]:
+        """``(file name, key, build)`` of each template this scene's structure uses: one per
+        finger chain (``codegen.templates.finger_template``), committed for built-in scenes."""
+        from grasping_sym.codegen import templates  # noqa: PLC0415
+        from grasping_sym.derive.grasp3d import finger_function  # noqa: PLC0415
+
+        g = None if self.gravity is None else tuple(float(v) for v in self.gravity)
+        return [(templates.finger_template_name(f.chain, g), templates.finger_template_key(f.chain, g),
+                 lambda chain=f.chain: finger_function(chain, g)) for f in self.fingers]
+
     def bounds(self) -> tuple[list, list]:
         """Per-state bounds (None: unbounded): the surface coordinates of each contact stay
         inside their surfaces' domains."""

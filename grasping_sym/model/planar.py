@@ -364,6 +364,10 @@ class PlanarFingerScene:
     #: Package sources that the start's solution depends on beyond ``hashed_sources``.
     start_sources: ClassVar[tuple[str, ...]] = ()
 
+    def structure_templates(self) -> list:
+        """Templates beyond the planar ones (``codegen.templates.PLANAR_STRUCTURES``): none."""
+        return []
+
     def bounds(self) -> tuple[list, list]:
         """Per-state bounds (None: unbounded): each contact parameter stays inside its
         contours' domains."""
