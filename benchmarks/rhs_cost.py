@@ -38,10 +38,12 @@ def rhs_costs(model, casadi_model, reference, X_traj: np.ndarray, *, quick: bool
     out["rhs_batch"] = batch
     sx = casadi_model.rhs
     ext = model.external_rhs()
-    empty = np.zeros(0)
+    # the SX function (build_stages: derive_planar) folds the pivot in; the compiled model
+    # takes it as its run-time input p
+    empty, p = np.zeros(0), model.default_params
     out["casadi_sx_call_us"] = best_per_call(lambda: sx(0.0, x, empty, empty, empty),
                                              number=2_000, repeat=rep) * 1e6
-    out["casadi_external_call_us"] = best_per_call(lambda: ext(0.0, x, empty, empty, empty),
+    out["casadi_external_call_us"] = best_per_call(lambda: ext(0.0, x, empty, p, empty),
                                                    number=2_000, repeat=rep) * 1e6
     out["lambdify_reference_us"] = best_per_call(lambda: reference.rhs(x), number=200,
                                                  repeat=rep) * 1e6

@@ -1,8 +1,10 @@
 """``build(scene)``: derive, generate C, compile, load -- or load from the cache.
 
 One path for every scene: a scene meets one protocol (``name``, ``state_names``,
-``outputs``, ``runtime``, ``start_param_names``, ``code_key()``, ``key()``,
-``hashed_sources``, ``casadi_functions()``, ``solve_start()``, ``bounds()``), and
+``outputs``, ``runtime``, ``params``, ``start_param_names``, ``code_key()``, ``key()``,
+``hashed_sources``, ``start_sources``, ``casadi_functions()``, ``solve_start()``,
+``bounds()``, ``manifest_extra()``, ``sympy_op_counts()``, ``structure_templates()``; and for
+the command line ``simulate_defaults``, ``write_figures()``, ``summary_lines()``), and
 
     scene -> CasADi functions (codegen.scene_functions) -> C (codegen.cwriter) -> library
 
@@ -91,7 +93,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
                                      extra_c=lane_c)
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
-    if count_ops and hasattr(scene, "sympy_op_counts"):
+    if count_ops:
         ops.update(scene.sympy_op_counts())
     lower, upper = scene.bounds()
     manifest = {
@@ -203,8 +205,6 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
     info["total"] = time.perf_counter() - t0
     model.build_info = info
     return model
-
-
 
 
 def _text_diff(old: Path, new: Path, label: str) -> str:

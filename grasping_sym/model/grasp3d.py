@@ -322,6 +322,10 @@ class GraspScene3D:
     #: Package sources that the start's solution depends on beyond ``hashed_sources``.
     start_sources: ClassVar[tuple[str, ...]] = ("derive/initial3d.py",)
 
+    def sympy_op_counts(self) -> dict[str, int]:
+        """Operation counts of SymPy pieces: none (the 3D pieces go to CasADi's AD)."""
+        return {}
+
     def structure_templates(self) -> list[tuple[str, str, object]]:
         """``(file name, key, build)`` of each template this scene's structure uses: one per
         finger chain (``codegen.templates.finger_template``), committed for built-in scenes."""
