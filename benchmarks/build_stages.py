@@ -16,6 +16,7 @@ from benchmarks.timing import in_fresh_process, median
 _COLD = """
 import json, time
 import grasping_sym as gs
+build = gs.build  # the package imports lazily: import the build stack before the clock starts
 {imports}
 t0 = time.perf_counter()
 scene = {scene}

