@@ -248,32 +248,29 @@ def generate_committed(names=None, *, check: bool = False,
         root = checkout / "generated" if checkout is not None else cache.generated_dir()
     root = Path(root)
     differ: dict[str, dict[str, str]] = {"templates": {}}
-    for shared, gravity in templates.PLANAR_STRUCTURES:
-        name = f"{templates.template_name(shared, gravity)}.json"
+    def template(file_name: str, write) -> None:
+        """Write a template with ``write(path)``; note and (unless ``check``) replace the
+        committed one when it differs."""
         with tempfile.TemporaryDirectory() as tmp:
-            fresh = Path(tmp) / name
-            templates.write_template(fresh, templates.derive_and_build(shared, gravity),
-                                     templates.template_key(shared, gravity))
-            target = root / "templates" / name
+            fresh = Path(tmp) / file_name
+            write(fresh)
+            target = root / "templates" / file_name
             if not target.exists() or target.read_bytes() != fresh.read_bytes():
-                differ["templates"][name] = f"{name}: differs (serialized CasADi functions)"
+                differ["templates"][file_name] = f"{file_name}: differs (serialized CasADi functions)"
                 if not check:
                     target.parent.mkdir(parents=True, exist_ok=True)
                     shutil.copyfile(fresh, target)
+
+    for shared, gravity in templates.PLANAR_STRUCTURES:
+        template(f"{templates.template_name(shared, gravity)}.json",
+                 lambda path, s=shared, g=gravity: templates.write_template(
+                     path, templates.derive_and_build(s, g), templates.template_key(s, g)))
     finger_files: set[str] = set()
     for name in names or sorted(BUILTIN):
         scene = BUILTIN[name]()
         for file_name, key, build in scene.structure_templates():
             finger_files.add(file_name)
-            with tempfile.TemporaryDirectory() as tmp:
-                fresh = Path(tmp) / file_name
-                templates.write_finger_template(fresh, build(), key)
-                target = root / "templates" / file_name
-                if not target.exists() or target.read_bytes() != fresh.read_bytes():
-                    differ["templates"][file_name] = f"{file_name}: differs (serialized CasADi function)"
-                    if not check:
-                        target.parent.mkdir(parents=True, exist_ok=True)
-                        shutil.copyfile(fresh, target)
+            template(file_name, lambda path, b=build, k=key: templates.write_finger_template(path, b(), k))
         target = root / name
         with tempfile.TemporaryDirectory() as tmp:
             fresh = Path(tmp)
