@@ -281,7 +281,7 @@ class GraspScene3D:
     #: of the ones every scene's does (``codegen.cache.HASHED_SOURCES``).
     hashed_sources: ClassVar[tuple[str, ...]] = (
         "model/grasp3d.py", "model/chains.py", "geometry/surfaces.py", "derive/grasp3d.py",
-        "derive/spatial.py", "derive/contact3d.py", "codegen/scene_functions.py",
+        "derive/spatial.py", "derive/contact3d.py",
     )
     #: 3D scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA
     #: at moderate tolerances is the fast choice (a 5 s paper3d run in ~0.1 s).

@@ -96,11 +96,12 @@ class Model:
         """A consistent initial state, ordered as ``state_names`` (a fresh array).
 
         Without arguments: the scene's start (stored with the model). With state components
-        by name, e.g. ``initial_state(q1=0.6)`` or ``initial_state(theta=0.2, s=0.001)``:
+        by name, e.g. ``initial_state(q1=0.6)`` or ``initial_state(theta=0.2)``:
         those values held, the other coordinates and speeds solved onto the contact
-        constraints nearest the scene's start, with no rebuild (``runtime.start``; 2D
-        scenes, with the pivot fixed by the scene). Raises ``UnreachableStartError`` for a
-        pose the bodies cannot take.
+        constraints nearest the scene's start, with no rebuild (``runtime.start``; in 2D the
+        pivot stays where the scene put it, so one coordinate fixes the others; in 3D see
+        ``with_start``, which also moves the spring's rest point). Raises
+        ``UnreachableStartError`` for a pose the bodies cannot take.
         """
         if not values:
             return self._x0.copy()

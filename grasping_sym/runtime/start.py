@@ -75,9 +75,8 @@ def solve(model, values: dict[str, float]) -> np.ndarray:
     if len(set(positions) - set(hold)) >= len(conditions):
         positions = [i for i in positions if i not in hold]
     speeds = [names.index(k) for k in info["velocity_states"] if k not in values]
-    p = model.default_params if model.input_names else None
     x = _positions(_conditions_function(model), names, x0, target, positions)
-    x = _speeds(model, x, speeds, p, sorted(values))
+    x = _speeds(model, x, speeds, sorted(values))
     _check_domain(model, x)
     quat = [names.index(k) for k in ("qw", "qx", "qy", "qz") if k in names]
     if quat:  # the norm condition holds to rounding; make it exact
@@ -86,7 +85,8 @@ def solve(model, values: dict[str, float]) -> np.ndarray:
 
 
 def _conditions_function(model):
-    """``x -> (G, dG/dx)`` of the compiled ``{name}_start`` (loaded once per model)."""
+    """``x -> (G, dG/dx, v)`` of the compiled ``{name}_start`` (loaded once per model): the
+    start conditions, their Jacobian and the start values ``x`` implies (empty in 2D)."""
     fn = getattr(model, "_start_conditions", None)
     if fn is None:
         import casadi as ca  # noqa: PLC0415 - only run-time starts need it
@@ -167,17 +167,18 @@ def _correct(conditions, names, x: np.ndarray, free: list[int], given: list[str]
     raise _Stuck(residual)
 
 
-def _speeds(model, x: np.ndarray, free: list[int], p, given: list[str]) -> np.ndarray:
-    lib = model.library
+def _speeds(model, x: np.ndarray, free: list[int], given: list[str]) -> np.ndarray:
+    """Least-norm change of the ``free`` speeds to ``Cdot(x) = 0`` (affine in the speeds)."""
+    lib = model.library  # its calls use the model's p
     for _ in range(3):
-        _, _, Cd, JCd = lib.constraints(x, p)
+        _, _, Cd, JCd = lib.constraints(x)
         if float(np.max(np.abs(Cd))) <= START_TOL:
             return x
         if not free:
             break
         x = x.copy()
         x[free] -= np.linalg.lstsq(JCd[:, free], Cd, rcond=None)[0]
-    rate = float(np.max(np.abs(lib.constraints(x, p)[2])))
+    rate = float(np.max(np.abs(lib.constraints(x)[2])))
     if rate <= START_TOL:
         return x
     raise UnreachableStartError(
