@@ -49,7 +49,7 @@ HASHED_SOURCES = (
     "codegen/scene_functions.py", "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c",
     "c/radau5.c", "c/radau5.h", "c/jac.c", "c/lu.c", "c/dopri5.c", "c/gs_internal.h",
     "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "codegen/lanes.py",
-    "codegen/vecmath.py", "codegen/algorithm.py", "pipeline.py",
+    "codegen/vecmath.py", "codegen/algorithm.py", "codegen/objects.py", "pipeline.py",
 )
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "COMPILER_FLAGS",
     "CASADI_FILE_FLAGS",
     "LINK_FLAGS",
+    "compile_objects",
     "compile_shared",
     "compiler_command",
     "compiler_version",
@@ -258,12 +259,55 @@ def _check(returncode: int, stdout: str, stderr: str, cmd: list[str], what: str)
         log.warning("%s produced compiler warnings:\n%s", what, stderr.strip())
 
 
+def _common_flags(defines, include_dirs, extra_flags) -> list[str]:
+    return [
+        *BASE_FLAGS,
+        *isa_flags(),
+        *_define_flags(defines or {}),
+        *(f"-I{Path(d).absolute()}" for d in include_dirs),
+        *extra_flags,
+    ]
+
+
+def compile_objects(
+    sources: Sequence[Path | str],
+    out_dir: Path | str,
+    defines: Mapping[str, str | int | bool | None] | None = None,
+    include_dirs: Iterable[Path | str] = (),
+    extra_flags: Iterable[str] = (),
+) -> list[Path]:
+    """Compile C sources, in parallel, into object files ``<out_dir>/<k>_<stem>.o`` (same
+    flags as :func:`compile_shared`); return their paths in the order of ``sources``.
+
+    Raises
+    ------
+    CompileError
+        If no compiler is available, a source is missing or a compile step fails.
+    """
+    cc = compiler_command()
+    srcs = [Path(s).absolute() for s in sources]
+    for s in srcs:
+        if not s.is_file():
+            raise CompileError(f"C source file not found: {s}")
+    common = _common_flags(defines, list(include_dirs), list(extra_flags))
+    objects, jobs = [], []
+    for i, src in enumerate(srcs):
+        obj = Path(out_dir).absolute() / f"{i}_{src.stem}.o"
+        per_file = list(CASADI_FILE_FLAGS) if is_casadi_generated(src) else []
+        jobs.append(([*cc, *common, *per_file, "-c", str(src), "-o", str(obj)],
+                     f"compiling {src.name}"))
+        objects.append(obj)
+    _run_all(jobs)  # the files compile in parallel
+    return objects
+
+
 def compile_shared(
     sources: Sequence[Path | str],
     out: Path | str,
     defines: Mapping[str, str | int | bool | None] | None = None,
     include_dirs: Iterable[Path | str] = (),
     extra_flags: Iterable[str] = (),
+    objects: Sequence[Path | str] = (),
 ) -> Path:
     """Compile C sources into one shared library, atomically replacing ``out``.
 
@@ -282,6 +326,8 @@ def compile_shared(
     extra_flags : iterable of str, optional
         Extra flags for every compile step (not for linking); they come after
         :data:`BASE_FLAGS` and :func:`isa_flags`.
+    objects : sequence of Path, optional
+        Object files compiled before (``codegen.objects``), linked in as they are.
 
     Returns
     -------
@@ -296,33 +342,16 @@ def compile_shared(
     """
     cc = compiler_command()
     out = Path(out).absolute()
-    srcs = [Path(s).absolute() for s in sources]
-    if not srcs:
+    if not sources:
         raise ValueError("compile_shared needs at least one source file")
-    for s in srcs:
-        if not s.is_file():
-            raise CompileError(f"C source file not found: {s}")
     out.parent.mkdir(parents=True, exist_ok=True)
-    common = [
-        *BASE_FLAGS,
-        *isa_flags(),
-        *_define_flags(defines or {}),
-        *(f"-I{Path(d).absolute()}" for d in include_dirs),
-        *extra_flags,
-    ]
     with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.build-") as tmp:
-        objects, jobs = [], []
-        for i, src in enumerate(srcs):
-            obj = Path(tmp) / f"{i}_{src.stem}.o"
-            per_file = list(CASADI_FILE_FLAGS) if is_casadi_generated(src) else []
-            jobs.append(([*cc, *common, *per_file, "-c", str(src), "-o", str(obj)],
-                         f"compiling {src.name}"))
-            objects.append(str(obj))
-        _run_all(jobs)  # the files compile in parallel
+        built = compile_objects(sources, tmp, defines, include_dirs, extra_flags)
         fd, tmp_out = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
         os.close(fd)
         try:
-            _run([*cc, *objects, "-o", tmp_out, *link_flags()], f"linking {out.name}")
+            _run([*cc, *map(str, built), *map(str, objects), "-o", tmp_out, *link_flags()],
+                 f"linking {out.name}")
             os.chmod(tmp_out, 0o755)
             os.replace(tmp_out, out)
         except BaseException:

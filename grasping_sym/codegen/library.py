@@ -9,11 +9,13 @@ The result is loaded by ``runtime/compiled.py::CompiledLibrary``.
 from __future__ import annotations
 
 import sysconfig
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from grasping_sym.codegen import objects
 from grasping_sym.codegen.compiler import compile_shared
 
 __all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines"]
@@ -157,13 +159,22 @@ def build_library(
 
 
 def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True) -> Path:
-    """Compile CasADi-generated C (one file, or a list of files: compiled in parallel) with
-    the driver, given the driver's macros.
+    """Compile CasADi-generated C (one file, or a list of files: compiled in parallel) and
+    link it with the driver, given the driver's macros.
 
     ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
-    committed C file compiles without the CasADi functions at hand).
+    committed C file compiles without the CasADi functions at hand). The driver's objects
+    come from the runtime layer's cache (``codegen.objects``: compiled once per set of
+    sizes); only the model's C and a file forwarding the driver's names to the model's
+    functions are compiled here.
     """
     generated = [Path(c) for c in casadi_c] if isinstance(casadi_c, (list, tuple)) else [Path(casadi_c)]
-    sources = [*generated, *DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
+    drivers = [*DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
-    return compile_shared(sources, Path(out), defines, include_dirs=include_dirs)
+    driver = objects.driver_objects(drivers, defines, include_dirs)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.links-") as tmp:
+        links = Path(tmp) / "gs_links.c"
+        links.write_text(objects.links_c(defines))
+        return compile_shared([*generated, links], out, objects=driver)

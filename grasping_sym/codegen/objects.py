@@ -1,0 +1,105 @@
+"""The runtime layer: the hand-written C driver compiled once into object files that every
+model library with the same sizes links.
+
+The driver (``c/driver.c`` and the files beside it) is configured by preprocessor macros
+(``library.driver_defines``).  Most of them are sizes of the model (states, parameters,
+outputs, constraints); the others name the model's CasADi functions.  Here the names are
+replaced by fixed ones (``gs_model_rhs``, ...), which a two-line file per library
+(:func:`links_c`) forwards to the model's functions, and CasADi's work sizes are rounded up
+to a power of two; the driver's objects then depend on the model's structure alone and are
+compiled once, into ``<cache root>/objects/driver-<hash16>/``.  A new shape, start or name
+on a known structure compiles only its own C.
+
+The hash covers the driver's C text, the macros, every compile flag (instruction set
+included), the compiler's version and, for the CPython front end, the include directories
+(the interpreter's and NumPy's).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from grasping_sym.codegen import cache
+from grasping_sym.codegen.compiler import (BASE_FLAGS, compile_objects, compiler_command,
+                                           compiler_version, isa_flags)
+
+__all__ = ["ALIASES", "driver_objects", "links_c", "object_defines"]
+
+#: The driver's macros that name a model function, and the fixed name each one gets.
+ALIASES: dict[str, str] = {
+    "GS_RHS": "gs_model_rhs", "GS_OUT": "gs_model_outputs", "GS_JAC": "gs_model_jac",
+    "GS_CON": "gs_model_constraints", "GS_RHS_LANES": "gs_model_rhs_lanes",
+}
+_WORK_SIZES = ("GS_SZ_ARG", "GS_SZ_RES", "GS_SZ_IW", "GS_SZ_W")
+_CASADI_SIG = "(const double** arg, double** res, long long int* iw, double* w, int mem)"
+_LANES_SIG = "(const double* t, const double* const* x, const double* p, double* const* xdot)"
+
+
+def _bucket(n: int) -> int:
+    """``n`` rounded up to a power of two (at least 16)."""
+    return max(16, 1 << max(0, int(n) - 1).bit_length())
+
+
+def object_defines(defines: Mapping[str, str | int]) -> dict[str, str | int]:
+    """The macros the driver's objects are compiled with: function names replaced by
+    :data:`ALIASES`, work sizes rounded up to powers of two."""
+    out = dict(defines)
+    for k, alias in ALIASES.items():
+        if k in out:
+            out[k] = alias
+    for k in _WORK_SIZES:
+        out[k] = _bucket(int(out[k]))
+    return out
+
+
+def links_c(defines: Mapping[str, str | int]) -> str:
+    """C source forwarding each fixed name of :data:`ALIASES` to the model's function (and,
+    for the Jacobian, its sparsity pattern), for the functions ``defines`` names."""
+    lines = ["/* grasping_sym: the driver's fixed names -> this model's functions (codegen.objects) */"]
+    for k, alias in ALIASES.items():
+        if k not in defines:
+            continue
+        target = defines[k]
+        if k == "GS_RHS_LANES":
+            lines += [f"int {target}{_LANES_SIG};",
+                      f"int {alias}{_LANES_SIG} {{ return {target}(t, x, p, xdot); }}"]
+            continue
+        lines += [f"int {target}{_CASADI_SIG};",
+                  f"int {alias}{_CASADI_SIG} {{ return {target}(arg, res, iw, w, mem); }}"]
+        if k == "GS_JAC":
+            lines += [f"const long long int* {target}_sparsity_out(long long int i);",
+                      f"const long long int* {alias}_sparsity_out(long long int i) "
+                      f"{{ return {target}_sparsity_out(i); }}"]
+    return "\n".join(lines) + "\n"
+
+
+def _digest(sources: Sequence[Path], defines: Mapping, include_dirs: Sequence[str]) -> str:
+    h = hashlib.sha256()
+    for part in (" ".join(compiler_command()), compiler_version(), " ".join(BASE_FLAGS),
+                 " ".join(isa_flags()), repr(sorted(defines.items())), repr(list(include_dirs))):
+        h.update(part.encode() + b"\0")
+    c_dir = sources[0].parent
+    for f in sorted({*sources, *c_dir.glob("*.h")}):
+        h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()
+
+
+def driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
+                   include_dirs: Sequence[str] = ()) -> list[Path]:
+    """The object files of the driver ``sources`` compiled with ``object_defines(defines)``:
+    from ``<cache root>/objects/`` or compiled there now (in parallel, each installed
+    atomically, so concurrent builds agree)."""
+    defs = object_defines(defines)
+    directory = cache.cache_root() / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}"
+    objects = [directory / f"{src.stem}.o" for src in sources]
+    if all(o.is_file() for o in objects):
+        return objects
+    directory.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+        built = compile_objects(sources, Path(tmp), defs, include_dirs)
+        for obj, final in zip(built, objects):
+            os.replace(obj, final)
+    return objects
