@@ -131,11 +131,11 @@ def cmd_generate(args: argparse.Namespace) -> int:
     names = sorted(_builtin()) if args.all or not args.names else list(args.names)
     for name in names:
         _scene_factory(name)  # validates the name
-    _say(f"{'checking' if args.check else 'generating'} the planar templates and "
+    _say(f"{'checking' if args.check else 'generating'} the planar templates, structures and "
          f"{', '.join(names)} (derivation with SymPy)")
     differ = generate_committed(names, check=args.check)
     stale = False
-    for name in ["templates", *names]:
+    for name in ["templates", "structures", *names]:
         files = differ.get(name, {})
         if not files:
             print(f"{name}: up to date")

@@ -29,7 +29,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from grasping_sym import __version__
-from grasping_sym.codegen import cache, cwriter, lanes
+from grasping_sym.codegen import cache, cwriter, lanes, structure_cache
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, vector_libm
 from grasping_sym.codegen.library import compile_model, driver_defines
 from grasping_sym.runtime import stored
@@ -84,7 +84,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     cm, timings = fns.model, dict(fns.timings)
     say(f"writing C into {directory}")
     t0 = time.perf_counter()
-    if cm.rhs.n_instructions() <= LANES_MAX_INSTRUCTIONS:
+    if fns.lanes is not None:
+        lane_c, lanes_status = fns.lanes
+    elif cm.rhs.n_instructions() <= LANES_MAX_INSTRUCTIONS:
         lane_c, lanes_status = lanes.rhs_lanes(cm.rhs)
     else:
         lane_c, lanes_status = None, (f"not made: the rhs has {cm.rhs.n_instructions()} > "
@@ -118,6 +120,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         # function, the libm calls grouped for the vector libm (codegen.lanes, .vecmath)
         "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped},
         "op_counts": ops,
+        **({"structure": fns.structure} if fns.structure else {}),
         **scene.manifest_extra(),
     }
     stored.write_manifest(directory, manifest)
@@ -140,10 +143,16 @@ def _constraints_entry(cm, state_names) -> dict:
 
 
 def compile_library(directory: Path, manifest: dict) -> Path:
-    """Compile the model's C files with the driver (and the CPython fast-call extension)."""
+    """Compile the model's C files and link them with the driver (and the CPython fast-call
+    extension) and, for a model in layers, its structure's objects."""
+    from grasping_sym.codegen import structure_cache  # noqa: PLC0415
+
     sources = [directory / f for f in manifest["files"] if f.endswith(".c")]
+    linked = []
+    if "structure" in manifest:
+        linked = structure_cache.link_objects(*structure_cache.locate(manifest["structure"]))
     return compile_model(sources, directory / library_name(manifest["name"]),
-                         manifest["driver_defines"])
+                         manifest["driver_defines"], objects=linked)
 
 
 def _start(scene, directory: Path, say: Progress) -> tuple[dict, str]:
@@ -266,35 +275,18 @@ def generate_committed(names=None, *, check: bool = False,
                  lambda path, s=shared, g=gravity: templates.write_template(
                      path, templates.derive_and_build(s, g), templates.template_key(s, g)))
     finger_files: set[str] = set()
-    for name in names or sorted(BUILTIN):
-        scene = BUILTIN[name]()
-        for file_name, key, build in scene.structure_templates():
-            finger_files.add(file_name)
-            template(file_name, lambda path, b=build, k=key: templates.write_finger_template(path, b(), k))
-        target = root / name
-        with tempfile.TemporaryDirectory() as tmp:
-            fresh = Path(tmp)
-            manifest = generate(scene, fresh, count_ops=True)
-            record = solve_start(scene)
-            stored.write_json(fresh / stored.START, record)
-            files = [*manifest["files"], stored.MANIFEST]
-            differ[name] = {f: d for f in files if (d := _text_diff(target / f, fresh / f, f"{name}/{f}"))}
-            stale = sorted(f.name for f in target.glob("*.[ch]") if f.name not in files)
-            differ[name].update({f: f"{name}/{f}: no longer generated" for f in stale})
-            old = stored.read_json(target / stored.START)
-            if old is None or old.get("key") != record["key"]:
-                differ[name][stored.START] = "start.json: missing, or solved for another scene definition"
-            elif bad := stored.starts_agree(old, record):
-                differ[name][stored.START] = (f"start.json: {len(bad)} entries differ beyond "
-                                              f"rtol {stored.START_RTOL:g}: " + "; ".join(bad[:5]))
-            if not check:
-                target.mkdir(parents=True, exist_ok=True)
-                for f in files:
-                    shutil.copyfile(fresh / f, target / f)
-                for f in stale:
-                    (target / f).unlink()
-                if stored.START in differ[name]:  # keep the committed start when it agrees
-                    shutil.copyfile(fresh / stored.START, target / stored.START)
+    differ["structures"] = {}
+    structures: set[str] = set()
+    with tempfile.TemporaryDirectory() as private, cache.root_override(Path(private)), \
+            structure_cache.derive_afresh():
+        for name in names or sorted(BUILTIN):
+            _generate_scene(BUILTIN[name](), root, check, differ, structures, finger_files, template)
+    if set(names or BUILTIN) == set(BUILTIN):  # structures no built-in scene uses are stale
+        for old in sorted((root / structure_cache.DIR).glob("*/")):
+            if old.name not in structures:
+                differ["structures"][old.name] = f"{old.name}: no longer used by a built-in scene"
+                if not check:
+                    shutil.rmtree(old)
     if set(names or BUILTIN) == set(BUILTIN):  # finger templates no built-in scene uses are stale
         for old in sorted((root / "templates").glob("finger-*.json")):
             if old.name not in finger_files:
@@ -302,3 +294,54 @@ def generate_committed(names=None, *, check: bool = False,
                 if not check:
                     old.unlink()
     return differ
+
+
+def _generate_scene(scene, root: Path, check: bool, differ: dict, structures: set,
+                    finger_files: set, template) -> None:
+    """``generate_committed`` for one built-in scene: its finger templates, its C and
+    manifest, its start and (for a model in layers) its structure."""
+    import tempfile  # noqa: PLC0415
+
+    from grasping_sym.codegen import templates  # noqa: PLC0415
+
+    name = scene.name
+
+    for file_name, key, build in scene.structure_templates():
+        finger_files.add(file_name)
+        template(file_name, lambda path, b=build, k=key: templates.write_finger_template(path, b(), k))
+    target = root / name
+    with tempfile.TemporaryDirectory() as tmp:
+        fresh = Path(tmp)
+        manifest = generate(scene, fresh, count_ops=True)
+        record = solve_start(scene)
+        stored.write_json(fresh / stored.START, record)
+        files = [*manifest["files"], stored.MANIFEST]
+        differ[name] = {f: d for f in files if (d := _text_diff(target / f, fresh / f, f"{name}/{f}"))}
+        stale = sorted(f.name for f in target.glob("*.[ch]") if f.name not in files)
+        differ[name].update({f: f"{name}/{f}: no longer generated" for f in stale})
+        old = stored.read_json(target / stored.START)
+        if old is None or old.get("key") != record["key"]:
+            differ[name][stored.START] = "start.json: missing, or solved for another scene definition"
+        elif bad := stored.starts_agree(old, record):
+            differ[name][stored.START] = (f"start.json: {len(bad)} entries differ beyond "
+                                          f"rtol {stored.START_RTOL:g}: " + "; ".join(bad[:5]))
+        if not check:
+            target.mkdir(parents=True, exist_ok=True)
+            for f in files:
+                shutil.copyfile(fresh / f, target / f)
+            for f in stale:
+                (target / f).unlink()
+            if stored.START in differ[name]:  # keep the committed start when it agrees
+                shutil.copyfile(fresh / stored.START, target / stored.START)
+    if "structure" in manifest:
+        entry = manifest["structure"]
+        structures.add(entry["name"])
+        meta, sdir = structure_cache.locate(entry)
+        target = root / structure_cache.DIR / entry["name"]
+        files = [*meta["files"], structure_cache.META]
+        for f in files:
+            if d := _text_diff(target / f, sdir / f, f"structures/{entry['name']}/{f}"):
+                differ["structures"][f"{entry['name']}/{f}"] = d
+                if not check:
+                    target.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(sdir / f, target / f)

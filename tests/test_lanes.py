@@ -11,6 +11,7 @@ import pytest
 
 from grasping_sym.codegen import lanes, vecmath
 from grasping_sym.codegen.cache import generated_dir
+from grasping_sym.codegen import structure_cache
 from grasping_sym.codegen.library import build_library, compile_model
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary
@@ -92,7 +93,8 @@ def test_paper2d_has_lanes_and_radau_is_unchanged(paper2d_model, tmp_path):
     c_files = [directory / f for f in paper2d_model.manifest["files"] if f.endswith(".c")]
     off = dict(defines, GS_HAS_RHS_LANES=0)
     off.pop("GS_RHS_LANES")
-    without = CompiledLibrary(compile_model(c_files, tmp_path / "off.so", off),
+    structure = structure_cache.link_objects(*structure_cache.locate(paper2d_model.manifest["structure"]))
+    without = CompiledLibrary(compile_model(c_files, tmp_path / "off.so", off, objects=structure),
                               paper2d_model.state_names)
     with_ = paper2d_model.library
     x0, p = paper2d_model.initial_state(), paper2d_model.params()
@@ -112,21 +114,37 @@ def test_paper2d_has_lanes_and_radau_is_unchanged(paper2d_model, tmp_path):
 
 def test_rewrites_are_applied_to_every_builtin_scene():
     """Each built-in scene records what the rewrites did: the grouping reached every call of a
-    libmvec function in every generated function, and paper2d has its 4-lane rhs."""
-    from grasping_sym.codegen import algorithm
+    libmvec function in every generated SX function (for paper2d, in layers: its contour
+    functions and its structure's functions), and paper2d has its 4-lane rhs."""
+    from grasping_sym.codegen import algorithm, structure_cache, templates
+    from grasping_sym.codegen.scene_functions import planar_structure
+    from grasping_sym.codegen.structure import structure_functions
     from grasping_sym.runtime import stored
     from grasping_sym.scenes import BUILTIN
+
+    def libm_calls(f):
+        return sum(1 for ins in algorithm.read(f)
+                   if algorithm.LIBM_CALLS.get(ins.op) in vecmath.VECTOR_FUNCTIONS)
 
     for name, make in BUILTIN.items():
         manifest = stored.read_manifest(generated_dir() / name)
         rewrites = manifest["rewrites"]
         grouped = rewrites["vecmath_grouped_calls"]
         assert set(grouped) == set(manifest["c_symbols"]), name
-        assert grouped[f"{name}_rhs"] > 0, name
-        if name == "paper2d":
-            assert rewrites["rhs_lanes"] == "applied"
-            functions = make().casadi_functions().model.functions()
-            for f in functions:
-                calls = sum(1 for ins in algorithm.read(f)
-                            if algorithm.LIBM_CALLS.get(ins.op) in vecmath.VECTOR_FUNCTIONS)
-                assert grouped[f.name()] == calls, f.name()
+        if "structure" not in manifest:
+            assert grouped[f"{name}_rhs"] > 0, name
+            continue
+        assert rewrites["rhs_lanes"].startswith("applied (contours four at a time"), name
+        scene = make()
+        for f in scene.casadi_functions().model.helpers:  # the SX contour functions
+            assert grouped[f.name()] == libm_calls(f) > 0, f.name()
+        meta = json.loads((generated_dir() / structure_cache.DIR / manifest["structure"]["name"]
+                           / structure_cache.META).read_text())
+        assert meta["rewrites"]["rhs_lanes"] == "applied"
+        spec, _ = planar_structure(scene)
+        template, _ = templates.planar_template(spec.shared, spec.gravity, spec.n_fingers)
+        sf = structure_functions(template, spec, meta["name"])
+        counts = meta["rewrites"]["vecmath_grouped_calls"]
+        assert counts[f"{meta['name']}_rhs"] > 0
+        for f in sf.functions():
+            assert counts[f.name()] == libm_calls(f), f.name()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -49,11 +50,28 @@ HASHED_SOURCES = (
     "codegen/scene_functions.py", "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c",
     "c/radau5.c", "c/radau5.h", "c/jac.c", "c/lu.c", "c/dopri5.c", "c/gs_internal.h",
     "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "codegen/lanes.py",
-    "codegen/vecmath.py", "codegen/algorithm.py", "codegen/objects.py", "pipeline.py",
+    "codegen/vecmath.py", "codegen/algorithm.py", "codegen/objects.py", "codegen/structure.py",
+    "codegen/structure_cache.py", "codegen/layered.py", "pipeline.py",
 )
 
 
+_ROOT_OVERRIDE: list[Path] = []
+
+
+@contextmanager
+def root_override(path: Path):
+    """Use ``path`` as the cache root inside the ``with`` block (``generate_committed``
+    derives everything afresh in a private root)."""
+    _ROOT_OVERRIDE.append(Path(path))
+    try:
+        yield Path(path)
+    finally:
+        _ROOT_OVERRIDE.pop()
+
+
 def cache_root() -> Path:
+    if _ROOT_OVERRIDE:
+        return _ROOT_OVERRIDE[-1]
     env = os.environ.get("GRASPING_SYM_CACHE")
     if env:
         return Path(env)

@@ -342,8 +342,8 @@ def compile_shared(
     """
     cc = compiler_command()
     out = Path(out).absolute()
-    if not sources:
-        raise ValueError("compile_shared needs at least one source file")
+    if not sources and not objects:
+        raise ValueError("compile_shared needs at least one source or object file")
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.build-") as tmp:
         built = compile_objects(sources, tmp, defines, include_dirs, extra_flags)

@@ -47,10 +47,12 @@ class CasadiModel:
     #: (C and the tangency the update law keeps), for starts solved at run time.
     start: ca.Function | None = None
     start_names: tuple[str, ...] = ()
+    #: further functions written into the C (a layered model's contour functions)
+    helpers: tuple[ca.Function, ...] = ()
 
     def functions(self) -> list[ca.Function]:
-        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start)
-                if f is not None]
+        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start,
+                            *self.helpers) if f is not None]
 
 
 def _casadi_backend():
@@ -259,18 +261,28 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
 
 def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,
                           names: tuple[str, ...] | None, name: str) -> tuple[ca.Function, dict]:
-    """``{name}_constraints`` and which states the projection may change.
+    """``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dv)`` and which states the
+    projection may change (``constraint_expressions``)."""
+    outs, info = constraint_expressions(x, xdot, C, names)
+    fn = ca.Function(f"{name}_constraints", [x, p], outs,
+                     ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"], FUNCTION_OPTIONS)
+    return fn, info
+
+
+def constraint_expressions(x: ca.SX, xdot: ca.SX, C: ca.SX,
+                           names: tuple[str, ...] | None) -> tuple[list[ca.SX], dict]:
+    """``[C, dC_dx, Cdot, dCdot_dv]`` and which states the projection may change.
 
     Position states: those C depends on. Velocity states: those Cdot depends on and C does
     not, on which Cdot depends affinely (no column of dCdot/dx among them depends on any of
     them): the speeds. A frame angle that enters Cdot nonlinearly through the contact rates
     (3D ``psi``) is a configuration variable, not a speed, and is left alone.
 
-    The function returns the Jacobians the projection uses and no more: ``dC_dx`` (its
-    non-zero columns are the position states) and ``dCdot_dv``, the velocity states' columns
-    of dCdot/dx, zero elsewhere.  The position columns of dCdot/dx would need the second
-    derivatives of the contact kinematics: half of the function's instructions (paper2d:
-    1381 against 698), paid after every integration step.
+    Only the Jacobians the projection uses are made: ``dC_dx`` (its non-zero columns are the
+    position states) and ``dCdot_dv``, the velocity states' columns of dCdot/dx, zero
+    elsewhere.  The position columns of dCdot/dx would need the second derivatives of the
+    contact kinematics: half of the function's instructions (paper2d: 1381 against 698),
+    paid after every integration step.
     """
     nc = C.numel()
     if names is None:
@@ -292,10 +304,8 @@ def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,
     JCv = ca.SX.zeros(JCd.shape)  # dense; only the speeds' columns are computed
     for i in velocity:
         JCv[:, i] = JCd[:, i]
-    fn = ca.Function(f"{name}_constraints", [x, p],
-                     [C, ca.densify(JC), Cdot, ca.densify(JCv)],
-                     ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"], FUNCTION_OPTIONS)
-    return fn, {"names": list(names), "position_states": position, "velocity_states": velocity}
+    return ([C, ca.densify(JC), Cdot, ca.densify(JCv)],
+            {"names": list(names), "position_states": position, "velocity_states": velocity})
 
 
 def build_casadi(system: ConstrainedSystem, fingertip, object_, name: str) -> CasadiModel:

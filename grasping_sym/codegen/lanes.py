@@ -25,7 +25,8 @@ import casadi as ca
 
 from grasping_sym.codegen import algorithm, vecmath
 
-__all__ = ["ARITHMETIC", "BINARY", "UNARY", "lanes_symbol", "rhs_lanes", "rhs_lanes_c"]
+__all__ = ["ARITHMETIC", "BINARY", "UNARY", "function_lanes", "lanes_symbol", "rhs_lanes",
+           "rhs_lanes_c"]
 
 #: One-argument C functions translated lane by lane (CasADi's names).
 UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh",
@@ -89,29 +90,37 @@ def lanes_symbol(rhs: ca.Function) -> str:
     return f"{rhs.name()}_lanes"
 
 
-def _translate(program: list[algorithm.Instruction], used: set[str]) -> list[str]:
+def _translate(program: list[algorithm.Instruction], used: set[str],
+               kinds: tuple[str, ...], names: tuple[str, ...]) -> list[str]:
     """The statements over lanes; raises ``UnsupportedAlgorithm`` at an operation outside
-    the supported subset or an input other than t, x and p."""
+    the supported subset or an input of kind ``"none"``.
+
+    ``kinds[k]`` says how input ``k`` (C parameter ``names[k]``) is passed: ``"t"`` one value
+    per lane (``t[s]``), ``"lane"`` one array per lane (``x[s][i]``), ``"shared"`` one array
+    for all lanes (``p[i]``), ``"none"`` not at all (an empty input). Output ``k`` is
+    written lane by lane into the parameter ``names[len(kinds) + k]`` (``xdot[s][i]``).
+    """
     out = []
     for ins in program:
         if ins.op == "INPUT":
             k, i = ins.ins
-            if k == 0:    # t, one per lane
-                value = "((gs_lane4){t[0], t[1], t[2], t[3]})"
-            elif k == 1:  # x, one per lane
-                value = f"((gs_lane4){{x[0][{i}], x[1][{i}], x[2][{i}], x[3][{i}]}})"
-            elif k == 3:  # p, shared
-                value = f"GS_L4_SPLAT(p[{i}])"
+            kind, a = kinds[k], names[k]
+            if kind == "t":
+                value = f"((gs_lane4){{{a}[0], {a}[1], {a}[2], {a}[3]}})"
+            elif kind == "lane":
+                value = f"((gs_lane4){{{a}[0][{i}], {a}[1][{i}], {a}[2][{i}], {a}[3][{i}]}})"
+            elif kind == "shared":
+                value = f"GS_L4_SPLAT({a}[{i}])"
             else:
                 raise algorithm.UnsupportedAlgorithm(f"input {k} (only t, x and p are lanes)")
             out.append(f"a{ins.out[0]}={value};")
         elif ins.op == "OUTPUT":
             k, i = ins.out
-            if k != 0:
+            if k + len(kinds) >= len(names):
                 raise algorithm.UnsupportedAlgorithm(f"output {k} (only ode is written)")
-            v = f"a{ins.ins[0]}"
-            out.append(f"xdot[0][{i}] = {v}[0]; xdot[1][{i}] = {v}[1]; "
-                       f"xdot[2][{i}] = {v}[2]; xdot[3][{i}] = {v}[3];")
+            v, r = f"a{ins.ins[0]}", names[len(kinds) + k]
+            out.append(f"{r}[0][{i}] = {v}[0]; {r}[1][{i}] = {v}[1]; "
+                       f"{r}[2][{i}] = {v}[2]; {r}[3][{i}] = {v}[3];")
         elif ins.op == "CONST":
             out.append(f"a{ins.out[0]}=GS_L4_SPLAT({algorithm.c_constant(ins.value)});")
         elif ins.op in ARITHMETIC:
@@ -144,24 +153,35 @@ def rhs_lanes(rhs: ca.Function) -> tuple[str | None, str]:
     if (rhs.n_in() != 5 or rhs.n_out() != 4 or any(rhs.nnz_in(k) for k in (2, 4))
             or any(rhs.nnz_out(k) for k in (1, 2, 3)) or not rhs.sparsity_out(0).is_dense()):
         return None, "not a DAE right-hand side (t, x, z, p, u) -> ode with empty z, u, alg"
+    return function_lanes(rhs, lanes_symbol(rhs), ("t", "lane", "none", "shared", "none"),
+                          ("t", "x", "z", "p", "u", "xdot"))
+
+
+def function_lanes(f: ca.Function, symbol: str, kinds: tuple[str, ...],
+                   names: tuple[str, ...]) -> tuple[str | None, str]:
+    """C source of ``int <symbol>(...)``: ``f`` at four points at once (see ``_translate``
+    for ``kinds`` and ``names``; inputs of kind ``"none"`` are not parameters, outputs past
+    ``names`` are not written) and ``"applied"``; or None and why ``f`` has no lane version.
+    """
     used: set[str] = set()
     try:
-        program = algorithm.read(rhs)
-        body = _translate(program, used)
+        program = algorithm.read(f)
+        body = _translate(program, used, kinds, names)
     except algorithm.UnsupportedAlgorithm as exc:
         return None, str(exc)
     n = algorithm.n_work(program)
     decls = [f"gs_lane4 {', '.join(f'a{k}' for k in range(j, min(j + 12, n)))};" for j in range(0, n, 12)]
     body = decls + body
-    symbol = lanes_symbol(rhs)
     helpers = []
-    vec = {f for f in used if f in vecmath.VECTOR_FUNCTIONS}
-    helpers += [_SQRT if f == "sqrt" else f"GS_L4_{'V' if f in vec else ''}1({f})"
-                for f in UNARY if f in used]
-    helpers += [f"GS_L4_{'V' if f in vec else ''}2({f})" for f in BINARY if f in used]
-    sig = (f"int {symbol}(const double* t, const double* const* x, const double* p, "
-           "double* const* xdot)")
-    prelude = _PRELUDE.format(symbol=symbol, rhs=rhs.name(),
+    vec = {g for g in used if g in vecmath.VECTOR_FUNCTIONS}
+    helpers += [_SQRT if g == "sqrt" else f"GS_L4_{'V' if g in vec else ''}1({g})"
+                for g in UNARY if g in used]
+    helpers += [f"GS_L4_{'V' if g in vec else ''}2({g})" for g in BINARY if g in used]
+    ctype = {"t": "const double* ", "shared": "const double* ", "lane": "const double* const* "}
+    params = [ctype[k] + a for k, a in zip(kinds, names) if k != "none"]
+    params += [f"double* const* {a}" for a in names[len(kinds):]]
+    sig = f"int {symbol}({', '.join(params)})"
+    prelude = _PRELUDE.format(symbol=symbol, rhs=f.name(),
                               declarations=vecmath.vector_declarations(vec))
     return (prelude + "\n".join(helpers) + "\n"
             + sig + " {\n" + "\n".join("  " + s for s in body) + "\n  return 0;\n}\n"), "applied"

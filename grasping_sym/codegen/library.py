@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from grasping_sym.codegen import objects
+from grasping_sym.codegen import objects as object_cache
 from grasping_sym.codegen.compiler import compile_shared
 
 __all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines"]
@@ -158,7 +158,8 @@ def build_library(
                          fast=fast)
 
 
-def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True) -> Path:
+def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True,
+                  objects: list[Path] = ()) -> Path:
     """Compile CasADi-generated C (one file, or a list of files: compiled in parallel) and
     link it with the driver, given the driver's macros.
 
@@ -166,15 +167,16 @@ def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True) -
     committed C file compiles without the CasADi functions at hand). The driver's objects
     come from the runtime layer's cache (``codegen.objects``: compiled once per set of
     sizes); only the model's C and a file forwarding the driver's names to the model's
-    functions are compiled here.
+    functions are compiled here; ``objects`` (a structure's, ``codegen.structure_cache``)
+    are linked in too.
     """
     generated = [Path(c) for c in casadi_c] if isinstance(casadi_c, (list, tuple)) else [Path(casadi_c)]
     drivers = [*DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
     include_dirs = _python_include_dirs() if fast else []
-    driver = objects.driver_objects(drivers, defines, include_dirs)
+    driver = [*objects, *object_cache.driver_objects(drivers, defines, include_dirs)]
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.links-") as tmp:
         links = Path(tmp) / "gs_links.c"
-        links.write_text(objects.links_c(defines))
+        links.write_text(object_cache.links_c(defines))
         return compile_shared([*generated, links], out, objects=driver)

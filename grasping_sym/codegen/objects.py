@@ -16,6 +16,7 @@ included), the compiler's version and, for the CPython front end, the include di
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import tempfile
@@ -23,10 +24,16 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from grasping_sym.codegen import cache
-from grasping_sym.codegen.compiler import (BASE_FLAGS, compile_objects, compiler_command,
-                                           compiler_version, isa_flags)
+from grasping_sym.codegen.compiler import (
+    BASE_FLAGS,
+    CASADI_FILE_FLAGS,
+    compile_objects,
+    compiler_command,
+    compiler_version,
+    isa_flags,
+)
 
-__all__ = ["ALIASES", "driver_objects", "links_c", "object_defines"]
+__all__ = ["ALIASES", "driver_objects", "flags_digest", "links_c", "object_defines"]
 
 #: The driver's macros that name a model function, and the fixed name each one gets.
 ALIASES: dict[str, str] = {
@@ -76,10 +83,22 @@ def links_c(defines: Mapping[str, str | int]) -> str:
     return "\n".join(lines) + "\n"
 
 
+@functools.lru_cache(maxsize=8)
+def _flags_digest(cc: tuple[str, ...], isa: tuple[str, ...]) -> str:
+    text = "\0".join([" ".join(cc), compiler_version(), " ".join(BASE_FLAGS),
+                      " ".join(CASADI_FILE_FLAGS), " ".join(isa)])
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def flags_digest() -> str:
+    """Hash of what an object file depends on besides its source: the compiler and its
+    version, the flags and the instruction set."""
+    return _flags_digest(tuple(compiler_command()), tuple(isa_flags()))
+
+
 def _digest(sources: Sequence[Path], defines: Mapping, include_dirs: Sequence[str]) -> str:
     h = hashlib.sha256()
-    for part in (" ".join(compiler_command()), compiler_version(), " ".join(BASE_FLAGS),
-                 " ".join(isa_flags()), repr(sorted(defines.items())), repr(list(include_dirs))):
+    for part in (flags_digest(), repr(sorted(defines.items())), repr(list(include_dirs))):
         h.update(part.encode() + b"\0")
     c_dir = sources[0].parent
     for f in sorted({*sources, *c_dir.glob("*.h")}):

@@ -20,33 +20,61 @@ Progress = Callable[[str], None]
 class SceneFunctions:
     model: CasadiModel
     timings: dict = field(default_factory=dict)
+    #: the structure layer the model links (``{"name", "hash"}``), if any
+    structure: dict | None = None
+    #: the C of the model's 4-lane rhs and what was done (None: made from ``model.rhs``)
+    lanes: tuple[str | None, str] | None = None
 
 
 def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
-    """A planar scene: its structure's template (derived with SymPy once per structure and
-    stored, ``codegen.templates``) composed with its contours. The pivot ``(xm, ym)`` is a
-    run-time input, after the scene's run-time parameters."""
-    from grasping_sym.codegen import templates  # noqa: PLC0415
-    from grasping_sym.codegen.functions import compose  # noqa: PLC0415
-    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
+    """A planar scene in layers: its structure (the closed loop of its template, derived with
+    SymPy once per structure, ``codegen.templates``; compiled once, ``codegen.structure_cache``)
+    called by the scene's own contour functions (``codegen.layered``). The pivot ``(xm, ym)``
+    is a run-time input, after the scene's run-time parameters."""
+    from grasping_sym.codegen import structure_cache, templates  # noqa: PLC0415
+    from grasping_sym.codegen.layered import compose_layered, contour_functions, lanes_glue  # noqa: PLC0415
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     scene.validate()
-    values = parameter_values(scene)
+    spec, leaves = planar_structure(scene)
+    shared, gravity, inputs = spec.shared, spec.gravity, spec.inputs
     t1 = time.perf_counter()
-    say(f"template for {scene.name}'s structure (derived with SymPy once per structure)")
-    template, source = templates.planar_template(scene.shared_parameter, has_gravity(scene),
-                                                 scene.n_fingers)
+    say(f"structure of {scene.name} (compiled once per structure)")
+    meta, directory, source = structure_cache.ensure(
+        spec, lambda: templates.planar_template(shared, gravity, scene.n_fingers), say)
     t2 = time.perf_counter()
-    say("composing the contours onto the template (CasADi)")
-    inputs = (*scene.runtime, *scene.start_param_names)
-    cm = compose(template, scene.fingertips, scene.object, runtime=inputs,
-                 constants={k: v for k, v in values.items() if k not in inputs},
-                 outputs=scene.outputs, name=scene.name)
+    so = structure_cache.library(meta, directory)
     t3 = time.perf_counter()
-    return SceneFunctions(cm, {"validate": t1 - t0, "template": t2 - t1, "template_source": source,
-                               "compose": t3 - t2})
+    say("composing the contours with the structure (CasADi)")
+    nx = len(scene.state_names)
+    contours, contours_d = contour_functions(leaves, meta["slots"], nx, scene.name)
+    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, contours_d,
+                         nx, len(inputs), scene.name)
+    glue = lanes_glue(scene.name, contours, meta["rhs_lanes"], meta["n_leaves"])
+    t4 = time.perf_counter()
+    return SceneFunctions(cm, {"validate": t1 - t0, "structure": t2 - t1,
+                               "structure_source": source, "structure_compile": t3 - t2,
+                               "compose": t4 - t3},
+                          structure={"name": meta["name"], "hash": meta["hash"]}, lanes=glue)
+
+
+def planar_structure(scene):
+    """The structure of a planar scene (``codegen.structure.StructureSpec``) and its contours'
+    leaves (``codegen.layered.contour_leaves``)."""
+    from grasping_sym.codegen.layered import contour_leaves  # noqa: PLC0415
+    from grasping_sym.codegen.structure import StructureSpec, fold_pattern  # noqa: PLC0415
+    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
+
+    values = parameter_values(scene)
+    inputs = (*scene.runtime, *scene.start_param_names)
+    leaves = contour_leaves([(tip, scene.object) for tip in scene.fingertips], scene.n_fingers)
+    spec = StructureSpec(shared=scene.shared_parameter, gravity=has_gravity(scene),
+                         n_fingers=scene.n_fingers, inputs=inputs,
+                         constants=tuple(sorted((k, float(v)) for k, v in values.items()
+                                                if k not in inputs)),
+                         folded=fold_pattern(leaves), outputs=tuple(scene.outputs))
+    return spec, leaves
 
 
 def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions:

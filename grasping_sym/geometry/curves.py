@@ -174,12 +174,10 @@ class PlanarCurve:
 
     def _speed_problems(self, ts: np.ndarray, speed: np.ndarray) -> list[str]:
         """Zero or unbounded speed, looked for around each sampled local extremum."""
-        from scipy.optimize import minimize_scalar
-
-        def speed_at(t: float) -> float:
+        def speed_at(t: np.ndarray) -> np.ndarray:
             with np.errstate(all="ignore"):
-                val = float(self.evaluate(t)["speed"])
-            return val if math.isfinite(val) else math.inf
+                val = np.broadcast_to(np.asarray(self.evaluate(t)["speed"], dtype=float), t.shape)
+            return np.where(np.isfinite(val), val, np.inf)
 
         speed = np.where(np.isfinite(speed), speed, np.nan)
         if np.all(np.isnan(speed)):
@@ -194,15 +192,12 @@ class PlanarCurve:
             right = speed[i + 1] if i < len(ts) - 1 else math.inf
             window = (ts[max(i - 1, 0)], ts[min(i + 1, len(ts) - 1)])
             if speed[i] < left and speed[i] <= right:
-                r = minimize_scalar(speed_at, bounds=window, method="bounded",
-                                    options={"xatol": 1e-13 * (1 + abs(ts[i]))})
-                lo_pts.append((r.fun, r.x))
+                lo_pts.append(_refine(speed_at, window))
             left = speed[i - 1] if i > 0 else -math.inf
             right = speed[i + 1] if i < len(ts) - 1 else -math.inf
             if speed[i] > left and speed[i] >= right:
-                r = minimize_scalar(lambda t: -speed_at(t), bounds=window, method="bounded",
-                                    options={"xatol": 1e-13 * (1 + abs(ts[i]))})
-                hi_pts.append((-r.fun, r.x))
+                value, t = _refine(lambda t: -speed_at(t), window)
+                hi_pts.append((-value, t))
         problems = []
         low, t_low = min(lo_pts)
         if low <= 1e-9 * typical:
@@ -219,3 +214,22 @@ class PlanarCurve:
                 "from the domain"
             )
         return problems
+
+
+def _refine(f, window: tuple[float, float], points: int = 33, rounds: int = 12) -> tuple[float, float]:
+    """``(min f, argmin)`` of a vectorised ``f`` on ``window``, by zooming: sample ``points``
+    values, keep the two intervals around the least, repeat (each round narrows the window
+    16-fold: 12 rounds reach 1e-14 of it). Finds the minimum of a smooth function near a
+    sampled local minimum as a bounded Brent search does, with no SciPy import (0.25 s)."""
+    lo, hi = float(window[0]), float(window[1])
+    best = (math.inf, lo)
+    for _ in range(rounds):
+        ts = np.linspace(lo, hi, points)
+        vals = f(ts)
+        k = int(np.argmin(vals))
+        if vals[k] <= best[0]:
+            best = (float(vals[k]), float(ts[k]))
+        lo, hi = ts[max(k - 1, 0)], ts[min(k + 1, points - 1)]
+        if hi - lo <= 1e-15 * (1 + abs(lo)):
+            break
+    return best

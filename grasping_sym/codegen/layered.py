@@ -1,0 +1,137 @@
+"""A planar model in layers: its contours' own small C, calling a compiled structure.
+
+The structure (``codegen.structure``, compiled once and cached by ``codegen.structure_cache``)
+is loaded through ``casadi.external``; the model's functions are CasADi MX functions that
+evaluate the contours at the contact (``<name>_contours``: the leaves ``L``;
+``<name>_contours_d``: ``L`` and their derivatives ``dL``) and call the structure's. CasADi
+writes their C with calls to the structure's symbols, which the model library links from the
+structure's objects: a new shape compiles only this small file.
+
+The functions keep the names and signatures of a single-piece model (``functions.sx_model``):
+``<name>_rhs`` with CasADi's DAE signature, ``jac_<name>_rhs`` with the signature of
+``Function.jacobian()`` (so that ``casadi.external`` and CVODES use it), ``<name>_outputs``,
+``<name>_constraints`` and ``<name>_start``.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from grasping_sym.codegen import lanes
+from grasping_sym.codegen.functions import FUNCTION_OPTIONS, CasadiModel, _families
+from grasping_sym.codegen.translate import SympyToCasadi
+from grasping_sym.derive.contour_functions import leaf_expressions
+from grasping_sym.geometry.curves import T
+
+__all__ = ["compose_layered", "contour_functions", "contour_leaves", "lanes_glue"]
+
+
+def contour_leaves(curves, n_contacts: int) -> list[list]:
+    """Per contour slot (finger i's fingertip, then the object, contact by contact) the
+    SymPy expression in ``T`` of every leaf, in the order of its family's ``leaves()``."""
+    out = []
+    for curve_pair, pair in zip(curves, _families(n_contacts)):
+        for fns, curve in zip(pair, curve_pair):
+            concrete = leaf_expressions(fns, curve)
+            out.append([concrete[cls] for cls in fns.leaves()])
+    return out
+
+
+def contour_functions(leaves: list[list], slots, nx: int, name: str):
+    """``<name>_contours (x) -> L`` and ``<name>_contours_d (x) -> (L, dL)``: the leaves that
+    the structure takes as inputs (``slots``: per slot its state index and leaf indices) and
+    their derivatives along their contact parameters."""
+    x = ca.SX.sym("x", nx)
+    L, dL = [], []
+    for exprs, (i, kept) in zip(leaves, slots):
+        tr = SympyToCasadi({T: x[i]})
+        for k in kept:
+            value = tr(exprs[k])
+            L.append(value)
+            dL.append(ca.jacobian(value, x[i]))
+    L = ca.vertcat(*L) if L else ca.SX(0, 1)
+    dL = ca.vertcat(*dL) if dL else ca.SX(0, 1)
+    return (ca.Function(f"{name}_contours", [x], [L], ["x"], ["L"], FUNCTION_OPTIONS),
+            ca.Function(f"{name}_contours_d", [x], [L, dL], ["x"], ["L", "dL"], FUNCTION_OPTIONS))
+
+
+def _jacobian_layout(nx: int, np_: int):
+    """Names and shapes of ``rhs.jacobian()`` for a DAE rhs with ``nx`` states, ``np_``
+    parameters and empty z, u, alg, quad, zero."""
+    sx = ca.SX.sym
+    empty = ca.SX(0, 1)
+    ref = ca.Function("r", [sx("t"), sx("x", nx), empty, sx("p", np_), empty],
+                      [ca.SX.zeros(nx), empty, empty, empty], ca.dyn_in(), ca.dyn_out())
+    jac = ref.jacobian()
+    ins = [(jac.name_in(i), jac.sparsity_in(i)) for i in range(jac.n_in())]
+    outs = [(jac.name_out(i), jac.size_out(i)) for i in range(jac.n_out())]
+    return ins, outs
+
+
+def compose_layered(structure: dict[str, ca.Function], meta: dict, contours, contours_d,
+                    nx: int, np_: int, name: str) -> CasadiModel:
+    """The model's MX functions over the structure's ``external`` functions (keys ``rhs``,
+    ``jac``, ``outputs``, ``constraints``, ``start``) and the model's contour functions."""
+    t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
+    z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
+    empty = ca.MX(0, 1)
+    L = contours(x)
+    Ld, dL = contours_d(x)
+    xdot = structure["rhs"](t, x, p, L)
+    rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u], [xdot, empty, empty, empty],
+                      ca.dyn_in(), ca.dyn_out())
+    Jx, Jp = structure["jac"](t, x, p, Ld, dL)
+    ins, outs = _jacobian_layout(nx, np_)
+    jin = [t, x, z, p, u] + [ca.MX.sym(n, s) for n, s in ins[5:]]
+    blocks = {"jac_ode_x": Jx, "jac_ode_p": Jp}
+    jac = ca.Function(f"jac_{name}_rhs", jin, [blocks.get(n, ca.MX(*shape)) for n, shape in outs],
+                      [n for n, _ in ins], [n for n, _ in outs])
+    out_fn = None
+    output_names = tuple(meta["output_names"])
+    if output_names:
+        out_fn = ca.Function(f"{name}_outputs", [x, p], [structure["outputs"](x, p, L)],
+                             ["x", "p"], ["y"])
+    con = structure["constraints"](x, p, Ld, dL)
+    constraints = ca.Function(f"{name}_constraints", [x, p], list(con),
+                              ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
+    G, dG = structure["start"](x, p, Ld, dL)
+    start = ca.Function(f"{name}_start", [x, p], [G, dG, empty], ["x", "p"], ["G", "dG_dx", "v"])
+    ops = dict(meta.get("op_counts", {}))
+    ops["contours_sx_instructions"] = contours_d.n_instructions()
+    return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=output_names,
+                       op_counts=ops, constraints=constraints,
+                       constraint_info=meta["constraint_info"], start=start,
+                       start_names=tuple(meta["start_names"]),
+                       helpers=(contours, contours_d))
+
+
+def lanes_glue(name: str, contours, structure_lanes: str | None, n_leaves: int) -> tuple[str | None, str]:
+    """C of ``<name>_rhs_lanes`` (the driver's 4-lane rhs, ``codegen.lanes``): the contours
+    at the four states (four at once where ``contours`` has a lane version, else one by one),
+    then the structure's 4-lane rhs ``structure_lanes``; or None and why not."""
+    if structure_lanes is None:
+        return None, "not made: the structure has no 4-lane rhs"
+    nl = max(1, n_leaves)
+    c_lanes, status = lanes.function_lanes(contours, f"{name}_contours_lanes", ("lane",),
+                                           ("x", "L"))
+    head = [f"int {structure_lanes}(const double* t, const double* const* x, const double* p, "
+            "const double* const* L, double* const* xdot);"]
+    body = [f"int {name}_rhs_lanes(const double* t, const double* const* x, const double* p, "
+            "double* const* xdot) {",
+            f"  double L0[{nl}], L1[{nl}], L2[{nl}], L3[{nl}];",
+            "  double* L[4] = {L0, L1, L2, L3};"]
+    if c_lanes is not None:
+        body.append(f"  {name}_contours_lanes(x, L);")
+    else:
+        sz = {k: max(1, int(getattr(contours, k)())) for k in ("sz_arg", "sz_res", "sz_iw", "sz_w")}
+        head.insert(0, f"int {name}_contours(const double** arg, double** res, long long int* iw, "
+                       "double* w, int mem);")
+        body += [f"  const double* arg[{sz['sz_arg']}]; double* res[{sz['sz_res']}];",
+                 f"  long long int iw[{sz['sz_iw']}]; double w[{sz['sz_w']}];",
+                 "  for (int s = 0; s < 4; ++s) {",
+                 "    arg[0] = x[s]; res[0] = L[s];",
+                 f"    if ({name}_contours(arg, res, iw, w, 0)) return 1;",
+                 "  }"]
+    body += [f"  return {structure_lanes}(t, x, p, (const double* const*)L, xdot);", "}"]
+    text = (c_lanes or "") + "\n".join(head + body) + "\n"
+    how = "contours four at a time" if c_lanes is not None else f"contours one lane at a time ({status})"
+    return text, f"applied ({how}, then the structure's 4-lane rhs)"

@@ -1,0 +1,182 @@
+"""The structure layer of a planar scene: its closed loop as compiled functions of the
+contour values, shared by every shape.
+
+A planar template (``functions.Template``) is the closed loop as a function of ``(x, q, L)``,
+``L`` the abstract contour functions at the contact (``derive.contour_functions``). A
+*structure* fixes what the code of the closed loop depends on besides the contours:
+
+- the template (one shared contact parameter or two, gravity, the number of fingers);
+- the values of the parameters folded in as constants, and the order of the run-time
+  inputs ``p`` (the scene's run-time parameters, then the start's);
+- which contour leaves are exactly 0 or 1 for every shape of the scene (a unit-speed contour's
+  ``speed`` and ``dspeed``, a circle's ``dkappa``), folded in too;
+- the outputs.
+
+Its functions take the remaining leaves ``L`` (and, for derivatives, their derivatives
+``dL`` along the contact parameters) as inputs:
+
+- ``<s>_rhs (t, x, p, L) -> xdot``
+- ``<s>_jac (t, x, p, L, dL) -> (dxdot/dx, dxdot/dp)``
+- ``<s>_outputs (x, p, L) -> y``
+- ``<s>_constraints (x, p, L, dL) -> (C, dC/dx, Cdot, dCdot/dv)``
+- ``<s>_start (x, p, L, dL) -> (G, dG/dx)``
+
+The derivatives through the contours are exact to first order: each leaf enters as
+``L + dL (u - u*)`` with ``u*`` a copy of its contact parameter, which is set equal to ``u``
+after differentiation (CasADi then drops the vanishing terms). A shape's own code
+(``layered.py``) evaluates ``L`` and ``dL``; the structure is compiled once
+(``<cache root>/structures/``) and linked into every model library that uses it.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import casadi as ca
+import sympy as sp
+
+from grasping_sym.codegen.functions import (
+    FUNCTION_OPTIONS,
+    Template,
+    _families,
+    constraint_expressions,
+    planar_constraint_names,
+)
+
+__all__ = ["StructureFunctions", "StructureSpec", "fold_pattern", "structure_functions"]
+
+
+def fold_pattern(concrete: list[dict]) -> tuple[tuple[tuple[int, int], ...], ...]:
+    """Per contour slot (``concrete``: each slot's leaf -> SymPy expression, in the order of
+    its family's ``leaves()``), the leaves that are exactly 0 or 1: ``(index, value)``."""
+    out = []
+    for leaves in concrete:
+        fixed = []
+        for k, expr in enumerate(leaves):
+            e = sp.sympify(expr)
+            if e.is_Number and e in (sp.Integer(0), sp.Integer(1)):
+                fixed.append((k, int(e)))
+        out.append(tuple(fixed))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class StructureSpec:
+    """What a structure's code depends on (see the module's docstring)."""
+
+    shared: bool
+    gravity: bool
+    n_fingers: int
+    inputs: tuple[str, ...]
+    constants: tuple[tuple[str, float], ...]
+    folded: tuple[tuple[tuple[int, int], ...], ...]
+    outputs: tuple[str, ...]
+
+    def key(self) -> str:
+        consts = ";".join(f"{k}={float(v)!r}" for k, v in self.constants)
+        return "|".join(["planar-structure-v1", repr((self.shared, self.gravity, self.n_fingers)),
+                         ",".join(self.inputs), consts, repr(self.folded), ",".join(self.outputs)])
+
+    def digest(self, extra: str) -> str:
+        """The structure's hash, given what else its code depends on (sources, versions)."""
+        return hashlib.sha256(f"{self.key()}|{extra}".encode()).hexdigest()
+
+
+@dataclass
+class StructureFunctions:
+    """A structure's SX functions and what the model glue needs to call them."""
+
+    name: str
+    rhs: ca.Function
+    jac: ca.Function
+    outputs: ca.Function | None
+    constraints: ca.Function
+    start: ca.Function
+    #: per contour slot: its state index and the leaves that are inputs (index in its family)
+    slots: tuple[tuple[int, tuple[int, ...]], ...]
+    output_names: tuple[str, ...]
+    constraint_info: dict
+    start_names: tuple[str, ...]
+
+    def functions(self) -> list[ca.Function]:
+        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start)
+                if f is not None]
+
+    @property
+    def n_leaves(self) -> int:
+        return sum(len(leaves) for _, leaves in self.slots)
+
+
+def structure_functions(template: Template, spec: StructureSpec, name: str) -> StructureFunctions:
+    """The structure ``spec`` of ``template`` as SX functions named ``<name>_*``."""
+    nx = len(template.state_names)
+    x = ca.SX.sym("x", nx)
+    t = ca.SX.sym("t")
+    p = ca.SX.sym("p", len(spec.inputs))
+    constants = dict(spec.constants)
+    missing = [k for k in template.param_names if k not in spec.inputs and k not in constants]
+    if missing:
+        raise ValueError(f"no value for template parameters {missing}")
+    q = ca.vertcat(*[p[spec.inputs.index(k)] if k in spec.inputs else ca.SX(constants[k])
+                     for k in template.param_names])
+    families = _families(len(template.contact_index))
+    slot_states = [i for pair in template.contact_index for i in pair]
+    slot_sizes = [len(fns.leaves()) for pair in families for fns in pair]
+    if len(spec.folded) != len(slot_states):
+        raise ValueError(f"fold pattern for {len(spec.folded)} contour slots; the template has "
+                         f"{len(slot_states)}")
+    slots = []
+    for i, size, fixed in zip(slot_states, slot_sizes, spec.folded):
+        held = dict(fixed)
+        slots.append((i, tuple(k for k in range(size) if k not in held)))
+    n_leaves = sum(len(leaves) for _, leaves in slots)
+    L = ca.SX.sym("L", n_leaves)
+    dL = ca.SX.sym("dL", n_leaves)
+    u_copy = ca.SX.sym("u_copy", len(slots))
+    taylor, j = [], 0
+    for s, ((i, _kept), size, fixed) in enumerate(zip(slots, slot_sizes, spec.folded)):
+        held = dict(fixed)
+        for k in range(size):
+            if k in held:
+                taylor.append(ca.SX(held[k]))
+            else:
+                taylor.append(L[j] + dL[j] * (x[i] - u_copy[s]))
+                j += 1
+    Lt = ca.vertcat(*taylor)
+    same = ca.vertcat(*[x[i] for i, _ in slots])
+
+    def exact(*exprs):
+        return ca.substitute(list(exprs), [u_copy], [same])
+
+    xdot_t = template.rhs(x, q, Lt)
+    y_t = template.outputs(x, q, Lt)
+
+    def out(k: str):
+        return y_t[template.output_names.index(k)]
+
+    (xdot,) = exact(xdot_t)
+    Jx, Jp = exact(ca.jacobian(xdot_t, x), ca.jacobian(xdot_t, p))
+    rhs = ca.Function(f"{name}_rhs", [t, x, p, L], [xdot], ["t", "x", "p", "L"], ["xdot"],
+                      FUNCTION_OPTIONS)
+    jac = ca.Function(f"{name}_jac", [t, x, p, L, dL], [Jx, Jp], ["t", "x", "p", "L", "dL"],
+                      ["dxdot_dx", "dxdot_dp"], FUNCTION_OPTIONS)
+    outputs = None
+    if spec.outputs:
+        (y,) = exact(ca.vertcat(*[out(k) for k in spec.outputs]))
+        outputs = ca.Function(f"{name}_outputs", [x, p, L], [y], ["x", "p", "L"], ["y"],
+                              FUNCTION_OPTIONS)
+    names = planar_constraint_names(template.output_names)
+    C_t = ca.vertcat(*[out(k) for k in names])
+    con, info = constraint_expressions(x, xdot_t, C_t, names)
+    constraints = ca.Function(f"{name}_constraints", [x, p, L, dL], exact(*con),
+                              ["x", "p", "L", "dL"], ["C", "dC_dx", "Cdot", "dCdot_dv"],
+                              FUNCTION_OPTIONS)
+    tangency = tuple(k for k in template.output_names if k.startswith("tangency_defect"))
+    G_t = ca.vertcat(C_t, *[out(k) for k in tangency])
+    start = ca.Function(f"{name}_start", [x, p, L, dL],
+                        exact(G_t, ca.densify(ca.jacobian(G_t, x))),
+                        ["x", "p", "L", "dL"], ["G", "dG_dx"], FUNCTION_OPTIONS)
+    return StructureFunctions(name=name, rhs=rhs, jac=jac, outputs=outputs,
+                              constraints=constraints, start=start, slots=tuple(slots),
+                              output_names=tuple(spec.outputs), constraint_info=info,
+                              start_names=names + tangency)

@@ -1,0 +1,181 @@
+"""Where a planar structure's code lives: written once, compiled once, linked by every model.
+
+A structure (``codegen.structure``) is kept in ``<cache root>/structures/<name>/``:
+
+- ``<name>_1.c``, ``<name>_2.c`` (and headers): its C, with the 4-lane rhs;
+- ``structure.json``: its hash, key and what a model needs to call it (contour slots,
+  outputs, constraint names and states, the 4-lane symbol);
+- ``obj-<flags>/``: its object files for one compiler and instruction set, which model
+  libraries link, and ``lib<name>.so`` built from them, which ``casadi.external`` loads while
+  a model is composed.
+
+``<name>`` is ``gs_structure_<hash12>``: the hash covers the structure's key, the package's
+sources and CasADi's version, so a symbol name never means two codes. The structures of the
+built-in scenes are committed under ``generated/structures/`` and copied from there.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from contextlib import contextmanager
+from pathlib import Path
+
+import casadi as ca
+
+from grasping_sym import __version__
+from grasping_sym.codegen import cache, cwriter, lanes, objects
+from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_objects, compile_shared
+from grasping_sym.codegen.structure import StructureSpec, structure_functions
+from grasping_sym.runtime import stored
+
+__all__ = ["META", "derive_afresh", "ensure", "externals", "library", "link_objects", "structure_name",
+           "write_structure"]
+
+META = "structure.json"
+DIR = "structures"
+
+
+def structure_hash(spec: StructureSpec) -> str:
+    return spec.digest(f"{cache.sources_digest()}|{ca.__version__}|{__version__}|"
+                       f"{' '.join(COMPILER_FLAGS)}")
+
+
+def structure_name(digest: str) -> str:
+    return f"gs_structure_{digest[:12]}"
+
+
+def _complete(directory: Path, digest: str) -> dict | None:
+    meta = stored.read_json(directory / META)
+    if meta is None or meta.get("hash") != digest:
+        return None
+    if not all((directory / f).is_file() for f in meta["files"]):
+        return None
+    return meta
+
+
+def write_structure(spec: StructureSpec, template, directory: Path, digest: str) -> dict:
+    """Write the structure's C and ``structure.json`` into ``directory``; return the latter."""
+    name = structure_name(digest)
+    sf = structure_functions(template, spec, name)
+    lane_c, lanes_status = lanes.function_lanes(
+        sf.rhs, f"{name}_rhs_lanes", ("t", "lane", "shared", "lane"), ("t", "x", "p", "L", "xdot"))
+    files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c)
+    meta = {
+        "name": name, "hash": digest, "key": spec.key(), "files": files,
+        "slots": [[i, list(kept)] for i, kept in sf.slots], "n_leaves": sf.n_leaves,
+        "output_names": list(sf.output_names), "constraint_info": sf.constraint_info,
+        "start_names": list(sf.start_names),
+        "rhs_lanes": f"{name}_rhs_lanes" if lane_c else None,
+        "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped},
+        "op_counts": {f"{k}_sx_instructions": f.n_instructions()
+                      for k, f in (("rhs", sf.rhs), ("jac", sf.jac), ("outputs", sf.outputs),
+                                   ("constraints", sf.constraints), ("start", sf.start))
+                      if f is not None},
+    }
+    stored.write_json(directory / META, meta)
+    return meta
+
+
+_AFRESH: list[bool] = []
+
+
+@contextmanager
+def derive_afresh():
+    """Inside the ``with`` block, structures are never copied from the committed ones
+    (``generate_committed`` checks them against a fresh derivation)."""
+    _AFRESH.append(True)
+    try:
+        yield
+    finally:
+        _AFRESH.pop()
+
+
+def ensure(spec: StructureSpec, template: Callable[[], tuple[object, str]],
+           say: Callable[[str], None] = lambda m: None) -> tuple[dict, Path, str]:
+    """The structure of ``spec`` in the cache: ``(structure.json, its directory, where it came
+    from)``; copied from the committed structures (except under :func:`derive_afresh`) or
+    written now (``template()`` gives the template and where it came from) when the cache
+    lacks it."""
+    digest = structure_hash(spec)
+    name = structure_name(digest)
+    directory = cache.cache_root() / DIR / name
+    meta = _complete(directory, digest)
+    if meta is not None:
+        return meta, directory, "cache"
+    committed = cache.generated_dir() / DIR / name
+    if not _AFRESH and (cm := _complete(committed, digest)) is not None:
+        _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)
+                                       for f in [*cm["files"], META]])
+        return cm, directory, "committed"
+    tmpl, source = template()
+    say(f"writing the C of structure {name} (template: {source})")
+    _install(directory, lambda d: write_structure(spec, tmpl, d, digest))
+    return _complete(directory, digest), directory, f"derived (template: {source})"
+
+
+def _install(directory: Path, fill) -> None:
+    """Fill a fresh directory with ``fill(path)`` and move its files into ``directory``
+    (each replaced atomically; concurrent builds write the same bytes)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=directory, prefix=".write-") as tmp:
+        fill(Path(tmp))
+        names = sorted(p.name for p in Path(tmp).iterdir())
+        for n in sorted(names, key=lambda n: n == META):  # the record last: it marks complete
+            os.replace(Path(tmp) / n, directory / n)
+
+
+def link_objects(meta: dict, directory: Path) -> list[Path]:
+    """The structure's object files for this compiler and instruction set (compiled now when
+    missing), for linking into a model library."""
+    out = directory / f"obj-{objects.flags_digest()[:12]}"
+    sources = [directory / f for f in meta["files"] if f.endswith(".c")]
+    objs = [out / f"{Path(f).stem}.o" for f in sources]
+    if all(o.is_file() for o in objs):
+        return objs
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out, prefix=".build-") as tmp:
+        built = compile_objects(sources, Path(tmp))
+        for b, final in zip(built, objs):
+            os.replace(b, final)
+    return objs
+
+
+def library(meta: dict, directory: Path) -> Path:
+    """``lib<name>.so`` of the structure (for ``casadi.external``), linked when missing."""
+    objs = link_objects(meta, directory)
+    so = objs[0].parent / f"lib{meta['name']}.so"
+    if not so.is_file():
+        compile_shared([], so, objects=objs)
+    return so
+
+
+def externals(meta: dict, so: Path) -> dict[str, ca.Function]:
+    """The structure's functions, loaded from its library."""
+    kinds = ("rhs", "jac", "outputs", "constraints", "start")
+    return {k: ca.external(f"{meta['name']}_{k}", str(so)) for k in kinds
+            if k != "outputs" or meta["output_names"]}
+
+
+def locate(entry: dict) -> tuple[dict, Path]:
+    """The cached structure a model's manifest names (``{"name", "hash"}``), copied from the
+    committed structures when the cache lacks it.
+
+    Raises
+    ------
+    FileNotFoundError
+        When neither holds it: rebuild the model (``gs.build(scene, force=True)``).
+    """
+    directory = cache.cache_root() / DIR / entry["name"]
+    meta = _complete(directory, entry["hash"])
+    if meta is not None:
+        return meta, directory
+    committed = cache.generated_dir() / DIR / entry["name"]
+    if (cm := _complete(committed, entry["hash"])) is not None:
+        _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)
+                                       for f in [*cm["files"], META]])
+        return cm, directory
+    raise FileNotFoundError(
+        f"the structure {entry['name']} this model links is neither in the cache "
+        f"({directory}) nor committed: rebuild the model with gs.build(scene, force=True)")

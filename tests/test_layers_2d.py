@@ -1,0 +1,115 @@
+"""A planar model in layers: a structure compiled once, a shape's own small C.
+
+The compiled layered functions are checked against the single-piece composition of the same
+template with the same contours (``functions.compose``, evaluated by CasADi's virtual
+machine, derivatives by CasADi's AD through the concrete contour expressions): the rhs, its
+Jacobian (the state and parameter blocks), the outputs, the constraint function and the start
+conditions with their Jacobians. Then: shapes on one structure share its compiled objects.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import grasping_sym as gs
+from grasping_sym.codegen import structure_cache, templates
+from grasping_sym.codegen.functions import compose
+from grasping_sym.codegen.scene_functions import planar_structure
+from grasping_sym.derive.planar import has_gravity, parameter_values
+
+
+def _ellipse_scene(**kw):
+    ellipse = gs.curves.ellipse(0.02, 0.015, start=math.pi, span=math.pi, clockwise=True)
+    return gs.scenes.planar_finger(gs.curves.paper_fingertip(), ellipse, name="layers_ellipse",
+                                   u1_0=math.pi + 0.3, **kw)
+
+
+def _single_piece(scene):
+    """The scene's functions composed in one piece from its template (no layers)."""
+    inputs = (*scene.runtime, *scene.start_param_names)
+    values = parameter_values(scene)
+    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene),
+                                            scene.n_fingers)
+    return compose(template, list(scene.fingertips), scene.object, runtime=inputs,
+                   constants={k: v for k, v in values.items() if k not in inputs},
+                   outputs=scene.outputs, name="single")
+
+
+def _dense(v) -> np.ndarray:
+    return np.array(ca.DM(v).full(), dtype=float)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: _ellipse_scene(runtime=("fd", "I")),       # two contact parameters, run-time p
+    lambda: replace(gs.scenes.paper2d(), name="layers_paper2d"),  # one shared, folded speed
+])
+def test_layered_functions_equal_the_single_piece_composition(make):
+    scene = make()
+    model = gs.build(scene)
+    assert "structure" in model.manifest
+    one = _single_piece(scene)
+    lib = str(model.library_path)
+    ext = {k: ca.external(f"{scene.name}_{k}", lib) for k in ("rhs", "outputs", "constraints",
+                                                            "start")}
+    jac = ca.external(f"jac_{scene.name}_rhs", lib)
+    p = np.asarray(model.default_params, float)
+    rng = np.random.default_rng(7)
+    x0 = np.asarray(model.initial_state(), float)
+    for _ in range(4):
+        x = x0 + rng.normal(0.0, 0.02, x0.size)
+        a, b = _dense(ext["rhs"](0, x, [], p, [])[0]), _dense(one.rhs(0, x, [], p, [])[0])
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+        np.testing.assert_array_equal(a.ravel(), model.rhs(x))  # the driver calls the same code
+        ja = jac(0, x, [], p, [], a, [], [], [])
+        jb = one.jac(0, x, [], p, [], b, [], [], [])
+        names = [jac.name_out(i) for i in range(jac.n_out())]
+        assert names == [one.jac.name_out(i) for i in range(one.jac.n_out())]
+        for block in ("jac_ode_x", "jac_ode_p"):
+            k = names.index(block)
+            A, B = _dense(ja[k]), _dense(jb[k])
+            np.testing.assert_allclose(A, B, rtol=1e-10, atol=1e-10 * max(np.abs(B).max(), 1.0),
+                                       err_msg=block)
+        np.testing.assert_allclose(_dense(ext["outputs"](x, p)), _dense(one.outputs(x, p)),
+                                   rtol=1e-12, atol=1e-12)
+        for A, B in zip(ext["constraints"](x, p), one.constraints(x, p)):
+            A, B = _dense(A), _dense(B)
+            np.testing.assert_allclose(A, B, rtol=1e-10, atol=1e-10 * max(np.abs(B).max(), 1e-3))
+        for A, B in zip(ext["start"](x, p)[:2], one.start(x, p)[:2]):
+            A, B = _dense(A), _dense(B)
+            np.testing.assert_allclose(A, B, rtol=1e-10, atol=1e-10 * max(np.abs(B).max(), 1e-3))
+    assert model.manifest["constraints"]["position_states"] == [
+        scene.state_names[i] for i in one.constraint_info["position_states"]]
+    assert model.manifest["constraints"]["velocity_states"] == [
+        scene.state_names[i] for i in one.constraint_info["velocity_states"]]
+
+
+def test_shapes_on_one_structure_share_its_compiled_code():
+    """Fingertips of other radii: the same structure (compiled once, from the cache on the
+    second build), different models; the structure's name carries its hash."""
+    base = gs.scenes.paper2d()
+    a = gs.build(replace(base, name="layers_tip_a", fingertip=gs.curves.circle(0.011, name="tip")))
+    b = gs.build(replace(base, name="layers_tip_b", fingertip=gs.curves.circle(0.013, name="tip")))
+    assert a.manifest["structure"] == b.manifest["structure"]
+    assert b.build_info["structure_source"] == "cache"
+    assert a.manifest["structure"]["name"] == structure_cache.structure_name(
+        a.manifest["structure"]["hash"])
+    x = np.asarray(a.initial_state(), float)
+    assert not np.array_equal(a.rhs(x), b.rhs(x, b.params()))  # the radius is in the shape's C
+    ra, rb = a.simulate(0.5, method="radau"), b.simulate(0.5, method="radau")
+    assert np.all(np.isfinite(ra.x)) and np.all(np.isfinite(rb.x))
+
+
+def test_unit_speed_leaves_are_folded_into_the_structure():
+    spec, leaves = planar_structure(gs.scenes.paper2d())
+    # fingertip and object of paper2d run at unit speed: speed = 1, dspeed = 0 in both slots
+    # (leaves: X, Y, Tx, Ty, speed, kappa, dspeed, dkappa)
+    assert [dict(f) for f in spec.folded] == [{4: 1, 6: 0}, {4: 1, 6: 0}]
+    circle = replace(gs.scenes.paper2d(), fingertip=gs.curves.circle(0.011, name="tip"))
+    spec_c, _ = planar_structure(circle)
+    assert dict(spec_c.folded[0]) == {4: 1, 6: 0, 7: 0}  # a circle's curvature is constant
+    spec_e, _ = planar_structure(_ellipse_scene())
+    assert dict(spec_e.folded[1]) == {}  # the ellipse: nothing constant
