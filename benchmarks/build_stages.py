@@ -1,4 +1,5 @@
-"""Build stages: validate, template (loaded, or derived with SymPy once per structure),
+"""Build stages: validate, structure (a 2D scene's closed loop: from the cache, the committed
+code, or written and compiled once per structure, its template derived with SymPy once),
 compose (CasADi), write C, compile, load from the cache.
 
 Cold builds and cached loads each run in a fresh interpreter, after ``import grasping_sym``
@@ -40,9 +41,9 @@ def _run(scene: str, cache: Path, force: bool) -> dict:
 
 def _summarise(runs: list[dict]) -> dict:
     """Median of every timing over the runs (the runs themselves are kept too)."""
-    keys = ["validate", "template", "compose", "write_c", "compile", "total"]
+    keys = ["validate", "structure", "structure_compile", "compose", "write_c", "compile", "total"]
     out = {"runs": runs, "n": len(runs), "source": runs[0]["info"].get("source"),
-           "template_source": runs[0]["info"].get("template_source"),
+           "structure_source": runs[0]["info"].get("structure_source"),
            "scene_s": median([r["scene_s"] for r in runs]),
            "build_s": median([r["build_s"] for r in runs])}
     for k in keys:

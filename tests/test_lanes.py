@@ -9,9 +9,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from grasping_sym.codegen import lanes, vecmath
+from grasping_sym.codegen import lanes, structure_cache, vecmath
 from grasping_sym.codegen.cache import generated_dir
-from grasping_sym.codegen import structure_cache
 from grasping_sym.codegen.library import build_library, compile_model
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary

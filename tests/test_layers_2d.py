@@ -16,10 +16,8 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.codegen import structure_cache, templates
-from grasping_sym.codegen.functions import compose
+from grasping_sym.codegen import structure_cache
 from grasping_sym.codegen.scene_functions import planar_structure
-from grasping_sym.derive.planar import has_gravity, parameter_values
 
 
 def _ellipse_scene(**kw):
@@ -30,13 +28,7 @@ def _ellipse_scene(**kw):
 
 def _single_piece(scene):
     """The scene's functions composed in one piece from its template (no layers)."""
-    inputs = (*scene.runtime, *scene.start_param_names)
-    values = parameter_values(scene)
-    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene),
-                                            scene.n_fingers)
-    return compose(template, list(scene.fingertips), scene.object, runtime=inputs,
-                   constants={k: v for k, v in values.items() if k not in inputs},
-                   outputs=scene.outputs, name="single")
+    return scene.casadi_functions(layers=False).model
 
 
 def _dense(v) -> np.ndarray:

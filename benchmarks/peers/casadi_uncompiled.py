@@ -1,7 +1,8 @@
 """Peer: the same closed loop as CasADi's own functions, without compilation.
 
 What a CasADi user gets without our C: the scene's SX graph (the one we generate C from) as
-a ``casadi.Function`` evaluated by CasADi's virtual machine, integrated by CVODES through
+a ``casadi.Function`` evaluated by CasADi's virtual machine (a planar scene in one piece:
+``casadi_functions(layers=False)``, not the layers that call compiled code), integrated by CVODES through
 ``casadi.integrator``, which takes its Jacobian by AD on the same graph (also interpreted).
 Same equations, same start, same tolerances as our compiled cvodes: the ratio is the price
 of interpreting the graph (and, for 3D, of CasADi's AD Jacobian against our differenced one).
@@ -24,7 +25,7 @@ def rhs_function(scene, model) -> ca.Function:
 
     Its input ``p`` is the model's ``default_params`` (run-time and start values).
     """
-    fns = replace(scene, outputs=(), name=f"{scene.name}_vm").casadi_functions()
+    fns = replace(scene, outputs=(), name=f"{scene.name}_vm").casadi_functions(layers=False)
     return fns.model.rhs
 
 

@@ -59,6 +59,25 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
                           structure={"name": meta["name"], "hash": meta["hash"]}, lanes=glue)
 
 
+def planar_single_piece(scene) -> SceneFunctions:
+    """A planar scene's functions in one piece of SX: its template composed with its contours
+    (``functions.compose``), every derivative by CasADi's AD through the concrete contours.
+    Not what is compiled (``planar_functions``), but the same closed loop: CasADi's virtual
+    machine evaluates it with nothing compiled, and tests check the layers against it."""
+    from grasping_sym.codegen import templates  # noqa: PLC0415
+    from grasping_sym.codegen.functions import compose  # noqa: PLC0415
+    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
+
+    scene.validate()
+    inputs = (*scene.runtime, *scene.start_param_names)
+    values = parameter_values(scene)
+    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene),
+                                            scene.n_fingers)
+    return SceneFunctions(compose(template, list(scene.fingertips), scene.object, runtime=inputs,
+                                  constants={k: v for k, v in values.items() if k not in inputs},
+                                  outputs=scene.outputs, name=scene.name))
+
+
 def planar_structure(scene):
     """The structure of a planar scene (``codegen.structure.StructureSpec``) and its contours'
     leaves (``codegen.layered.contour_leaves``)."""

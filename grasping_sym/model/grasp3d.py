@@ -288,8 +288,9 @@ class GraspScene3D:
     simulate_defaults: ClassVar[dict] = {"t_final": 5.0, "method": "radau",
                                          "tolerances": {"radau": (1e-6, 1e-9)}}
 
-    def casadi_functions(self, progress=None):
-        """The scene's CasADi functions (``codegen.scene_functions.grasp3d_functions``)."""
+    def casadi_functions(self, progress=None, layers: bool = True):
+        """The scene's CasADi functions (``codegen.scene_functions.grasp3d_functions``): one
+        piece of SX, whatever ``layers`` says (3D has no structure layer)."""
         from grasping_sym.codegen.scene_functions import grasp3d_functions  # noqa: PLC0415
 
         return grasp3d_functions(self, progress)

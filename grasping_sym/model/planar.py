@@ -331,11 +331,15 @@ class PlanarFingerScene:
     #: its tolerances (none given: the integrator's own defaults).
     simulate_defaults: ClassVar[dict] = {"t_final": 3.0, "method": "cvodes", "tolerances": {}}
 
-    def casadi_functions(self, progress=None):
-        """The scene's CasADi functions (``codegen.scene_functions.planar_functions``)."""
-        from grasping_sym.codegen.scene_functions import planar_functions  # noqa: PLC0415
+    def casadi_functions(self, progress=None, layers: bool = True):
+        """The scene's CasADi functions: in layers (``codegen.scene_functions.planar_functions``:
+        what is compiled), or with ``layers=False`` in one piece, pure SX with no compiled
+        part (``planar_single_piece``: for CasADi's virtual machine and as a reference)."""
+        from grasping_sym.codegen import scene_functions  # noqa: PLC0415
 
-        return planar_functions(self, progress)
+        if not layers:
+            return scene_functions.planar_single_piece(self)
+        return scene_functions.planar_functions(self, progress)
 
     def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
         """``(x0, start values, info)``: the consistent start at rest and the pivot."""
