@@ -15,7 +15,6 @@ import argparse
 import json
 import os
 import platform
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -171,9 +170,9 @@ CHECK_ENVS = {"OPENBLAS_CORETYPE=Haswell": {"OPENBLAS_CORETYPE": "Haswell"},
 
 def _generate_check(log) -> list[dict]:
     rows = []
-    exe = shutil.which("grasping-sym") or "grasping-sym"
     for label, extra in CHECK_ENVS.items():
-        proc = subprocess.run([exe, "generate", "--all", "--check"], cwd=REPO, capture_output=True,
+        proc = subprocess.run([sys.executable, "-m", "grasping_sym.cli", "generate", "--all",
+                               "--check"], cwd=REPO, capture_output=True,
                               text=True, env={**os.environ, **extra})
         rows.append({"environment": label, "exit": proc.returncode,
                      "lines": [ln for ln in proc.stdout.splitlines() if ln.strip()][:8]})

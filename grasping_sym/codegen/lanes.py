@@ -61,14 +61,11 @@ typedef double gs_lane4 __attribute__((vector_size(32)));
 #ifndef GS_VECMATH
 #define GS_VECMATH 0
 #endif
-#if GS_VECMATH || defined(__AVX__)
-#include <immintrin.h>
-#endif
 #if GS_VECMATH /* libmvec, as the scalar functions' batched calls (codegen.vecmath) */
 #define GS_L4_V1(f) static inline gs_lane4 gs_l4_##f(gs_lane4 a) {{ \\
-    return (gs_lane4)_ZGVdN4v_##f((__m256d)a); }}
+    return (gs_lane4)_ZGVdN4v_##f((gs_v4d)a); }}
 #define GS_L4_V2(f) static inline gs_lane4 gs_l4_##f(gs_lane4 a, gs_lane4 b) {{ \\
-    return (gs_lane4)_ZGVdN4vv_##f((__m256d)a, (__m256d)b); }}
+    return (gs_lane4)_ZGVdN4vv_##f((gs_v4d)a, (gs_v4d)b); }}
 {declarations}
 #else
 #define GS_L4_V1(f) GS_L4_1(f)
@@ -79,7 +76,7 @@ typedef double gs_lane4 __attribute__((vector_size(32)));
 
 #: Square roots four at a time where AVX is (IEEE, so bit-identical to sqrt per lane).
 _SQRT = """#ifdef __AVX__
-static inline gs_lane4 gs_l4_sqrt(gs_lane4 a) { return (gs_lane4)_mm256_sqrt_pd((__m256d)a); }
+static inline gs_lane4 gs_l4_sqrt(gs_lane4 a) { return __builtin_ia32_sqrtpd256(a); }
 #else
 GS_L4_1(sqrt)
 #endif"""
