@@ -8,11 +8,18 @@ the command line ``simulate_defaults``, ``write_figures()``, ``summary_lines()``
 
     scene -> CasADi functions (codegen.scene_functions) -> C (codegen.cwriter) -> library
 
-Two layers are cached apart, each under its own hash:
+Layers are cached apart, each under its own hash:
 
-- the code: the C, its manifest and the compiled library, hashed from the exact inputs that
-  shape them (``scene.code_key()``, the package's sources, versions, compiler flags);
-  ``generated/<name>/`` holds the committed C of the built-in scenes;
+- the runtime: the hand-written C driver (integrators, projection, the CPython front end),
+  compiled once per set of model sizes into ``<cache root>/objects/`` (``codegen.objects``);
+- a 2D scene's structure: the closed loop of its template with its constants, as functions of
+  the contour values, written and compiled once into ``<cache root>/structures/``
+  (``codegen.structure``, ``codegen.structure_cache``; the built-in ones are committed under
+  ``generated/structures/``);
+- the code: the scene's own C (for a 2D scene only its contours and the glue that calls the
+  structure, ``codegen.layered``), its manifest and the compiled library, hashed from the
+  exact inputs that shape them (``scene.code_key()``, the package's sources, versions,
+  compiler flags); ``generated/<name>/`` holds the committed C of the built-in scenes;
 - the start: the numbers solved from the scene's start (the consistent initial state, the
   run-time values the start fixes such as the 2D pivot), under ``starts/<key>.json`` in the
   code's directory (``runtime.stored``). A new start reuses the compiled code.
