@@ -1,6 +1,7 @@
 """Exceptions raised by grasping_sym. Each message names the problem, its value and the fix."""
 from __future__ import annotations
 
+import errno
 import math
 
 
@@ -121,3 +122,36 @@ class UnreachableStartError(GraspingSymError, ValueError):
     def __init__(self, message: str, residual: float = math.nan):
         self.residual = float(residual)
         super().__init__(message)
+
+
+class UnsafeCacheError(GraspingSymError, PermissionError):
+    """A cache path is a symbolic link, belongs to another user, or others may write it."""
+
+    def __init__(self, path, problem: str):
+        self.path, self.problem = path, problem
+        super().__init__(
+            f"refusing to use the cache path {path}: {problem}. Code is loaded from the cache, "
+            "so it must be yours alone: fix it with `chmod go-w` (or remove it), or point "
+            "GRASPING_SYM_CACHE at a private directory, e.g. under your home")
+
+
+class CorruptCacheError(GraspingSymError, RuntimeError):
+    """A cached model is damaged (its library's checksum or its manifest is wrong) and could
+    not be rebuilt here."""
+
+
+class CacheWriteError(GraspingSymError, OSError):
+    """The cache cannot be written (full disk, read-only file system, no permission)."""
+
+    def __init__(self, path, exc: OSError):
+        self.path = path
+        reason = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded",
+                  errno.EROFS: "the file system is read-only",
+                  errno.EACCES: "permission denied", errno.EPERM: "permission denied"}.get(
+                      exc.errno, exc.strerror or str(exc))
+        super().__init__(exc.errno, f"cannot write the cache at {path}: {reason}. Free space, "
+                                    "or point GRASPING_SYM_CACHE at a writable directory of your own")
+
+
+class UnsafeTemplateError(GraspingSymError, ValueError):
+    """A stored template holds something that would load or compile code when deserialized."""

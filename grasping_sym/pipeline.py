@@ -30,6 +30,7 @@ committed C, else derive and write C, then compile; then the start, from the cac
 from __future__ import annotations
 
 import hashlib
+import logging
 import shutil
 import time
 from collections.abc import Callable
@@ -39,11 +40,13 @@ from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, structure_cache
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, vector_libm
 from grasping_sym.codegen.library import compile_model, driver_defines
-from grasping_sym.runtime import stored
+from grasping_sym.runtime import safety, stored
 from grasping_sym.runtime.loader import library_name
+from grasping_sym.runtime.manifest_schema import manifest_problems
 from grasping_sym.runtime.model import Model
 
 Progress = Callable[[str], None]
+log = logging.getLogger(__name__)
 
 #: The 4-lane rhs (radau's three stage evaluations in one call, ``codegen.lanes``) is made
 #: for right-hand sides up to this many instructions: planar scenes (paper2d: ~1.5k); the 3D
@@ -137,7 +140,8 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
 
 def write_start(directory: Path, record: dict) -> None:
     """Store a start record under ``starts/<key>.json`` and as the directory's default."""
-    stored.write_json(directory / stored.STARTS_DIR / f"{record['key'][:16]}.json", record)
+    starts = safety.ensure_dir(directory / stored.STARTS_DIR, root=directory)
+    stored.write_json(starts / f"{record['key'][:16]}.json", record)
     stored.write_json(directory / stored.START, record)
 
 
@@ -190,26 +194,35 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     digest = code_hash(scene)["hash"]
-    directory = cache.cache_dir(scene.name, digest)
+    root = cache.cache_root()
+    directory = safety.ensure_dir(cache.cache_dir(scene.name, digest), root=root)
     lib = directory / library_name(scene.name)
+    safety.check_tree(directory, (stored.MANIFEST, stored.START, lib.name))
     manifest = stored.read_manifest(directory)
     info: dict = {"source": "cache"}
-    if force or manifest is None or manifest.get("hash") != digest or not lib.exists():
+    why = _stale(manifest, digest, lib) if not force else "force=True"
+    if why:
+        if manifest is not None:
+            log.info("rebuilding %s: %s", scene.name, why)
+        safety.clean_stale(directory)
         committed = cache.committed_dir(scene.name)
         cm = stored.read_manifest(committed)
         if not force and cm is not None and cm.get("hash") == digest:
             say(f"using committed C from {committed}")
-            directory.mkdir(parents=True, exist_ok=True)
             for f in cm["files"]:
-                shutil.copyfile(committed / f, directory / f)
-            stored.write_manifest(directory, cm)
+                safety.write_bytes(directory / f, (committed / f).read_bytes())
             manifest, info = cm, {"source": "committed C"}
         else:
             manifest = generate(scene, directory, count_ops=False, progress=progress)
             info = {"source": "derived", **manifest.pop("timings")}
+        if not force and why != "no manifest":
+            info["rebuilt_because"] = why
         say(f"compiling {scene.name} with gcc")
         t_c = time.perf_counter()
         lib = compile_library(directory, manifest)
+        manifest = {**manifest, "libraries": {**manifest.get("libraries", {}),
+                                              lib.name: safety.sha256_file(lib)}}
+        stored.write_manifest(directory, manifest)
         info["compile"] = time.perf_counter() - t_c
     t_s = time.perf_counter()
     start, info["start_source"] = _start(scene, directory, say)
@@ -221,6 +234,17 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
     info["total"] = time.perf_counter() - t0
     model.build_info = info
     return model
+
+
+def _stale(manifest: dict | None, digest: str, lib: Path) -> str | None:
+    """Why the cached model cannot be used as it is (None: it can)."""
+    if manifest is None:
+        return "no manifest"
+    if problems := manifest_problems(manifest):
+        return "invalid manifest: " + "; ".join(problems)
+    if manifest.get("hash") != digest:
+        return "another code hash"
+    return safety.library_problem(lib, manifest)
 
 
 def _text_diff(old: Path, new: Path, label: str) -> str:

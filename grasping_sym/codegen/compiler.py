@@ -231,13 +231,36 @@ def _run(cmd: list[str], what: str) -> None:
     _run_all([(cmd, what)])
 
 
+#: Environment variables through which gcc (and clang) take include and library directories,
+#: programs and options from outside the command line. They are removed from the compiler's
+#: environment: a ``math.h`` planted through ``CPATH`` must not end up in a cached library
+#: that later, clean processes load. ``$CC`` itself is part of the library's name
+#: (``runtime.loader.library_tag``).
+COMPILER_ENV_IGNORED = ("CPATH", "C_INCLUDE_PATH", "CPLUS_INCLUDE_PATH", "OBJC_INCLUDE_PATH",
+                        "LIBRARY_PATH", "GCC_EXEC_PREFIX", "COMPILER_PATH", "GCC_COMPARE_DEBUG",
+                        "DEPENDENCIES_OUTPUT", "SUNPRO_DEPENDENCIES", "LD_RUN_PATH",
+                        "CCC_OVERRIDE_OPTIONS", "CL", "_CL_")
+
+
+def compiler_env() -> dict[str, str]:
+    """The environment the compiler runs in: this process's, without
+    :data:`COMPILER_ENV_IGNORED` (logged when any was set)."""
+    env = dict(os.environ)
+    dropped = [k for k in COMPILER_ENV_IGNORED if env.pop(k, None) is not None]
+    if dropped:
+        log.warning("ignoring %s for the compiler: they would change the compiled code "
+                    "behind the cache's back", ", ".join(dropped))
+    return env
+
+
 def _run_all(jobs: list[tuple[list[str], str]]) -> None:
     """Run compiler commands concurrently (one per source file); raise on the first failure."""
     procs = []
+    env = compiler_env()
     for cmd, what in jobs:
         try:
             procs.append((subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                           text=True), cmd, what))
+                                           text=True, env=env), cmd, what))
         except OSError as exc:  # compiler vanished or is not executable
             for p, _, _ in procs:
                 p.kill()
@@ -267,6 +290,22 @@ def _common_flags(defines, include_dirs, extra_flags) -> list[str]:
         *(f"-I{Path(d).absolute()}" for d in include_dirs),
         *extra_flags,
     ]
+
+
+def _check_loads(path: Path, name: str) -> None:
+    """Load the linked library in a fresh interpreter (every symbol bound at once, as
+    ``dlopen(RTLD_NOW)`` does) before it is installed: a library with an undefined symbol (its
+    C rewritten by another build while gcc read it) is never installed, and a crash while
+    loading stays in that process."""
+    import sys  # noqa: PLC0415
+
+    proc = subprocess.run([sys.executable, "-I", "-S", "-c",
+                           "import ctypes, sys; ctypes.CDLL(sys.argv[1])", str(path)],
+                          capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        err = (proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"])[-1]
+        raise CompileError(f"the library {name} was linked but does not load ({err}); it was "
+                           "not installed. If another build rewrote its C meanwhile, build again")
 
 
 def compile_objects(
@@ -352,6 +391,7 @@ def compile_shared(
         try:
             _run([*cc, *map(str, built), *map(str, objects), "-o", tmp_out, *link_flags()],
                  f"linking {out.name}")
+            _check_loads(Path(tmp_out), out.name)
             os.chmod(tmp_out, 0o755)
             os.replace(tmp_out, out)
         except BaseException:

@@ -32,6 +32,7 @@ from grasping_sym.codegen.compiler import (
     compiler_version,
     isa_flags,
 )
+from grasping_sym.runtime import safety
 
 __all__ = ["ALIASES", "driver_objects", "flags_digest", "links_c", "object_defines"]
 
@@ -112,11 +113,14 @@ def driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
     from ``<cache root>/objects/`` or compiled there now (in parallel, each installed
     atomically, so concurrent builds agree)."""
     defs = object_defines(defines)
-    directory = cache.cache_root() / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}"
+    root = cache.cache_root()
+    directory = safety.ensure_dir(
+        root / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}", root=root)
     objects = [directory / f"{src.stem}.o" for src in sources]
-    if all(o.is_file() for o in objects):
+    if all(os.path.lexists(o) for o in objects):
+        for o in objects:
+            safety.check_file(o)
         return objects
-    directory.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
         built = compile_objects(sources, Path(tmp), defs, include_dirs)
         for obj, final in zip(built, objects):

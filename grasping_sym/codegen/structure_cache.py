@@ -28,13 +28,19 @@ from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, objects
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_objects, compile_shared
 from grasping_sym.codegen.structure import StructureSpec, structure_functions
-from grasping_sym.runtime import stored
+from grasping_sym.runtime import safety, stored
 
 __all__ = ["META", "derive_afresh", "ensure", "externals", "library", "link_objects", "structure_name",
            "write_structure"]
 
 META = "structure.json"
 DIR = "structures"
+
+
+def _entries() -> Path:
+    """``<cache root>/structures``, created or checked (``runtime.safety``)."""
+    root = cache.cache_root()
+    return safety.ensure_dir(root / DIR, root=root)
 
 
 def structure_hash(spec: StructureSpec) -> str:
@@ -46,12 +52,21 @@ def structure_name(digest: str) -> str:
     return f"gs_structure_{digest[:12]}"
 
 
-def _complete(directory: Path, digest: str) -> dict | None:
+def _complete(directory: Path, digest: str, trusted: bool = False) -> dict | None:
+    """``structure.json`` of the structure in ``directory`` when it is complete (its files
+    are there); a cache directory (not ``trusted``, unlike the package's committed code) is
+    checked first (``runtime.safety``)."""
+    if not trusted:
+        if not os.path.lexists(directory):
+            return None
+        safety.check_tree(directory, [META])
     meta = stored.read_json(directory / META)
     if meta is None or meta.get("hash") != digest:
         return None
     if not all((directory / f).is_file() for f in meta["files"]):
         return None
+    if not trusted:
+        safety.check_tree(directory, meta["files"])
     return meta
 
 
@@ -100,12 +115,12 @@ def ensure(spec: StructureSpec, template: Callable[[], tuple[object, str]],
     lacks it."""
     digest = structure_hash(spec)
     name = structure_name(digest)
-    directory = cache.cache_root() / DIR / name
+    directory = _entries() / name
     meta = _complete(directory, digest)
     if meta is not None:
         return meta, directory, "cache"
     committed = cache.generated_dir() / DIR / name
-    if not _AFRESH and (cm := _complete(committed, digest)) is not None:
+    if not _AFRESH and (cm := _complete(committed, digest, trusted=True)) is not None:
         _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)
                                        for f in [*cm["files"], META]])
         return cm, directory, "committed"
@@ -118,7 +133,7 @@ def ensure(spec: StructureSpec, template: Callable[[], tuple[object, str]],
 def _install(directory: Path, fill) -> None:
     """Fill a fresh directory with ``fill(path)`` and move its files into ``directory``
     (each replaced atomically; concurrent builds write the same bytes)."""
-    directory.mkdir(parents=True, exist_ok=True)
+    safety.ensure_dir(directory, root=cache.cache_root())
     with tempfile.TemporaryDirectory(dir=directory, prefix=".write-") as tmp:
         fill(Path(tmp))
         names = sorted(p.name for p in Path(tmp).iterdir())
@@ -129,12 +144,13 @@ def _install(directory: Path, fill) -> None:
 def link_objects(meta: dict, directory: Path) -> list[Path]:
     """The structure's object files for this compiler and instruction set (compiled now when
     missing), for linking into a model library."""
-    out = directory / f"obj-{objects.flags_digest()[:12]}"
+    out = safety.ensure_dir(directory / f"obj-{objects.flags_digest()[:12]}", root=directory)
     sources = [directory / f for f in meta["files"] if f.endswith(".c")]
     objs = [out / f"{Path(f).stem}.o" for f in sources]
-    if all(o.is_file() for o in objs):
+    if all(os.path.lexists(o) for o in objs):
+        for o in objs:
+            safety.check_file(o)
         return objs
-    out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out, prefix=".build-") as tmp:
         built = compile_objects(sources, Path(tmp))
         for b, final in zip(built, objs):
@@ -146,7 +162,9 @@ def library(meta: dict, directory: Path) -> Path:
     """``lib<name>.so`` of the structure (for ``casadi.external``), linked when missing."""
     objs = link_objects(meta, directory)
     so = objs[0].parent / f"lib{meta['name']}.so"
-    if not so.is_file():
+    if os.path.lexists(so):
+        safety.check_file(so)
+    else:
         compile_shared([], so, objects=objs)
     return so
 
@@ -167,12 +185,12 @@ def locate(entry: dict) -> tuple[dict, Path]:
     FileNotFoundError
         When neither holds it: rebuild the model (``gs.build(scene, force=True)``).
     """
-    directory = cache.cache_root() / DIR / entry["name"]
+    directory = _entries() / entry["name"]
     meta = _complete(directory, entry["hash"])
     if meta is not None:
         return meta, directory
     committed = cache.generated_dir() / DIR / entry["name"]
-    if (cm := _complete(committed, entry["hash"])) is not None:
+    if (cm := _complete(committed, entry["hash"], trusted=True)) is not None:
         _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)
                                        for f in [*cm["files"], META]])
         return cm, directory

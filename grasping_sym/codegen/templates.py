@@ -22,6 +22,8 @@ import casadi as ca
 from grasping_sym.codegen import cache
 from grasping_sym.codegen.functions import Template, build_template
 from grasping_sym.derive.planar import derive_template
+from grasping_sym.errors import UnsafeTemplateError
+from grasping_sym.runtime import safety
 
 #: The committed planar structures: (one shared contact parameter?, gravity?), one finger.
 #: Scenes with several fingers derive their structure once into the user cache.
@@ -43,19 +45,59 @@ def committed_templates_dir() -> Path:
     return cache.generated_dir() / "templates"
 
 
-def _read(path: Path, key: str) -> Template | None:
+#: Class names in a serialized CasADi function that load code when it is deserialized (a
+#: compiled library, a just-in-time compiler, an importer plugin): never read from a file.
+_LOADS_CODE = (b"External", b"DllLibrary", b"JitLibrary", b"Importer", b"Jit")
+
+
+def _plain_sx(serialized: str, path: Path) -> str:
+    """``serialized`` (CasADi's text serialization: one byte per two letters ``a``-``p``, low
+    nibble first) when it holds plain SX functions only; else raise
+    :class:`UnsafeTemplateError`. Checked before ``casadi.Function.deserialize``, which would
+    dlopen the library a serialized ``External`` names."""
+    if not isinstance(serialized, str) or len(serialized) % 2 or not set(serialized) <= set("abcdefghijklmnop"):
+        raise UnsafeTemplateError(f"{path}: not a CasADi serialization; delete the file")
+    raw = bytes(((ord(serialized[i + 1]) - 97) << 4) | (ord(serialized[i]) - 97)
+                for i in range(0, len(serialized), 2))
+    bad = [c.decode() for c in _LOADS_CODE if c in raw]
+    if bad or b"SXFunction" not in raw or b"MXFunction" in raw:
+        raise UnsafeTemplateError(
+            f"{path}: a template must be plain SX functions, and this one holds "
+            f"{', '.join(bad) or 'other function classes'}, which would load code when read: "
+            "not loaded; delete the file (it will be derived again)")
+    return serialized
+
+
+def _load(path: Path, key: str, from_cache: bool, fields: tuple[str, ...]) -> dict | None:
+    """The template record at ``path`` when its key is ``key``; a cache file is checked first
+    (``runtime.safety``: yours alone) and every serialized field must be plain SX."""
+    if from_cache:
+        if not os.path.lexists(path):
+            return None
+        safety.check_file(path)
     try:
         d = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    return Template.from_json(d) if d.get("key") == key else None
+    if not isinstance(d, dict) or d.get("key") != key:
+        return None
+    for f in fields:
+        _plain_sx(d.get(f), path)
+    return d
+
+
+def _cache_dir() -> Path:
+    root = cache.cache_root()
+    return safety.ensure_dir(root / "templates", root=root)
+
+
+def _read(path: Path, key: str, from_cache: bool = True) -> Template | None:
+    d = _load(path, key, from_cache, ("rhs", "outputs"))
+    return None if d is None else Template.from_json(d)
 
 
 def write_template(path: Path, template: Template, key: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp-{os.getpid()}")
-    tmp.write_text(json.dumps({"key": key, **template.to_json()}, sort_keys=True) + "\n")
-    tmp.replace(path)
+    safety.write_text(path, json.dumps({"key": key, **template.to_json()}, sort_keys=True) + "\n")
 
 
 def derive_and_build(shared: bool, gravity: bool, n_fingers: int = 1) -> Template:
@@ -84,35 +126,27 @@ def finger_template(chain, gravity, build) -> tuple[ca.Function, str]:
     is stored in the cache)."""
     key = finger_template_key(chain, gravity)
     name = finger_template_name(chain, gravity)
-    for source, directory in (("cache", cache.cache_root() / "templates"),
-                              ("committed", committed_templates_dir())):
-        try:
-            d = json.loads((directory / name).read_text())
-        except (OSError, ValueError):
-            continue
-        if d.get("key") == key:
+    for source, directory in (("cache", _cache_dir()), ("committed", committed_templates_dir())):
+        d = _load(directory / name, key, source == "cache", ("function",))
+        if d is not None:
             return ca.Function.deserialize(d["function"]), source
     fn = build()
-    write_finger_template(cache.cache_root() / "templates" / name, fn, key)
+    write_finger_template(_cache_dir() / name, fn, key)
     return fn, "derived"
 
 
 def write_finger_template(path: Path, fn: ca.Function, key: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp-{os.getpid()}")
-    tmp.write_text(json.dumps({"key": key, "function": fn.serialize()}, sort_keys=True) + "\n")
-    tmp.replace(path)
+    safety.write_text(path, json.dumps({"key": key, "function": fn.serialize()}, sort_keys=True) + "\n")
 
 
 def planar_template(shared: bool, gravity: bool, n_fingers: int = 1) -> tuple[Template, str]:
     """The template of a planar structure and where it came from."""
     key = template_key(shared, gravity, n_fingers)
     name = f"{template_name(shared, gravity, n_fingers)}.json"
-    for source, directory in (("cache", cache.cache_root() / "templates"),
-                              ("committed", committed_templates_dir())):
-        found = _read(directory / name, key)
+    for source, directory in (("cache", _cache_dir()), ("committed", committed_templates_dir())):
+        found = _read(directory / name, key, from_cache=source == "cache")
         if found is not None:
             return found, source
     template = derive_and_build(shared, gravity, n_fingers)
-    write_template(cache.cache_root() / "templates" / name, template, key)
+    write_template(_cache_dir() / name, template, key)
     return template, "derived"

@@ -2,22 +2,28 @@
 ``start.json`` (``runtime.stored``). Imports neither SymPy nor the code generation."""
 from __future__ import annotations
 
+import hashlib
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from grasping_sym.codegen.compiler import isa_level, vector_libm
-from grasping_sym.runtime import stored
+from grasping_sym.runtime import safety, stored
+from grasping_sym.runtime.manifest_schema import manifest_problems
 from grasping_sym.runtime.model import Model
 
 
 def library_tag() -> str:
     """What ties a compiled library to this interpreter (the fast path is an extension) and
     to the instruction set it was compiled for (``compiler.isa_level``, with ``-mvec`` when
-    it calls glibc's vector libm, ``compiler.vector_libm``)."""
+    it calls glibc's vector libm, ``compiler.vector_libm``), and ``$CC`` when set (``-cc``
+    and a hash of it: another compiler makes another library)."""
     mvec = "-mvec" if vector_libm() else ""
-    return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}{mvec}"
+    cc = os.environ.get("CC", "").strip()
+    cc = f"-cc{hashlib.sha256(cc.encode()).hexdigest()[:8]}" if cc else ""
+    return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}{mvec}{cc}"
 
 
 def library_name(name: str) -> str:
@@ -33,15 +39,29 @@ def load(path: Path | str) -> Model:
     """
     path = Path(path)
     if path.is_file() and path.parent.name == stored.STARTS_DIR:
-        directory, start = path.parent.parent, stored.read_json(path)
+        directory, start_file = path.parent.parent, path
+        safety.check_dir(path.parent)
     else:
-        directory, start = path, stored.read_json(path / stored.START)
-    manifest = stored.read_manifest(directory)
+        directory, start_file = path, path / stored.START
+    if not directory.is_dir():
+        raise FileNotFoundError(f"{directory} holds no built model (manifest.json and start.json): "
+                                "pass a model's directory (model.path) after gs.build(scene)")
+    safety.check_tree(directory, (stored.MANIFEST,))
+    if start_file.exists():
+        safety.check_file(start_file)
+    start, manifest = stored.read_json(start_file), stored.read_manifest(directory)
     if manifest is None or start is None:
         raise FileNotFoundError(f"{directory} holds no built model (manifest.json and start.json): "
                                 "pass a model's directory (model.path) after gs.build(scene)")
+    if problems := manifest_problems(manifest):
+        raise safety.CorruptCacheError(
+            f"{directory / stored.MANIFEST} is not a valid manifest ({'; '.join(problems)}): "
+            "rebuild the model with gs.build(scene, force=True)")
     lib = directory / library_name(manifest["name"])
     if not lib.exists():
         raise FileNotFoundError(f"{lib} is missing: the model was built by another Python, NumPy or "
                                 "CPU level; build it here with gs.build(scene)")
+    if problem := safety.library_problem(lib, manifest):
+        raise safety.CorruptCacheError(f"{problem}: not loaded; rebuild the model with "
+                                       "gs.build(scene, force=True)")
     return Model(directory, manifest, lib, start)

@@ -11,7 +11,7 @@ from grasping_sym.errors import (
     IntegratorError,
 )
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import integrators, projection, stored
+from grasping_sym.runtime import integrators, projection, safety, stored
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
 
@@ -117,7 +117,8 @@ class Model:
         from grasping_sym.runtime import start  # noqa: PLC0415
 
         record = start.start_record(self, values)
-        stored.write_json(self.directory / stored.STARTS_DIR / f"{record['key'][:16]}.json", record)
+        starts = safety.ensure_dir(self.directory / stored.STARTS_DIR, root=self.directory)
+        stored.write_json(starts / f"{record['key'][:16]}.json", record)
         model = Model(self.directory, self.manifest, self.library_path, record)
         model.build_info = {"source": "run-time start", "from": self.start["key"]}
         return model

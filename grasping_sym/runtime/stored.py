@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
+
+from grasping_sym.runtime import safety
 
 MANIFEST = "manifest.json"
 START = "start.json"
@@ -28,12 +29,9 @@ START_ATOL = 1e-12
 
 
 def write_json(path: Path, data: dict) -> Path:
-    """Write ``data`` as stable JSON (sorted keys), atomically (temporary file, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    tmp.replace(path)
-    return path
+    """Write ``data`` as stable JSON (sorted keys), atomically and never through a link
+    (``safety.write_text``); the directory must exist."""
+    return safety.write_text(Path(path), json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
 def read_json(path: Path) -> dict | None:
