@@ -155,3 +155,8 @@ class CacheWriteError(GraspingSymError, OSError):
 
 class UnsafeTemplateError(GraspingSymError, ValueError):
     """A stored template holds something that would load or compile code when deserialized."""
+
+
+class ExpressionError(GraspingSymError, ValueError):
+    """A formula given as text is not one ``geometry.expressions.parse_expression`` reads
+    (formulas are parsed, never run)."""

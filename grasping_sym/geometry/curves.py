@@ -14,7 +14,8 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from grasping_sym.errors import InvalidCurveError
+from grasping_sym.errors import ExpressionError, InvalidCurveError
+from grasping_sym.geometry.expressions import to_expression
 
 #: The parameter symbol every curve is written in (curves are re-expressed in it).
 T = sp.Symbol("t", real=True)
@@ -44,8 +45,12 @@ class PlanarCurve:
     _checked: bool = field(default=False, repr=False)
 
     def __post_init__(self) -> None:
-        x = sp.sympify(self.x)
-        y = sp.sympify(self.y)
+        names = {str(self.param): self.param, "t": T}
+        try:
+            x = to_expression(self.x, names, f"contour '{self.name}': x")
+            y = to_expression(self.y, names, f"contour '{self.name}': y")
+        except ExpressionError as exc:
+            raise InvalidCurveError(self.name, [str(exc)]) from None
         if self.param != T:
             x, y = x.subs(self.param, T), y.subs(self.param, T)
         object.__setattr__(self, "x", x)

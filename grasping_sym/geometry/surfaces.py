@@ -27,7 +27,8 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from grasping_sym.errors import InvalidSurfaceError
+from grasping_sym.errors import ExpressionError, InvalidSurfaceError
+from grasping_sym.geometry.expressions import to_expression
 
 #: The parameter symbols every surface is written in (surfaces are re-expressed in them).
 U = sp.Symbol("u", real=True)
@@ -61,10 +62,18 @@ class ParametricSurface:
     _checked: bool = field(default=False, repr=False)
 
     def __post_init__(self) -> None:
+        names = {str(self.params[0]): self.params[0], str(self.params[1]): self.params[1],
+                 "u": U, "v": V}
+        if isinstance(self.S, str):
+            raise InvalidSurfaceError(self.name, ["S is one string: give three expressions (or "
+                                                  "formulas as text), one per component"])
         try:
-            comps = [sp.sympify(c) for c in self.S]
+            comps = [to_expression(c, names, f"surface '{self.name}': S[{i}]")
+                     for i, c in enumerate(self.S)]
             (u0, u1), (v0, v1) = self.domain
             dom = ((float(u0), float(u1)), (float(v0), float(v1)))
+        except ExpressionError as exc:
+            raise InvalidSurfaceError(self.name, [str(exc)]) from None
         except (TypeError, ValueError, sp.SympifyError) as exc:
             raise InvalidSurfaceError(self.name, [f"cannot read S or domain ({exc}): give three "
                                                   "expressions and ((u_min, u_max), (v_min, v_max))"]) from exc
