@@ -134,6 +134,10 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
       rc = GS_ERR_MAXSTEPS;
       goto fail;
     }
+    if (gs_stop_requested()) {
+      rc = GS_ERR_INTERRUPT;
+      goto fail;
+    }
     if (!(h >= 10.0 * fabs(nextafter(t, INFINITY) - t))) {
       rc = GS_ERR_STEP;
       goto fail;

@@ -83,6 +83,7 @@
 #define GS_ERR_MAXSTEPS  (-6) /* max_steps reached before the end time       */
 #define GS_ERR_PROJECT   (-7) /* projection onto the constraints failed      */
 #define GS_ERR_STIFF     (-8) /* gs_dopri5: the problem is stiff             */
+#define GS_ERR_INTERRUPT (-9) /* stopped: SIGINT or the time limit (stop.c)  */
 
 /* Entries of the stats array (GS_NSTATS doubles). */
 #define GS_ST_STEPS 0       /* accepted steps                                      */
@@ -126,6 +127,9 @@ typedef struct {
 #else
 #define GS_DECLARE_WORK(name) gs_work name##_storage; gs_work* name = &name##_storage
 #endif
+
+/* stop.c: non-zero when the loop must stop (SIGINT, the time limit). */
+GS_HIDDEN int gs_stop_requested(void);
 
 /* Prototypes of the CasADi-generated functions (standard calling convention). */
 int GS_RHS(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);

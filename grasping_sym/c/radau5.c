@@ -157,6 +157,10 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
       rc = GS_ERR_MAXSTEPS;
       goto fail;
     }
+    if (gs_stop_requested()) {
+      rc = GS_ERR_INTERRUPT;
+      goto fail;
+    }
     if (t + h >= t_end || t_end - (t + h) < 1e-12 * fabs(t_end)) {
       if (h != t_end - t) lu_valid = 0;
       h = t_end - t;

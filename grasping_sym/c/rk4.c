@@ -50,6 +50,10 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
 
   for (long k = 0; k < nsteps; ++k) {
     const double t = t0 + (double)k * h;
+    if (gs_stop_requested()) {
+      rc = GS_ERR_INTERRUPT;
+      goto fail;
+    }
     if ((rc = gs_eval_rhs(wk, &t, x, p, k1))) goto fail;
     for (int i = 0; i < GS_NX; ++i) xs[i] = x[i] + 0.5 * h * k1[i];
     ts = t + 0.5 * h;

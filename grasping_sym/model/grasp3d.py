@@ -317,8 +317,11 @@ class GraspScene3D:
         return summary_lines(self, result)
 
     def manifest_extra(self) -> dict:
-        """What a 3D scene adds to its manifest: its formulation."""
-        return {"kind": "grasp3d", "formulation": self.formulation}
+        """What a 3D scene adds to its manifest: its formulation; the rule each run-time
+        parameter's value must meet (``Model.params`` checks it)."""
+        return {"kind": "grasp3d", "formulation": self.formulation,
+                "param_rules": {k: "positive" if k in ("fd", "c") else "nonnegative"
+                                for k in self.runtime}}
 
     #: Package sources that the start's solution depends on beyond ``hashed_sources``.
     start_sources: ClassVar[tuple[str, ...]] = ("derive/initial3d.py",)

@@ -358,8 +358,11 @@ class PlanarFingerScene:
 
     def manifest_extra(self) -> dict:
         """What this kind of scene adds to its manifest: a start solved at run time
-        (``runtime.start``) holds the object's angle unless it is given or must move."""
-        return {"start_hold": ["theta"]}
+        (``runtime.start``) holds the object's angle unless it is given or must move; the
+        rule each run-time parameter's value must meet (``Model.params`` checks it)."""
+        return {"start_hold": ["theta"],
+                "param_rules": {k: "nonnegative" if k in CSM_GAINS else "positive"
+                                for k in self.runtime}}
 
     def sympy_op_counts(self) -> dict[str, int]:
         """Operation counts of the SymPy pieces before and after SymPy's CSE."""

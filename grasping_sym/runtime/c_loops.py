@@ -6,8 +6,10 @@ CPython fast path when the library has it, ctypes otherwise).
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import math
+import threading
 from time import perf_counter
 from typing import Any
 
@@ -17,7 +19,7 @@ from grasping_sym.errors import IntegratorError
 
 # Return codes of gs_rk4, gs_radau5, gs_dopri5 and gs_project (see c/gs_internal.h).
 _ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
-_ERR_PROJECT, _ERR_STIFF = -7, -8
+_ERR_PROJECT, _ERR_STIFF, _ERR_INTERRUPT = -7, -8, -9
 ERR_PROJECT = _ERR_PROJECT
 _RK4_EXTRA_ROWS = 2
 _ADAPTIVE_EXTRA_ROWS = 1
@@ -30,6 +32,35 @@ _T_OUT = "t_out must be a finite, strictly increasing 1-D array of at least two 
 _double = ctypes.c_double
 
 
+@contextlib.contextmanager
+def stoppable(lib, time_limit: float | None):
+    """Around a C loop: Ctrl-C (from the main thread) and ``time_limit`` seconds of wall time
+    stop it within a few steps (``c/stop.c``); the loop then returns ``GS_ERR_INTERRUPT`` and
+    :func:`stop_error` says why."""
+    c = lib._lib
+    c.gs_set_time_limit(float(time_limit) if time_limit else 0.0)
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        c.gs_sigint_begin()
+    state = {"sigint": False}
+    try:
+        yield state
+    finally:
+        if main:
+            state["sigint"] = bool(c.gs_sigint_end())
+        c.gs_set_time_limit(0.0)
+
+
+def stop_error(lib, state: dict, method: str, tf: float, x, time_limit) -> IntegratorError:
+    """The error of a loop stopped from outside: KeyboardInterrupt for Ctrl-C (raised here),
+    else the wall-time limit's ``IntegratorError``."""
+    if state["sigint"] or lib._lib.gs_stop_cause() == 1:
+        raise KeyboardInterrupt(f"{method} stopped by Ctrl-C at t = {tf:.6g} s")
+    return IntegratorError(tf, x, f"{method}: the wall-time limit of {time_limit:g} s was "
+                           f"reached at t = {tf:.6g} s (raise time_limit, or loosen the "
+                           "tolerances)", lib.state_names)
+
+
 def as_vector(a: Any, n: int, name: str) -> np.ndarray:
     arr = np.ascontiguousarray(a, dtype=float)
     if arr.shape != (n,):
@@ -39,7 +70,7 @@ def as_vector(a: Any, n: int, name: str) -> np.ndarray:
 
 def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: Any = None,
         lo: Any = None, hi: Any = None, proj_mask: Any = None, proj_tol: float = 0.0,
-        stats: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        stats: dict | None = None, time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``CompiledLibrary.rk4`` (documented there)."""
     x0a = as_vector(x0, lib.nx, "x0")
     pa = lib._p(p)
@@ -66,11 +97,12 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
     out = np.empty((rows + _RK4_EXTRA_ROWS, lib.nx))
     t_fail = _double(math.nan)
     stats_a = np.zeros(NSTATS)
-    rc = lib._c_rk4(
-        t0, h_eff, nsteps, stride, x0a.ctypes.data, lib._ptr(pa),
-        lo_a.ctypes.data, hi_a.ctypes.data, lib._ptr(mask), float(proj_tol),
-        out.ctypes.data, stats_a.ctypes.data, ctypes.byref(t_fail),
-    )
+    with stoppable(lib, time_limit) as stop:
+        rc = lib._c_rk4(
+            t0, h_eff, nsteps, stride, x0a.ctypes.data, lib._ptr(pa),
+            lo_a.ctypes.data, hi_a.ctypes.data, lib._ptr(mask), float(proj_tol),
+            out.ctypes.data, stats_a.ctypes.data, ctypes.byref(t_fail),
+        )
     if stats is not None:
         stats.update({"n_steps": int(stats_a[0]), "n_rhs": int(stats_a[2])})
         if mask is not None:
@@ -98,6 +130,10 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
         reason = f"the CasADi function reported an evaluation error in the step to t = {tf + h_eff:.6g} s"
     elif rc == _ERR_PROJECT:
         reason = projection_reason(stats_a, proj_tol, f"in the step to t = {tf + h_eff:.6g} s")
+    elif rc == _ERR_INTERRUPT:
+        err = stop_error(lib, stop, "rk4", tf, x_good, time_limit)
+        err.trajectory = (t0 + h_eff * stride * np.arange(r), out[:r].copy())  # type: ignore[attr-defined]
+        raise err
     else:
         reason = f"gs_rk4 returned unknown code {rc}"
     err = IntegratorError(tf, x_good, reason, lib.state_names)
@@ -111,7 +147,7 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
 
 def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: float,
              h0: float, max_steps: int, lo: Any, hi: Any, proj_mask: Any, proj_tol: float,
-             nstiff: int = 0) -> tuple[np.ndarray, np.ndarray, dict]:
+             nstiff: int = 0, time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """``CompiledLibrary.radau5`` (``method='radau'``) or ``dopri5`` (documented there).
 
     The checks here are the cheap ones (shapes, scalars); the C code validates ``t_out``
@@ -139,8 +175,9 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
     out = np.empty((m + _ADAPTIVE_EXTRA_ROWS, lib.nx))
     stats_a = np.zeros(NSTATS)
     start = perf_counter()
-    rc, tf = lib._call_adaptive(method, t_arr, x0a, pa, rtol, atol, h0, max_steps, int(nstiff),
-                                lo_a, hi_a, mask, proj_tol, out, stats_a)
+    with stoppable(lib, time_limit) as stop:
+        rc, tf = lib._call_adaptive(method, t_arr, x0a, pa, rtol, atol, h0, max_steps,
+                                    int(nstiff), lo_a, hi_a, mask, proj_tol, out, stats_a)
     wall = perf_counter() - start
     st = stats_a.tolist()  # Python floats: cheaper to pick from than the array
     stats: dict = dict(zip(_STATS[method], map(int, st)))
@@ -164,6 +201,12 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
     bad = violation(x0a, lo_a, hi_a) if stats_a[0] == 0 else ""
     if bad:  # the C code refused the initial state itself
         raise IntegratorError(float(t_arr[0]), x0a, f"initial state: {bad}", lib.state_names)
+    if rc == _ERR_INTERRUPT:
+        r = int(stats_a[6])
+        err = stop_error(lib, stop, method, tf, out[r].copy(), time_limit)
+        err.trajectory = (t_arr[:r].copy(), out[:r].copy())  # type: ignore[attr-defined]
+        err.stats = stats  # type: ignore[attr-defined]
+        raise err
     raise _failure(lib, method, c_name, rc, tf, t_arr, out, stats, stats_a, lo_a, hi_a,
                    max_steps, proj_tol)
 

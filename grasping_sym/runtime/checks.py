@@ -100,6 +100,26 @@ def _frame_error(model, name: str, t: float, x, value: float, threshold: float, 
     return err
 
 
+#: Largest max|Cdot| (m/s) accepted at ``x0``: the speeds must satisfy the velocity
+#: constraints (rolling without slip, the contact kept), not only the positions.
+INITIAL_RATE = 1e-8
+
+
+def _check_initial_rates(model, x0: np.ndarray, p) -> None:
+    lib = model.library
+    if not lib.has_constraints:
+        return
+    _, _, cdot, _ = lib.constraints(x0, p)
+    rate = float(np.max(np.abs(cdot))) if cdot.size else 0.0
+    if not rate <= INITIAL_RATE:
+        raise InconsistentInitialStateError(
+            rate,
+            f"x0's speeds violate the velocity constraints: max|Cdot| = {rate:.6g} m/s > "
+            f"{INITIAL_RATE:g} m/s (the bodies would slide or separate at the contact); start "
+            "from model.initial_state() (at rest) or give speeds that roll without slipping, or "
+            "pass checks=False to integrate anyway")
+
+
 def check_initial_state(model, x0: np.ndarray, p) -> dict[str, float]:
     """Refuse an ``x0`` off the constraints, at a vanishing relative curvature or, in the paper
     formulation, with a (nearly) stopped contact. Returns the initial value of every
@@ -107,6 +127,7 @@ def check_initial_state(model, x0: np.ndarray, p) -> dict[str, float]:
     names = set(model.output_names)
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if not names & watched:
+        _check_initial_rates(model, x0, p)
         return {}
     y = model.outputs(x0, p)
     if "Q" in y and "R" in y:
@@ -126,6 +147,7 @@ def check_initial_state(model, x0: np.ndarray, p) -> dict[str, float]:
             "checks=False to integrate anyway (the constraint stabilisation then pulls the "
             "state back, with a transient)",
         )
+    _check_initial_rates(model, x0, p)  # the speeds, once the positions are on the constraints
     start = {}
     for name in curvature_outputs(y):
         k0 = y[name]

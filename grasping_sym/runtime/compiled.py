@@ -137,6 +137,11 @@ class CompiledLibrary:
         self._c_dopri = lib.gs_dopri5
         self._c_dopri.argtypes = adaptive + [_long] + tail
         self._c_dopri.restype = _long
+        lib.gs_set_time_limit.argtypes = [_double]
+        lib.gs_set_time_limit.restype = None
+        lib.gs_stop_cause.restype = ctypes.c_int
+        lib.gs_sigint_begin.restype = ctypes.c_int
+        lib.gs_sigint_end.restype = ctypes.c_int
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
         lib.gs_con_info.restype = ctypes.c_int
         nc = _long()
@@ -259,6 +264,7 @@ class CompiledLibrary:
         proj_mask: Any = None,
         proj_tol: float = 0.0,
         stats: dict | None = None,
+        time_limit: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Integrate with classic fixed-step RK4, entirely in C (GIL released).
 
@@ -303,7 +309,8 @@ class CompiledLibrary:
             ``err.x_rejected`` hold the rejected step's end, and
             ``err.trajectory`` the stored ``(t, X)`` up to ``err.t``.
         """
-        return c_loops.rk4(self, x0, t0, t_final, h, stride, p, lo, hi, proj_mask, proj_tol, stats)
+        return c_loops.rk4(self, x0, t0, t_final, h, stride, p, lo, hi, proj_mask, proj_tol, stats,
+                           time_limit)
 
     def radau5(
         self,
@@ -318,6 +325,7 @@ class CompiledLibrary:
         hi: Any = None,
         proj_mask: Any = None,
         proj_tol: float = 0.0,
+        time_limit: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray, dict]:
         """Integrate with adaptive Radau IIA of order 5, entirely in C (GIL released).
 
@@ -372,7 +380,7 @@ class CompiledLibrary:
             ``err.x_rejected``.
         """
         return c_loops.adaptive(self, "radau", x0, t_out, p, rtol, atol, h0, max_steps, lo, hi,
-                                proj_mask, proj_tol)
+                                proj_mask, proj_tol, time_limit=time_limit)
 
     def dopri5(
         self,
@@ -388,6 +396,7 @@ class CompiledLibrary:
         nstiff: int = NSTIFF,
         proj_mask: Any = None,
         proj_tol: float = 0.0,
+        time_limit: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray, dict]:
         """Integrate with adaptive Dormand-Prince 5(4), entirely in C (GIL released).
 
@@ -420,7 +429,7 @@ class CompiledLibrary:
             As :meth:`radau5`, and for a stiff problem.
         """
         return c_loops.adaptive(self, "dopri5", x0, t_out, p, rtol, atol, h0, max_steps, lo,
-                                hi, proj_mask, proj_tol, nstiff=int(nstiff))
+                                hi, proj_mask, proj_tol, nstiff=int(nstiff), time_limit=time_limit)
 
     def _call_adaptive(self, method: str, t_arr: np.ndarray, x0: np.ndarray, p: np.ndarray | None,
                        rtol: float, atol: float, h0: float, max_steps: int, nstiff: int,

@@ -42,30 +42,100 @@ C_LOOPS = ("rk4", "radau", "dopri5")
 RECOVERY_MAX_STEPS = 20_000
 
 
+#: CasADi integrators kept per model (one per method, tolerances and output grid): the least
+#: recently used beyond this many are dropped (each holds ~150 kB).
+INTEGRATOR_CACHE_SIZE = 8
+
+
+class _Watch:
+    sigint = False
+    timeout = False
+
+
+@contextlib.contextmanager
+def _watch(time_limit: float | None):
+    """Ctrl-C and a wall-time limit for a CasADi integrator call. CasADi polls Python's
+    signals while SUNDIALS runs and stops with an error when a handler raises; these handlers
+    note why, so that the caller raises KeyboardInterrupt or the time limit's error instead
+    of retrying the run. Signal handlers are the main thread's only: elsewhere a time limit
+    is refused (use a C-loop method)."""
+    import signal  # noqa: PLC0415
+    import threading  # noqa: PLC0415
+
+    w = _Watch()
+    if threading.current_thread() is not threading.main_thread():
+        if time_limit:
+            raise ValueError("time_limit with cvodes or idas works in the main thread only: "
+                             "use method='radau', 'dopri5' or 'rk4' in other threads")
+        yield w
+        return
+
+    def on_int(signum, frame):
+        w.sigint = True
+        raise KeyboardInterrupt
+
+    def on_alarm(signum, frame):
+        w.timeout = True
+        raise TimeoutError
+
+    old_int = signal.signal(signal.SIGINT, on_int)
+    old_alarm = signal.signal(signal.SIGALRM, on_alarm) if time_limit else None
+    if time_limit:
+        signal.setitimer(signal.ITIMER_REAL, float(time_limit))
+    try:
+        yield w
+    finally:
+        if time_limit:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, old_alarm)
+        signal.signal(signal.SIGINT, old_int)
+
+
 def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray,
-             rtol: float, atol: float, max_steps: int) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Integrate with CVODES or IDAS through CasADi, reporting at ``t_eval``."""
+             rtol: float, atol: float, max_steps: int,
+             time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Integrate with CVODES or IDAS through CasADi, reporting at ``t_eval``.
+
+    ``max_steps`` bounds SUNDIALS's steps per output interval (its own limit) and the total
+    is checked after the run; ``time_limit`` (s of wall time) and Ctrl-C stop the run."""
     import casadi as ca  # noqa: PLC0415 - only the SUNDIALS methods need CasADi at run time
 
     key = (method, float(rtol), float(atol), int(max_steps), t_eval.tobytes())
-    integ = model._integrators.get(key)
+    integ = model._integrators.pop(key, None)
     if integ is None:
         opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps,
                 "disable_internal_warnings": True}
         grid = [float(t) for t in t_eval[1:]]
         integ = ca.integrator(f"{model.name}_{method}", method, model.external_rhs(),
                               float(t_eval[0]), grid, opts)
-        model._integrators[key] = integ
+    model._integrators[key] = integ  # most recently used last
+    while len(model._integrators) > INTEGRATOR_CACHE_SIZE:
+        model._integrators.pop(next(iter(model._integrators)))
     start = time.perf_counter()
-    try:
-        out = integ(x0=x0, p=p)
-    except RuntimeError as exc:
-        raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(exc)) from None
+    with _watch(time_limit) as watch:
+        try:
+            out = integ(x0=x0, p=p)
+        except RuntimeError as exc:
+            failure = exc
+        else:
+            failure = None
+    if failure is not None:
+        if watch.sigint:
+            raise KeyboardInterrupt(f"{method} stopped by Ctrl-C") from None
+        if watch.timeout:
+            raise IntegratorError(math.nan, None, f"{method}: the wall-time limit of "
+                                  f"{time_limit:g} s was reached (raise time_limit, or loosen "
+                                  "the tolerances)", model.state_names) from None
+        raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure)) from None
     wall = time.perf_counter() - start
     X = np.vstack([x0, np.array(out["xf"]).T])
     st = integ.stats()
     stats = {"wall_time": wall, "n_steps": int(st.get("nsteps", 0)),
              "n_rhs": int(st.get("nfevals", 0)), "n_jac": int(st.get("n_call_jacF", 0))}
+    if stats["n_steps"] > max_steps:
+        raise IntegratorError(float(t_eval[-1]), X[-1], f"{method}: {stats['n_steps']} steps, "
+                              f"more than max_steps = {max_steps} (raise max_steps or loosen "
+                              "rtol/atol)", model.state_names)
     return t_eval.copy(), X, stats
 
 
@@ -171,24 +241,27 @@ def _sundials_reason(message: str) -> str:
 
 def c_loop(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, *,
            rtol: float, atol: float, max_steps: int, h: float,
-           projection: tuple[np.ndarray | None, float] = (None, 0.0)
-           ) -> tuple[np.ndarray, np.ndarray, dict]:
+           projection: tuple[np.ndarray | None, float] = (None, 0.0),
+           time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Integrate with one of ``C_LOOPS``, bounds ``model.lower`` / ``model.upper`` checked
-    after every step, projecting when ``projection[0]`` (the mask) is given."""
+    after every step, projecting when ``projection[0]`` (the mask) is given; Ctrl-C and
+    ``time_limit`` (s of wall time) stop the loop within a few steps."""
     lo, hi = model.lower, model.upper
     if method == "rk4":
-        return rk4(model, x0, t_eval, p, h, lo, hi, projection)
+        return rk4(model, x0, t_eval, p, h, lo, hi, projection, time_limit)
     if method == "radau":
-        return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection)
+        return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection,
+                     time_limit=time_limit)
     if method == "dopri5":
-        return dopri5(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection)
+        return dopri5(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection,
+                      time_limit=time_limit)
     raise ValueError(f"method {method!r} has no C loop: choose one of {C_LOOPS}")
 
 
 def rk4(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, h: float,
         lo: np.ndarray, hi: np.ndarray,
-        projection: tuple[np.ndarray | None, float] = (None, 0.0)
-        ) -> tuple[np.ndarray, np.ndarray, dict]:
+        projection: tuple[np.ndarray | None, float] = (None, 0.0),
+        time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Fixed-step RK4 in C; ``t_eval`` must be uniform with spacing a multiple of ``h``."""
     t0, t1 = float(t_eval[0]), float(t_eval[-1])
     n_out = len(t_eval) - 1
@@ -202,15 +275,16 @@ def rk4(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, h: floa
     stats: dict = {}
     start = time.perf_counter()
     t, X = model.library.rk4(x0, t0, t1, h_used, stride=stride, p=p, lo=lo, hi=hi,
-                             proj_mask=projection[0], proj_tol=projection[1], stats=stats)
+                             proj_mask=projection[0], proj_tol=projection[1], stats=stats,
+                             time_limit=time_limit)
     stats.update(wall_time=time.perf_counter() - start, h=h_used)
     return t, X, stats
 
 
 def radau(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol: float,
           atol: float, max_steps: int, lo: np.ndarray, hi: np.ndarray,
-          h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0)
-          ) -> tuple[np.ndarray, np.ndarray, dict]:
+          h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0),
+          time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Adaptive Radau IIA (order 5) in C, reporting at ``t_eval`` (dense output).
 
     The contact parameters are checked against ``lo`` / ``hi`` after every accepted step;
@@ -219,15 +293,16 @@ def radau(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol:
     start = time.perf_counter()
     t, X, stats = model.library.radau5(x0, t_eval, p=p, rtol=rtol, atol=atol, h0=h0,
                                        max_steps=max_steps, lo=lo, hi=hi,
-                                       proj_mask=projection[0], proj_tol=projection[1])
+                                       proj_mask=projection[0], proj_tol=projection[1],
+                                       time_limit=time_limit)
     stats["wall_time"] = time.perf_counter() - start
     return t, X, stats
 
 
 def dopri5(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol: float,
            atol: float, max_steps: int, lo: np.ndarray, hi: np.ndarray,
-           h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0)
-           ) -> tuple[np.ndarray, np.ndarray, dict]:
+           h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0),
+           time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Adaptive Dormand-Prince 5(4) in C, reporting at ``t_eval`` (continuous extension).
 
     Bounds checked after every accepted step as ``radau``; a stiff problem stops with an
@@ -236,6 +311,7 @@ def dopri5(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol
     start = time.perf_counter()
     t, X, stats = model.library.dopri5(x0, t_eval, p=p, rtol=rtol, atol=atol, h0=h0,
                                        max_steps=max_steps, lo=lo, hi=hi,
-                                       proj_mask=projection[0], proj_tol=projection[1])
+                                       proj_mask=projection[0], proj_tol=projection[1],
+                                       time_limit=time_limit)
     stats["wall_time"] = time.perf_counter() - start
     return t, X, stats

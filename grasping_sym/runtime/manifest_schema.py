@@ -103,6 +103,10 @@ def manifest_problems(m: object) -> list[str]:
     for key in ("rewrites", "op_counts", "hash_inputs"):
         if not isinstance(m.get(key), dict):
             out.append(f"{key} must be an object")
+    rules = m.get("param_rules", {})
+    if not isinstance(rules, dict) or not set(rules) <= set(params) or \
+            not set(rules.values()) <= {"positive", "nonnegative", "finite"}:
+        out.append("param_rules must map run-time parameters to positive, nonnegative or finite")
     hold = m.get("start_hold", [])
     if not isinstance(hold, list) or not set(hold) <= set(states):
         out.append("start_hold must list states of the model")

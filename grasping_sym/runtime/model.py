@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import math
+import numbers
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -82,14 +84,25 @@ class Model:
                 f"parameters {sorted(params)} are folded into this model's code; build the "
                 "scene with runtime=(...) naming them to vary them without a rebuild"
             )
+        if params is not None and not isinstance(params, Mapping):
+            raise TypeError(f"params is {type(params).__name__}: give a dict of run-time "
+                            f"parameter values by name, e.g. {{{self.param_names[0]!r}: 0.5}}"
+                            if self.param_names else "params must be a dict")
         if not self.input_names:
             return None
         p = self.default_params.copy()
+        rules = self.manifest.get("param_rules", {})
         for k, v in (params or {}).items():
             if k not in self.param_names:
                 raise ValueError(f"{k!r} is not a run-time parameter of this model "
                                  f"(run-time: {self.param_names})")
-            p[self.param_names.index(k)] = float(v)
+            value = real(f"params[{k!r}]", v)
+            rule = rules.get(k, "finite")
+            if rule == "positive" and not value > 0 or rule == "nonnegative" and not value >= 0:
+                raise ValueError(f"params[{k!r}] = {value!r} must be "
+                                 f"{'> 0' if rule == 'positive' else '>= 0'} (as the scene requires "
+                                 f"of {k}); give a physical value")
+            p[self.param_names.index(k)] = value
         return p
 
     def initial_state(self, **values: float) -> np.ndarray:
@@ -179,7 +192,8 @@ class Model:
                  rtol: float = 1e-10, atol: float = 1e-12, t_eval=None, h: float = 1e-4,
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
                  outputs: bool = True, checks: bool = True,
-                 project: bool | float = False) -> SimulationResult:
+                 project: bool | float = False,
+                 time_limit: float | None = None) -> SimulationResult:
         """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
 
         Parameters
@@ -200,9 +214,18 @@ class Model:
             ``'rk4'``, ``'radau'`` and ``'dopri5'`` check the contact parameters after every
             step.
         rtol, atol
-            Tolerances of the adaptive methods (``max_steps`` bounds their step count).
+            Tolerances of the adaptive methods.
+        max_steps
+            The most steps a run may take: in total for 'radau' and 'dopri5'; for 'cvodes' and
+            'idas' SUNDIALS bounds each output interval by it and the total is checked after
+            the run (use ``time_limit`` to bound their wall time).
+        time_limit
+            Seconds of wall time the integration may take (None: no limit); past it the run
+            stops with an ``IntegratorError``. Ctrl-C stops every method within a few steps
+            and raises ``KeyboardInterrupt``. (cvodes, idas: the limit needs the main thread.)
         t_eval
-            Output times (s); default every millisecond from 0 to ``t_final``.
+            Output times (s); default every millisecond from 0 to ``t_final`` (and at least
+            ``[0, t_final]``).
         params
             Values of run-time parameters (see ``param_names``).
         outputs
@@ -259,9 +282,18 @@ class Model:
         """
         if method not in integrators.METHODS:
             raise ValueError(f"method {method!r} unknown: choose one of {integrators.METHODS}")
-        if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > 0):
-            raise ValueError(f"t_final = {t_final!r} must be a finite number > 0 (seconds)")
-        x0 = self.initial_state() if x0 is None else np.array(x0, dtype=float)
+        t_final = real("t_final", t_final, "seconds")
+        if not t_final > 0:
+            raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
+        if t_final < SUNDIALS_MIN_T and method in ("cvodes", "idas"):
+            raise ValueError(f"t_final = {t_final:g} s is shorter than {SUNDIALS_MIN_T:g} s, below "
+                             f"what {method}'s step control starts on (IDAS fails, CVODES returns "
+                             "x0): use method='radau', 'dopri5' or 'rk4' for so short a run")
+        if time_limit is not None:
+            time_limit = real("time_limit", time_limit, "seconds of wall time")
+            if not time_limit > 0:
+                raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
+        x0 = self.initial_state() if x0 is None else _states("x0", x0)
         if x0.shape != (len(self.state_names),):
             raise ValueError(f"x0 has shape {x0.shape}; expected ({len(self.state_names)},) "
                              f"ordered as {self.state_names}")
@@ -272,8 +304,9 @@ class Model:
         _positive("atol", atol)
         if method == "rk4":
             _positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
-        if not (isinstance(max_steps, int) and max_steps > 0):
+        if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps <= 0:
             raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
+        max_steps = int(max_steps)
         p = self.params(params)
         proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
@@ -282,7 +315,7 @@ class Model:
             try:
                 t, X, stats = integrators.c_loop(self, method, x0, t_eval, p, rtol=rtol,
                                                  atol=atol, max_steps=max_steps, h=h,
-                                                 projection=proj)
+                                                 projection=proj, time_limit=time_limit)
             except IntegratorError as exc:
                 err = _blow_up(self, self._classify(exc), method, h)
                 if checks:
@@ -292,7 +325,7 @@ class Model:
             pp = np.zeros(0) if p is None else p
             try:
                 t, X, stats = integrators.sundials(self, method, x0, t_eval, pp, rtol, atol,
-                                                   max_steps)
+                                                   max_steps, time_limit)
             except IntegratorError as exc:
                 if checks:
                     checks_.raise_earlier_event(self, exc, p, start)
@@ -300,11 +333,13 @@ class Model:
             for i in range(len(t)):
                 try:
                     self._check_bounds(t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
-                except ContactLeftContourError as exc:
+                except ContactLeftContourError as found:
+                    exc = self._locate_exit(found, t[i - 1], X[i - 1], t[i], p, rtol, atol) \
+                        if i else found
                     if checks:
                         exc.trajectory = (t[:i].copy(), X[:i].copy())
                         checks_.raise_earlier_event(self, exc, p, start)
-                    raise
+                    raise exc from None
         outs = self.outputs_batch(X, p) if outputs and self.output_names else {}
         if checks and outs:
             event = checks_.trajectory_event(self, t, X, outs, start)
@@ -336,6 +371,28 @@ class Model:
             self.state_names,
         )
 
+    def _locate_exit(self, exc: ContactLeftContourError, t0: float, x0: np.ndarray, t1: float,
+                     p, rtol: float, atol: float) -> ContactLeftContourError:
+        """Where between the outputs ``t0`` and ``t1`` the contact left its contour: the
+        interval is integrated again from ``x0`` by the C Radau loop, which checks the bounds
+        after every step, so the exit is found at the step where it happens (SUNDIALS, run
+        through CasADi, is seen only at the output times). Returns ``exc`` with that time and
+        state (``exc`` itself if the second run does not leave the domain)."""
+        try:
+            self.library.radau5(x0, np.array([t0, t1]), p=p, rtol=rtol, atol=max(atol, 1e-14),
+                                lo=self.lower, hi=self.upper)
+        except IntegratorError as inner:
+            if getattr(inner, "code", None) == -2:  # GS_ERR_BOUNDS
+                located = ContactLeftContourError(
+                    inner.t, inner.x,
+                    exc.reason.split(" (crossing at")[0] + f" (in the Radau step from t = "
+                    f"{inner.t:.9g} s, found between the outputs at {t0:.6g} and {t1:.6g} s); "
+                    "extend the contour's domain or shorten the simulation",
+                    self.state_names)
+                located.x_rejected = getattr(inner, "x_rejected", None)
+                return located
+        return exc
+
     def _classify(self, exc: IntegratorError) -> IntegratorError:
         if "left [" in exc.reason:
             new = ContactLeftContourError(exc.t, exc.x, exc.reason + ": the contact point "
@@ -348,17 +405,53 @@ class Model:
         return exc
 
 
+def real(name: str, value, what: str = "") -> float:
+    """``value`` as a finite float: Python, NumPy and SymPy numbers are accepted; ``True``,
+    strings and other objects are refused by name (a TypeError), as are NaN and infinities
+    (a ValueError)."""
+    extra = f" ({what})" if what else ""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or not (
+            isinstance(value, numbers.Real) or getattr(value, "is_Number", False)
+            and getattr(value, "is_real", False)):
+        raise TypeError(f"{name} = {value!r} is {type(value).__name__}: give a number{extra}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{name} = {value!r} must be a finite number{extra}")
+    return v
+
+
+def _states(name: str, value) -> np.ndarray:
+    """An array of numbers (a TypeError for strings, booleans or objects)."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "fiu":
+        raise TypeError(f"{name} must be numbers, got an array of {arr.dtype} ({value!r:.80})")
+    return arr.astype(float)
+
+
 def _positive(name: str, value, what: str = "") -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+    v = real(name, value, what)
+    if not v > 0:
         extra = f" ({what})" if what else ""
         raise ValueError(f"{name} = {value!r} must be a finite number > 0{extra}")
+
+
+#: Shortest run (s) handed to SUNDIALS: below it IDAS's initial-condition step fails with
+#: NaN and CVODES returns the initial state unchanged; the C loops integrate any length.
+SUNDIALS_MIN_T = 1e-12
+#: Most output rows of the default grid (one per ms); beyond, pass ``t_eval``.
+MAX_DEFAULT_OUTPUTS = 10_000_000
 
 
 def _output_times(t_eval, t_final: float) -> tuple[np.ndarray, bool]:
     """Validated output times from 0 to ``t_final``; a leading 0 is added if missing."""
     if t_eval is None:
-        return np.linspace(0.0, t_final, int(round(t_final * 1000)) + 1), False
-    t_eval = np.asarray(t_eval, dtype=float)
+        n = max(2, math.ceil(t_final * 1000 - 1e-9) + 1)
+        if n > MAX_DEFAULT_OUTPUTS:
+            raise ValueError(f"t_final = {t_final:g} s with the default output every ms means {n} "
+                             f"output rows (more than {MAX_DEFAULT_OUTPUTS}): pass t_eval with the "
+                             "times you need, e.g. np.linspace(0, t_final, 1001)")
+        return np.linspace(0.0, t_final, n), False
+    t_eval = _states("t_eval", t_eval)
     if t_eval.ndim != 1 or len(t_eval) < 1:
         raise ValueError(f"t_eval must be a 1-D array of output times, got shape {t_eval.shape}")
     if not np.all(np.isfinite(t_eval)):
