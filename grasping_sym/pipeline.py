@@ -190,7 +190,28 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Mo
         Called with a short message before each slow stage.
     force
         Rebuild even when the cache holds this scene.
+
+    Raises
+    ------
+    UnsafeCacheError
+        A cache path is a link, another user's, or writable by others.
+    CacheWriteError
+        The cache is full, read-only or not writable (the path and the fix are named).
     """
+    import errno  # noqa: PLC0415
+
+    from grasping_sym.errors import CacheWriteError, GraspingSymError  # noqa: PLC0415
+    try:
+        return _build(scene, progress=progress, force=force)
+    except OSError as exc:
+        if isinstance(exc, GraspingSymError) or exc.errno not in (
+                errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM):
+            raise
+        raise CacheWriteError(exc.filename or cache.cache_root(), exc) from exc
+
+
+def _build(scene, *, progress: Progress | None = None, force: bool = False) -> Model:
+    """``build`` without the translation of cache write failures."""
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     digest = code_hash(scene)["hash"]

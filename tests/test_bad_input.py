@@ -217,3 +217,21 @@ def test_t_eval_with_nan_is_refused_not_hung(paper2d_model):
     except subprocess.TimeoutExpired:
         pytest.fail("simulate(t_eval=[0, nan, 1]) did not return within 20 s (CVODES hangs)")
     assert out.stdout.startswith("ValueError"), out.stdout + out.stderr
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: gs.scenes.planar_finger([1, 2], library.paper_object()), "fingertip is list"),
+    (lambda: gs.scenes.planar_finger(None, library.paper_object()), "fingertip is NoneType"),
+    (lambda: gs.scenes.planar_finger(library.paper_fingertip(), library.paper_object(),
+                                     extra_fingers=("abc",)), "extra finger 2 is str"),
+    (lambda: gs.scenes.PlanarFingerScene(name="x", fingertip=library.paper_fingertip(),
+                                         object=library.paper_object(), params=[1, 2]),
+     "params is list"),
+    (lambda: gs.scenes.planar_finger(library.paper_fingertip(), library.paper_object(), fd=True),
+     "fd = True"),
+    (lambda: gs.scenes.paper3d(dq0=[math.nan] * 5), "dq0 = .* must hold finite numbers"),
+    (lambda: gs.scenes.paper3d(position=(math.nan, 0.0, 0.0)), "position = .* finite numbers"),
+])
+def test_wrong_types_and_non_finite_values_are_named(make, match):
+    with pytest.raises(InvalidSceneError, match=match):
+        make()

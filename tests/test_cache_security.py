@@ -293,3 +293,15 @@ def test_concurrent_forced_builds_never_poison_the_cache(cache):
         assert out == {"source": "cache", "ok": True}
     lib = Path(outs[0][0].strip())
     ctypes.CDLL(str(lib))  # loads in this process too
+
+
+def test_a_full_disk_during_a_build_is_named(cache, monkeypatch):
+    """Any write of the build failing for lack of space: CacheWriteError, not a bare OSError."""
+    import tempfile as tf
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", "somewhere")
+
+    monkeypatch.setattr(tf, "mkdtemp", full)
+    with pytest.raises(CacheWriteError, match="disk is full"):
+        gs.build(gs.scenes.paper2d(), force=True)

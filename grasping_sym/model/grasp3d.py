@@ -27,6 +27,7 @@ It uses no object information (only the fingertip centres).
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -158,6 +159,14 @@ class GraspScene3D:
             if not self.object_surface.in_domain(*f.object_contact):
                 p.append(f"finger {i}: object_contact {f.object_contact} is outside the object's "
                          f"domain {self.object_surface.domain}")
+        for label, values in (("position", self.position), ("dq0", self.dq0 or ()),
+                              *[(f"finger {i}: q0", f.q0) for i, f in enumerate(self.fingers, 1)],
+                              *[(f"finger {i}: tip_contact", f.tip_contact)
+                                for i, f in enumerate(self.fingers, 1)],
+                              *[(f"finger {i}: object_contact", f.object_contact)
+                                for i, f in enumerate(self.fingers, 1)]):
+            if not all(_number(v) for v in values):
+                p.append(f"{label} = {tuple(values)!r} must hold finite numbers")
         if self.dq0 is not None and len(self.dq0) != sum(f.chain.n for f in self.fingers):
             p.append(f"dq0 has {len(self.dq0)} speeds; the fingers have "
                      f"{sum(f.chain.n for f in self.fingers)} joints")
@@ -168,7 +177,7 @@ class GraspScene3D:
             p.append(f"finger chains share names {names}: give each a distinct name")
         for k in ("mass", "fd", "c", "r_ctrl"):
             v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            if not (_number(v) and v > 0):
                 p.append(f"{k} = {v!r} must be a finite number > 0")
         if not (isinstance(self.gain, (int, float)) and math.isfinite(self.gain) and self.gain >= 0):
             p.append(f"gain = {self.gain!r} must be a finite number >= 0 (1/s; 0: no stabilisation, "
@@ -359,3 +368,8 @@ def _matrix(m) -> tuple[tuple[float, float, float], ...]:
     if a.shape == (3,):
         a = np.diag(a)
     return tuple(tuple(float(x) for x in row) for row in a)
+
+
+def _number(v) -> bool:
+    """A finite real number (``True`` is not one)."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)

@@ -16,6 +16,7 @@ in the paper.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from functools import cached_property
 from typing import ClassVar
@@ -145,7 +146,8 @@ class PlanarFingerScene:
         problems = self._parameter_problems()
         if problems:
             # the error path: add the contour checks too, so every problem is named at once
-            raise InvalidSceneError(problems + self._geometry_problems(problems))
+            geometry = [] if self._type_problems() else self._geometry_problems(problems)
+            raise InvalidSceneError(problems + geometry)
 
     @cached_property
     def _initial(self) -> tuple[float, tuple[float, float]]:
@@ -237,9 +239,28 @@ class PlanarFingerScene:
                 )
         return problems
 
+    def _type_problems(self) -> list[str]:
+        """The types the other checks rely on (each named with the fix)."""
+        problems = []
+        for label, curve in (("fingertip", self.fingertip), ("object", self.object)):
+            if not isinstance(curve, PlanarCurve):
+                problems.append(f"{label} is {type(curve).__name__}: give a PlanarCurve "
+                                "(e.g. gs.curves.circle(0.01) or gs.PlanarCurve(x, y, domain=...))")
+        if not isinstance(self.params, dict):
+            problems.append(f"params is {type(self.params).__name__}: give a dict of values by name")
+        for i, f in enumerate(self.extra_fingers, start=2):
+            if not isinstance(f, ExtraFinger):
+                problems.append(f"extra finger {i} is {type(f).__name__}: give an ExtraFinger")
+            elif not isinstance(f.fingertip, PlanarCurve):
+                problems.append(f"finger {i}'s fingertip is {type(f.fingertip).__name__}: give a "
+                                "PlanarCurve")
+        return problems
+
     def _parameter_problems(self) -> list[str]:
         """Checks that need no numeric evaluation of the contours."""
-        problems: list[str] = []
+        problems = self._type_problems()
+        if problems:
+            return problems + name_problems(self.name)
         problems += name_problems(self.name)
         missing = [k for k in PARAMETERS if k not in self.params]
         unknown = [k for k in self.params if k not in PARAMETERS]
@@ -409,7 +430,8 @@ class PlanarFingerScene:
 
 
 def _finite(v) -> bool:
-    return isinstance(v, (int, float)) and math.isfinite(v)
+    """A finite real number (Python, NumPy; ``True`` is not one)."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
 
 
 def _finite_positive(v) -> bool:

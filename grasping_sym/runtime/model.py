@@ -140,11 +140,16 @@ class Model:
         """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``.
 
         ``p``: values of ``param_names`` (the start's values are appended), or of every
-        ``input_names``; default the model's."""
+        ``input_names``; default the model's.
+
+        The raw fast path: only the shapes are checked. The values are not (no parameter
+        rules, no contour domains, no constraint checks), and a NaN or an infinity in ``x``
+        or ``p`` propagates into the result. ``simulate`` checks what it is given."""
         return self.library.rhs(x, self._p(p))
 
     def rhs_batch(self, X, p=None) -> np.ndarray:
-        """``rhs`` for every row of ``X`` (shape ``(n, n_states)``) in one C loop."""
+        """``rhs`` for every row of ``X`` (shape ``(n, n_states)``) in one C loop; like ``rhs``
+        the raw fast path (shapes checked, values not: NaN propagates)."""
         return self.library.rhs_batch(X, self._p(p))
 
     def outputs(self, x, p=None) -> dict[str, float]:
