@@ -210,8 +210,13 @@ def test_model_contains_only_what_the_scene_needs(tmp_path):
     full = generate(gs.scenes.paper3d(name="g"), tmp_path / "g")
     flat = generate(gs.scenes.paper3d(name="h", gravity=None), tmp_path / "h")
     none = generate(gs.scenes.paper3d(name="n", outputs=()), tmp_path / "n")
+    from grasping_sym.codegen import structure_cache
+
     def c_text(d, m):
-        return "".join((tmp_path / d / f).read_text() for f in m["files"] if f.endswith(".c"))
+        """The model's C and its structure's."""
+        text = "".join((tmp_path / d / f).read_text() for f in m["files"] if f.endswith(".c"))
+        meta, sdir = structure_cache.locate(m["structure"])
+        return text + "".join((sdir / f).read_text() for f in meta["files"] if f.endswith(".c"))
 
     assert "9.81" in c_text("g", full)
     assert "9.81" not in c_text("h", flat)

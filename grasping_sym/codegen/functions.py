@@ -212,7 +212,8 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
              jacobian: bool = True, constraints: ca.SX | None = None,
              constraint_names: tuple[str, ...] | None = None,
              start_conditions: ca.SX | None = None, start_names: tuple[str, ...] = (),
-             start_values: ca.SX | None = None) -> CasadiModel:
+             start_values: ca.SX | None = None,
+             exact=None) -> CasadiModel:
     """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
 
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
@@ -222,13 +223,22 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
     ``Cdot = jtimes(C, x, xdot)`` (the total time derivative along the closed loop), ``dC_dx``
     and ``dCdot_dv`` (the columns of dCdot/dx for the velocity states, zero elsewhere) as dense
     ``nc x nx`` matrices; with the SX instruction counts before and after CSE.
+
+    ``exact(*exprs) -> list`` (optional) rewrites every expression once all derivatives are
+    taken, before the functions are made (a structure's vanishing Taylor terms,
+    ``codegen.structure3d``).
     """
+    if exact is not None and jacobian:
+        raise ValueError("exact= rewrites the rhs after differentiation: its Jacobian would "
+                         "miss the rewritten terms; pass jacobian=False")
+    fix = exact or (lambda *exprs: list(exprs))
     t = ca.SX.sym("t")
     empty = ca.SX(0, 1)
     dyn_in = [t, x, empty, p, empty]
-    raw = ca.Function(f"{name}_rhs", dyn_in, [xdot, empty, empty, empty],
+    (xdot_exact,) = fix(xdot)
+    raw = ca.Function(f"{name}_rhs", dyn_in, [xdot_exact, empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out())
-    rhs = ca.Function(f"{name}_rhs", dyn_in, [xdot, empty, empty, empty],
+    rhs = ca.Function(f"{name}_rhs", dyn_in, [xdot_exact, empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out(), FUNCTION_OPTIONS)
     jac = rhs.jacobian() if jacobian else None
     op_counts = {
@@ -239,19 +249,20 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
         op_counts["jac_sx_instructions"] = jac.n_instructions()
     out_fn = None
     if outputs:
-        y = ca.vertcat(*outputs.values())
+        (y,) = fix(ca.vertcat(*outputs.values()))
         out_fn = ca.Function(f"{name}_outputs", [x, p], [y], ["x", "p"], ["y"],
                              FUNCTION_OPTIONS)
         op_counts["outputs_sx_instructions"] = out_fn.n_instructions()
     con_fn, con_info = None, {}
     if constraints is not None:
-        con_fn, con_info = _constraints_function(x, p, xdot, constraints, constraint_names, name)
+        con_fn, con_info = _constraints_function(x, p, xdot, constraints, constraint_names, name,
+                                                 fix)
         op_counts["constraints_sx_instructions"] = con_fn.n_instructions()
     start_fn = None
     if start_conditions is not None:
-        v = ca.SX(0, 1) if start_values is None else start_values
+        v = ca.SX(0, 1) if start_values is None else fix(start_values)[0]
         start_fn = ca.Function(f"{name}_start", [x, p],
-                               [start_conditions, ca.densify(ca.jacobian(start_conditions, x)), v],
+                               [*fix(start_conditions, ca.densify(ca.jacobian(start_conditions, x))), v],
                                ["x", "p"], ["G", "dG_dx", "v"], FUNCTION_OPTIONS)
         op_counts["start_sx_instructions"] = start_fn.n_instructions()
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=tuple(outputs),
@@ -260,10 +271,13 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
 
 
 def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,
-                          names: tuple[str, ...] | None, name: str) -> tuple[ca.Function, dict]:
+                          names: tuple[str, ...] | None, name: str,
+                          fix=None) -> tuple[ca.Function, dict]:
     """``{name}_constraints`` ``(x, p) -> (C, dC_dx, Cdot, dCdot_dv)`` and which states the
     projection may change (``constraint_expressions``)."""
     outs, info = constraint_expressions(x, xdot, C, names)
+    if fix is not None:
+        outs = fix(*outs)
     fn = ca.Function(f"{name}_constraints", [x, p], outs,
                      ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"], FUNCTION_OPTIONS)
     return fn, info

@@ -135,3 +135,63 @@ def lanes_glue(name: str, contours, structure_lanes: str | None, n_leaves: int) 
     text = (c_lanes or "") + "\n".join(head + body) + "\n"
     how = "contours four at a time" if c_lanes is not None else f"contours one lane at a time ({status})"
     return text, f"applied ({how}, then the structure's 4-lane rhs)"
+
+
+def jets_functions(surfaces, slots, nx: int, name: str, entries: dict[str, list[int]]
+                   ) -> dict[str, ca.Function]:
+    """Per function kind, ``<name>_jets_<kind> (x) -> J[entries[kind]]``: the entries of the
+    3D contour slots' jets (``codegen.structure3d``; slot ``s`` of surface ``surfaces[s]`` at
+    ``x[slots[s][0]], x[slots[s][1]]``) that the structure's function of that kind takes.
+    Kinds that take the same entries share one function."""
+    from grasping_sym.codegen.structure3d import jet_values  # noqa: PLC0415
+    from grasping_sym.derive.grasp3d import surface_sx  # noqa: PLC0415
+
+    x = ca.SX.sym("x", nx)
+    jets = []
+    for surface, (iu, iv, _size) in zip(surfaces, slots):
+        u, v = x[iu], x[iv]
+        jets.append(jet_values(surface_sx(surface, u, v), u, v))
+    J = ca.vertcat(*jets)
+    out, made = {}, {}
+    for kind, idx in entries.items():
+        key = tuple(idx)
+        if key not in made:
+            made[key] = ca.Function(f"{name}_jets_{kind}", [x],
+                                    [ca.vertcat(*[J[i] for i in idx]) if idx else ca.SX(0, 1)],
+                                    ["x"], ["J"], FUNCTION_OPTIONS)
+        out[kind] = made[key]
+    return out
+
+
+def compose_layered_3d(structure: dict[str, ca.Function], meta: dict,
+                       jets: dict[str, ca.Function], nx: int, np_: int, name: str) -> CasadiModel:
+    """A 3D model's MX functions over its structure's ``external`` functions (each takes the
+    model's inputs and the jet entries ``J`` it needs) and its jets functions."""
+    t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
+    z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
+
+    def J(kind):
+        return jets[kind](x)
+
+    rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u],
+                      list(structure["rhs"](t, x, z, p, u, J("rhs"))), ca.dyn_in(), ca.dyn_out())
+    out_fn = None
+    output_names = tuple(meta["output_names"])
+    if output_names:
+        out_fn = ca.Function(f"{name}_outputs", [x, p], [structure["outputs"](x, p, J("outputs"))],
+                             ["x", "p"], ["y"])
+    constraints = ca.Function(f"{name}_constraints", [x, p],
+                              list(structure["constraints"](x, p, J("constraints"))),
+                              ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
+    start = None
+    if "start" in structure:
+        start = ca.Function(f"{name}_start", [x, p], list(structure["start"](x, p, J("start"))),
+                            ["x", "p"], ["G", "dG_dx", "v"])
+    ops = dict(meta.get("op_counts", {}))
+    helpers = tuple({id(f): f for f in jets.values()}.values())
+    ops["jets_sx_instructions"] = sum(f.n_instructions() for f in helpers)
+    ops["rhs_jets_sx_instructions"] = jets["rhs"].n_instructions()
+    return CasadiModel(rhs=rhs, jac=None, outputs=out_fn, output_names=output_names,
+                       op_counts=ops, constraints=constraints,
+                       constraint_info=meta["constraint_info"], start=start,
+                       start_names=tuple(meta["start_names"]), helpers=helpers)

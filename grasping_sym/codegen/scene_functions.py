@@ -33,6 +33,7 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     is a run-time input, after the scene's run-time parameters."""
     from grasping_sym.codegen import structure_cache, templates  # noqa: PLC0415
     from grasping_sym.codegen.layered import compose_layered, contour_functions, lanes_glue  # noqa: PLC0415
+    from grasping_sym.codegen.structure import structure_functions  # noqa: PLC0415
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
@@ -41,8 +42,11 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     shared, gravity, inputs = spec.shared, spec.gravity, spec.inputs
     t1 = time.perf_counter()
     say(f"structure of {scene.name} (compiled once per structure)")
-    meta, directory, source = structure_cache.ensure(
-        spec, lambda: templates.planar_template(shared, gravity, scene.n_fingers), say)
+    def make(name):
+        template, source = templates.planar_template(shared, gravity, scene.n_fingers)
+        return structure_functions(template, spec, name), f"template: {source}"
+
+    meta, directory, source = structure_cache.ensure(spec, make, say)
     t2 = time.perf_counter()
     so = structure_cache.library(meta, directory)
     t3 = time.perf_counter()
@@ -94,6 +98,42 @@ def planar_structure(scene):
                                                 if k not in inputs)),
                          folded=fold_pattern(leaves), outputs=tuple(scene.outputs))
     return spec, leaves
+
+
+def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A 3D scene (regular formulation) in layers: its structure (``codegen.structure3d``:
+    derived, written and compiled once per structure, ``codegen.structure_cache``) called by
+    the scene's own jets of its surfaces (``codegen.layered.jets_function``)."""
+    from grasping_sym.codegen import structure_cache  # noqa: PLC0415
+    from grasping_sym.codegen.layered import compose_layered_3d, jets_functions  # noqa: PLC0415
+    from grasping_sym.codegen.structure3d import Structure3DSpec, structure3d_functions  # noqa: PLC0415
+
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    spec = Structure3DSpec(scene.structure_key(), tuple(scene.hashed_sources))
+
+    def make(name):
+        return structure3d_functions(scene, name), "derived with SymPy and CasADi's AD"
+
+    say(f"structure of {scene.name} (compiled once per structure)")
+    meta, directory, source = structure_cache.ensure(spec, make, say)
+    t1 = time.perf_counter()
+    so = structure_cache.library(meta, directory)
+    t2 = time.perf_counter()
+    say("the surfaces' jets (SymPy forms, CasADi AD)")
+    surfaces = [s for f in scene.fingers for s in (f.tip, scene.object_surface)]
+    nx = len(scene.state_names)
+    jets = jets_functions(surfaces, [tuple(s) for s in meta["slots"]], nx, scene.name,
+                          meta["jet_entries"])
+    inputs = (*scene.runtime, *scene.start_param_names)
+    cm = compose_layered_3d(structure_cache.externals(meta, so), meta, jets, nx, len(inputs),
+                            scene.name)
+    t3 = time.perf_counter()
+    return SceneFunctions(cm, {"structure": t1 - t0, "structure_source": source,
+                               "structure_compile": t2 - t1, "compose": t3 - t2},
+                          structure={"name": meta["name"], "hash": meta["hash"]},
+                          lanes=(None, "not made: a 3D rhs is too large for the 4-lane copy "
+                                       "(radau is not the 3D method of choice)"))
 
 
 def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions:

@@ -88,23 +88,33 @@ class StructureFunctions:
 
     name: str
     rhs: ca.Function
-    jac: ca.Function
+    jac: ca.Function | None
     outputs: ca.Function | None
     constraints: ca.Function
     start: ca.Function
-    #: per contour slot: its state index and the leaves that are inputs (index in its family)
-    slots: tuple[tuple[int, tuple[int, ...]], ...]
+    #: per contour slot: its state index (indices) and what it takes (2D: the leaves that are
+    #: inputs, by index in its family; 3D: the size of its surface jet)
+    slots: tuple
     output_names: tuple[str, ...]
     constraint_info: dict
     start_names: tuple[str, ...]
+    #: how many contour values the functions take (2D: ``L``; 3D: the jets ``J``)
+    n_leaves: int = 0
+    #: ``(kinds, names)`` of the 4-lane rhs (``lanes.function_lanes``), None: no lanes
+    lanes: tuple | None = None
+    #: further entries of ``structure.json`` (3D: which jet entries each function takes)
+    extra_meta: dict | None = None
 
     def functions(self) -> list[ca.Function]:
         return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start)
                 if f is not None]
 
-    @property
-    def n_leaves(self) -> int:
-        return sum(len(leaves) for _, leaves in self.slots)
+    def kinds(self) -> dict[str, str]:
+        """The C name of each function, by kind (``rhs``, ``jac``, ...)."""
+        return {k: f.name() for k, f in (("rhs", self.rhs), ("jac", self.jac),
+                                         ("outputs", self.outputs),
+                                         ("constraints", self.constraints), ("start", self.start))
+                if f is not None}
 
 
 def structure_functions(template: Template, spec: StructureSpec, name: str) -> StructureFunctions:
@@ -179,4 +189,5 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
     return StructureFunctions(name=name, rhs=rhs, jac=jac, outputs=outputs,
                               constraints=constraints, start=start, slots=tuple(slots),
                               output_names=tuple(spec.outputs), constraint_info=info,
-                              start_names=names + tangency)
+                              start_names=names + tangency, n_leaves=n_leaves,
+                              lanes=(("t", "lane", "shared", "lane"), ("t", "x", "p", "L", "xdot")))

@@ -27,7 +27,7 @@ import casadi as ca
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, objects
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_objects, compile_shared
-from grasping_sym.codegen.structure import StructureSpec, structure_functions
+from grasping_sym.codegen.structure import StructureFunctions
 from grasping_sym.runtime import safety, stored
 
 __all__ = ["META", "derive_afresh", "ensure", "externals", "library", "link_objects", "structure_name",
@@ -43,8 +43,11 @@ def _entries() -> Path:
     return safety.ensure_dir(root / DIR, root=root)
 
 
-def structure_hash(spec: StructureSpec) -> str:
-    return spec.digest(f"{cache.sources_digest()}|{ca.__version__}|{__version__}|"
+def structure_hash(spec) -> str:
+    """The hash of a structure: its key, the package sources it depends on (``spec.sources``
+    beyond ``cache.HASHED_SOURCES``), CasADi's and the package's versions, the flags."""
+    sources = tuple(dict.fromkeys(cache.HASHED_SOURCES + tuple(getattr(spec, "sources", ()))))
+    return spec.digest(f"{cache.sources_digest(sources)}|{ca.__version__}|{__version__}|"
                        f"{' '.join(COMPILER_FLAGS)}")
 
 
@@ -70,16 +73,18 @@ def _complete(directory: Path, digest: str, trusted: bool = False) -> dict | Non
     return meta
 
 
-def write_structure(spec: StructureSpec, template, directory: Path, digest: str) -> dict:
-    """Write the structure's C and ``structure.json`` into ``directory``; return the latter."""
-    name = structure_name(digest)
-    sf = structure_functions(template, spec, name)
-    lane_c, lanes_status = lanes.function_lanes(
-        sf.rhs, f"{name}_rhs_lanes", ("t", "lane", "shared", "lane"), ("t", "x", "p", "L", "xdot"))
+def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: str) -> dict:
+    """Write the C of the structure ``sf`` (named ``structure_name(digest)``) and its
+    ``structure.json`` into ``directory``; return the latter."""
+    name = sf.name
+    lane_c, lanes_status = None, "not made: the structure's rhs has no lane layout"
+    if sf.lanes is not None:
+        lane_c, lanes_status = lanes.function_lanes(sf.rhs, f"{name}_rhs_lanes", *sf.lanes)
     files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c)
     meta = {
-        "name": name, "hash": digest, "key": spec.key(), "files": files,
-        "slots": [[i, list(kept)] for i, kept in sf.slots], "n_leaves": sf.n_leaves,
+        "name": name, "hash": digest, "key": key, "files": files,
+        "slots": [list(map(lambda v: list(v) if isinstance(v, tuple) else v, s)) for s in sf.slots],
+        "n_leaves": sf.n_leaves, "functions": sf.kinds(),
         "output_names": list(sf.output_names), "constraint_info": sf.constraint_info,
         "start_names": list(sf.start_names),
         "rhs_lanes": f"{name}_rhs_lanes" if lane_c else None,
@@ -88,6 +93,7 @@ def write_structure(spec: StructureSpec, template, directory: Path, digest: str)
                       for k, f in (("rhs", sf.rhs), ("jac", sf.jac), ("outputs", sf.outputs),
                                    ("constraints", sf.constraints), ("start", sf.start))
                       if f is not None},
+        **(sf.extra_meta or {}),
     }
     stored.write_json(directory / META, meta)
     return meta
@@ -107,12 +113,13 @@ def derive_afresh():
         _AFRESH.pop()
 
 
-def ensure(spec: StructureSpec, template: Callable[[], tuple[object, str]],
+def ensure(spec, make: Callable[[str], tuple[StructureFunctions, str]],
            say: Callable[[str], None] = lambda m: None) -> tuple[dict, Path, str]:
-    """The structure of ``spec`` in the cache: ``(structure.json, its directory, where it came
-    from)``; copied from the committed structures (except under :func:`derive_afresh`) or
-    written now (``template()`` gives the template and where it came from) when the cache
-    lacks it."""
+    """The structure of ``spec`` (anything with ``key()`` and ``digest(extra)``) in the cache:
+    ``(structure.json, its directory, where it came from)``; copied from the committed
+    structures (except under :func:`derive_afresh`) or written now when the cache lacks it
+    (``make(name)`` gives its functions, named ``<name>_*``, and where their derivation came
+    from)."""
     digest = structure_hash(spec)
     name = structure_name(digest)
     directory = _entries() / name
@@ -124,10 +131,10 @@ def ensure(spec: StructureSpec, template: Callable[[], tuple[object, str]],
         _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)
                                        for f in [*cm["files"], META]])
         return cm, directory, "committed"
-    tmpl, source = template()
-    say(f"writing the C of structure {name} (template: {source})")
-    _install(directory, lambda d: write_structure(spec, tmpl, d, digest))
-    return _complete(directory, digest), directory, f"derived (template: {source})"
+    sf, source = make(name)
+    say(f"writing the C of structure {name} ({source})")
+    _install(directory, lambda d: write_structure(sf, spec.key(), d, digest))
+    return _complete(directory, digest), directory, f"derived ({source})"
 
 
 def _install(directory: Path, fill) -> None:
@@ -171,9 +178,7 @@ def library(meta: dict, directory: Path) -> Path:
 
 def externals(meta: dict, so: Path) -> dict[str, ca.Function]:
     """The structure's functions, loaded from its library."""
-    kinds = ("rhs", "jac", "outputs", "constraints", "start")
-    return {k: ca.external(f"{meta['name']}_{k}", str(so)) for k in kinds
-            if k != "outputs" or meta["output_names"]}
+    return {k: ca.external(c_name, str(so)) for k, c_name in meta["functions"].items()}
 
 
 def locate(entry: dict) -> tuple[dict, Path]:

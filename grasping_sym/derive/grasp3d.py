@@ -172,8 +172,13 @@ def _darboux(kg, tg, kn):
 
 
 # ------------------------------------------------------------------ the closed loop
-def derive_grasp3d(scene: GraspScene3D) -> Grasp3DSystem:
+def derive_grasp3d(scene: GraspScene3D, surface_fn=None) -> Grasp3DSystem:
     """The scene's closed loop as SX.
+
+    ``surface_fn(slot, surface, u, v, extra)`` gives a contour slot's point, frame and forms
+    (the dict of :func:`surface_sx`; slot ``2 i`` is contact ``i``'s fingertip, ``2 i + 1``
+    the object there); default :func:`surface_sx` itself. A structure passes the surfaces'
+    values as inputs instead (``codegen.structure3d``).
 
     ``p`` holds the run-time parameters ``scene.runtime``, then ``scene.start_param_names``:
     ``r_bar0`` (m), the mean of the fingertip centres at the start, where the centre spring
@@ -217,9 +222,10 @@ def derive_grasp3d(scene: GraspScene3D) -> Grasp3DSystem:
 
     # contact geometry at the contact coordinates
     contacts = []
-    for f, fin, eta in zip(scene.fingers, fingers, etas):
-        sf = surface_sx(f.tip, eta[0], eta[1], extra=paper)
-        so = surface_sx(scene.object_surface, eta[2], eta[3], extra=paper)
+    surface_fn = surface_fn or (lambda slot, s, u, v, extra: surface_sx(s, u, v, extra))
+    for i, (f, fin, eta) in enumerate(zip(scene.fingers, fingers, etas)):
+        sf = surface_fn(2 * i, f.tip, eta[0], eta[1], paper)
+        so = surface_fn(2 * i + 1, scene.object_surface, eta[2], eta[3], paper)
         Cf = fin["Pi"] @ ca.horzcat(sf["x"], sf["y"], sf["n"])
         if paper:  # psi read from the two surfaces' frames at the carried points
             xo = R @ so["x"]

@@ -269,6 +269,15 @@ class GraspScene3D:
             parts += [repr(f.chain), f.tip.key()]
         return "\n".join(parts)
 
+    def structure_key(self) -> str:
+        """What the code depends on besides the scene's name and its surfaces: the text of
+        its structure layer (``codegen.structure3d``)."""
+        parts = ["grasp3d-v2", self.support, self.formulation, repr(self.mass),
+                 repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),
+                 repr(self.params), repr(self.r_ctrl), repr(self.spin_damping), ",".join(self.outputs),
+                 ",".join(self.runtime), *[repr(f.chain) for f in self.fingers]]
+        return "\n".join(parts)
+
     def key(self) -> str:
         """Canonical text of the whole definition: the code's and the start's."""
         parts = [self.code_key(), repr(self.position), repr(self.rotation), repr(self.dq0)]
@@ -290,7 +299,7 @@ class GraspScene3D:
     #: of the ones every scene's does (``codegen.cache.HASHED_SOURCES``).
     hashed_sources: ClassVar[tuple[str, ...]] = (
         "model/grasp3d.py", "model/chains.py", "geometry/surfaces.py", "derive/grasp3d.py",
-        "derive/spatial.py", "derive/contact3d.py",
+        "derive/spatial.py", "derive/contact3d.py", "codegen/structure3d.py",
     )
     #: 3D scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA
     #: at moderate tolerances is the fast choice (a 5 s paper3d run in ~0.1 s).
@@ -298,11 +307,14 @@ class GraspScene3D:
                                          "tolerances": {"radau": (1e-6, 1e-9)}}
 
     def casadi_functions(self, progress=None, layers: bool = True):
-        """The scene's CasADi functions (``codegen.scene_functions.grasp3d_functions``): one
-        piece of SX, whatever ``layers`` says (3D has no structure layer)."""
-        from grasping_sym.codegen.scene_functions import grasp3d_functions  # noqa: PLC0415
+        """The scene's CasADi functions: in layers (``codegen.scene_functions.grasp3d_layered``:
+        what is compiled, for the regular formulation), or in one piece of SX
+        (``grasp3d_functions``: with ``layers=False``, and for the paper formulation)."""
+        from grasping_sym.codegen import scene_functions  # noqa: PLC0415
 
-        return grasp3d_functions(self, progress)
+        if layers and self.formulation == "regular":
+            return scene_functions.grasp3d_layered(self, progress)
+        return scene_functions.grasp3d_functions(self, progress)
 
     def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
         """``(x0, start values, info)``: the consistent start nearest the guesses

@@ -1,4 +1,4 @@
-"""A planar model in layers: a structure compiled once, a shape's own small C.
+"""Models in layers: a structure compiled once, a shape's own small C (2D: contours; 3D: surface jets).
 
 The compiled layered functions are checked against the single-piece composition of the same
 template with the same contours (``functions.compose``, evaluated by CasADi's virtual
@@ -105,3 +105,52 @@ def test_unit_speed_leaves_are_folded_into_the_structure():
     assert dict(spec_c.folded[0]) == {4: 1, 6: 0, 7: 0}  # a circle's curvature is constant
     spec_e, _ = planar_structure(_ellipse_scene())
     assert dict(spec_e.folded[1]) == {}  # the ellipse: nothing constant
+
+
+# ------------------------------------------------------------------------------ 3D
+def _surface_pair_scene(name: str, semi_axes=(0.022, 0.025, 0.028), tip=0.009):
+    import dataclasses
+
+    from grasping_sym.geometry import surface_library as sl
+    base = gs.scenes.paper3d()
+    return gs.scenes.paper3d(
+        name=name, object_surface=sl.ellipsoid(*semi_axes, lon=(-math.pi / 2, 3 * math.pi / 2),
+                                               name="object"),
+        fingers=tuple(dataclasses.replace(f, tip=sl.sphere(tip, name=f"tip{i}"))
+                      for i, f in enumerate(base.fingers)))
+
+
+def test_3d_layered_functions_equal_the_single_piece_derivation():
+    """paper3d in layers (structure with the surfaces' jets as inputs) against the single
+    piece (surfaces and CasADi's AD in one graph): rhs, outputs, constraint function, start
+    conditions and their Jacobians."""
+    scene = replace(gs.scenes.paper3d(), name="layers_paper3d")
+    model = gs.build(scene)
+    assert "structure" in model.manifest
+    one = _single_piece(scene)
+    lib = str(model.library_path)
+    ext = {k: ca.external(f"{scene.name}_{k}", lib) for k in ("outputs", "constraints", "start")}
+    p = np.asarray(model.default_params, float)
+    rng = np.random.default_rng(11)
+    x0 = np.asarray(model.initial_state(), float)
+    for _ in range(3):
+        x = x0 + rng.normal(0.0, 1e-3, x0.size)
+        b = _dense(one.rhs(0, x, [], p, [])[0]).ravel()
+        np.testing.assert_allclose(model.rhs(x), b, rtol=1e-11, atol=1e-11 * np.abs(b).max())
+        np.testing.assert_allclose(_dense(ext["outputs"](x, p)), _dense(one.outputs(x, p)),
+                                   rtol=1e-11, atol=1e-12)
+        for name in ("constraints", "start"):
+            for A, B in zip(ext[name](x, p), getattr(one, name)(x, p)):
+                A, B = _dense(A), _dense(B)
+                np.testing.assert_allclose(A, B, rtol=1e-11,
+                                           atol=1e-11 * max(np.abs(B).max(initial=0.0), 1e-3),
+                                           err_msg=name)
+
+
+def test_a_new_3d_surface_pair_reuses_the_structure():
+    a = gs.build(_surface_pair_scene("layers_pair_a"))
+    b = gs.build(_surface_pair_scene("layers_pair_b", semi_axes=(0.021, 0.026, 0.03), tip=0.01))
+    assert a.manifest["structure"] == b.manifest["structure"]
+    assert b.build_info["structure_source"] == "cache"
+    res = b.simulate(0.2, method="dopri5", project=True, rtol=1e-8, atol=1e-11)
+    assert np.all(np.isfinite(res.x)) and res.outputs["constraint_residual"].max() < 1e-9
