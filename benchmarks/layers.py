@@ -75,13 +75,17 @@ SCENES_2D = {
          "span=1.0, clockwise=True, name='other ellipse'))"),
 }
 SCENES_3D = {
-    "paper3d cold (new name: no cache, no committed C)": ("", "gs.scenes.paper3d(name='paper3d_cold')"),
-    "new 3D surface pair (ellipsoid 22x25x28 mm, tips 9 mm)":
+    "paper3d cold (new name: no cache, no committed model C; its structure's C is committed)":
+        ("", "gs.scenes.paper3d(name='paper3d_cold')"),
+    "new 3D surface pair on that structure (ellipsoid 22x25x28 mm, tips 9 mm)":
         ("from grasping_sym.geometry import surface_library as sl; import dataclasses",
          "gs.scenes.paper3d(name='paper3d_pair', object_surface=sl.ellipsoid(0.022, 0.025, 0.028, "
          "lon=(-1.5707963267948966, 4.71238898038469), name='object'), fingers=tuple("
          "dataclasses.replace(f, tip=sl.sphere(0.009, name=f'tip{i}')) for i, f in "
          "enumerate(gs.scenes.paper3d().fingers)))"),
+    # another grip force is folded into the code: a structure neither cached nor committed
+    "first build of a 3D structure (derived: paper3d with fd = 0.6 N folded in)":
+        ("", "gs.scenes.paper3d(name='paper3d_new', fd=0.6)"),
 }
 
 
@@ -219,7 +223,8 @@ def markdown(res: dict) -> str:
         "and compiled once: *structure ms*, *structure compile ms*), then its own contour "
         "functions and the glue that calls the structure (*compose*, *write C*, *compile*: the "
         "model's small C only; the driver's objects are compiled once per set of sizes, in the "
-        "first row of a cache). A 3D scene is derived and compiled in one piece (*derive*). "
+        "first row of a cache). A 3D scene likewise: its structure (derived with SymPy and "
+        "CasADi's AD, with the surfaces' jets as inputs), then its surfaces' jets and the glue. "
         "`gs.build` is the wall time of the call.",
         "",
         *_table(["build", "runs", "code from", "structure from", "validate ms", "structure ms",

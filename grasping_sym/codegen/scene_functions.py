@@ -113,7 +113,7 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
     spec = Structure3DSpec(scene.structure_key(), tuple(scene.hashed_sources))
 
     def make(name):
-        return structure3d_functions(scene, name), "derived with SymPy and CasADi's AD"
+        return structure3d_functions(scene, name), "SymPy and CasADi's AD"
 
     say(f"structure of {scene.name} (compiled once per structure)")
     meta, directory, source = structure_cache.ensure(spec, make, say)
