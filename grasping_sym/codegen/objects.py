@@ -34,7 +34,8 @@ from grasping_sym.codegen.compiler import (
 )
 from grasping_sym.runtime import safety
 
-__all__ = ["ALIASES", "driver_objects", "flags_digest", "links_c", "object_defines"]
+__all__ = ["ALIASES", "cached_objects", "driver_objects", "flags_digest", "links_c",
+           "object_defines"]
 
 #: The driver's macros that name a model function, and the fixed name each one gets.
 ALIASES: dict[str, str] = {
@@ -116,13 +117,22 @@ def driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
     root = cache.cache_root()
     directory = safety.ensure_dir(
         root / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}", root=root)
-    objects = [directory / f"{src.stem}.o" for src in sources]
+    return cached_objects(sources, directory, defs, include_dirs)
+
+
+def cached_objects(sources: Sequence[Path], directory: Path,
+                   defines: Mapping[str, str | int] | None = None,
+                   include_dirs: Sequence[str] = ()) -> list[Path]:
+    """The object files ``<directory>/<stem>.o`` of ``sources``: checked (``runtime.safety``)
+    when there, else compiled now (in parallel, each installed atomically, so concurrent
+    builds agree). ``directory`` must exist and be the caller's to fill."""
+    objects = [Path(directory) / f"{Path(src).stem}.o" for src in sources]
     if all(os.path.lexists(o) for o in objects):
         for o in objects:
             safety.check_file(o)
         return objects
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        built = compile_objects(sources, Path(tmp), defs, include_dirs)
+        built = compile_objects(sources, Path(tmp), defines, include_dirs)
         for obj, final in zip(built, objects):
             os.replace(obj, final)
     return objects

@@ -26,7 +26,7 @@ import casadi as ca
 
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, objects
-from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_objects, compile_shared
+from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
 from grasping_sym.codegen.structure import StructureFunctions
 from grasping_sym.runtime import safety, stored
 
@@ -153,16 +153,7 @@ def link_objects(meta: dict, directory: Path) -> list[Path]:
     missing), for linking into a model library."""
     out = safety.ensure_dir(directory / f"obj-{objects.flags_digest()[:12]}", root=directory)
     sources = [directory / f for f in meta["files"] if f.endswith(".c")]
-    objs = [out / f"{Path(f).stem}.o" for f in sources]
-    if all(os.path.lexists(o) for o in objs):
-        for o in objs:
-            safety.check_file(o)
-        return objs
-    with tempfile.TemporaryDirectory(dir=out, prefix=".build-") as tmp:
-        built = compile_objects(sources, Path(tmp))
-        for b, final in zip(built, objs):
-            os.replace(b, final)
-    return objs
+    return objects.cached_objects(sources, out)
 
 
 def library(meta: dict, directory: Path) -> Path:
