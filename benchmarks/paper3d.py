@@ -169,7 +169,7 @@ def _summary(runs: list[dict]) -> dict:
     out = {"runs": runs, "n": len(runs), "source": runs[0]["info"].get("source"),
            "scene_s": median([r["scene_s"] for r in runs]),
            "build_s": median([r["build_s"] for r in runs])}
-    for k in ("derive", "casadi", "write_c", "compile", "start", "total"):
+    for k in ("structure", "structure_compile", "compose", "write_c", "compile", "start", "total"):
         vals = [r["info"][k] for r in runs if k in r["info"]]
         if vals:
             out[k + "_s"] = median(vals)
@@ -594,8 +594,8 @@ def _build_md(res: dict) -> list[str]:
                       b["committed_c"]),
                      ("paper3d_cold: cached (warm cache)", b["cached"])):
         rows.append([label, d["n"], d["source"], *[_ms(d.get(k)) for k in
-                     ("derive_s", "casadi_s", "write_c_s", "compile_s", "start_s",
-                      "total_s")], _ms(d["build_s"]), _ms(d["scene_s"])])
+                     ("structure_s", "structure_compile_s", "compose_s", "write_c_s",
+                      "compile_s", "start_s", "total_s")], _ms(d["build_s"]), _ms(d["scene_s"])])
     st = b["staged"]["stages"]
     gt = b["staged"]["generate_timings"]
     staged_rows = [
@@ -607,10 +607,14 @@ def _build_md(res: dict) -> list[str]:
          "derivatives): `derive_grasp3d`", st["translate_and_ad"]],
         ["SymPy again: the fingers without gravity (a second `lru_cache` key, asked for by "
          "the start solver `initial3d`)", st["sympy_fingers_again_for_start"]],
-        ["`pipeline.generate`: `derive_grasp3d` again (SymPy warm)", gt["derive"]],
-        ["`pipeline.generate`: CasADi Functions with CSE (`sx_model`)", gt["casadi"]],
-        ["`pipeline.generate`: write C", gt["write_c"]],
-        ["gcc: compile the C (-O2) and the driver, link", st["compile"]],
+        [f"`pipeline.generate`: the structure ({gt.get('structure_source')}; derived: "
+         "`derive_grasp3d` with the surfaces' jets as inputs, CSE, write C)",
+         gt.get("structure", 0.0)],
+        ["gcc: the structure's C (once per structure)", gt.get("structure_compile", 0.0)],
+        ["`pipeline.generate`: the surfaces' jets and the glue (CasADi)", gt.get("compose", 0.0)],
+        ["`pipeline.generate`: write the model's C", gt["write_c"]],
+        ["gcc: compile the model's C and link (the driver's objects once per set of sizes)",
+         st["compile"]],
         ["`pipeline.solve_start`: consistent start (Gauss-Newton, SymPy warm)", st["start"]],
     ]
     total = sum(v for k, v in st.items() if k != "scene")
@@ -618,7 +622,7 @@ def _build_md(res: dict) -> list[str]:
     staged_rows = [[a, f"{v:.3f}"] for a, v in staged_rows]
     cold = b["cold"]
     derivation = (st["sympy_fingers"] + st["sympy_surfaces_rates"] + st["translate_and_ad"]
-                  + st["sympy_fingers_again_for_start"] + st["start"] + gt["derive"])
+                  + st["sympy_fingers_again_for_start"] + st["start"] + gt.get("structure", 0.0))
     return [
         "## 1. Build stages",
         "",
@@ -626,11 +630,14 @@ def _build_md(res: dict) -> list[str]:
         "`GRASPING_SYM_CACHE` set to a new temporary directory; medians over `n` runs, in ms. "
         "The cold build uses `gs.scenes.paper3d(name='paper3d_cold')`: the same scene under "
         "another name, so neither a cache nor the committed `generated/paper3d/` C is reused. "
-        "Columns are `model.build_info` (`derive`: SymPy and CasADi's AD; `start` solves the "
-        "consistent start after the code is compiled, apart from it, SymPy warm); `gs.build` "
-        "is the wall time of the call; `scene()` is constructing the scene object.",
+        "Columns are `model.build_info` (`structure`: the scene's structure, from the cache, "
+        "the committed C, or derived with SymPy and CasADi's AD and written; `structure "
+        "compile`: its gcc, once per structure; `compose`: the surfaces' jets and the glue; "
+        "`start` solves the consistent start after the code is compiled, apart from it, SymPy "
+        "warm); `gs.build` is the wall time of the call; `scene()` is constructing the scene "
+        "object. paper3d under another name shares paper3d's structure (its C is committed).",
         "",
-        *_table(["build", "n", "source", "derive", "casadi", "write C",
+        *_table(["build", "n", "source", "structure", "structure compile", "compose", "write C",
                  "compile", "start", "total", "gs.build", "scene()"], rows),
         "",
         "### Cold build in finer stages",
@@ -642,7 +649,7 @@ def _build_md(res: dict) -> list[str]:
         *_table(["stage", "s"], staged_rows),
         "",
         f"In this staged run: derivation (SymPy + translation + AD + start) ≈ {derivation:.1f} s, "
-        f"generation (CSE + write C) ≈ {gt['casadi'] + gt['write_c']:.2f} s, compilation ≈ "
+        f"generation (jets, glue, write C) ≈ {gt.get('compose', 0.0) + gt['write_c']:.2f} s, compilation ≈ "
         f"{st['compile']:.1f} s (the median cold `gs.build` above: {cold['build_s']:.1f} s, "
         f"compile {cold.get('compile_s', math.nan):.1f} s). The SymPy derivation of the "
         f"fingers runs twice "

@@ -99,6 +99,7 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
   if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
                            proj_tol))
     return GS_ERR_ARGS;
+  gs_stop_reset();
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   const double interval = t_end - t0;
 

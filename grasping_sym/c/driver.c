@@ -12,8 +12,8 @@
  *   radau5.c       gs_radau5 (radau5.h: its coefficients and tuning defaults;
  *                  jac.c: its Jacobian; lu.c: its real and complex LU)
  *   dopri5.c       gs_dopri5
- *   stop.c         gs_sigint_begin, gs_sigint_end, gs_set_time_limit, gs_stop_cause: Ctrl-C
- *                  and a wall-time limit stop the loops (GS_ERR_INTERRUPT)
+ *   stop.c         gs_sigint_install, gs_set_time_limit, gs_stop_cause: Ctrl-C and a
+ *                  wall-time limit stop the loops (GS_ERR_INTERRUPT)
  *   gs_internal.h  what they share: the macro defaults and checks, error codes, GS_ST_*
  *                  indices, work arrays, the CasADi prototypes and the small helpers
  *   gs_driver.h    the gs_ prototypes used by pyfast.c

@@ -128,7 +128,9 @@ typedef struct {
 #define GS_DECLARE_WORK(name) gs_work name##_storage; gs_work* name = &name##_storage
 #endif
 
-/* stop.c: non-zero when the loop must stop (SIGINT, the time limit). */
+/* stop.c: gs_stop_reset() when a loop starts; gs_stop_requested() non-zero when it must stop
+ * (SIGINT, the time limit). */
+GS_HIDDEN void gs_stop_reset(void);
 GS_HIDDEN int gs_stop_requested(void);
 
 /* Prototypes of the CasADi-generated functions (standard calling convention). */

@@ -118,6 +118,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
                            proj_tol))
     return GS_ERR_ARGS;
+  gs_stop_reset();
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   fnewt = fmax(GS_RADAU_FNEWT_MIN, fmax(10.0 * GS_EPS / rtol, fmin(GS_RADAU_FNEWT_MAX, sqrt(rtol))));
 

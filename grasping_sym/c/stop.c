@@ -1,15 +1,17 @@
 /*
  * grasping_sym driver: stopping a C integration loop from outside (c/driver.c lists the files).
  *
- *   Ctrl-C   gs_sigint_begin() installs a SIGINT handler that only sets a flag, and
- *            remembers the one it replaced (CPython's); gs_sigint_end() puts that back and
- *            says whether SIGINT arrived. Call both from the main thread around a loop.
+ *   Ctrl-C   gs_sigint_install() (called once, from the main thread, when the library is
+ *            loaded) puts a SIGINT handler in front of the process's (CPython's): it sets a
+ *            flag and passes the signal on, so Python still raises KeyboardInterrupt.
  *   time     gs_set_time_limit(s) gives this thread's next loops s seconds of wall time
  *            (0: none).
  *
- * The loops call gs_stop_requested() once per step and return GS_ERR_INTERRUPT when it is
- * non-zero; gs_stop_cause() then says why (1: SIGINT, 2: the time limit). A step costs
- * microseconds, so a loop stops within a few of them; the clock is read every 16th step.
+ * A loop calls gs_stop_reset() when it starts and gs_stop_requested() once per step, and
+ * returns GS_ERR_INTERRUPT when that is non-zero; gs_stop_cause() then says why (1: SIGINT,
+ * 2: the time limit). A step costs microseconds, so a loop stops within a few of them; the
+ * clock is read every 16th step. Nothing is called per run from Python unless a time limit
+ * is set.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <signal.h>
@@ -25,9 +27,18 @@ static _Thread_local double gs_deadline = 0.0;
 static _Thread_local unsigned gs_ticks = 0;
 static _Thread_local int gs_cause = 0;
 
+/* Note the signal, then pass it on to the handler it replaced (CPython's, which makes the
+ * interpreter raise KeyboardInterrupt when it next runs Python code). */
 static void gs_on_sigint(int sig) {
-  (void)sig;
   gs_sigint_flag = 1;
+  if (gs_previous.sa_flags & SA_SIGINFO) {
+    if (gs_previous.sa_sigaction) gs_previous.sa_sigaction(sig, NULL, NULL);
+  } else if (gs_previous.sa_handler == SIG_DFL) {
+    sigaction(SIGINT, &gs_previous, NULL);
+    raise(sig);
+  } else if (gs_previous.sa_handler != SIG_IGN && gs_previous.sa_handler) {
+    gs_previous.sa_handler(sig);
+  }
 }
 
 static double gs_now(void) {
@@ -36,34 +47,29 @@ static double gs_now(void) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-GS_EXPORT int gs_sigint_begin(void) {
+/* Install the SIGINT handler once (from the main thread, when the library is loaded). */
+GS_EXPORT int gs_sigint_install(void) {
+  if (gs_installed) return 0;
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
   sa.sa_handler = gs_on_sigint;
   sigemptyset(&sa.sa_mask);
-  gs_sigint_flag = 0;
   if (sigaction(SIGINT, &sa, &gs_previous) != 0) return -1;
   gs_installed = 1;
   return 0;
 }
 
-GS_EXPORT int gs_sigint_end(void) {
-  if (gs_installed) {
-    sigaction(SIGINT, &gs_previous, NULL);
-    gs_installed = 0;
-  }
-  int hit = (int)gs_sigint_flag;
-  gs_sigint_flag = 0;
-  return hit;
-}
-
 GS_EXPORT void gs_set_time_limit(double seconds) {
   gs_deadline = seconds > 0.0 ? gs_now() + seconds : 0.0;
   gs_ticks = 0;
-  gs_cause = 0;
 }
 
 GS_EXPORT int gs_stop_cause(void) { return gs_cause; }
+
+GS_HIDDEN void gs_stop_reset(void) {
+  gs_sigint_flag = 0;
+  gs_cause = 0;
+}
 
 GS_HIDDEN int gs_stop_requested(void) {
   if (gs_sigint_flag) return gs_cause = 1;

@@ -9,7 +9,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import math
-import threading
 from time import perf_counter
 from typing import Any
 
@@ -34,27 +33,26 @@ _double = ctypes.c_double
 
 @contextlib.contextmanager
 def stoppable(lib, time_limit: float | None):
-    """Around a C loop: Ctrl-C (from the main thread) and ``time_limit`` seconds of wall time
-    stop it within a few steps (``c/stop.c``); the loop then returns ``GS_ERR_INTERRUPT`` and
-    :func:`stop_error` says why."""
+    """Around a C loop: ``time_limit`` seconds of wall time for it (none: nothing is called).
+    Ctrl-C needs nothing here: the library's SIGINT handler (``c/stop.c``, installed when it
+    is loaded) stops the loop, which returns ``GS_ERR_INTERRUPT``; :func:`stop_error` says
+    why. Yields the stop's cause once the loop has returned (read before it is reset)."""
+    state = {"cause": 0}
+    if not time_limit:
+        yield state
+        return
     c = lib._lib
-    c.gs_set_time_limit(float(time_limit) if time_limit else 0.0)
-    main = threading.current_thread() is threading.main_thread()
-    if main:
-        c.gs_sigint_begin()
-    state = {"sigint": False}
+    c.gs_set_time_limit(float(time_limit))
     try:
         yield state
     finally:
-        if main:
-            state["sigint"] = bool(c.gs_sigint_end())
         c.gs_set_time_limit(0.0)
 
 
 def stop_error(lib, state: dict, method: str, tf: float, x, time_limit) -> IntegratorError:
     """The error of a loop stopped from outside: KeyboardInterrupt for Ctrl-C (raised here),
     else the wall-time limit's ``IntegratorError``."""
-    if state["sigint"] or lib._lib.gs_stop_cause() == 1:
+    if lib._lib.gs_stop_cause() == 1:
         raise KeyboardInterrupt(f"{method} stopped by Ctrl-C at t = {tf:.6g} s")
     return IntegratorError(tf, x, f"{method}: the wall-time limit of {time_limit:g} s was "
                            f"reached at t = {tf:.6g} s (raise time_limit, or loosen the "

@@ -120,14 +120,15 @@ def _check_initial_rates(model, x0: np.ndarray, p) -> None:
             "pass checks=False to integrate anyway")
 
 
-def check_initial_state(model, x0: np.ndarray, p) -> dict[str, float]:
+def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[str, float]:
     """Refuse an ``x0`` off the constraints, at a vanishing relative curvature or, in the paper
     formulation, with a (nearly) stopped contact. Returns the initial value of every
     curvature output (the reference of their thresholds along the run)."""
     names = set(model.output_names)
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if not names & watched:
-        _check_initial_rates(model, x0, p)
+        if rates:
+            _check_initial_rates(model, x0, p)
         return {}
     y = model.outputs(x0, p)
     if "Q" in y and "R" in y:
@@ -147,7 +148,8 @@ def check_initial_state(model, x0: np.ndarray, p) -> dict[str, float]:
             "checks=False to integrate anyway (the constraint stabilisation then pulls the "
             "state back, with a transient)",
         )
-    _check_initial_rates(model, x0, p)  # the speeds, once the positions are on the constraints
+    if rates:  # the speeds, once the positions are on the constraints
+        _check_initial_rates(model, x0, p)
     start = {}
     for name in curvature_outputs(y):
         k0 = y[name]

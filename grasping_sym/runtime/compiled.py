@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import threading
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
@@ -140,8 +141,8 @@ class CompiledLibrary:
         lib.gs_set_time_limit.argtypes = [_double]
         lib.gs_set_time_limit.restype = None
         lib.gs_stop_cause.restype = ctypes.c_int
-        lib.gs_sigint_begin.restype = ctypes.c_int
-        lib.gs_sigint_end.restype = ctypes.c_int
+        if threading.current_thread() is threading.main_thread():
+            lib.gs_sigint_install()  # Ctrl-C stops the C loops (c/stop.c)
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
         lib.gs_con_info.restype = ctypes.c_int
         nc = _long()

@@ -298,7 +298,8 @@ class Model:
             time_limit = real("time_limit", time_limit, "seconds of wall time")
             if not time_limit > 0:
                 raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
-        x0 = self.initial_state() if x0 is None else _states("x0", x0)
+        own_start = x0 is None  # the stored start: its speeds are consistent by construction
+        x0 = self.initial_state() if own_start else _states("x0", x0)
         if x0.shape != (len(self.state_names),):
             raise ValueError(f"x0 has shape {x0.shape}; expected ({len(self.state_names)},) "
                              f"ordered as {self.state_names}")
@@ -315,7 +316,7 @@ class Model:
         p = self.params(params)
         proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
-        start = checks_.check_initial_state(self, x0, p) if checks else {}
+        start = checks_.check_initial_state(self, x0, p, rates=not own_start) if checks else {}
         if method in integrators.C_LOOPS:
             try:
                 t, X, stats = integrators.c_loop(self, method, x0, t_eval, p, rtol=rtol,
