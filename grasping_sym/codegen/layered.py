@@ -1,9 +1,11 @@
-"""A planar model in layers: its contours' own small C, calling a compiled structure.
+"""A model in layers: its shape's own small C, calling a compiled structure (2D: the
+contours; 3D: the surfaces' jets, :func:`jets_functions`).
 
 The structure (``codegen.structure``, compiled once and cached by ``codegen.structure_cache``)
 is loaded through ``casadi.external``; the model's functions are CasADi MX functions that
-evaluate the contours at the contact (``<name>_contours``: the leaves ``L``;
-``<name>_contours_d``: ``L`` and their derivatives ``dL``) and call the structure's. CasADi
+evaluate the contours at the contact (``<name>_contours_<kind>``: the leaves ``L`` and their
+derivatives ``dL`` that the structure's function of that kind reads) and call the
+structure's. CasADi
 writes their C with calls to the structure's symbols, which the model library links from the
 structure's objects: a new shape compiles only this small file.
 
@@ -36,10 +38,13 @@ def contour_leaves(curves, n_contacts: int) -> list[list]:
     return out
 
 
-def contour_functions(leaves: list[list], slots, nx: int, name: str):
-    """``<name>_contours (x) -> L`` and ``<name>_contours_d (x) -> (L, dL)``: the leaves that
-    the structure takes as inputs (``slots``: per slot its state index and leaf indices) and
-    their derivatives along their contact parameters."""
+def contour_functions(leaves: list[list], slots, nx: int, name: str,
+                      entries: dict[str, dict[str, list[int]]]) -> dict[str, ca.Function]:
+    """Per function kind of the structure, ``<name>_contours_<kind> (x) -> (L, [dL])``: the
+    contour leaves (``slots``: per slot its state index and leaf indices) and their
+    derivatives along their contact parameters that the structure's function of that kind
+    reads (``entries[kind]``: indices into ``L`` and ``dL``). Kinds that read the same
+    entries share one function."""
     x = ca.SX.sym("x", nx)
     L, dL = [], []
     for exprs, (i, kept) in zip(leaves, slots):
@@ -48,10 +53,17 @@ def contour_functions(leaves: list[list], slots, nx: int, name: str):
             value = tr(exprs[k])
             L.append(value)
             dL.append(ca.jacobian(value, x[i]))
-    L = ca.vertcat(*L) if L else ca.SX(0, 1)
-    dL = ca.vertcat(*dL) if dL else ca.SX(0, 1)
-    return (ca.Function(f"{name}_contours", [x], [L], ["x"], ["L"], FUNCTION_OPTIONS),
-            ca.Function(f"{name}_contours_d", [x], [L, dL], ["x"], ["L", "dL"], FUNCTION_OPTIONS))
+    out, made = {}, {}
+    for kind, idx in entries.items():
+        key = tuple((k, tuple(v)) for k, v in idx.items())
+        if key not in made:
+            parts = {"L": [L[i] for i in idx["L"]], "dL": [dL[i] for i in idx.get("dL", [])]}
+            names = ["L", "dL"] if "dL" in idx else ["L"]
+            made[key] = ca.Function(f"{name}_contours_{kind}", [x],
+                                    [ca.vertcat(*parts[n]) if parts[n] else ca.SX(0, 1)
+                                     for n in names], ["x"], names, FUNCTION_OPTIONS)
+        out[kind] = made[key]
+    return out
 
 
 def _jacobian_layout(nx: int, np_: int):
@@ -67,19 +79,23 @@ def _jacobian_layout(nx: int, np_: int):
     return ins, outs
 
 
-def compose_layered(structure: dict[str, ca.Function], meta: dict, contours, contours_d,
-                    nx: int, np_: int, name: str) -> CasadiModel:
+def compose_layered(structure: dict[str, ca.Function], meta: dict,
+                    contours: dict[str, ca.Function], nx: int, np_: int, name: str) -> CasadiModel:
     """The model's MX functions over the structure's ``external`` functions (keys ``rhs``,
-    ``jac``, ``outputs``, ``constraints``, ``start``) and the model's contour functions."""
+    ``jac``, ``outputs``, ``constraints``, ``start``) and the model's contour functions
+    (:func:`contour_functions`, one per kind)."""
     t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
     z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
     empty = ca.MX(0, 1)
-    L = contours(x)
-    Ld, dL = contours_d(x)
+
+    def leaves(kind):
+        return contours[kind].call([x])
+
+    (L,) = leaves("rhs")
     xdot = structure["rhs"](t, x, p, L)
     rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u], [xdot, empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out())
-    Jx, Jp = structure["jac"](t, x, p, Ld, dL)
+    Jx, Jp = structure["jac"](t, x, p, *leaves("jac"))
     ins, outs = _jacobian_layout(nx, np_)
     jin = [t, x, z, p, u] + [ca.MX.sym(n, s) for n, s in ins[5:]]
     blocks = {"jac_ode_x": Jx, "jac_ode_p": Jp}
@@ -88,23 +104,24 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict, contours, con
     out_fn = None
     output_names = tuple(meta["output_names"])
     if output_names:
-        out_fn = ca.Function(f"{name}_outputs", [x, p], [structure["outputs"](x, p, L)],
+        out_fn = ca.Function(f"{name}_outputs", [x, p], [structure["outputs"](x, p, *leaves("outputs"))],
                              ["x", "p"], ["y"])
-    con = structure["constraints"](x, p, Ld, dL)
+    con = structure["constraints"](x, p, *leaves("constraints"))
     constraints = ca.Function(f"{name}_constraints", [x, p], list(con),
                               ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
-    G, dG = structure["start"](x, p, Ld, dL)
+    G, dG = structure["start"](x, p, *leaves("start"))
     start = ca.Function(f"{name}_start", [x, p], [G, dG, empty], ["x", "p"], ["G", "dG_dx", "v"])
     ops = dict(meta.get("op_counts", {}))
-    ops["contours_sx_instructions"] = contours_d.n_instructions()
+    helpers = tuple({id(f): f for f in contours.values()}.values())
+    ops["contours_sx_instructions"] = sum(f.n_instructions() for f in helpers)
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=output_names,
                        op_counts=ops, constraints=constraints,
                        constraint_info=meta["constraint_info"], start=start,
-                       start_names=tuple(meta["start_names"]),
-                       helpers=(contours, contours_d))
+                       start_names=tuple(meta["start_names"]), helpers=helpers)
 
 
-def lanes_glue(name: str, contours, structure_lanes: str | None, n_leaves: int) -> tuple[str | None, str]:
+def lanes_glue(name: str, contours: ca.Function, structure_lanes: str | None,
+               n_leaves: int) -> tuple[str | None, str]:
     """C of ``<name>_rhs_lanes`` (the driver's 4-lane rhs, ``codegen.lanes``): the contours
     at the four states (four at once where ``contours`` has a lane version, else one by one),
     then the structure's 4-lane rhs ``structure_lanes``; or None and why not."""
@@ -123,13 +140,13 @@ def lanes_glue(name: str, contours, structure_lanes: str | None, n_leaves: int) 
         body.append(f"  {name}_contours_lanes(x, L);")
     else:
         sz = {k: max(1, int(getattr(contours, k)())) for k in ("sz_arg", "sz_res", "sz_iw", "sz_w")}
-        head.insert(0, f"int {name}_contours(const double** arg, double** res, long long int* iw, "
-                       "double* w, int mem);")
+        head.insert(0, f"int {contours.name()}(const double** arg, double** res, "
+                       "long long int* iw, double* w, int mem);")
         body += [f"  const double* arg[{sz['sz_arg']}]; double* res[{sz['sz_res']}];",
                  f"  long long int iw[{sz['sz_iw']}]; double w[{sz['sz_w']}];",
                  "  for (int s = 0; s < 4; ++s) {",
                  "    arg[0] = x[s]; res[0] = L[s];",
-                 f"    if ({name}_contours(arg, res, iw, w, 0)) return 1;",
+                 f"    if ({contours.name()}(arg, res, iw, w, 0)) return 1;",
                  "  }"]
     body += [f"  return {structure_lanes}(t, x, p, (const double* const*)L, xdot);", "}"]
     text = (c_lanes or "") + "\n".join(head + body) + "\n"

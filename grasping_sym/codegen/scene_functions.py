@@ -52,10 +52,11 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     t3 = time.perf_counter()
     say("composing the contours with the structure (CasADi)")
     nx = len(scene.state_names)
-    contours, contours_d = contour_functions(leaves, meta["slots"], nx, scene.name)
-    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, contours_d,
-                         nx, len(inputs), scene.name)
-    glue = lanes_glue(scene.name, contours, meta["rhs_lanes"], meta["n_leaves"])
+    contours = contour_functions(leaves, meta["slots"], nx, scene.name, meta["leaf_entries"])
+    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, nx, len(inputs),
+                         scene.name)
+    glue = lanes_glue(scene.name, contours["rhs"], meta["rhs_lanes"],
+                      len(meta["leaf_entries"]["rhs"]["L"]))
     t4 = time.perf_counter()
     return SceneFunctions(cm, {"validate": t1 - t0, "structure": t2 - t1,
                                "structure_source": source, "structure_compile": t3 - t2,

@@ -43,7 +43,8 @@ from grasping_sym.codegen.functions import (
     planar_constraint_names,
 )
 
-__all__ = ["StructureFunctions", "StructureSpec", "fold_pattern", "structure_functions"]
+__all__ = ["StructureFunctions", "StructureSpec", "fold_pattern", "prune_inputs",
+           "structure_functions"]
 
 
 def fold_pattern(concrete: list[dict]) -> tuple[tuple[tuple[int, int], ...], ...]:
@@ -186,8 +187,39 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
     start = ca.Function(f"{name}_start", [x, p, L, dL],
                         exact(G_t, ca.densify(ca.jacobian(G_t, x))),
                         ["x", "p", "L", "dL"], ["G", "dG_dx"], FUNCTION_OPTIONS)
-    return StructureFunctions(name=name, rhs=rhs, jac=jac, outputs=outputs,
-                              constraints=constraints, start=start, slots=tuple(slots),
+    entries: dict[str, dict[str, list[int]]] = {}
+    pruned = {}
+    for kind, f, leaf_inputs in (("rhs", rhs, (3,)), ("jac", jac, (3, 4)),
+                                 ("outputs", outputs, (2,)), ("constraints", constraints, (2, 3)),
+                                 ("start", start, (2, 3))):
+        if f is None:
+            continue
+        pruned[kind], kept = prune_inputs(f, leaf_inputs)
+        entries[kind] = {f.name_in(k): kept[k] for k in leaf_inputs}
+    return StructureFunctions(name=name, rhs=pruned["rhs"], jac=pruned["jac"],
+                              outputs=pruned.get("outputs"), constraints=pruned["constraints"],
+                              start=pruned["start"], slots=tuple(slots),
                               output_names=tuple(spec.outputs), constraint_info=info,
                               start_names=names + tangency, n_leaves=n_leaves,
-                              lanes=(("t", "lane", "shared", "lane"), ("t", "x", "p", "L", "xdot")))
+                              lanes=(("t", "lane", "shared", "lane"), ("t", "x", "p", "L", "xdot")),
+                              extra_meta={"leaf_entries": entries})
+
+
+def prune_inputs(f: ca.Function, inputs) -> tuple[ca.Function, dict[int, list[int]]]:
+    """``f`` with each of its ``inputs`` (indices) cut to the entries ``f`` depends on, and
+    those entries by input index. The shape's code then computes only what each structure
+    function reads (CasADi's structural Jacobian sparsity says which)."""
+    ins = [f.sx_in(i) for i in range(f.n_in())]
+    args, new_ins, kept = list(ins), list(ins), {}
+    for k in inputs:
+        outs = [f.sparsity_jac(k, o) for o in range(f.n_out()) if f.nnz_out(o)]
+        needed = sorted(set(ca.vertcat(*outs).get_col())) if outs else []
+        sym = ca.SX.sym(f.name_in(k), len(needed))
+        full = ca.SX.zeros(ins[k].numel(), 1)
+        for j, c in enumerate(needed):
+            full[c] = sym[j]
+        args[k], new_ins[k], kept[k] = full, sym, needed
+    names_in = [f.name_in(i) for i in range(f.n_in())]
+    names_out = [f.name_out(i) for i in range(f.n_out())]
+    return (ca.Function(f.name(), new_ins, f.call(args), names_in, names_out, FUNCTION_OPTIONS),
+            kept)

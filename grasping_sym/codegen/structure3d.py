@@ -26,8 +26,8 @@ from functools import lru_cache
 
 import casadi as ca
 
-from grasping_sym.codegen.functions import FUNCTION_OPTIONS, sx_model
-from grasping_sym.codegen.structure import StructureFunctions
+from grasping_sym.codegen.functions import sx_model
+from grasping_sym.codegen.structure import StructureFunctions, prune_inputs
 
 __all__ = ["JET_FIRST", "JET_SECOND", "Structure3DSpec", "jet_size", "jet_values",
            "structure3d_functions"]
@@ -168,24 +168,18 @@ def structure3d_functions(scene, name: str) -> StructureFunctions:
 
 
 def _prune(f: ca.Function, k_in: int, n_p: int) -> tuple[ca.Function, list[int]]:
-    """``f`` with its input ``k_in`` cut to the ``n_p`` parameters, and the jet entries it
-    depends on as a last input ``J`` (their indices in the whole jet are returned): the
-    scene's jets function then computes only those (the rhs needs about two thirds of them),
-    and passes them without a copy into ``[p; J]``."""
+    """``f`` with its input ``k_in`` (``[p; J]``) split into the ``n_p`` parameters and, as a
+    last input ``J``, the jet entries it depends on (``structure.prune_inputs``; their indices
+    in the whole jet are returned): the scene's jets function then computes only those (the
+    rhs needs about two thirds of them) and passes them without a copy."""
     ins = [f.sx_in(i) for i in range(f.n_in())]
     pe = ins[k_in]
-    sp_ = ca.vertcat(*[f.sparsity_jac(k_in, o) for o in range(f.n_out()) if f.nnz_out(o)])
-    needed = sorted(c for c in set(sp_.get_col()) if c >= n_p)
-    Jn = ca.SX.sym("J", len(needed))
-    full = ca.SX.zeros(pe.numel() - n_p, 1)
-    for j, c in enumerate(needed):
-        full[c - n_p] = Jn[j]
+    p, J = ca.SX.sym(f.name_in(k_in), n_p), ca.SX.sym("J", pe.numel() - n_p)
     args = list(ins)
-    args[k_in] = ca.vertcat(pe[:n_p], full)
-    new_ins = list(ins)
-    new_ins[k_in] = pe[:n_p]
+    args[k_in] = ca.vertcat(p, J)
+    new_ins = [*ins[:k_in], p, *ins[k_in + 1:], J]
     names_in = [f.name_in(i) for i in range(f.n_in())] + ["J"]
     names_out = [f.name_out(i) for i in range(f.n_out())]
-    return (ca.Function(f.name(), [*new_ins, Jn], f.call(args), names_in, names_out,
-                        FUNCTION_OPTIONS),
-            [c - n_p for c in needed])
+    split = ca.Function(f.name(), new_ins, f.call(args), names_in, names_out)
+    pruned, kept = prune_inputs(split, (len(new_ins) - 1,))
+    return pruned, kept[len(new_ins) - 1]
