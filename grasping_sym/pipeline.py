@@ -39,6 +39,7 @@ from pathlib import Path
 from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, structure_cache
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, vector_libm
+from grasping_sym.codegen.functions import guarded_rhs
 from grasping_sym.codegen.library import compile_model, driver_defines
 from grasping_sym.runtime import safety, stored
 from grasping_sym.runtime.loader import library_name
@@ -92,6 +93,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     digest = code_hash(scene)
     fns = scene.casadi_functions(say)
     cm, timings = fns.model, dict(fns.timings)
+    lower, upper = scene.bounds()
+    guarded = guarded_rhs(cm, lower, upper, scene.name)
+    cm.helpers = (*cm.helpers, *guarded)
     say(f"writing C into {directory}")
     t0 = time.perf_counter()
     if fns.lanes is not None:
@@ -102,12 +106,11 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         lane_c, lanes_status = None, (f"not made: the rhs has {cm.rhs.n_instructions()} > "
                                       f"{LANES_MAX_INSTRUCTIONS} instructions")
     files, grouped = cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__,
-                                     extra_c=lane_c)
+                                     extra_c=lane_c, n_files=1 if fns.structure else cwriter.C_FILES)
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
     if count_ops:
         ops.update(scene.sympy_op_counts())
-    lower, upper = scene.bounds()
     manifest = {
         "name": scene.name,
         "hash": digest["hash"],
@@ -131,6 +134,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped},
         "op_counts": ops,
         **({"structure": fns.structure} if fns.structure else {}),
+        **({"rhs_guarded": guarded[0].name()} if guarded else {}),
         **scene.manifest_extra(),
     }
     stored.write_manifest(directory, manifest)

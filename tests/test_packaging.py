@@ -22,8 +22,11 @@ def test_non_editable_install_uses_the_committed_code(tmp_path):
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
                     "--no-build-isolation", "--target", str(target), str(src)],
                    check=True, capture_output=True, cwd=tmp_path)
-    for f in ("paper2d/paper2d_1.c", "paper2d/paper2d_2.h", "paper2d/manifest.json",
-              "paper2d/start.json", "paper3d/paper3d_1.c", "templates/planar-s-horizontal.json"):
+    structure = json.loads((ROOT / "generated" / "paper2d" / "manifest.json").read_text())["structure"]
+    for f in ("paper2d/paper2d_1.c", "paper2d/paper2d_1.h", "paper2d/manifest.json",
+              "paper2d/start.json", "paper3d/paper3d_1.c", "templates/planar-s-horizontal.json",
+              f"structures/{structure['name']}/structure.json",
+              f"structures/{structure['name']}/{structure['name']}_1.c"):
         assert (target / "grasping_sym" / "generated" / f).is_file(), f
     code = (
         "import json, grasping_sym as gs; from grasping_sym.codegen import cache; "

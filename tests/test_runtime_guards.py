@@ -170,3 +170,22 @@ def test_domain_exit_is_located_at_its_step_under_sundials():
         with pytest.raises(ContactLeftContourError, match="Radau step") as info:
             model.simulate(1.0, method=method, t_eval=[0.0, 0.5, 1.0])
         assert abs(info.value.t - ref.value.t) < 2e-3, method
+
+
+def test_an_excursion_out_of_the_domain_between_outputs_is_found_under_cvodes():
+    """paper3d with fingertip 1's longitude cut at 0.09 rad: its contact coordinate rises to
+    0.106 near t = 0.06 s and comes back to 0.058. With outputs 0.5 s apart the outputs never
+    show it; the C loops see it at their step, CVODES (its rhs NaN outside the domains) fails
+    at the crossing and the exit is named there."""
+    import dataclasses
+
+    from grasping_sym.geometry import surface_library as sl
+    base = gs.scenes.paper3d()
+    tip = sl.sphere(0.01, lon=(-math.pi, 0.09), name="tip_short")
+    model = gs.build(gs.scenes.paper3d(name="excursion3d", fingers=(
+        dataclasses.replace(base.fingers[0], tip=tip), *base.fingers[1:])))
+    with pytest.raises(ContactLeftContourError) as ref:
+        model.simulate(1.0, method="radau", rtol=1e-6, atol=1e-9)
+    with pytest.raises(ContactLeftContourError, match="u_f1 left the contour's domain") as info:
+        model.simulate(1.0, method="cvodes", rtol=1e-6, atol=1e-9, t_eval=[0.0, 0.5, 1.0])
+    assert abs(info.value.t - ref.value.t) < 1e-3

@@ -1,7 +1,8 @@
 """Write the C of a scene's CasADi functions, with a do-not-edit header and a manifest.
 
-A generated directory holds the C of the generated functions in two files and their headers
-(``{name}_1.c``, ``{name}_2.c``, ...; listed in the manifest's ``files``) and
+A generated directory holds the C of the generated functions in two files (one for a model in
+layers) and their headers (``{name}_1.c``, ``{name}_2.c``, ...; listed in the manifest's
+``files``) and
 ``manifest.json`` (written by ``runtime.stored``: the content hash of the inputs and what the
 runtime needs to load the model without deriving anything).
 """
@@ -45,11 +46,13 @@ def partition(functions: list, n: int = C_FILES) -> list[list]:
 
 
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
-            extra_c: str | None = None) -> tuple[list[str], dict[str, int]]:
+            extra_c: str | None = None, n_files: int = C_FILES) -> tuple[list[str], dict[str, int]]:
     """Generate the C of ``model``'s functions into ``directory`` (created if needed), in
     ``C_FILES`` files ``{name}_1.c``, ``{name}_2.c`` (with their headers) that gcc compiles in
-    parallel; the libm calls are grouped by ``codegen.vecmath`` and ``extra_c`` (the 4-lane
-    rhs of ``codegen.lanes``) is appended to the rhs's file.
+    parallel (``n_files``: one for a model in layers, whose MX glue must share a file with the
+    SX functions it calls, so that it calls their rewritten bodies, not copies); the libm calls
+    are grouped by ``codegen.vecmath`` and ``extra_c`` (the 4-lane rhs of ``codegen.lanes``) is
+    appended to the rhs's file.
 
     Returns the file names written (C, then header, per file) and vecmath's report: per
     function, the number of libm calls placed in groups.
@@ -59,7 +62,7 @@ def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version
     header = HEADER.format(version=version, name=name, digest=digest)
     files: list[str] = []
     report: dict[str, int] = {}
-    for k, group in enumerate(partition(model.functions()), start=1):
+    for k, group in enumerate(partition(model.functions(), n_files), start=1):
         part = f"{name}_{k}"
         cg = ca.CodeGenerator(f"{part}.c", {"with_header": True, "casadi_int": "long long int"})
         for f in group:

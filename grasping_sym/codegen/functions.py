@@ -337,3 +337,37 @@ def sympy_op_counts(system: ConstrainedSystem) -> dict[str, int]:
     repl, reduced = sp.cse(exprs, optimizations=None)
     after = sum(sp.count_ops(r) for _, r in repl) + sum(sp.count_ops(e) for e in reduced)
     return {"sympy_ops_before_cse": int(before), "sympy_ops_after_cse": int(after)}
+
+
+def guarded_rhs(cm: CasadiModel, lower, upper, name: str) -> list[ca.Function]:
+    """``<name>_rhs_guarded``: the rhs, NaN outside the states' bounds (``lower``/``upper``,
+    None: unbounded), and ``jac_<name>_rhs_guarded`` (the same Jacobian), for SUNDIALS: a step
+    that would leave a contour's domain fails there and SUNDIALS cuts it, so a contact that
+    leaves its contour is found at the step where it happens, not at the next output time.
+    Empty when no state is bounded."""
+    bounded = [(i, lo, hi) for i, (lo, hi) in enumerate(zip(lower, upper))
+               if lo is not None or hi is not None]
+    if not bounded:
+        return []
+    rhs = cm.rhs
+    ins = [ca.MX.sym(rhs.name_in(i), rhs.sparsity_in(i)) for i in range(rhs.n_in())]
+    outs = rhs.call(ins)
+    x = ins[1]
+    inside = ca.MX(1)
+    for i, lo, hi in bounded:
+        if lo is not None:
+            inside = ca.logic_and(inside, x[i] >= lo)
+        if hi is not None:
+            inside = ca.logic_and(inside, x[i] <= hi)
+    nan = ca.MX(ca.DM.nan(outs[0].shape[0], outs[0].shape[1]))
+    names_in = [rhs.name_in(i) for i in range(rhs.n_in())]
+    names_out = [rhs.name_out(i) for i in range(rhs.n_out())]
+    fns = [ca.Function(f"{name}_rhs_guarded", ins, [ca.if_else(inside, outs[0], nan), *outs[1:]],
+                       names_in, names_out)]
+    if cm.jac is not None:
+        jac = cm.jac
+        jins = [ca.MX.sym(jac.name_in(i), jac.sparsity_in(i)) for i in range(jac.n_in())]
+        fns.append(ca.Function(f"jac_{name}_rhs_guarded", jins, jac.call(jins),
+                               [jac.name_in(i) for i in range(jac.n_in())],
+                               [jac.name_out(i) for i in range(jac.n_out())]))
+    return fns

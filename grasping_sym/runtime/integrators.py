@@ -91,6 +91,24 @@ def _watch(time_limit: float | None):
         signal.signal(signal.SIGINT, old_int)
 
 
+#: CVODES's smallest step, relative to the run's length: at a contact leaving its contour
+#: (the guarded rhs is NaN beyond) it halves its step toward the crossing and, below this,
+#: fails at once instead of crawling on for ``max_steps`` steps.
+MIN_STEP_RELATIVE = 1e-15
+
+
+def _step_floor(method: str, t_eval: np.ndarray) -> dict:
+    if method != "cvodes":
+        return {}
+    return {"min_step_size": MIN_STEP_RELATIVE * max(1.0, float(t_eval[-1] - t_eval[0]))}
+
+
+def _rhs_for(model, method: str):
+    """The compiled rhs a SUNDIALS method integrates: CVODES the guarded one (NaN outside the
+    contours' domains: it stops at the step where a contact leaves), IDAS the plain one."""
+    return model.external_rhs_guarded() if method == "cvodes" else model.external_rhs()
+
+
 def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray,
              rtol: float, atol: float, max_steps: int,
              time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -104,9 +122,9 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     integ = model._integrators.pop(key, None)
     if integ is None:
         opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps,
-                "disable_internal_warnings": True}
+                "disable_internal_warnings": True, **_step_floor(method, t_eval)}
         grid = [float(t) for t in t_eval[1:]]
-        integ = ca.integrator(f"{model.name}_{method}", method, model.external_rhs(),
+        integ = ca.integrator(f"{model.name}_{method}", method, _rhs_for(model, method),
                               float(t_eval[0]), grid, opts)
     model._integrators[key] = integ  # most recently used last
     while len(model._integrators) > INTEGRATOR_CACHE_SIZE:
@@ -151,9 +169,9 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
     """
     import casadi as ca  # noqa: PLC0415
     reason = _sundials_reason(message)
-    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps}
+    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps, **_step_floor(method, t_eval)}
     grid = [float(t) for t in t_eval[1:]]
-    integ = ca.integrator("failing", method, model.external_rhs(), float(t_eval[0]), grid, opts)
+    integ = ca.integrator("failing", method, _rhs_for(model, method), float(t_eval[0]), grid, opts)
     with _captured_fds() as captured:
         try:
             integ(x0=x0, p=p)
@@ -174,7 +192,7 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
         if t_end <= t0:
             continue
         grid = [float(t) for t in t_eval[1:] if t < t_end] + [t_end]
-        rec = ca.integrator("recover", method, model.external_rhs(), t0, grid,
+        rec = ca.integrator("recover", method, _rhs_for(model, method), t0, grid,
                             {**opts, "max_num_steps": RECOVERY_MAX_STEPS,
                              "disable_internal_warnings": True})
         try:

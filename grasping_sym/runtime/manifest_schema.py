@@ -103,6 +103,10 @@ def manifest_problems(m: object) -> list[str]:
     for key in ("rewrites", "op_counts", "hash_inputs"):
         if not isinstance(m.get(key), dict):
             out.append(f"{key} must be an object")
+    guard = m.get("rhs_guarded")
+    if guard is not None and not (isinstance(guard, str) and _IDENT.match(guard)
+                                  and guard in m.get("c_symbols", [])):
+        out.append("rhs_guarded must name one of the model's C symbols")
     rules = m.get("param_rules", {})
     if not isinstance(rules, dict) or not set(rules) <= set(params) or \
             not set(rules.values()) <= {"positive", "nonnegative", "finite"}:

@@ -59,6 +59,7 @@ class Model:
         self.library = CompiledLibrary(self.library_path, self.state_names,
                                        default_p=self.default_params if self.input_names else None)
         self._external = None
+        self._guarded = None
         self._integrators: dict = {}
         if not self.input_names:
             # bind the compiled calls directly: no Python wrapper in the way
@@ -190,6 +191,23 @@ class Model:
             # for a Newton matrix, lose nothing measurable (benchmarks/results/paper3d.md)
             opts = {} if has_jac else {"enable_fd": True, "fd_method": "forward"}
             self._external = ca.external(f"{self.name}_rhs", str(self.library_path), opts)
+        return self._external
+
+    def external_rhs_guarded(self):
+        """``external_rhs`` that is NaN outside the contours' domains
+        (``codegen.functions.guarded_rhs``; the plain one when the model has no bounds): CVODES
+        cannot step past a contact leaving its contour and fails at the step where it happens,
+        not at the next output time. (IDAS, given the same, crawls toward the boundary up to
+        ``max_steps`` steps: it keeps the plain rhs.)"""
+        if "rhs_guarded" not in self.manifest:
+            return self.external_rhs()
+        if self._guarded is None:
+            import casadi as ca  # noqa: PLC0415
+
+            has_jac = bool(self.manifest.get("driver_defines", {}).get("GS_HAS_JAC", 1))
+            opts = {} if has_jac else {"enable_fd": True, "fd_method": "forward"}
+            self._guarded = ca.external(self.manifest["rhs_guarded"], str(self.library_path), opts)
+        return self._guarded
         return self._external
 
     # ------------------------------------------------------------------ simulate
@@ -332,10 +350,12 @@ class Model:
             try:
                 t, X, stats = integrators.sundials(self, method, x0, t_eval, pp, rtol, atol,
                                                    max_steps, time_limit)
-            except IntegratorError as exc:
+            except IntegratorError as failed:
+                exc = self._exit_at_failure(failed, t_eval, p, rtol, atol) \
+                    if method == "cvodes" else failed
                 if checks:
                     checks_.raise_earlier_event(self, exc, p, start)
-                raise
+                raise exc from None
             for i in range(len(t)):
                 try:
                     self._check_bounds(t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
@@ -377,6 +397,24 @@ class Model:
             self.state_names,
         )
 
+    def _exit_at_failure(self, exc: IntegratorError, t_eval: np.ndarray, p, rtol: float,
+                         atol: float) -> IntegratorError:
+        """A CVODES failure caused by a contact leaving its contour (the guarded rhs is NaN
+        outside the domains, so CVODES cannot step past the exit and fails there), named as
+        such: the Radau loop, which checks the bounds after every step, is run from the last
+        recovered state across the failure time; ``exc`` itself when it finds no exit."""
+        traj = getattr(exc, "trajectory", None)
+        if "rhs_guarded" not in self.manifest or traj is None or not math.isfinite(exc.t):
+            return exc
+        t_prev, x_prev = float(traj[0][-1]), traj[1][-1]
+        t_end = min(float(t_eval[-1]), exc.t + 1e-6 * max(1.0, abs(exc.t)))
+        if not t_end > t_prev:
+            return exc
+        found = ContactLeftContourError(exc.t, exc.x, "a contact left its contour",
+                                        self.state_names)
+        located = self._locate_exit(found, t_prev, x_prev, t_end, p, rtol, atol)
+        return located if located is not found else exc
+
     def _locate_exit(self, exc: ContactLeftContourError, t0: float, x0: np.ndarray, t1: float,
                      p, rtol: float, atol: float) -> ContactLeftContourError:
         """Where between the outputs ``t0`` and ``t1`` the contact left its contour: the
@@ -389,9 +427,16 @@ class Model:
                                 lo=self.lower, hi=self.upper)
         except IntegratorError as inner:
             if getattr(inner, "code", None) == -2:  # GS_ERR_BOUNDS
+                bad = np.asarray(getattr(inner, "x_rejected", inner.x), dtype=float)
+                out = np.flatnonzero((bad < self.lower) | (bad > self.upper))
+                what = exc.reason.split(" (crossing at")[0]
+                if out.size:
+                    i = int(out[0])
+                    what = (f"contact parameter {self.state_names[i]} left the contour's domain "
+                            f"[{self.lower[i]:.6g}, {self.upper[i]:.6g}]")
                 located = ContactLeftContourError(
                     inner.t, inner.x,
-                    exc.reason.split(" (crossing at")[0] + f" (in the Radau step from t = "
+                    what + f" (in the Radau step from t = "
                     f"{inner.t:.9g} s, found between the outputs at {t0:.6g} and {t1:.6g} s); "
                     "extend the contour's domain or shorten the simulation",
                     self.state_names)
