@@ -36,20 +36,19 @@ def stoppable(lib, time_limit: float | None):
     """Around a C loop: ``time_limit`` seconds of wall time for it (none: nothing is called).
     Ctrl-C needs nothing here: the library's SIGINT handler (``c/stop.c``, installed when it
     is loaded) stops the loop, which returns ``GS_ERR_INTERRUPT``; :func:`stop_error` says
-    why. Yields the stop's cause once the loop has returned (read before it is reset)."""
-    state = {"cause": 0}
+    why."""
     if not time_limit:
-        yield state
+        yield
         return
     c = lib._lib
     c.gs_set_time_limit(float(time_limit))
     try:
-        yield state
+        yield
     finally:
         c.gs_set_time_limit(0.0)
 
 
-def stop_error(lib, state: dict, method: str, tf: float, x, time_limit) -> IntegratorError:
+def stop_error(lib, method: str, tf: float, x, time_limit) -> IntegratorError:
     """The error of a loop stopped from outside: KeyboardInterrupt for Ctrl-C (raised here),
     else the wall-time limit's ``IntegratorError``."""
     if lib._lib.gs_stop_cause() == 1:
@@ -95,7 +94,7 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
     out = np.empty((rows + _RK4_EXTRA_ROWS, lib.nx))
     t_fail = _double(math.nan)
     stats_a = np.zeros(NSTATS)
-    with stoppable(lib, time_limit) as stop:
+    with stoppable(lib, time_limit):
         rc = lib._c_rk4(
             t0, h_eff, nsteps, stride, x0a.ctypes.data, lib._ptr(pa),
             lo_a.ctypes.data, hi_a.ctypes.data, lib._ptr(mask), float(proj_tol),
@@ -129,7 +128,7 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
     elif rc == _ERR_PROJECT:
         reason = projection_reason(stats_a, proj_tol, f"in the step to t = {tf + h_eff:.6g} s")
     elif rc == _ERR_INTERRUPT:
-        err = stop_error(lib, stop, "rk4", tf, x_good, time_limit)
+        err = stop_error(lib, "rk4", tf, x_good, time_limit)
         err.trajectory = (t0 + h_eff * stride * np.arange(r), out[:r].copy())  # type: ignore[attr-defined]
         raise err
     else:
@@ -173,7 +172,7 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
     out = np.empty((m + _ADAPTIVE_EXTRA_ROWS, lib.nx))
     stats_a = np.zeros(NSTATS)
     start = perf_counter()
-    with stoppable(lib, time_limit) as stop:
+    with stoppable(lib, time_limit):
         rc, tf = lib._call_adaptive(method, t_arr, x0a, pa, rtol, atol, h0, max_steps,
                                     int(nstiff), lo_a, hi_a, mask, proj_tol, out, stats_a)
     wall = perf_counter() - start
@@ -201,7 +200,7 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
         raise IntegratorError(float(t_arr[0]), x0a, f"initial state: {bad}", lib.state_names)
     if rc == _ERR_INTERRUPT:
         r = int(stats_a[6])
-        err = stop_error(lib, stop, method, tf, out[r].copy(), time_limit)
+        err = stop_error(lib, method, tf, out[r].copy(), time_limit)
         err.trajectory = (t_arr[:r].copy(), out[:r].copy())  # type: ignore[attr-defined]
         err.stats = stats  # type: ignore[attr-defined]
         raise err
