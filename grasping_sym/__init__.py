@@ -22,10 +22,12 @@ _LAZY = {
     "PlanarCurve": ("grasping_sym.geometry.curves", "PlanarCurve"),
     "SimulationResult": ("grasping_sym.runtime.result", "SimulationResult"),
     "Model": ("grasping_sym.runtime.model", "Model"),
+    "controllers": ("grasping_sym.controllers", None),
+    "inputs": ("grasping_sym.inputs", None),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "__version__"]
+           "controllers", "inputs", "__version__"]
 
 
 def __getattr__(name: str):

@@ -111,6 +111,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     ops = dict(cm.op_counts)
     if count_ops:
         ops.update(scene.sympy_op_counts())
+    # a law that reads the time: the outputs take it as one more last entry of p, so the C
+    # driver (whose p has the model's size) does not call them (Model._output_row does)
+    outputs_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(scene.p_names) + 1
     manifest = {
         "name": scene.name,
         "hash": digest["hash"],
@@ -120,9 +123,11 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "param_names": list(scene.runtime),
         "param_values": [float(scene.params[k]) for k in scene.runtime],
         "start_param_names": list(scene.start_param_names),
+        "input_names": list(scene.input_names),
         "lower": lower,
         "upper": upper,
-        "driver_defines": driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac,
+        "outputs_time": outputs_time,
+        "driver_defines": driver_defines(cm.rhs, None if outputs_time else cm.outputs, jac_fn=cm.jac,
                                          constraints_fn=cm.constraints,
                                          rhs_lanes=lanes.lanes_symbol(cm.rhs) if lane_c else None),
         "c_symbols": [f.name() for f in cm.functions()],
@@ -256,6 +261,7 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> M
     info["start"] = time.perf_counter() - t_s
     info["rewrites"] = {**manifest.get("rewrites", {}), "vector_libm": bool(vector_libm())}
     model = Model(directory, manifest, lib, start)
+    model.scene = scene
     info["total"] = time.perf_counter() - t0
     model.build_info = info
     return model

@@ -69,7 +69,7 @@ def geometry_at(geo, scene: GraspScene3D, result: SimulationResult,
     rows = list(rows)
     # the start's parameters (the centre spring's rest point) do not enter the geometry
     p = np.array([result.params.get(k, scene.params[k]) for k in scene.runtime]
-                 + [0.0] * len(scene.start_param_names), dtype=float)
+                 + [0.0] * (len(scene.p_names) - len(scene.runtime)), dtype=float)
     out = geo.map(len(rows))(x=result.x[rows].T, p=np.tile(p[:, None], (1, len(rows))))
     out = {k: np.asarray(v) for k, v in out.items()}
     width = {name: a.shape[1] // len(rows) for name, a in out.items()}

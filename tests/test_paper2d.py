@@ -187,7 +187,7 @@ def test_integrators_agree_on_final_state(paper2d_model, paper2d_result):
 def test_runtime_parameters_give_the_folded_rhs(paper2d_model, paper2d_result, runtime_model):
     assert runtime_model.param_names == ("fd", "c")
     # the compiled functions' p: the run-time parameters, then the pivot the start fixes
-    assert runtime_model.input_names == ("fd", "c", "xm", "ym")
+    assert runtime_model.p_names == ("fd", "c", "xm", "ym")
     pivot = gs.scenes.paper2d().pivot
     np.testing.assert_array_equal(runtime_model.default_params, [0.5, 0.006, *pivot])
     assert runtime_model.start_params == {"xm": pivot[0], "ym": pivot[1]}

@@ -132,7 +132,7 @@ def test_paper_formulation_run_time_start_is_refused_by_name():
 
 def test_solved_numbers_are_inputs_not_constants(paper2d_model):
     """The pivot is a run-time input after the user's parameters; its digits are not in the C."""
-    assert paper2d_model.input_names[-2:] == ("xm", "ym")
+    assert paper2d_model.p_names[-2:] == ("xm", "ym")
     c = "".join((paper2d_model.directory / f).read_text() for f in paper2d_model.manifest["files"])
     for v in paper2d_model.start_params.values():
         assert repr(v)[:10] not in c

@@ -7,6 +7,7 @@ import numpy as np
 
 import grasping_sym as gs
 from grasping_sym.codegen import templates
+from grasping_sym.codegen.controller import controller_function
 from grasping_sym.codegen.functions import Template, build_casadi, compose
 from grasping_sym.derive.planar import derive_planar, parameter_values
 
@@ -40,15 +41,19 @@ def test_serialized_template_composes_to_the_same_functions():
     tpl, _ = templates.planar_template(scene.shared_parameter, False)
     again = Template.from_json(tpl.to_json())
     values = parameter_values(scene)
-    composed = compose(again, scene.fingertip, scene.object, runtime=("fd",),
-                       constants={k: v for k, v in values.items() if k != "fd"},
-                       outputs=scene.outputs, name="composed")
+    # the composed closed loop takes its torques from the controller layer (CasADi), the
+    # direct one from the SymPy statement of law (32) (derive_planar): two paths, one law
+    runtime = scene.p_names
+    composed = compose(again, scene.fingertip, scene.object, runtime=runtime,
+                       constants={k: v for k, v in values.items() if k not in runtime},
+                       outputs=scene.outputs, name="composed",
+                       controller=controller_function(scene, "composed"))
     rng = np.random.default_rng(3)
     x0 = scene.initial_state()
     for _ in range(5):
         x = x0 + rng.normal(size=x0.size) * 0.01
         a = np.array(direct.rhs(0, x, [], [0.5], [])[0]).ravel()
-        b = np.array(composed.rhs(0, x, [], [0.5], [])[0]).ravel()
+        b = np.array(composed.rhs(0, x, [], [0.5, *scene.pivot], [])[0]).ravel()
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13 * np.abs(a).max())
 
 

@@ -156,21 +156,30 @@ def _families(n_contacts: int):
 
 
 def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
-            constants: dict[str, float], outputs: tuple[str, ...], name: str) -> CasadiModel:
+            constants: dict[str, float], outputs: tuple[str, ...], name: str,
+            controller=None) -> CasadiModel:
     """One scene's CasADi functions from a template, the contours and the parameters.
 
     ``fingertip`` is one contour, or a sequence of them (one per finger, in order).
 
     ``runtime`` parameters become the input ``p`` (in that order); ``constants`` give the
-    value of every other template parameter, folded into the code.
+    value of every other template parameter, folded into the code. The template's joint
+    torques (``tau_*``) are the controller layer's (``codegen.controller.ControllerFunction``;
+    its ``p`` is the model's), or, without one, constants too.
     """
     nx = len(template.state_names)
     x = ca.SX.sym("x", nx)
-    p = ca.SX.sym("p", len(runtime))
-    missing = [k for k in template.param_names if k not in runtime and k not in constants]
+    t = ca.SX.sym("t")
+    np_ = controller.function.nnz_in(2) if controller is not None else len(runtime)
+    p = ca.SX.sym("p", np_)
+    torques = [k for k in template.param_names if k.startswith("tau_")] if controller else []
+    tau = controller.function(t, x, p) if controller is not None else None
+    missing = [k for k in template.param_names
+               if k not in runtime and k not in constants and k not in torques]
     if missing:
         raise ValueError(f"no value for template parameters {missing}")
-    q = ca.vertcat(*[p[runtime.index(k)] if k in runtime else ca.SX(constants[k])
+    q = ca.vertcat(*[p[runtime.index(k)] if k in runtime else
+                     tau[torques.index(k)] if k in torques else ca.SX(constants[k])
                      for k in template.param_names])
     tips = list(fingertip) if isinstance(fingertip, (list, tuple)) else [fingertip]
     if len(tips) != len(template.contact_index):
@@ -191,7 +200,8 @@ def compose(template: Template, fingertip, object_, *, runtime: tuple[str, ...],
     tangency = tuple(k for k in template.output_names if k.startswith("tangency_defect"))
     G = ca.vertcat(C, *[y_all[template.output_names.index(k)] for k in tangency])
     return sx_model(x, p, xdot, y, name, constraints=C, constraint_names=names,
-                    start_conditions=G, start_names=names + tangency)
+                    start_conditions=G, start_names=names + tangency, t=t,
+                    outputs_time=bool(controller and controller.reads_time))
 
 
 def planar_constraint_names(output_names: tuple[str, ...]) -> tuple[str, ...]:
@@ -213,7 +223,7 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
              constraint_names: tuple[str, ...] | None = None,
              start_conditions: ca.SX | None = None, start_names: tuple[str, ...] = (),
              start_values: ca.SX | None = None,
-             exact=None) -> CasadiModel:
+             exact=None, t: ca.SX | None = None, outputs_time: bool = False) -> CasadiModel:
     """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
 
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
@@ -227,12 +237,16 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
     ``exact(*exprs) -> list`` (optional) rewrites every expression once all derivatives are
     taken, before the functions are made (a structure's vanishing Taylor terms,
     ``codegen.structure3d``).
+
+    ``t``: the time symbol of ``xdot`` (a law that reads it); with ``outputs_time`` the outputs
+    read it too, as one more last entry of their ``p`` (``codegen.controller.outputs_p``).
+    Elsewhere (constraints, start) the time must not appear.
     """
     if exact is not None and jacobian:
         raise ValueError("exact= rewrites the rhs after differentiation: its Jacobian would "
                          "miss the rewritten terms; pass jacobian=False")
     fix = exact or (lambda *exprs: list(exprs))
-    t = ca.SX.sym("t")
+    t = ca.SX.sym("t") if t is None else t
     empty = ca.SX(0, 1)
     dyn_in = [t, x, empty, p, empty]
     (xdot_exact,) = fix(xdot)
@@ -250,8 +264,10 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
     out_fn = None
     if outputs:
         (y,) = fix(ca.vertcat(*outputs.values()))
-        out_fn = ca.Function(f"{name}_outputs", [x, p], [y], ["x", "p"], ["y"],
-                             FUNCTION_OPTIONS)
+        if not outputs_time:
+            y = ca.substitute(y, t, ca.SX(0))
+        out_fn = ca.Function(f"{name}_outputs", [x, ca.vertcat(p, t) if outputs_time else p], [y],
+                             ["x", "p"], ["y"], FUNCTION_OPTIONS)
         op_counts["outputs_sx_instructions"] = out_fn.n_instructions()
     con_fn, con_info = None, {}
     if constraints is not None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import casadi as ca
 
 from grasping_sym.codegen import lanes
+from grasping_sym.codegen.controller import outputs_p
 from grasping_sym.codegen.functions import FUNCTION_OPTIONS, CasadiModel, _families
 from grasping_sym.codegen.translate import SympyToCasadi
 from grasping_sym.derive.contour_functions import leaf_expressions
@@ -55,6 +56,7 @@ def contour_functions(leaves: list[list], slots, nx: int, name: str,
             dL.append(ca.jacobian(value, x[i]))
     out, made = {}, {}
     for kind, idx in entries.items():
+        idx = {k: v for k, v in idx.items() if k in ("L", "dL")}
         key = tuple((k, tuple(v)) for k, v in idx.items())
         if key not in made:
             parts = {"L": [L[i] for i in idx["L"]], "dL": [dL[i] for i in idx.get("dL", [])]}
@@ -80,22 +82,43 @@ def _jacobian_layout(nx: int, np_: int):
 
 
 def compose_layered(structure: dict[str, ca.Function], meta: dict,
-                    contours: dict[str, ca.Function], nx: int, np_: int, name: str) -> CasadiModel:
+                    contours: dict[str, ca.Function], nx: int, np_: int, name: str,
+                    ctrl, n_structure_p: int) -> CasadiModel:
     """The model's MX functions over the structure's ``external`` functions (keys ``rhs``,
-    ``jac``, ``outputs``, ``constraints``, ``start``) and the model's contour functions
-    (:func:`contour_functions`, one per kind)."""
+    ``jac``, ``outputs``, ``constraints``, ``start``), the model's contour functions
+    (:func:`contour_functions`, one per kind) and its controller (``codegen.controller``:
+    ``ctrl.function (t, x, p) -> tau``). The structure reads the first ``n_structure_p`` entries of ``p``
+    (the run-time parameters and the start's values; the inputs' coefficients reach it
+    through ``tau``)."""
     t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
     z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
     empty = ca.MX(0, 1)
+    ps = p[:n_structure_p]
+    controller = ctrl.function
+    tau = controller(t, x, p)
+    entries = meta["leaf_entries"]
 
-    def leaves(kind):
-        return contours[kind].call([x])
+    def args(kind, torques=tau, x=x):
+        """The contour values and the torques the structure's function ``kind`` reads."""
+        leaves = contours[kind].call([x])
+        kept = entries[kind].get("tau", [])
+        return [*leaves, ca.vertcat(*[torques[k] for k in kept]) if kept else ca.MX(0, 1)]
 
-    (L,) = leaves("rhs")
-    xdot = structure["rhs"](t, x, p, L)
+    xdot = structure["rhs"](t, x, ps, *args("rhs"))
     rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u], [xdot, empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out())
-    Jx, Jp = structure["jac"](t, x, p, *leaves("jac"))
+    Jx, Jp, Jtau = structure["jac"](t, x, ps, *args("jac"))
+    # the torques' share by the chain rule (the controller's Jacobian is its own SX's)
+    kept = entries["jac"].get("tau", [])
+    if kept:
+        ctrl_jac = controller.jacobian()
+        cj = ctrl_jac(t, x, p, tau)
+        dtau_dx = ca.vertcat(*[cj[1][k, :] for k in kept])
+        dtau_dp = ca.vertcat(*[cj[2][k, :] for k in kept])
+        Jx = Jx + ca.mtimes(Jtau, dtau_dx)
+        Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p)) + ca.mtimes(Jtau, dtau_dp)
+    else:
+        Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p))
     ins, outs = _jacobian_layout(nx, np_)
     jin = [t, x, z, p, u] + [ca.MX.sym(n, s) for n, s in ins[5:]]
     blocks = {"jac_ode_x": Jx, "jac_ode_p": Jp}
@@ -104,16 +127,20 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
     out_fn = None
     output_names = tuple(meta["output_names"])
     if output_names:
-        out_fn = ca.Function(f"{name}_outputs", [x, p], [structure["outputs"](x, p, *leaves("outputs"))],
-                             ["x", "p"], ["y"])
-    con = structure["constraints"](x, p, *leaves("constraints"))
+        # the outputs are functions of (x, p): the torques at t = 0, or at the time in a last
+        # entry of p when the law reads the time (``codegen.controller.outputs_time``)
+        p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
+        y = structure["outputs"](x, pm[:n_structure_p], *args("outputs", controller(t_out, x, pm)))
+        out_fn = ca.Function(f"{name}_outputs", [x, p_out], [y], ["x", "p"], ["y"])
+    con = structure["constraints"](x, ps, *args("constraints"))
     constraints = ca.Function(f"{name}_constraints", [x, p], list(con),
                               ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
-    G, dG = structure["start"](x, p, *leaves("start"))
+    G, dG = structure["start"](x, ps, *args("start"))
     start = ca.Function(f"{name}_start", [x, p], [G, dG, empty], ["x", "p"], ["G", "dG_dx", "v"])
     ops = dict(meta.get("op_counts", {}))
-    helpers = tuple({id(f): f for f in contours.values()}.values())
-    ops["contours_sx_instructions"] = sum(f.n_instructions() for f in helpers)
+    helpers = tuple({id(f): f for f in contours.values()}.values()) + (controller,)
+    ops["contours_sx_instructions"] = sum(f.n_instructions() for f in helpers[:-1])
+    ops["controller_sx_instructions"] = controller.n_instructions()
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=output_names,
                        op_counts=ops, constraints=constraints,
                        constraint_info=meta["constraint_info"], start=start,
@@ -121,37 +148,57 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
 
 
 def lanes_glue(name: str, contours: ca.Function, structure_lanes: str | None,
-               n_leaves: int) -> tuple[str | None, str]:
+               n_leaves: int, controller: ca.Function, tau_kept: list[int]) -> tuple[str | None, str]:
     """C of ``<name>_rhs_lanes`` (the driver's 4-lane rhs, ``codegen.lanes``): the contours
-    at the four states (four at once where ``contours`` has a lane version, else one by one),
-    then the structure's 4-lane rhs ``structure_lanes``; or None and why not."""
+    at the four states (four at once where ``contours`` has a lane version, else one by one)
+    and the controller's torques (lane by lane), then the structure's 4-lane rhs
+    ``structure_lanes`` (which reads the torques ``tau_kept``); or None and why not."""
     if structure_lanes is None:
         return None, "not made: the structure has no 4-lane rhs"
     nl = max(1, n_leaves)
+    nt = max(1, controller.nnz_out(0))
+    nk = max(1, len(tau_kept))
     c_lanes, status = lanes.function_lanes(contours, f"{name}_contours_lanes", ("lane",),
                                            ("x", "L"))
     head = [f"int {structure_lanes}(const double* t, const double* const* x, const double* p, "
-            "const double* const* L, double* const* xdot);"]
+            "const double* const* L, const double* const* tau, double* const* xdot);"]
+
+    def declare(f):
+        return (f"int {f.name()}(const double** arg, double** res, long long int* iw, double* w, "
+                "int mem);")
+
+    def work(f):
+        sz = {k: max(1, int(getattr(f, k)())) for k in ("sz_arg", "sz_res", "sz_iw", "sz_w")}
+        return [f"    const double* arg[{sz['sz_arg']}]; double* res[{sz['sz_res']}];",
+                f"    long long int iw[{sz['sz_iw']}]; double w[{sz['sz_w']}];"]
+
+    head.insert(0, declare(controller))
     body = [f"int {name}_rhs_lanes(const double* t, const double* const* x, const double* p, "
             "double* const* xdot) {",
             f"  double L0[{nl}], L1[{nl}], L2[{nl}], L3[{nl}];",
-            "  double* L[4] = {L0, L1, L2, L3};"]
+            "  double* L[4] = {L0, L1, L2, L3};",
+            f"  double full[4][{nt}], T0[{nk}], T1[{nk}], T2[{nk}], T3[{nk}];",
+            "  double* tau[4] = {T0, T1, T2, T3};"]
     if c_lanes is not None:
         body.append(f"  {name}_contours_lanes(x, L);")
     else:
-        sz = {k: max(1, int(getattr(contours, k)())) for k in ("sz_arg", "sz_res", "sz_iw", "sz_w")}
-        head.insert(0, f"int {contours.name()}(const double** arg, double** res, "
-                       "long long int* iw, double* w, int mem);")
-        body += [f"  const double* arg[{sz['sz_arg']}]; double* res[{sz['sz_res']}];",
-                 f"  long long int iw[{sz['sz_iw']}]; double w[{sz['sz_w']}];",
-                 "  for (int s = 0; s < 4; ++s) {",
-                 "    arg[0] = x[s]; res[0] = L[s];",
-                 f"    if ({contours.name()}(arg, res, iw, w, 0)) return 1;",
-                 "  }"]
-    body += [f"  return {structure_lanes}(t, x, p, (const double* const*)L, xdot);", "}"]
+        head.insert(0, declare(contours))
+        body += ["  {", *work(contours),
+                 "    for (int s = 0; s < 4; ++s) {",
+                 "      arg[0] = x[s]; res[0] = L[s];",
+                 f"      if ({contours.name()}(arg, res, iw, w, 0)) return 1;",
+                 "    }", "  }"]
+    body += ["  {", *work(controller),
+             "    for (int s = 0; s < 4; ++s) {",
+             "      arg[0] = t + s; arg[1] = x[s]; arg[2] = p; res[0] = full[s];",
+             f"      if ({controller.name()}(arg, res, iw, w, 0)) return 1;",
+             *[f"      tau[s][{j}] = full[s][{k}];" for j, k in enumerate(tau_kept)],
+             "    }", "  }"]
+    body += [f"  return {structure_lanes}(t, x, p, (const double* const*)L, "
+             "(const double* const*)tau, xdot);", "}"]
     text = (c_lanes or "") + "\n".join(head + body) + "\n"
     how = "contours four at a time" if c_lanes is not None else f"contours one lane at a time ({status})"
-    return text, f"applied ({how}, then the structure's 4-lane rhs)"
+    return text, f"applied ({how}, the controller lane by lane, then the structure's 4-lane rhs)"
 
 
 def jets_functions(surfaces, slots, nx: int, name: str, entries: dict[str, list[int]]
@@ -181,31 +228,38 @@ def jets_functions(surfaces, slots, nx: int, name: str, entries: dict[str, list[
 
 
 def compose_layered_3d(structure: dict[str, ca.Function], meta: dict,
-                       jets: dict[str, ca.Function], nx: int, np_: int, name: str) -> CasadiModel:
+                       jets: dict[str, ca.Function], nx: int, np_: int, name: str,
+                       ctrl, n_structure_p: int) -> CasadiModel:
     """A 3D model's MX functions over its structure's ``external`` functions (each takes the
-    model's inputs and the jet entries ``J`` it needs) and its jets functions."""
+    structure's ``p``: the model's first ``n_structure_p`` entries, then the joint torques of
+    the controller ``ctrl``; and the jet entries ``J`` it needs) and its jets functions."""
     t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
     z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
+    controller = ctrl.function
 
     def J(kind):
         return jets[kind](x)
 
+    def ps(time=t, pm=p):
+        return ca.vertcat(pm[:n_structure_p], controller(time, x, pm))
+
     rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u],
-                      list(structure["rhs"](t, x, z, p, u, J("rhs"))), ca.dyn_in(), ca.dyn_out())
+                      list(structure["rhs"](t, x, z, ps(), u, J("rhs"))), ca.dyn_in(), ca.dyn_out())
     out_fn = None
     output_names = tuple(meta["output_names"])
     if output_names:
-        out_fn = ca.Function(f"{name}_outputs", [x, p], [structure["outputs"](x, p, J("outputs"))],
-                             ["x", "p"], ["y"])
+        p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
+        out_fn = ca.Function(f"{name}_outputs", [x, p_out],
+                             [structure["outputs"](x, ps(t_out, pm), J("outputs"))], ["x", "p"], ["y"])
     constraints = ca.Function(f"{name}_constraints", [x, p],
-                              list(structure["constraints"](x, p, J("constraints"))),
+                              list(structure["constraints"](x, ps(0), J("constraints"))),
                               ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
     start = None
     if "start" in structure:
-        start = ca.Function(f"{name}_start", [x, p], list(structure["start"](x, p, J("start"))),
+        start = ca.Function(f"{name}_start", [x, p], list(structure["start"](x, ps(0), J("start"))),
                             ["x", "p"], ["G", "dG_dx", "v"])
     ops = dict(meta.get("op_counts", {}))
-    helpers = tuple({id(f): f for f in jets.values()}.values())
+    helpers = tuple({id(f): f for f in jets.values()}.values()) + (controller,)
     ops["jets_sx_instructions"] = sum(f.n_instructions() for f in helpers)
     ops["rhs_jets_sx_instructions"] = jets["rhs"].n_instructions()
     return CasadiModel(rhs=rhs, jac=None, outputs=out_fn, output_names=output_names,

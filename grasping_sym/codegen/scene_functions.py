@@ -32,6 +32,7 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     called by the scene's own contour functions (``codegen.layered``). The pivot ``(xm, ym)``
     is a run-time input, after the scene's run-time parameters."""
     from grasping_sym.codegen import structure_cache, templates  # noqa: PLC0415
+    from grasping_sym.codegen.controller import controller_function  # noqa: PLC0415
     from grasping_sym.codegen.layered import compose_layered, contour_functions, lanes_glue  # noqa: PLC0415
     from grasping_sym.codegen.structure import structure_functions  # noqa: PLC0415
 
@@ -53,10 +54,12 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     say("composing the contours with the structure (CasADi)")
     nx = len(scene.state_names)
     contours = contour_functions(leaves, meta["slots"], nx, scene.name, meta["leaf_entries"])
-    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, nx, len(inputs),
-                         scene.name)
+    ctrl = controller_function(scene, scene.name)
+    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, nx,
+                         len(scene.p_names), scene.name, ctrl, len(inputs))
     glue = lanes_glue(scene.name, contours["rhs"], meta["rhs_lanes"],
-                      len(meta["leaf_entries"]["rhs"]["L"]))
+                      len(meta["leaf_entries"]["rhs"]["L"]), ctrl.function,
+                      meta["leaf_entries"]["rhs"].get("tau", []))
     t4 = time.perf_counter()
     return SceneFunctions(cm, {"validate": t1 - t0, "structure": t2 - t1,
                                "structure_source": source, "structure_compile": t3 - t2,
@@ -70,6 +73,7 @@ def planar_single_piece(scene) -> SceneFunctions:
     Not what is compiled (``planar_functions``), but the same closed loop: CasADi's virtual
     machine evaluates it with nothing compiled, and tests check the layers against it."""
     from grasping_sym.codegen import templates  # noqa: PLC0415
+    from grasping_sym.codegen.controller import controller_function  # noqa: PLC0415
     from grasping_sym.codegen.functions import compose  # noqa: PLC0415
     from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
 
@@ -78,9 +82,10 @@ def planar_single_piece(scene) -> SceneFunctions:
     values = parameter_values(scene)
     template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene),
                                             scene.n_fingers)
+    ctrl = controller_function(scene, scene.name)
     return SceneFunctions(compose(template, list(scene.fingertips), scene.object, runtime=inputs,
                                   constants={k: v for k, v in values.items() if k not in inputs},
-                                  outputs=scene.outputs, name=scene.name))
+                                  outputs=scene.outputs, name=scene.name, controller=ctrl))
 
 
 def planar_structure(scene):
@@ -106,6 +111,7 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
     derived, written and compiled once per structure, ``codegen.structure_cache``) called by
     the scene's own jets of its surfaces (``codegen.layered.jets_function``)."""
     from grasping_sym.codegen import structure_cache  # noqa: PLC0415
+    from grasping_sym.codegen.controller import controller_function  # noqa: PLC0415
     from grasping_sym.codegen.layered import compose_layered_3d, jets_functions  # noqa: PLC0415
     from grasping_sym.codegen.structure3d import Structure3DSpec, structure3d_functions  # noqa: PLC0415
 
@@ -127,8 +133,9 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
     jets = jets_functions(surfaces, [tuple(s) for s in meta["slots"]], nx, scene.name,
                           meta["jet_entries"])
     inputs = (*scene.runtime, *scene.start_param_names)
-    cm = compose_layered_3d(structure_cache.externals(meta, so), meta, jets, nx, len(inputs),
-                            scene.name)
+    cm = compose_layered_3d(structure_cache.externals(meta, so), meta, jets, nx,
+                            len(scene.p_names), scene.name, controller_function(scene, scene.name),
+                            len(inputs))
     t3 = time.perf_counter()
     return SceneFunctions(cm, {"structure": t1 - t0, "structure_source": source,
                                "structure_compile": t2 - t1, "compose": t3 - t2},
@@ -157,6 +164,7 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
     cm = sx_model(system.x, system.p, system.xdot, {k: system.outputs[k] for k in scene.outputs},
                   scene.name, jacobian=False, constraints=system.pieces["C"],
                   constraint_names=names, start_conditions=ca.vertcat(*G.values()) if G else None,
-                  start_names=tuple(G), start_values=implied)
+                  start_names=tuple(G), start_values=implied, t=system.t,
+                  outputs_time=system.reads_time)
     t2 = time.perf_counter()
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": t2 - t1})

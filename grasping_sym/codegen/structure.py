@@ -13,13 +13,16 @@ A planar template (``functions.Template``) is the closed loop as a function of `
 - the outputs.
 
 Its functions take the remaining leaves ``L`` (and, for derivatives, their derivatives
-``dL`` along the contact parameters) as inputs:
+``dL`` along the contact parameters) and the joint torques ``tau`` (the controller layer's,
+``codegen.controller``) as inputs:
 
-- ``<s>_rhs (t, x, p, L) -> xdot``
-- ``<s>_jac (t, x, p, L, dL) -> (dxdot/dx, dxdot/dp)``
-- ``<s>_outputs (x, p, L) -> y``
-- ``<s>_constraints (x, p, L, dL) -> (C, dC/dx, Cdot, dCdot/dv)``
-- ``<s>_start (x, p, L, dL) -> (G, dG/dx)``
+- ``<s>_rhs (t, x, p, L, tau) -> xdot``
+- ``<s>_jac (t, x, p, L, dL, tau) -> (dxdot/dx, dxdot/dp, dxdot/dtau)``
+- ``<s>_outputs (x, p, L, tau) -> y``
+- ``<s>_constraints (x, p, L, dL, tau) -> (C, dC/dx, Cdot, dCdot/dv)``
+- ``<s>_start (x, p, L, dL, tau) -> (G, dG/dx)``
+
+(each cut to the entries of ``L``, ``dL`` and ``tau`` it reads: ``prune_inputs``).
 
 The derivatives through the contours are exact to first order: each leaf enters as
 ``L + dL (u - u*)`` with ``u*`` a copy of its contact parameter, which is set equal to ``u``
@@ -75,7 +78,7 @@ class StructureSpec:
 
     def key(self) -> str:
         consts = ";".join(f"{k}={float(v)!r}" for k, v in self.constants)
-        return "|".join(["planar-structure-v1", repr((self.shared, self.gravity, self.n_fingers)),
+        return "|".join(["planar-structure-v2", repr((self.shared, self.gravity, self.n_fingers)),
                          ",".join(self.inputs), consts, repr(self.folded), ",".join(self.outputs)])
 
     def digest(self, extra: str) -> str:
@@ -124,11 +127,15 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
     x = ca.SX.sym("x", nx)
     t = ca.SX.sym("t")
     p = ca.SX.sym("p", len(spec.inputs))
+    torques = [k for k in template.param_names if k.startswith("tau_")]
+    tau = ca.SX.sym("tau", len(torques))
     constants = dict(spec.constants)
-    missing = [k for k in template.param_names if k not in spec.inputs and k not in constants]
+    missing = [k for k in template.param_names
+               if k not in spec.inputs and k not in constants and k not in torques]
     if missing:
         raise ValueError(f"no value for template parameters {missing}")
-    q = ca.vertcat(*[p[spec.inputs.index(k)] if k in spec.inputs else ca.SX(constants[k])
+    q = ca.vertcat(*[p[spec.inputs.index(k)] if k in spec.inputs else
+                     tau[torques.index(k)] if k in torques else ca.SX(constants[k])
                      for k in template.param_names])
     families = _families(len(template.contact_index))
     slot_states = [i for pair in template.contact_index for i in pair]
@@ -166,32 +173,33 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
         return y_t[template.output_names.index(k)]
 
     (xdot,) = exact(xdot_t)
-    Jx, Jp = exact(ca.jacobian(xdot_t, x), ca.jacobian(xdot_t, p))
-    rhs = ca.Function(f"{name}_rhs", [t, x, p, L], [xdot], ["t", "x", "p", "L"], ["xdot"],
+    Jx, Jp, Jtau = exact(ca.jacobian(xdot_t, x), ca.jacobian(xdot_t, p), ca.jacobian(xdot_t, tau))
+    rhs = ca.Function(f"{name}_rhs", [t, x, p, L, tau], [xdot], ["t", "x", "p", "L", "tau"],
+                      ["xdot"], FUNCTION_OPTIONS)
+    jac = ca.Function(f"{name}_jac", [t, x, p, L, dL, tau], [Jx, Jp, Jtau],
+                      ["t", "x", "p", "L", "dL", "tau"], ["dxdot_dx", "dxdot_dp", "dxdot_dtau"],
                       FUNCTION_OPTIONS)
-    jac = ca.Function(f"{name}_jac", [t, x, p, L, dL], [Jx, Jp], ["t", "x", "p", "L", "dL"],
-                      ["dxdot_dx", "dxdot_dp"], FUNCTION_OPTIONS)
     outputs = None
     if spec.outputs:
         (y,) = exact(ca.vertcat(*[out(k) for k in spec.outputs]))
-        outputs = ca.Function(f"{name}_outputs", [x, p, L], [y], ["x", "p", "L"], ["y"],
-                              FUNCTION_OPTIONS)
+        outputs = ca.Function(f"{name}_outputs", [x, p, L, tau], [y], ["x", "p", "L", "tau"],
+                              ["y"], FUNCTION_OPTIONS)
     names = planar_constraint_names(template.output_names)
     C_t = ca.vertcat(*[out(k) for k in names])
     con, info = constraint_expressions(x, xdot_t, C_t, names)
-    constraints = ca.Function(f"{name}_constraints", [x, p, L, dL], exact(*con),
-                              ["x", "p", "L", "dL"], ["C", "dC_dx", "Cdot", "dCdot_dv"],
+    constraints = ca.Function(f"{name}_constraints", [x, p, L, dL, tau], exact(*con),
+                              ["x", "p", "L", "dL", "tau"], ["C", "dC_dx", "Cdot", "dCdot_dv"],
                               FUNCTION_OPTIONS)
     tangency = tuple(k for k in template.output_names if k.startswith("tangency_defect"))
     G_t = ca.vertcat(C_t, *[out(k) for k in tangency])
-    start = ca.Function(f"{name}_start", [x, p, L, dL],
+    start = ca.Function(f"{name}_start", [x, p, L, dL, tau],
                         exact(G_t, ca.densify(ca.jacobian(G_t, x))),
-                        ["x", "p", "L", "dL"], ["G", "dG_dx"], FUNCTION_OPTIONS)
+                        ["x", "p", "L", "dL", "tau"], ["G", "dG_dx"], FUNCTION_OPTIONS)
     entries: dict[str, dict[str, list[int]]] = {}
     pruned = {}
-    for kind, f, leaf_inputs in (("rhs", rhs, (3,)), ("jac", jac, (3, 4)),
-                                 ("outputs", outputs, (2,)), ("constraints", constraints, (2, 3)),
-                                 ("start", start, (2, 3))):
+    for kind, f, leaf_inputs in (("rhs", rhs, (3, 4)), ("jac", jac, (3, 4, 5)),
+                                 ("outputs", outputs, (2, 3)), ("constraints", constraints, (2, 3, 4)),
+                                 ("start", start, (2, 3, 4))):
         if f is None:
             continue
         pruned[kind], kept = prune_inputs(f, leaf_inputs)
@@ -201,7 +209,8 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
                               start=pruned["start"], slots=tuple(slots),
                               output_names=tuple(spec.outputs), constraint_info=info,
                               start_names=names + tangency, n_leaves=n_leaves,
-                              lanes=(("t", "lane", "shared", "lane"), ("t", "x", "p", "L", "xdot")),
+                              lanes=(("t", "lane", "shared", "lane", "lane"),
+                                     ("t", "x", "p", "L", "tau", "xdot")),
                               extra_meta={"leaf_entries": entries})
 
 

@@ -113,7 +113,7 @@ class Structure3DSpec:
     sources: tuple[str, ...] = ()
 
     def key(self) -> str:
-        return "grasp3d-structure-v1|" + self.text
+        return "grasp3d-structure-v2|" + self.text
 
     def digest(self, extra: str) -> str:
         return hashlib.sha256(f"{self.key()}|{extra}".encode()).hexdigest()
@@ -137,7 +137,7 @@ def structure3d_functions(scene, name: str) -> StructureFunctions:
         coords[2 * slot], coords[2 * slot + 1] = u, v
         return _taylor(J[slot * size:(slot + 1) * size], u - ustar[2 * slot], v - ustar[2 * slot + 1])
 
-    system = derive_grasp3d(scene, surface_fn=provider)
+    system = derive_grasp3d(scene, surface_fn=provider, torque_inputs=True)
     same = ca.vertcat(*coords)
 
     def exact(*exprs):

@@ -75,11 +75,17 @@ class Grasp3DSystem:
     #: the normals opposed, the frame angle psi read from the surfaces' frames, a unit
     #: quaternion; zero at a consistent start (``runtime.start``)
     start_conditions: dict[str, ca.SX] = field(default_factory=dict)
+    #: the time (the controller's), and whether the law reads it itself
+    t: ca.SX | None = None
+    reads_time: bool = False
 
     def function(self, name: str, which: str) -> ca.Function:
         """An (uncompiled) ``Function(x, p) -> dict`` of ``pieces``/``geometry``/``outputs``."""
         d = {"pieces": self.pieces, "geometry": self.geometry, "outputs": self.outputs}[which]
-        return ca.Function(name, [self.x, self.p], list(d.values()), ["x", "p"], list(d))
+        values = list(d.values())
+        if self.t is not None:  # the law's time at 0 (a law that reads it: at the start)
+            values = ca.substitute(values, [self.t], [ca.SX(0)])
+        return ca.Function(name, [self.x, self.p], values, ["x", "p"], list(d))
 
 
 # ------------------------------------------------------------------ symbolic building blocks
@@ -172,7 +178,20 @@ def _darboux(kg, tg, kn):
 
 
 # ------------------------------------------------------------------ the closed loop
-def derive_grasp3d(scene: GraspScene3D, surface_fn=None) -> Grasp3DSystem:
+def state_slices(scene: GraspScene3D) -> dict[str, slice]:
+    """Where the state's parts lie: ``q``, ``pos`` (free objects), ``quat``, ``dq``, ``vel``
+    (free objects), ``om``, then the contacts' states."""
+    nQ = sum(f.chain.n for f in scene.fingers)
+    sizes = [("q", nQ), ("pos", 3 if scene.free else 0), ("quat", 4), ("dq", nQ),
+             ("vel", 3 if scene.free else 0), ("om", 3)]
+    out, k = {}, 0
+    for key, n in sizes:
+        out[key] = slice(k, k + n)
+        k += n
+    return out
+
+
+def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = False) -> Grasp3DSystem:
     """The scene's closed loop as SX.
 
     ``surface_fn(slot, surface, u, v, extra)`` gives a contour slot's point, frame and forms
@@ -182,8 +201,14 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None) -> Grasp3DSystem:
 
     ``p`` holds the run-time parameters ``scene.runtime``, then ``scene.start_param_names``:
     ``r_bar0`` (m), the mean of the fingertip centres at the start, where the centre spring
-    of the controller is at rest (``initial3d`` computes it; absent when ``k_center = 0``).
+    of the controller is at rest (``initial3d`` computes it; absent when ``k_center = 0``),
+    then the inputs' coefficients (``scene.p_names``). The joint torques are the controller
+    layer's (``codegen.controller``); with ``torque_inputs`` they are the last entries of
+    ``p`` instead, which then holds no inputs' coefficients (a structure's, whose model
+    computes the torques).
     """
+    from grasping_sym.codegen.controller import controller_torques  # noqa: PLC0415
+
     paper = scene.formulation == "paper"
     N = scene.n_contacts
     nq = [f.chain.n for f in scene.fingers]
@@ -192,11 +217,14 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None) -> Grasp3DSystem:
     n_eta = 23 if paper else 5
     nx = len(scene.state_names)
     x = ca.SX.sym("x", nx)
-    p_names = (*scene.runtime, *scene.start_param_names)
+    t = ca.SX.sym("t")
+    if torque_inputs:
+        p_names = (*scene.runtime, *scene.start_param_names, *(f"tau_{k}" for k in scene.joint_names))
+    else:
+        p_names = scene.p_names
     p = ca.SX.sym("p", len(p_names))
     prm = {k: (p[scene.runtime.index(k)] if k in scene.runtime else ca.SX(v))
            for k, v in scene.params.items()}
-    r_bar0 = ca.vertcat(*[p[p_names.index(k)] for k in scene.start_param_names])
     k = 0
     q = x[k:k + nQ]
     k += nQ
@@ -269,22 +297,18 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None) -> Grasp3DSystem:
     h_obj = ([-m * ca.DM(g) if g is not None else ca.DM.zeros(3)] if free else [])
     h = ca.vertcat(*h_f, *h_obj, ca.cross(om, H @ om))
 
-    # controller: no object information
+    # the joint torques: the controller layer's, or inputs of a structure
+    reads_time = False
+    if torque_inputs:
+        torques = p[len(p_names) - nQ:]
+    else:
+        torques, _, reads_time = controller_torques(scene, t, x, p)
+    u, off = [], 0
+    for n in nq:
+        u.append(torques[off:off + n])
+        off += n
     rs = [fin["r"] for fin in fingers]
     r_bar = sum(rs[1:], rs[0]) / N
-    u = []
-    for i, fin in enumerate(fingers):
-        if N == 1:
-            pull = (prm["fd"] / scene.r_ctrl) * (rs[0] - ca.DM(scene.position))
-        else:
-            pull = (prm["fd"] / scene.r_ctrl) * sum((rs[i] - rs[j] for j in range(N) if j != i),
-                                                    ca.DM.zeros(3))
-        if scene.start_param_names:
-            pull = pull + (prm["k_center"] / N) * (r_bar - r_bar0)
-        ui = -prm["c"] * fin["dq"] - fin["J"].T @ pull
-        if g is not None:
-            ui = ui + fin["dP"]
-        u.append(ui)
     # torsional (spin) friction at the contacts: a soft finger's viscous twist torque
     spin_f = [ca.DM.zeros(n) for n in nq]
     spin_o = ca.DM.zeros(3)
@@ -356,7 +380,8 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None) -> Grasp3DSystem:
     pieces = {"M": Mm, "h": h, "tau": tau, "A": A, "Ahat": Ahat, "bhat": bhat, "Cdot": Cdot,
               "C": C, "sigma": sigma, "mu": mu, "acc": acc, "eta_reg": eta_reg}
     return Grasp3DSystem(x=x, p=p, xdot=xdot, outputs=outputs, pieces=pieces, geometry=geometry,
-                         param_names=p_names, start_conditions=start_conditions)
+                         param_names=p_names, start_conditions=start_conditions, t=t,
+                         reads_time=reads_time)
 
 
 def _paper_tracking(scene, x, xdot_body, etas, contacts, fingers, R, om):

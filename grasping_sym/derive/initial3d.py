@@ -164,7 +164,8 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
     geo = system.function("start_geometry", "geometry")
     # the centre spring's rest point is what this solve finds: zero here (it does not enter
     # the geometry, nor A or M)
-    p = np.array([regular.params[k] for k in regular.runtime] + [0.0] * len(regular.start_param_names))
+    p = np.array([regular.params[k] for k in regular.runtime]
+                 + [0.0] * (len(regular.p_names) - len(regular.runtime)))
     info = {"residual": conf["residual"], "iterations": conf["iterations"],
             "r_bar0": np.asarray(geo(x=x, p=p)["r_bar"], float).ravel()}
     nQ = len(conf["q"])

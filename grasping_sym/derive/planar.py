@@ -18,10 +18,16 @@ on the manifold: the normal and tangential relative velocities of the two materi
 at the contact. The equations of motion are
 
     I theta'' + f dQ/dtheta + lam dR/dtheta = 0
-    G(q) q'' + (G'/2 + S) q' + f dQ/dq + lam dR/dq = u_c                 (paper 27-28)
-    u_c = -c q' - J01^T (fd/r)(O01 - Om)                                 (paper 32)
+    G(q) q'' + (G'/2 + S) q' + f dQ/dq + lam dR/dq = tau                 (paper 27-28)
 
-so that at equilibrium f = -(fd/r) Q1 and lam = -(fd/r) R1 (docs/conventions.md signs). The contact
+The joint torques ``tau`` are symbols of the template (``tau_q1, tau_q2``; with several
+fingers ``tau_q11, ...``): the controller is a layer of its own (``grasping_sym.controllers``),
+so the contact dynamics are derived once for every controller. The paper's law (32),
+
+    tau = -c q' - J01^T (fd/r)(O01 - Om)                                 (paper 32)
+
+(``paper_law``; ``derive_planar`` closes the loop with it), gives at equilibrium
+f = -(fd/r) Q1 and lam = -(fd/r) R1 (docs/conventions.md signs). The contact
 moves by the update law (29) in arclength, ``s' = (q1' + q2' - theta')/(kappa0 + kappa1)``,
 written for any parameterisation as ``u0' = s'/|c0'(u0)|``, ``u1' = s'/|c1'(u1)|``.
 """
@@ -50,7 +56,15 @@ def template_parameters(gravity: bool, n_fingers: int = 1) -> tuple[str, ...]:
     """
     extra = tuple(f"{k}{i}{j}" for i in range(2, n_fingers + 1) for k, j in
                   (("l", 1), ("l", 2), ("m", 1), ("m", 2), ("xb", ""), ("yb", "")))
-    return (*PARAMETERS, "xm", "ym", *(("gx", "gy") if gravity else ()), *extra)
+    return (*PARAMETERS, "xm", "ym", *(("gx", "gy") if gravity else ()), *extra,
+            *torque_names(n_fingers))
+
+
+def torque_names(n_fingers: int = 1) -> tuple[str, ...]:
+    """The template's joint-torque symbols, finger by finger (``tau_q1, tau_q2`` for one)."""
+    if n_fingers == 1:
+        return ("tau_q1", "tau_q2")
+    return tuple(f"tau_q{i}{j}" for i in range(1, n_fingers + 1) for j in (1, 2))
 
 
 def has_gravity(scene: PlanarFingerScene) -> bool:
@@ -72,7 +86,9 @@ def parameter_values(scene: PlanarFingerScene) -> dict[str, float]:
 
 
 def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
-    """The closed-loop pieces of ``scene``: its template with the scene's choices.
+    """The closed-loop pieces of ``scene`` under the paper's law (32): its template with the
+    scene's choices and the joint torques of :func:`paper_law` (the SymPy path the tests
+    check the controller layer against).
 
     Parameters stay symbols; ``system.params`` are the run-time inputs and
     ``system.constants`` the values of the others, which the translation to CasADi folds
@@ -81,12 +97,30 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
     template = derive_template(scene.shared_parameter, has_gravity(scene), scene.n_fingers)
     values = parameter_values(scene)
     symbols = {str(sym): sym for sym in template.params}
+    law = paper_law(template, scene.n_fingers, has_gravity(scene))
     return replace(
         template,
-        outputs={k: template.outputs[k] for k in scene.outputs},
+        force=template.force.xreplace(law),
+        outputs={k: sp.sympify(template.outputs[k]).xreplace(law) for k in scene.outputs},
         params=[symbols[k] for k in scene.runtime],
         constants={symbols[k]: v for k, v in values.items() if k not in scene.runtime},
     )
+
+
+def paper_law(template: ConstrainedSystem, n_fingers: int, gravity: bool) -> dict:
+    """The paper's law (32) per finger, ``-c q' - J01^T (fd/r)(O01 - Om)`` plus the finger's
+    gravity torque when gravity is modelled, as a substitution of the template's torques."""
+    P = {str(s): s for s in template.params}
+    Om = sp.Matrix([P["xm"], P["ym"]])
+    law = {}
+    for i in range(1, n_fingers + 1):
+        fin = _finger(i, n_fingers, P, gravity)
+        tau = -P["c"] * fin["v"] - fin["J01"].T * (P["fd"] / P["r"]) * (fin["O01"] - Om)
+        if fin["pot"] != 0:
+            tau += sp.Matrix([fin["pot"]]).jacobian(fin["q"]).T
+        names = torque_names(n_fingers)[2 * i - 2:2 * i]
+        law.update({P[k]: e for k, e in zip(names, tau)})
+    return law
 
 
 def _finger(i: int, n_fingers: int, P: dict, gravity: bool):
@@ -191,14 +225,10 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
     Ahat = Cdot.jacobian(v)
     bhat = Cdot.jacobian(z) * zdot
 
-    # ---- controller (32) per finger, with gravity compensation when gravity is modelled
-    ctrls = []
-    for fin in fingers:
-        ctrl = -P["c"] * fin["v"] - fin["J01"].T * (P["fd"] / P["r"]) * (fin["O01"] - Om)
-        if fin["pot"] != 0:
-            ctrl += sp.Matrix([fin["pot"]]).jacobian(fin["q"]).T
-        ctrls.append(ctrl)
-    tau = sp.Matrix([0, *[x for ctrl in ctrls for x in ctrl]])
+    # ---- joint torques: symbols (the controller layer gives them)
+    taus = [P[k] for k in torque_names(n_fingers)]
+    ctrls = [sp.Matrix(taus[2 * i:2 * i + 2]) for i in range(n_fingers)]
+    tau = sp.Matrix([0, *taus])
 
     mus = sp.symbols("f lam" if one else " ".join(f"f{i} lam{i}" for i in range(1, n_fingers + 1)),
                      real=True)

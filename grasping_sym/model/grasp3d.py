@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
@@ -36,6 +37,8 @@ import numpy as np
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain
+from grasping_sym.model.control import PAPER, coefficient_names, control_problems
+from grasping_sym.model.control import input_names as _input_names
 from grasping_sym.model.names import name_problems
 
 FORMULATIONS = ("regular", "paper")
@@ -133,7 +136,12 @@ class GraspScene3D:
     dq0: tuple[float, ...] | None = None
     outputs: tuple[str, ...] = ()
     runtime: tuple[str, ...] = ()
+    controller: object = PAPER
+    inputs: str | None = None
     problems: tuple[str, ...] = field(default=(), repr=False)
+
+    #: The scene's dimension (the controller presets and quantities depend on it).
+    dimension: ClassVar[int] = 3
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "fingers", tuple(self.fingers))
@@ -147,7 +155,7 @@ class GraspScene3D:
 
     # ------------------------------------------------------------------ validation
     def _problems(self) -> list[str]:
-        p: list[str] = name_problems(self.name)
+        p: list[str] = name_problems(self.name) + control_problems(self.controller, self.inputs)
         if not self.fingers:
             p.append("no fingers: give at least one Finger3D")
         for i, f in enumerate(self.fingers, start=1):
@@ -264,18 +272,43 @@ class GraspScene3D:
         parts = ["grasp3d-v2", self.name, self.support, self.formulation, repr(self.mass),
                  repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),
                  repr(self.params), repr(self.r_ctrl), repr(self.spin_damping), ",".join(self.outputs),
-                 ",".join(self.runtime), self.object_surface.key()]
+                 ",".join(self.runtime), self.object_surface.key(), f"inputs={self.inputs}",
+                 f"controller={self._controller_key}"]
         for f in self.fingers:
             parts += [repr(f.chain), f.tip.key()]
         return "\n".join(parts)
 
+    @cached_property
+    def _controller_key(self) -> str:
+        from grasping_sym.codegen.controller import controller_key  # noqa: PLC0415
+
+        return controller_key(self)
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """The control inputs (``model.control``): ``u1, u2, ...`` per joint, or none."""
+        return _input_names(self.inputs, len(self.joint_names))
+
+    @property
+    def p_names(self) -> tuple[str, ...]:
+        """Every entry of the compiled functions' ``p``: the run-time parameters, the start's
+        values, the inputs' coefficients."""
+        return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
+
+    def quantities(self, t, x, p):
+        """What a control law sees (``derive.quantities``), on the compiled ``t, x, p``."""
+        from grasping_sym.derive.quantities import grasp3d_quantities  # noqa: PLC0415
+
+        return grasp3d_quantities(self, t, x, p, self.p_names)
+
     def structure_key(self) -> str:
         """What the code depends on besides the scene's name and its surfaces: the text of
         its structure layer (``codegen.structure3d``)."""
-        parts = ["grasp3d-v2", self.support, self.formulation, repr(self.mass),
+        parts = ["grasp3d-v3", self.support, self.formulation, repr(self.mass),
                  repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),
-                 repr(self.params), repr(self.r_ctrl), repr(self.spin_damping), ",".join(self.outputs),
-                 ",".join(self.runtime), *[repr(f.chain) for f in self.fingers]]
+                 repr(self.gain), repr(self.spin_damping), ",".join(self.outputs),
+                 ",".join(self.runtime), repr(self.start_param_names),
+                 *[repr(f.chain) for f in self.fingers]]
         return "\n".join(parts)
 
     def key(self) -> str:

@@ -25,6 +25,8 @@ import numpy as np
 
 from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
+from grasping_sym.model.control import PAPER, coefficient_names, control_problems
+from grasping_sym.model.control import input_names as _input_names
 from grasping_sym.model.names import name_problems
 
 #: Parameters of the 2D scene, with their units.
@@ -124,6 +126,11 @@ class PlanarFingerScene:
         Fingers 2, 3, ... (:class:`ExtraFinger`) on the same object. Each runs the same
         controller (32) toward the pivot; the multi-finger states and outputs carry the
         finger's number (``q21``, ``u0_2``, ``f2``, ...).
+    controller
+        ``"paper"`` (the law (32), ``controllers.paper2d``), ``None`` (no law) or a
+        ``grasping_sym.controllers.Controller`` (``model.control``).
+    inputs
+        ``None`` or ``"torques"``: joint torques ``u1, u2, ...`` added to the controller's.
     """
 
     name: str
@@ -138,6 +145,11 @@ class PlanarFingerScene:
     u0_0: float = 0.0
     u1_0: float = 0.0
     extra_fingers: tuple[ExtraFinger, ...] = ()
+    controller: object = PAPER
+    inputs: str | None = None
+
+    #: The scene's dimension (the controller presets and quantities depend on it).
+    dimension: ClassVar[int] = 2
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "extra_fingers", tuple(self.extra_fingers))
@@ -262,6 +274,7 @@ class PlanarFingerScene:
         if problems:
             return problems + name_problems(self.name)
         problems += name_problems(self.name)
+        problems += control_problems(self.controller, self.inputs)
         missing = [k for k in PARAMETERS if k not in self.params]
         unknown = [k for k in self.params if k not in PARAMETERS]
         if missing:
@@ -329,7 +342,14 @@ class PlanarFingerScene:
             # with the contours' keys this fixes shared_parameter (which samples the contours)
             f"equal_start_parameters={self.u0_0 == self.u1_0}",
             *[f.code_key() for f in self.extra_fingers],
+            f"inputs={self.inputs}", f"controller={self._controller_key}",
         ])
+
+    @cached_property
+    def _controller_key(self) -> str:
+        from grasping_sym.codegen.controller import controller_key  # noqa: PLC0415
+
+        return controller_key(self)
 
     def key(self) -> str:
         """Canonical text of the whole definition: the code's and the start's."""
@@ -339,6 +359,23 @@ class PlanarFingerScene:
 
     #: Run-time parameters that the start fixes: the pivot ``Om`` (m).
     start_param_names: ClassVar[tuple[str, ...]] = ("xm", "ym")
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """The control inputs (``model.control``): ``u1, u2, ...`` per joint, or none."""
+        return _input_names(self.inputs, 2 * self.n_fingers)
+
+    @property
+    def p_names(self) -> tuple[str, ...]:
+        """Every entry of the compiled functions' ``p``: the run-time parameters, the start's
+        values, the inputs' coefficients."""
+        return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
+
+    def quantities(self, t, x, p):
+        """What a control law sees (``derive.quantities``), on the compiled ``t, x, p``."""
+        from grasping_sym.derive.quantities import planar_quantities  # noqa: PLC0415
+
+        return planar_quantities(self, t, x, p, self.p_names)
 
     def start_values(self) -> dict[str, float]:
         """Values of ``start_param_names``: the pivot solved from the initial contact."""

@@ -50,6 +50,7 @@ def manifest_problems(m: object) -> list[str]:
     _strings(m, "output_names", out, ident=True)
     params = _strings(m, "param_names", out, ident=True)
     starts = _strings(m, "start_param_names", out, ident=True)
+    _strings(m, "input_names", out, ident=True)
     _strings(m, "start_conditions", out)
     _strings(m, "c_symbols", out, ident=True)
     values = m.get("param_values")

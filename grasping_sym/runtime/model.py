@@ -48,23 +48,30 @@ class Model:
         self.param_names: tuple[str, ...] = tuple(manifest["param_names"])
         start_names = tuple(manifest.get("start_param_names", ()))
         self.start_params: dict[str, float] = {k: float(start["start_params"][k]) for k in start_names}
-        #: every input ``p`` of the compiled functions: ``param_names``, then the start's
-        self.input_names: tuple[str, ...] = self.param_names + start_names
-        self.default_params = np.array([*manifest["param_values"], *self.start_params.values()],
-                                       dtype=float)
+        #: the control inputs (``model.control``): ``u1, u2, ...`` joint torques, or none
+        self.input_names: tuple[str, ...] = tuple(manifest.get("input_names", ()))
+        coefficients = (*self.input_names, *(f"{k}_rate" for k in self.input_names))
+        #: every entry of the compiled functions' ``p``: ``param_names``, the start's values,
+        #: then the inputs' coefficients (``u(t) = a + b t``: every ``a``, then every ``b``)
+        self.p_names: tuple[str, ...] = self.param_names + start_names + coefficients
+        self.default_params = np.array([*manifest["param_values"], *self.start_params.values(),
+                                        *[0.0] * len(coefficients)], dtype=float)
         self._x0 = np.array(start["initial_state"], dtype=float)
         self.lower = np.array([-math.inf if v is None else v for v in manifest["lower"]])
         self.upper = np.array([math.inf if v is None else v for v in manifest["upper"]])
         self.library_path = Path(library_path)
         self.library = CompiledLibrary(self.library_path, self.state_names,
-                                       default_p=self.default_params if self.input_names else None)
+                                       default_p=self.default_params if self.p_names else None)
         self._external = None
         self._guarded = None
         self._integrators: dict = {}
-        if not self.input_names:
+        self._public: dict = {}
+        if not self.p_names:
             # bind the compiled calls directly: no Python wrapper in the way
             self.rhs = self.library.rhs
             self.rhs_batch = self.library.rhs_batch
+        elif self.input_names:
+            self.rhs = self._rhs_with_inputs
 
     def __repr__(self) -> str:
         return (f"Model({self.name!r}, states={self.state_names}, "
@@ -78,8 +85,9 @@ class Model:
         return self.directory / stored.STARTS_DIR / f"{self.start['key'][:16]}.json"
 
     def params(self, params: dict[str, float] | None = None) -> np.ndarray | None:
-        """The compiled functions' input ``p`` (``input_names``): the scene's values of the
-        run-time parameters, overridden by ``params``, then the start's values."""
+        """The compiled functions' input ``p`` (``p_names``): the scene's values of the
+        run-time parameters, overridden by ``params``, then the start's values, then the
+        inputs' coefficients (zero)."""
         if params and not self.param_names:
             raise ValueError(
                 f"parameters {sorted(params)} are folded into this model's code; build the "
@@ -89,7 +97,7 @@ class Model:
             raise TypeError(f"params is {type(params).__name__}: give a dict of run-time "
                             f"parameter values by name, e.g. {{{self.param_names[0]!r}: 0.5}}"
                             if self.param_names else "params must be a dict")
-        if not self.input_names:
+        if not self.p_names:
             return None
         p = self.default_params.copy()
         rules = self.manifest.get("param_rules", {})
@@ -141,12 +149,25 @@ class Model:
         """Compiled closed-loop right-hand side ``xdot = f(x, p)``, shape ``(n_states,)``.
 
         ``p``: values of ``param_names`` (the start's values are appended), or of every
-        ``input_names``; default the model's.
+        ``p_names``; default the model's.
 
         The raw fast path: only the shapes are checked. The values are not (no parameter
         rules, no contour domains, no constraint checks), and a NaN or an infinity in ``x``
         or ``p`` propagates into the result. ``simulate`` checks what it is given."""
         return self.library.rhs(x, self._p(p))
+
+    def _rhs_with_inputs(self, x, u=None, p=None) -> np.ndarray:
+        """Compiled ``xdot = f(x, u, p)`` of a model with inputs: ``u`` the inputs' values
+        (``input_names``; default 0), ``p`` as for ``rhs`` (the inputs' entries of a full ``p``
+        are replaced by ``u``)."""
+        full = self._p(p)
+        if u is not None:
+            uu = np.asarray(u, dtype=float).ravel()
+            if uu.shape != (len(self.input_names),):
+                raise ValueError(f"u has shape {np.shape(u)}; give one value per input "
+                                 f"{self.input_names}")
+            full = self.with_inputs(full, uu)
+        return self.library.rhs(x, full)
 
     def rhs_batch(self, X, p=None) -> np.ndarray:
         """``rhs`` for every row of ``X`` (shape ``(n, n_states)``) in one C loop; like ``rhs``
@@ -156,23 +177,29 @@ class Model:
     def outputs(self, x, p=None) -> dict[str, float]:
         """The requested outputs at one state."""
         self._need_outputs()
-        y = self.library.outputs(x, self._p(p))
+        timed = bool(self.manifest.get("outputs_time"))
+        y = self._output_row(x, self._p(p), 0.0 if timed else None)
         return dict(zip(self.output_names, map(float, y)))
 
     def outputs_batch(self, X, p=None) -> dict[str, np.ndarray]:
         """The requested outputs at every row of ``X``."""
         self._need_outputs()
-        Y = self.library.outputs_batch(X, self._p(p))
+        if self.manifest.get("outputs_time"):  # a law that reads the time: at t = 0
+            Y = np.array([self._output_row(x, self._p(p), 0.0) for x in np.atleast_2d(X)])
+        else:
+            Y = self.library.outputs_batch(X, self._p(p))
         return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
 
     def _p(self, p):
-        """``p`` completed with the start's values when it holds only ``param_names``'."""
-        if not self.input_names:
+        """``p`` completed with the start's values (and zero inputs) when it holds only
+        ``param_names``'."""
+        if not self.p_names:
             return None
         if p is None:
             return self.default_params
-        if self.start_params and np.ndim(p) == 1 and len(p) == len(self.param_names):
-            return np.concatenate([np.asarray(p, dtype=float), list(self.start_params.values())])
+        if np.ndim(p) == 1 and len(p) == len(self.param_names) < len(self.p_names):
+            return np.concatenate([np.asarray(p, dtype=float),
+                                   self.default_params[len(self.param_names):]])
         return p
 
     def _need_outputs(self) -> None:
@@ -216,7 +243,7 @@ class Model:
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
                  outputs: bool = True, checks: bool = True,
                  project: bool | float = False,
-                 time_limit: float | None = None) -> SimulationResult:
+                 time_limit: float | None = None, u=None) -> SimulationResult:
         """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
 
         Parameters
@@ -251,6 +278,11 @@ class Model:
             ``[0, t_final]``).
         params
             Values of run-time parameters (see ``param_names``).
+        u
+            The control inputs (``input_names``; a model built with ``inputs="torques"``): one
+            number per input (N m, held constant), or a table of ``grasping_sym.inputs``
+            (``piecewise_linear``, ``zero_order_hold``); default 0. The integration restarts at
+            every knot of a table inside the run ('rk4' needs a constant input).
         outputs
             Evaluate the model's outputs along the trajectory.
         checks
@@ -334,7 +366,44 @@ class Model:
         p = self.params(params)
         proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
-        start = checks_.check_initial_state(self, x0, p, rates=not own_start) if checks else {}
+        sched = self._schedule(u, method, t_eval)
+        segments = [(0.0, float(t_eval[-1]), None, None)] if sched is None else \
+            sched.segments(0.0, float(t_eval[-1]))
+        p0 = p if sched is None else self.with_inputs(p, segments[0][2], segments[0][3])
+        start = checks_.check_initial_state(self, x0, p0, rates=not own_start) if checks else {}
+        rows_t, rows_x, stats = [], [], {}
+        x_now = x0
+        for k, (s0, s1, a, b) in enumerate(segments):
+            pk = p if sched is None else self.with_inputs(p, a, b)
+            grid = t_eval if len(segments) == 1 else np.array(
+                [s0, *t_eval[(t_eval > s0) & (t_eval < s1)], s1])
+            t, X, st = self._integrate(method, x_now, grid, pk, start, checks, rtol=rtol, atol=atol,
+                                       max_steps=max_steps, h=h, proj=proj, time_limit=time_limit)
+            rows_t.append(t if k == 0 else t[1:])
+            rows_x.append(X if k == 0 else X[1:])
+            x_now = X[-1]
+            for key, v in st.items():
+                stats[key] = stats.get(key, 0) + v if isinstance(v, (int, float)) and key != "h" else v
+        t, X = np.concatenate(rows_t), np.concatenate(rows_x)
+        if len(segments) > 1:
+            keep = np.isin(t, t_eval)
+            t, X = t[keep], X[keep]
+            stats["segments"] = len(segments)
+        outs = self._outputs_along(t, X, p, sched) if outputs and self.output_names else {}
+        if checks and outs:
+            event = checks_.trajectory_event(self, t, X, outs, start)
+            if event is not None:
+                raise event
+        if drop_first:
+            t, X = t[1:], X[1:]
+            outs = {k: v[1:].copy() for k, v in outs.items()}
+        pdict = dict(zip(self.param_names, [] if p is None else map(float, p)))
+        return SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
+                                method=method, stats=stats, params=pdict)
+
+    def _integrate(self, method, x0, t_eval, p, start, checks, *, rtol, atol, max_steps, h, proj,
+                   time_limit):
+        """One integration over ``t_eval`` (one segment of the inputs) with named errors."""
         if method in integrators.C_LOOPS:
             try:
                 t, X, stats = integrators.c_loop(self, method, x0, t_eval, p, rtol=rtol,
@@ -366,17 +435,81 @@ class Model:
                         exc.trajectory = (t[:i].copy(), X[:i].copy())
                         checks_.raise_earlier_event(self, exc, p, start)
                     raise exc from None
-        outs = self.outputs_batch(X, p) if outputs and self.output_names else {}
-        if checks and outs:
-            event = checks_.trajectory_event(self, t, X, outs, start)
-            if event is not None:
-                raise event
-        if drop_first:
-            t, X = t[1:], X[1:]
-            outs = {k: v[1:].copy() for k, v in outs.items()}
-        pdict = dict(zip(self.param_names, [] if p is None else map(float, p)))
-        return SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
-                                method=method, stats=stats, params=pdict)
+        return t, X, stats
+
+    # ------------------------------------------------------------------ CasADi
+    def casadi_function(self, which: str = "ode", *, time: bool = False):
+        """The closed loop as a CasADi Function with exact derivatives of any order
+        (``codegen.casadi_api``): ``"ode"`` ``(x, u, p) -> xdot`` (default),
+        ``"constraints"`` ``(x, p) -> C`` or ``"outputs"`` ``(x, u, p) -> y``; ``u`` the inputs
+        (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
+        start's values the model's. With ``time`` the ode and outputs take the time first.
+        Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
+        scene = getattr(self, "scene", None)
+        if scene is None:
+            raise ValueError("casadi_function needs the model's scene: make the model with "
+                             "gs.build(scene) (a model from gs.load has no scene)")
+        key = (which, time)
+        if key not in self._public:
+            from grasping_sym.codegen.casadi_api import public_functions  # noqa: PLC0415
+
+            fns = public_functions(scene, self.start_params, time=time)
+            for k, f in fns.items():
+                self._public[(k, time)] = f
+        if key not in self._public:
+            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints' or 'outputs' "
+                             "(the latter only for a model with outputs)")
+        return self._public[key]
+
+    # ------------------------------------------------------------------ inputs
+    def _schedule(self, u, method: str, t_eval: np.ndarray):
+        """The inputs' schedule (``grasping_sym.inputs``), None for a model without inputs."""
+        if not self.input_names:
+            if u is not None:
+                raise ValueError("u given, but this model has no inputs: build the scene with "
+                                 "inputs='torques' (e.g. gs.scenes.paper2d(inputs='torques'))")
+            return None
+        from grasping_sym.inputs import as_schedule  # noqa: PLC0415
+
+        sched = as_schedule(u, len(self.input_names))
+        if method == "rk4" and any(0 < k < t_eval[-1] for k in sched.knots):
+            raise ValueError("rk4 reports on one uniform grid and cannot restart at the table's "
+                             "knots: use method='radau', 'dopri5' or 'cvodes' with a table input")
+        return sched
+
+    def with_inputs(self, p, a, b=None) -> np.ndarray:
+        """``p`` (all of ``p_names``) with the inputs ``u(t) = a + b t`` (``b``: default 0)."""
+        n = len(self.input_names)
+        if not n:
+            raise ValueError("this model has no inputs: build the scene with inputs='torques'")
+        out = np.array(self.default_params if p is None else p, dtype=float)
+        k = self.p_names.index(self.input_names[0])
+        out[k:k + n] = np.asarray(a, dtype=float).ravel()
+        out[k + n:k + 2 * n] = 0.0 if b is None else np.asarray(b, dtype=float).ravel()
+        return out
+
+    def _outputs_along(self, t, X, p, sched) -> dict[str, np.ndarray]:
+        """The outputs at the rows of ``X`` (times ``t``): the inputs' value at each time
+        (``a + b t`` as ``a``), and the time itself for a law that reads it."""
+        timed = bool(self.manifest.get("outputs_time"))
+        if sched is None and not timed:
+            return self.outputs_batch(X, p)
+        p = self._p(p)
+        rows = []
+        for ti, xi in zip(t, X):
+            pi = p if sched is None else self.with_inputs(p, sched(float(ti)))
+            rows.append(self._output_row(xi, pi, ti if timed else None))
+        Y = np.array(rows)
+        return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
+
+    def _output_row(self, x, p, t=None) -> np.ndarray:
+        if t is None:
+            return np.asarray(self.library.outputs(x, p))
+        if getattr(self, "_timed_outputs", None) is None:
+            import casadi as ca  # noqa: PLC0415
+
+            self._timed_outputs = ca.external(f"{self.name}_outputs", str(self.library_path))
+        return np.asarray(self._timed_outputs(x, np.append(p, t))).ravel()
 
     def _check_bounds(self, t: float, x: np.ndarray, previous=None) -> None:
         bad = np.flatnonzero((x < self.lower) | (x > self.upper))

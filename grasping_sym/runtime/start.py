@@ -92,7 +92,7 @@ def _conditions_function(model):
         import casadi as ca  # noqa: PLC0415 - only run-time starts need it
 
         ext = ca.external(f"{model.name}_start", str(model.library_path))
-        p = model.default_params if model.input_names else np.zeros(0)
+        p = model.default_params if model.p_names else np.zeros(0)
 
         def fn(x):
             G, J, v = ext(x, p)

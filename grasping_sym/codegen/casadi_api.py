@@ -1,0 +1,56 @@
+"""A model's closed loop as CasADi Functions for optimal control and sensitivity analysis.
+
+The scene's functions in one piece of SX (``scene.casadi_functions(layers=False)``: the
+same closed loop as the compiled layers, tests check it) restated with the control inputs
+as an argument of their own:
+
+- ``ode (x, u, p) -> xdot``: the right-hand side at the inputs' values ``u``;
+- ``constraints (x, p) -> C``: the contact constraints (zero on the motion);
+- ``outputs (x, u, p) -> y``: the scene's outputs.
+
+``p`` is the model's run-time parameters (``param_names``); the start's values (2D: the pivot)
+are those of the model's start. Being SX, every derivative of any order is exact (CasADi's
+AD): ``jacobian()``, ``forward``, ``reverse``, Hessians, ``Opti``/``nlpsol`` with IPOPT and
+the integrators' sensitivities. CasADi's virtual machine evaluates them; ``jit=True`` in the
+options of the NLP or integrator made from them compiles the whole problem to C.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+__all__ = ["public_functions"]
+
+
+def public_functions(scene, start_values: dict[str, float], *, time: bool = False) -> dict:
+    """``{"ode", "constraints", "outputs"}`` of ``scene`` (module docstring); with ``time`` the
+    ode and the outputs take the time first: ``(t, x, u, p)`` (for a law that reads it)."""
+    cm = scene.casadi_functions(layers=False).model
+    names = scene.p_names
+    nx = len(scene.state_names)
+    n_u = len(scene.input_names)
+    t = ca.SX.sym("t")
+    x = ca.SX.sym("x", nx)
+    u = ca.SX.sym("u", n_u)
+    p = ca.SX.sym("p", len(scene.runtime))
+    full = ca.vertcat(p, *[ca.SX(float(start_values[k])) for k in scene.start_param_names],
+                      u, ca.SX.zeros(n_u))
+    if full.numel() != len(names):
+        raise AssertionError(f"p of {full.numel()} entries for {names}")
+    reads_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(names) + 1
+    tt = t if time else ca.SX(0)
+    (xdot,) = cm.rhs(tt, x, ca.SX(0, 1), full, ca.SX(0, 1))[:1]
+    if ca.depends_on(cm.rhs(t, x, ca.SX(0, 1), full, ca.SX(0, 1))[0], t) and not time:
+        raise ValueError(f"the controller of {scene.name} reads the time: ask for "
+                         "model.casadi_function(time=True), a function of (t, x, u, p)")
+    head = [t] if time else []
+    hnames = ["t"] if time else []
+    out = {"ode": ca.Function(f"{scene.name}_ode", [*head, x, u, p], [xdot],
+                              [*hnames, "x", "u", "p"], ["xdot"])}
+    C = cm.constraints(x, full)[0]
+    out["constraints"] = ca.Function(f"{scene.name}_contact_constraints", [x, p], [C],
+                                     ["x", "p"], ["C"])
+    if cm.outputs is not None:
+        y = cm.outputs(x, ca.vertcat(full, tt) if reads_time else full)
+        out["outputs"] = ca.Function(f"{scene.name}_outputs_of", [*head, x, u, p], [y],
+                                     [*hnames, "x", "u", "p"], ["y"])
+    return out

@@ -1,0 +1,169 @@
+"""Controllers: joint torques as expressions of a model's named quantities.
+
+A controller is a law ``tau = law(m)``: given the quantities ``m`` of a scene (a
+:class:`grasping_sym.derive.quantities.Quantities`: joint angles and rates, fingertip centres
+and their Jacobians, gravity torques, the object's pose and velocity, time, parameters; all
+CasADi SX), it returns the joint torques of every finger, as a list with one column per
+finger (or one column of every joint). Laws add up: ``paper2d() + feedforward(...)``.
+
+The controller is a layer of its own: the contact dynamics are derived once per structure
+and take the torques as inputs, so a new law compiles only its scene's small C file
+(``codegen.controller``). The law runs when the model is built (it is the user's code, run
+once to make the expressions); the compiled model evaluates its expressions in C.
+
+Presets: :func:`paper2d` (the 2D paper's law (32)), :func:`paper3d` (the 3D grasp law),
+:func:`damping`, :func:`feedforward` (SymPy expressions of time), :func:`orientation2d`
+(turn a pivoted object to an angle by rolling). :func:`law` makes a controller of any function.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+__all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "paper2d", "paper3d"]
+
+
+class Controller:
+    """A control law (see the module's docstring). ``name`` labels it in reprs and
+    manifests; what a model's code depends on is the law's expressions, not its name."""
+
+    def __init__(self, fn: Callable, name: str = "law", terms: tuple[Controller, ...] = ()):
+        if not callable(fn):
+            raise TypeError(f"a controller's law must be a function of the model's quantities, "
+                            f"got {type(fn).__name__}")
+        self._fn = fn
+        self.name = name
+        self.terms = terms or (self,)
+
+    def torques(self, m) -> list:
+        """The law's joint torques at the quantities ``m``: one SX column per finger."""
+        if len(self.terms) > 1:
+            parts = [t.torques(m) for t in self.terms]
+            return [sum(cols[1:], cols[0]) for cols in zip(*parts)]
+        return m.split(self._fn(m), self.name)
+
+    def __add__(self, other: Controller) -> Controller:
+        if not isinstance(other, Controller):
+            return NotImplemented
+        return Controller(_sum, " + ".join(t.name for t in (*self.terms, *other.terms)),
+                          (*self.terms, *other.terms))
+
+    def __repr__(self) -> str:
+        return f"Controller({self.name})"
+
+
+def _sum(m):  # never called: a sum's torques add its terms' (Controller.torques)
+    raise AssertionError("a sum of controllers has no law of its own")
+
+
+def law(fn: Callable | None = None, *, name: str | None = None):
+    """A controller of ``fn(m)`` (usable as a decorator): ``m`` holds the model's quantities
+    (``derive.quantities.Quantities``); return the joint torques (N m), one column per finger
+    or one of every joint, as CasADi SX or numbers."""
+    if fn is None:
+        return lambda f: law(f, name=name)
+    return Controller(fn, name or getattr(fn, "__name__", "law"))
+
+
+def paper2d() -> Controller:
+    """Yoshida-Arimoto-Tahara 2009, eq. (32), for every finger ``i`` of a 2D scene:
+    ``tau_i = -c q_i' - J_i^T (fd / r) (O_i - Om) + dV_i/dq_i``, the pull of the fingertip
+    centre toward the pivot, joint damping, and (when gravity is modelled) the finger's weight
+    held. No object information."""
+    def paper(m):
+        fd, r, c = m.param("fd"), m.param("r"), m.param("c")
+        return [-c * dq - J.T @ ((fd / r) * (tip - m.pivot)) + g
+                for dq, J, tip, g in zip(m.dq, m.J, m.tip, m.gravity_torque)]
+    return Controller(paper, "paper2d")
+
+
+def paper3d() -> Controller:
+    """The 3D grasp law (docs/conventions.md section 2), finger ``i`` of ``N``:
+    ``tau_i = dP_i/dq_i - c q_i' - J_i^T [(fd / r_ctrl) sum_j (r_i - r_j)
+    + (k_center / N)(r_bar - r_bar0)]`` (one finger on a pivoted object: the pull toward the
+    pivot). No object information."""
+    def paper(m):
+        N = len(m.tip)
+        fd, c = m.param("fd"), m.param("c")
+        r_bar = sum(m.tip[1:], m.tip[0]) / N
+        out = []
+        for i, (dq, J, tip, g) in enumerate(zip(m.dq, m.J, m.tip, m.gravity_torque)):
+            if N == 1:
+                pull = (fd / m.param("r_ctrl")) * (tip - m.pivot)
+            else:
+                pull = (fd / m.param("r_ctrl")) * sum((tip - m.tip[j] for j in range(N) if j != i),
+                                                      0 * tip)
+            if m.has_param("r_bar0"):
+                pull = pull + (m.param("k_center") / N) * (r_bar - m.param("r_bar0"))
+            out.append(-c * dq - J.T @ pull + g)
+        return out
+    return Controller(paper, "paper3d")
+
+
+def damping(c: float) -> Controller:
+    """Joint damping ``-c q'`` on every joint (``c`` in N m s)."""
+    return Controller(lambda m: [-float(c) * dq for dq in m.dq], f"damping({float(c):g})")
+
+
+def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
+    """Joint torques given as SymPy expressions of time (N m), one per joint in the order of
+    the model's joints, or a mapping from input-style names (``u1``, ``u2``, ...; the others
+    0). ``t``: the time symbol of the expressions (default ``sympy.Symbol('t')``). Parsed
+    without evaluation of any text (strings go through ``geometry.expressions``)."""
+    import sympy as sp  # noqa: PLC0415
+
+    from grasping_sym.geometry.expressions import to_expression  # noqa: PLC0415
+
+    tsym = t if t is not None else sp.Symbol("t")
+
+    def expr(e):
+        e = to_expression(e, {str(tsym): tsym}, "a feedforward torque")
+        # any symbol named as the time is the time (whatever its assumptions)
+        e = e.xreplace({s: tsym for s in e.free_symbols if str(s) == str(tsym)})
+        extra = e.free_symbols - {tsym}
+        if extra:
+            raise ValueError(f"feedforward torque {e} has symbols {sorted(map(str, extra))} "
+                             f"besides the time {tsym}: give expressions of time only")
+        return e
+
+    items = dict(torques) if isinstance(torques, Mapping) else None
+    exprs = None if items is not None else [expr(e) for e in torques]
+    fixed = {k: expr(v) for k, v in items.items()} if items is not None else None
+
+    def ff(m):
+        from grasping_sym.codegen.translate import SympyToCasadi  # noqa: PLC0415
+
+        tr = SympyToCasadi({tsym: m.t})
+        n = m.n_joints
+        if fixed is not None:
+            unknown = [k for k in fixed if k not in m.input_style_names]
+            if unknown:
+                raise ValueError(f"feedforward names {unknown} are not joints of this model: use "
+                                 f"{list(m.input_style_names)}")
+            vals = [tr(fixed.get(k, sp.Integer(0))) for k in m.input_style_names]
+        else:
+            if len(exprs) != n:
+                raise ValueError(f"feedforward has {len(exprs)} torques; the model has {n} joints")
+            vals = [tr(e) for e in exprs]
+        return m.column(vals)
+    return Controller(ff, "feedforward")
+
+
+def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0) -> Controller:
+    """Turn a pivoted object to the angle ``theta_d`` (rad) by rolling, and hold it there: to
+    the paper's law (32), finger 1 adds the torque of the force
+    ``-(gain (theta - theta_d) + damping_gain theta') e`` (N per rad, N s per rad) at its
+    fingertip centre, ``e`` the unit vector perpendicular to the line from the pivot to the
+    centre (the direction in which the finger rolls the object about its pivot). Uses object
+    information (``theta``, ``theta'``)."""
+    k, kd = float(gain), float(damping_gain)
+
+    def orient(m):
+        import casadi as ca  # noqa: PLC0415
+
+        d = m.tip[0] - m.pivot
+        e = ca.vertcat(d[1], -d[0]) / ca.norm_2(d)  # clockwise about the pivot: theta grows
+        force = -(k * (m.theta - float(theta_d)) + kd * m.dtheta)
+        cols = [0 * dq for dq in m.dq]
+        cols[0] = m.J[0].T @ (force * e)
+        return cols
+    return paper2d() + Controller(orient, f"orientation2d({float(theta_d):g})")

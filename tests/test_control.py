@@ -1,0 +1,176 @@
+"""Control inputs, controllers of one's own, and the model as CasADi Functions (issue 14)."""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+import sympy as sp
+
+import grasping_sym as gs
+from grasping_sym.errors import InvalidSceneError
+
+RADAU = {"method": "radau", "rtol": 1e-9, "atol": 1e-12}
+
+
+@pytest.fixture(scope="module")
+def torque_model():
+    return gs.build(gs.scenes.paper2d(inputs="torques"))
+
+
+@pytest.fixture(scope="module")
+def closed_loop():
+    return gs.build(gs.scenes.paper2d())
+
+
+def _states_on_the_motion(model, n=4):
+    res = model.simulate(0.5, method="radau", rtol=1e-8, atol=1e-12, t_eval=np.linspace(0, 0.5, n + 1))
+    return res.x[1:]
+
+
+def test_torque_inputs_are_named_and_zero_by_default(torque_model, closed_loop):
+    assert torque_model.input_names == ("u1", "u2")
+    assert closed_loop.input_names == ()
+    # the same structure: the controller is a layer apart (nothing re-derived)
+    assert torque_model.manifest["structure"] == closed_loop.manifest["structure"]
+    a = torque_model.simulate(1.0, **RADAU)
+    b = closed_loop.simulate(1.0, **RADAU)
+    np.testing.assert_array_equal(a.x, b.x)
+
+
+def test_the_rhs_is_affine_in_the_inputs(torque_model):
+    for x in _states_on_the_motion(torque_model):
+        f0 = torque_model.rhs(x)
+        fu = torque_model.rhs(x, [2e-3, -1e-3])
+        f2 = torque_model.rhs(x, [4e-3, -2e-3])
+        assert np.abs(fu - f0).max() > 1.0  # the inputs act (rad/s^2)
+        np.testing.assert_allclose(f2 - f0, 2 * (fu - f0), rtol=1e-9, atol=1e-9)
+
+
+def test_tables_restart_at_their_knots_and_agree_across_integrators(torque_model):
+    tab = gs.inputs.piecewise_linear([0.0, 0.5, 1.0], [[0, 0], [2e-3, -1e-3], [0, 0]])
+    r = torque_model.simulate(1.0, u=tab, **RADAU)
+    c = torque_model.simulate(1.0, u=tab, method="cvodes", rtol=1e-10, atol=1e-12)
+    assert r.stats["segments"] == 2
+    assert len(r.t) == len(c.t) == 1001
+    np.testing.assert_allclose(r.x[-1], c.x[-1], rtol=0, atol=1e-7)
+    # a table that is constant is the constant input, bit for bit
+    const = torque_model.simulate(1.0, u=[2e-3, -1e-3], **RADAU)
+    held = torque_model.simulate(1.0, u=gs.inputs.zero_order_hold([0.0], [[2e-3, -1e-3]]), **RADAU)
+    np.testing.assert_array_equal(const.x, held.x)
+    # and the input moves the object
+    assert abs(const["theta"][-1] - torque_model.simulate(1.0, **RADAU)["theta"][-1]) > 1e-3
+
+
+def test_laws_add_up_and_a_new_law_compiles_only_its_layer(closed_loop):
+    c = gs.scenes.PAPER2D_PARAMS["c"]
+    summed = gs.build(gs.scenes.paper2d(controller=gs.controllers.paper2d() + gs.controllers.damping(0.004)))
+    direct = gs.build(gs.scenes.paper2d(c=c + 0.004))
+    assert summed.manifest["structure"] == closed_loop.manifest["structure"]
+    for x in _states_on_the_motion(direct):
+        np.testing.assert_allclose(summed.rhs(x), direct.rhs(x), rtol=1e-11, atol=1e-9)
+
+
+def test_feedforward_expressions_of_time_are_evaluated_in_c(torque_model):
+    t = sp.Symbol("t")
+    ff = gs.build(gs.scenes.paper2d(controller=gs.controllers.paper2d()
+                                    + gs.controllers.feedforward([2e-3 * (1 - t), sp.Integer(0)])))
+    assert ff.manifest["outputs_time"] is True
+    tab = gs.inputs.piecewise_linear([0.0, 1.0], [[2e-3, 0.0], [0.0, 0.0]])
+    a = ff.simulate(1.0, **RADAU)
+    b = torque_model.simulate(1.0, u=tab, **RADAU)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a["f"], b["f"], rtol=0, atol=1e-7)
+
+
+def test_a_user_law_reads_named_quantities(closed_loop):
+    @gs.controllers.law
+    def pull(m):
+        fd, r, c = m.param("fd"), m.param("r"), m.param("c")
+        return [-c * m.dq[0] - m.J[0].T @ ((fd / r) * (m.tip[0] - m.pivot))]
+
+    mine = gs.build(gs.scenes.paper2d(controller=pull))
+    for x in _states_on_the_motion(closed_loop):
+        np.testing.assert_allclose(mine.rhs(x), closed_loop.rhs(x), rtol=1e-12, atol=1e-10)
+
+
+def test_casadi_function_matches_the_compiled_model_and_finite_differences(torque_model):
+    f = torque_model.casadi_function()
+    assert (f.name_in(), f.name_out()) == (["x", "u", "p"], ["xdot"])
+    u = np.array([2e-3, -1e-3])
+    jac = f.jacobian()
+    rng = np.random.default_rng(7)
+    for x in _states_on_the_motion(torque_model):
+        # one piece of SX against the compiled layers: equal to 1e-10 of the largest rate
+        # (the agreement tests/test_layers.py shows for the layers)
+        ref = torque_model.rhs(x, u)
+        np.testing.assert_allclose(np.ravel(f(x, u, [])), ref, rtol=1e-10, atol=1e-10 * np.abs(ref).max())
+        J = np.array(jac(x, u, [], 0)[0])          # d xdot / d x
+        Ju = np.array(jac(x, u, [], 0)[1])         # d xdot / d u
+        for i in range(x.size):
+            e = np.zeros(x.size)
+            e[i] = 1e-6 * max(1.0, abs(x[i]))
+            fd = (np.ravel(f(x + e, u, [])) - np.ravel(f(x - e, u, []))) / (2 * e[i])
+            np.testing.assert_allclose(J[:, i], fd, rtol=1e-6, atol=1e-6 * np.abs(J).max())
+        for i in range(u.size):
+            e = np.zeros(u.size)
+            e[i] = 1e-6
+            fd = (np.ravel(f(x, u + e, [])) - np.ravel(f(x, u - e, []))) / 2e-6
+            np.testing.assert_allclose(Ju[:, i], fd, rtol=1e-6, atol=1e-6 * np.abs(Ju).max())
+        # second derivatives: the Hessian of a weighted sum against differences of its gradient
+        w = rng.normal(size=x.size)
+        xs = ca.SX.sym("x", x.size)
+        g = ca.Function("g", [xs], [ca.gradient(ca.dot(w, f(xs, u, [])), xs)])
+        H = np.array(ca.Function("H", [xs], [ca.jacobian(g(xs), xs)])(x))
+        k = torque_model.state_names.index("q1")
+        e = np.zeros(x.size)
+        e[k] = 1e-6
+        fd = (np.ravel(g(x + e)) - np.ravel(g(x - e))) / 2e-6
+        np.testing.assert_allclose(H[:, k], fd, rtol=1e-6, atol=1e-6 * np.abs(H).max())
+
+
+def test_casadi_function_in_an_integrator_with_sensitivities(torque_model):
+    f = torque_model.casadi_function()
+    x, u = ca.SX.sym("x", 7), ca.SX.sym("u", 2)
+    integ = ca.integrator("I", "cvodes", {"x": x, "u": u, "ode": f(x, u, [])}, 0.0, 0.2,
+                          {"abstol": 1e-12, "reltol": 1e-10})
+    x0 = torque_model.initial_state()
+    U = ca.MX.sym("U", 2)
+    xf = integ(x0=x0, u=U)["xf"]
+    sens = ca.Function("s", [U], [ca.jacobian(xf, U)])
+    u0 = np.array([1e-3, 0.0])
+    S = np.array(sens(u0))
+    fd = (np.array(integ(x0=x0, u=u0 + [1e-5, 0])["xf"]) - np.array(integ(x0=x0, u=u0 - [1e-5, 0])["xf"])) / 2e-5
+    np.testing.assert_allclose(S[:, 0], np.ravel(fd), rtol=1e-4, atol=1e-6 * np.abs(S).max())
+
+
+def test_bad_control_input_is_refused_by_name(torque_model, closed_loop):
+    with pytest.raises(ValueError, match="no inputs"):
+        closed_loop.simulate(0.1, u=[1e-3, 0.0])
+    with pytest.raises(ValueError, match="2 \\(one joint torque"):
+        torque_model.simulate(0.1, u=[1e-3])
+    with pytest.raises(TypeError, match="controller"):
+        torque_model.simulate(0.1, u=lambda t: [0, 0])
+    with pytest.raises(ValueError, match="non-finite"):
+        torque_model.simulate(0.1, u=[np.nan, 0.0])
+    with pytest.raises(ValueError, match="rk4"):
+        torque_model.simulate(1.0, u=gs.inputs.piecewise_linear([0.0, 0.5], [[0, 0], [1e-3, 0]]),
+                              method="rk4")
+    with pytest.raises(ValueError, match="strictly increasing"):
+        gs.inputs.piecewise_linear([0.0, 0.0], [[0, 0], [1, 1]])
+    with pytest.raises(InvalidSceneError, match="controller"):
+        gs.scenes.paper2d(controller="pid")
+    with pytest.raises(InvalidSceneError, match="inputs"):
+        gs.scenes.paper2d(inputs="forces")
+    with pytest.raises(ValueError, match="3 torques"):
+        gs.build(gs.scenes.paper2d(controller=gs.controllers.law(lambda m: ca.SX.zeros(3))))
+
+
+def test_paper3d_with_torque_inputs():
+    scene = gs.scenes.paper3d(inputs="torques")
+    model = gs.build(scene)
+    assert model.input_names == ("u1", "u2", "u3", "u4", "u5")
+    base = gs.build(gs.scenes.paper3d())
+    assert model.manifest["structure"] == base.manifest["structure"]
+    x = base.initial_state()
+    np.testing.assert_array_equal(model.rhs(x), base.rhs(x))
+    assert np.abs(model.rhs(x, [1e-3, 0, 0, 0, 0]) - base.rhs(x)).max() > 1e-3
