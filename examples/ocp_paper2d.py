@@ -7,10 +7,11 @@ degree 3) in CasADi's ``Opti`` with IPOPT and exact Hessians of the exact closed
 way. The optimal ``u`` (piecewise constant) is then re-simulated by the compiled model.
 
 Run: ``python examples/ocp_paper2d.py [out.png]``.
-
-STATUS (work in progress, issue 14): IPOPT does not converge on this problem yet (3000
-iterations, the dual infeasibility grows to 1e12 with 20 intervals; each exact Hessian of the
-Lagrangian takes 11 ms in CasADi's virtual machine). Not run by the tests.
+What made IPOPT converge (measured, benchmarks/results/control.md): the start as the first
+guess of every state (a guess off the contact, e.g. theta ramped alone, starts 17 N of
+constraint violation away and diverges); only theta and its rate fixed at the end (the joint
+speeds follow through the contact; fixing them too repeats constraints, and IPOPT's dual
+infeasibility grows to 1e12); a box around the motion; the objective scaled to order 1.
 """
 from __future__ import annotations
 
@@ -25,8 +26,9 @@ import grasping_sym as gs
 THETA_TARGET = 0.3   # rad
 T_FINAL = 1.0        # s
 F_MIN = 0.1          # N, least normal force
-N_INTERVALS = 40
-DEGREE = 3
+N_INTERVALS = 20
+DEGREE = 4
+COST_SCALE = 1e6     # the objective in (mN m)^2 s: of order 1 for IPOPT
 
 
 def scene():
@@ -57,8 +59,8 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, verbose: bool = 
     nx, nu = x0.size, len(model.input_names)
     i_theta, i_dtheta = model.state_names.index("theta"), model.state_names.index("dtheta")
     tau = np.append(0.0, ca.collocation_points(degree, "legendre"))
-    C, D, B = np.zeros((degree + 1, degree + 1)), np.zeros(degree + 1), np.zeros(degree + 1)
-    for j in range(degree + 1):  # Lagrange basis: derivative matrix, end weights, quadrature
+    C, D = np.zeros((degree + 1, degree + 1)), np.zeros(degree + 1)
+    for j in range(degree + 1):  # Lagrange basis: its derivatives at the points, its end value
         coeff = np.poly1d([1.0])
         for r in range(degree + 1):
             if r != j:
@@ -67,46 +69,57 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, verbose: bool = 
         dcoeff = np.polyder(coeff)
         for r in range(degree + 1):
             C[j, r] = dcoeff(tau[r])
-        B[j] = np.polyint(coeff)(1.0)
     h = T_FINAL / n
     opti = ca.Opti()
     u_guess = squeeze(model, x0)
-    X = opti.variable(nx, n + 1)
-    Xc = [opti.variable(nx, degree) for _ in range(n)]
-    U = opti.variable(nu, n)
+    X = opti.variable(nx, n + 1)           # the states at the mesh points
+    Xc = opti.variable(nx, n * degree)     # ... and at the collocation points, interval by interval
+    U = opti.variable(nu, n)               # the torques, constant on each interval
     p = ca.DM.zeros(0, 1)
+    # the closed loop and the normal force at every collocation point in one call each
+    # (Function.map: CasADi differentiates f once, not once per point)
+    Urep = ca.repmat(U, degree, 1).reshape((nu, n * degree))
+    F = f.map(n * degree)(Xc, Urep, p)
+    Y = y.map(n * degree)(Xc, Urep, p)
     opti.subject_to(X[:, 0] == x0)
     cost = 0
-    lo, hi = model.lower, model.upper
     for k in range(n):
-        xs = [X[:, k]] + [Xc[k][:, j] for j in range(degree)]
-        x_end = D[0] * xs[0]
-        for j in range(1, degree + 1):
-            xp = sum(C[r, j] * xs[r] for r in range(degree + 1))
-            opti.subject_to(h * f(xs[j], U[:, k], p) == xp)
-            opti.subject_to(y(xs[j], U[:, k], p)[i_f] >= F_MIN)
-            x_end = x_end + D[j] * xs[j]
-        cost = cost + B[1:] @ np.ones(degree) * h * ca.sumsqr(U[:, k])
-        opti.subject_to(X[:, k + 1] == x_end)
-        opti.set_initial(U[:, k], u_guess)  # states: the start everywhere (on the contact)
-        opti.set_initial(Xc[k], np.repeat(x0[:, None], degree, axis=1))
-        opti.set_initial(X[:, k + 1], x0)
-    for i in np.flatnonzero(np.isfinite(lo)):
-        opti.subject_to(opti.bounded(lo[i], X[i, :], hi[i]))
+        cols = slice(k * degree, (k + 1) * degree)
+        xs = ca.horzcat(X[:, k], Xc[:, cols])
+        # collocation: the polynomial's slope at each point is the closed loop's rate there
+        opti.subject_to(h * F[:, cols] == xs @ C[:, 1:])
+        opti.subject_to(X[:, k + 1] == xs @ D)
+        cost = cost + h * ca.sumsqr(U[:, k])
+    opti.subject_to(Y[i_f, :] >= F_MIN)
+    opti.set_initial(U, np.repeat(u_guess[:, None], n, 1))
+    opti.set_initial(X, np.repeat(x0[:, None], n + 1, 1))   # the start everywhere (on the contact)
+    opti.set_initial(Xc, np.repeat(x0[:, None], n * degree, 1))
+    # a box around the motion (the contact parameters inside their contours' domains, angles
+    # within 1 rad of the start, speeds below 20 rad/s): IPOPT's iterates stay inside it, where
+    # the closed loop is what it models
+    lo, hi = model.lower, model.upper
+    box_lo = np.where(np.isfinite(lo), lo, x0 - 1.0)
+    box_hi = np.where(np.isfinite(hi), hi, x0 + 1.0)
+    n_q = (nx - 1) // 2
+    box_lo[n_q:2 * n_q], box_hi[n_q:2 * n_q] = -20.0, 20.0
+    opti.subject_to(opti.bounded(np.repeat(box_lo[:, None], n + 1, 1), X,
+                                 np.repeat(box_hi[:, None], n + 1, 1)))
+    opti.subject_to(opti.bounded(np.repeat(box_lo[:, None], n * degree, 1), Xc,
+                                 np.repeat(box_hi[:, None], n * degree, 1)))
+    # at rest at the target: theta and its rate (the rolling contact leaves one degree of
+    # freedom, so the joint speeds follow; asking them to vanish too would repeat constraints)
     opti.subject_to(X[i_theta, n] == THETA_TARGET)
     opti.subject_to(X[i_dtheta, n] == 0)
-    n_q = (nx - 1) // 2  # rest: every speed zero at the end
-    opti.subject_to(X[n_q:2 * n_q, n] == 0)
-    opti.minimize(cost)
-    opti.solver("ipopt", {"expand": True}, {"print_level": 5 if verbose else 0, "tol": 1e-10,
-                                             "hessian_approximation": "exact"})
+    opti.minimize(COST_SCALE * cost)
+    opti.solver("ipopt", {"expand": True, "print_time": verbose},
+                {"print_level": 5 if verbose else 0, "hessian_approximation": "exact"})
     t0 = time.perf_counter()
     sol = opti.solve()
     wall = time.perf_counter() - t0
     stats = sol.stats()
     return {"U": np.atleast_2d(sol.value(U)).reshape(nu, n), "X": sol.value(X), "wall_time": wall,
             "iterations": int(stats["iter_count"]), "status": stats["return_status"],
-            "cost": float(sol.value(cost)), "h": h}
+            "cost": float(sol.value(cost)), "h": h, "f_points": np.ravel(sol.value(Y[i_f, :]))}
 
 
 def resimulate(model, result: dict):
@@ -124,8 +137,8 @@ def main(out: str | None = None) -> dict:
     theta_end = float(res["theta"][-1])
     print(f"IPOPT: {result['status']}, {result['iterations']} iterations, "
           f"{result['wall_time']:.2f} s; cost {result['cost']:.4g} N^2 m^2 s")
-    print(f"re-simulated: theta(1 s) = {theta_end:.6f} rad (target {THETA_TARGET}), "
-          f"min f = {res['f'].min():.4f} N")
+    print(f"re-simulated: theta(1 s) = {theta_end:.7f} rad (target {THETA_TARGET}), "
+          f"min f = {res['f'].min():.4f} N (at the collocation points {result['f_points'].min():.4f} N)")
     if out:
         import matplotlib  # noqa: PLC0415
 

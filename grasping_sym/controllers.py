@@ -148,21 +148,27 @@ def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
     return Controller(ff, "feedforward")
 
 
-def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0) -> Controller:
+def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0,
+                  max_force: float = 0.2) -> Controller:
     """Turn a pivoted object to the angle ``theta_d`` (rad) by rolling, and hold it there: to
     the paper's law (32), finger 1 adds the torque of the force
-    ``-(gain (theta - theta_d) + damping_gain theta') e`` (N per rad, N s per rad) at its
-    fingertip centre, ``e`` the unit vector perpendicular to the line from the pivot to the
-    centre (the direction in which the finger rolls the object about its pivot). Uses object
-    information (``theta``, ``theta'``)."""
-    k, kd = float(gain), float(damping_gain)
+    ``F e = -max_force tanh((gain (theta - theta_d) + damping_gain theta') / max_force) e``
+    (``gain`` in N/rad, ``damping_gain`` in N s/rad, ``max_force`` in N) at its fingertip
+    centre, ``e`` the unit vector perpendicular to the line from the pivot to the centre (the
+    direction in which the finger rolls the object about its pivot). The saturation keeps the
+    push gentle far from the target, so that the contact stays closed; near it the law is a
+    spring-damper of stiffness ``gain`` against the torque of (32), which leaves an offset
+    that shrinks as ``1/gain``. Uses object information (``theta``, ``theta'``)."""
+    k, kd, fmax = float(gain), float(damping_gain), float(max_force)
+    if not fmax > 0:
+        raise ValueError(f"max_force = {max_force!r} must be > 0 (N)")
 
     def orient(m):
         import casadi as ca  # noqa: PLC0415
 
         d = m.tip[0] - m.pivot
         e = ca.vertcat(d[1], -d[0]) / ca.norm_2(d)  # clockwise about the pivot: theta grows
-        force = -(k * (m.theta - float(theta_d)) + kd * m.dtheta)
+        force = -fmax * ca.tanh((k * (m.theta - float(theta_d)) + kd * m.dtheta) / fmax)
         cols = [0 * dq for dq in m.dq]
         cols[0] = m.J[0].T @ (force * e)
         return cols

@@ -1,0 +1,29 @@
+"""The optimal-control example (examples/ocp_paper2d.py) solves, and its optimum holds when the
+compiled model re-simulates it."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _example(name: str):
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_ocp_paper2d_reaches_the_target_with_the_contact_closed(tmp_path):
+    ocp = _example("ocp_paper2d")
+    out = ocp.main(str(tmp_path / "ocp.png"))
+    assert out["status"] == "Solve_Succeeded"
+    # the compiled model under the optimal torques: theta(1 s) within 1e-4 rad of the target
+    assert abs(out["theta_end"] - ocp.THETA_TARGET) < 1e-4
+    # the path constraint holds where it is imposed, and the contact never opens in between
+    assert out["f_points"].min() >= ocp.F_MIN - 1e-6
+    assert out["f_min"] > 0.9 * ocp.F_MIN
+    assert np.all(np.isfinite(out["U"])) and (tmp_path / "ocp.png").stat().st_size > 10_000
