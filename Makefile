@@ -1,5 +1,5 @@
 # Developer loop. Every target installs what it needs into .venv first (scripts/env.sh).
-.PHONY: install demo test bench generate lint clean
+.PHONY: install demo test bench bench-control generate lint clean
 SH := bash
 
 install:
@@ -14,11 +14,14 @@ test:
 bench:
 	$(SH) -c 'source scripts/env.sh && python -m benchmarks.run'
 
+bench-control:
+	$(SH) -c 'source scripts/env.sh && python -m benchmarks.control'
+
 generate:
 	$(SH) -c 'source scripts/env.sh && grasping-sym generate --all'
 
 lint:
-	$(SH) -c 'source scripts/env.sh && python -m pip install --quiet ruff && ruff check grasping_sym tests benchmarks'
+	$(SH) -c 'source scripts/env.sh && python -m pip install --quiet ruff && ruff check grasping_sym tests benchmarks examples'
 
 clean:
 	rm -rf out build .pytest_cache

@@ -27,3 +27,15 @@ def test_ocp_paper2d_reaches_the_target_with_the_contact_closed(tmp_path):
     assert out["f_points"].min() >= ocp.F_MIN - 1e-6
     assert out["f_min"] > 0.9 * ocp.F_MIN
     assert np.all(np.isfinite(out["U"])) and (tmp_path / "ocp.png").stat().st_size > 10_000
+
+
+def test_orientation2d_turns_the_object_and_holds_it(tmp_path):
+    ex = _example("orientation2d")
+    out = ex.main(str(tmp_path / "orientation.png"))
+    # each command reached to within the proportional law's offset (about 1/gain of the
+    # torque of law (32) there), with the contact firmly closed
+    assert all(abs(e) < 5e-3 for e in out["errors"]), out["errors"]
+    assert out["f_min"] > 0.5
+    for t, theta, _, _ in out["pieces"]:
+        settled = theta[t >= t[0] + 0.5]
+        assert np.ptp(settled) < 1e-4  # held, not drifting

@@ -52,8 +52,11 @@ HASHED_SOURCES = (
     "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "codegen/lanes.py",
     "codegen/vecmath.py", "codegen/algorithm.py", "codegen/objects.py", "codegen/structure.py",
     "codegen/structure_cache.py", "codegen/layered.py", "pipeline.py", "model/control.py",
-    "codegen/controller.py", "derive/quantities.py", "controllers.py",
+    "codegen/controller.py",
 )
+# Not here: ``controllers.py`` and ``derive/quantities.py``. What they make, the controller's
+# expressions, enters a scene's code key itself (``codegen.controller.controller_key``), so
+# a new preset or quantity rebuilds the models whose law changed, and no structure.
 
 
 _ROOT_OVERRIDE: list[Path] = []
