@@ -19,7 +19,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 
-__all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "paper2d", "paper3d"]
+import numpy as np
+
+__all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "paper2d", "paper3d",
+           "turn3d"]
 
 
 class Controller:
@@ -173,3 +176,55 @@ def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0,
         cols[0] = m.J[0].T @ (force * e)
         return cols
     return paper2d() + Controller(orient, f"orientation2d({float(theta_d):g})")
+
+
+def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: float = 2e-3,
+           axis=(0.0, 0.0, 1.0), reference=None) -> Controller:
+    """Turn a held object by ``angle`` (rad) about the world ``axis`` (through the fingertips'
+    mean centre, perpendicular to the line between them) and hold it: to :func:`paper3d`, the
+    fingers add the tangential forces of the couple
+    ``M = -max_torque tanh((gain (phi - angle) + damping_gain phi') / max_torque)`` (N m per
+    rad, N m s per rad, N m) about ``axis``, finger ``i`` at its fingertip centre
+    ``F_i = (M / N) axis x d_i / |d_i|^2``, ``d_i`` its offset from the mean centre (no net
+    force). ``phi`` is the object's turn about ``axis`` from ``reference`` (a rotation matrix,
+    body to world; default the scene's ``rotation``, the guess of its start: pass the solved
+    start's to turn from there): ``atan2`` of the turned frame's components in the plane
+    normal to ``axis``. Uses object information (its rotation and angular velocity).
+
+    The axis must be across the grasp: a turn about the line through the two contacts is the
+    grasp's free spin, which rolling fingertips cannot drive (only a torsional friction
+    couples it)."""
+    k, kd, mmax = float(gain), float(damping_gain), float(max_torque)
+    if not mmax > 0:
+        raise ValueError(f"max_torque = {max_torque!r} must be > 0 (N m)")
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
+        raise ValueError(f"axis = {axis!r}: give three finite numbers, not all 0")
+    a = a / np.linalg.norm(a)
+    # two unit vectors spanning the plane normal to the axis
+    e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    ref = None
+    if reference is not None:
+        ref = np.asarray(reference, dtype=float)
+        if ref.shape != (3, 3) or not np.allclose(ref @ ref.T, np.eye(3), atol=1e-9):
+            raise ValueError("reference must be a 3 x 3 rotation matrix (orthonormal to 1e-9)")
+
+    def turn(m):
+        import casadi as ca  # noqa: PLC0415
+
+        A, E1, E2 = ca.DM(a), ca.DM(e1), ca.DM(e2)
+        R0 = m.param("rotation0") if ref is None else ca.DM(ref)
+        turned = m.rotation @ R0.T @ E1   # e1 carried by the object's turn
+        phi = ca.atan2(ca.dot(turned, E2), ca.dot(turned, E1))
+        rate = ca.dot(m.rotation @ m.omega, A)
+        couple = -mmax * ca.tanh((k * (phi - float(angle)) + kd * rate) / mmax)
+        N = len(m.tip)
+        centre = sum(m.tip[1:], m.tip[0]) / N
+        cols = []
+        for J, tip in zip(m.J, m.tip):
+            d = tip - centre
+            cols.append(J.T @ ((couple / N) * ca.cross(A, d) / ca.dot(d, d)))
+        return cols
+    return paper3d() + Controller(turn, f"turn3d({float(angle):g})")

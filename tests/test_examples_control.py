@@ -39,3 +39,13 @@ def test_orientation2d_turns_the_object_and_holds_it(tmp_path):
     for t, theta, _, _ in out["pieces"]:
         settled = theta[t >= t[0] + 0.5]
         assert np.ptp(settled) < 1e-4  # held, not drifting
+
+
+def test_turn3d_turns_the_held_ellipsoid(tmp_path):
+    ex = _example("turn3d")
+    out = ex.main(str(tmp_path / "turn3d.png"))
+    # turned to within the proportional law's offset against the grasp law's pull, and held
+    assert abs(out["phi_end"] - ex.ANGLE) < 5e-3
+    settled = out["phi"][out["t"] >= 1.0]
+    assert np.ptp(settled) < 1e-4
+    assert out["f_min"] > 2.0 and out["drift"].max() < 5e-3  # held: firm contacts, centre within 5 mm

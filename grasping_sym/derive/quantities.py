@@ -10,7 +10,8 @@ parameters, then its start's values, then its inputs' coefficients). A law reads
   joint angles;
 - ``m.gravity_torque[i]``: the joint torques that hold finger ``i`` against gravity
   (``dV_i/dq_i``; zero without gravity);
-- ``m.param(name)``: a parameter (a run-time input or its folded value);
+- ``m.param(name)``: a parameter (a run-time input or its folded value; 3D also ``r_ctrl``,
+  ``rotation0``: the scene's ``rotation``, and ``r_bar0`` when the scene has a centre spring);
 - object information (recorded in ``m.uses_object`` when read): 2D ``m.theta``,
   ``m.dtheta``; 3D ``m.position``, ``m.velocity``, ``m.rotation`` (body to world),
   ``m.omega`` (body angular velocity), ``m.quaternion``;
@@ -20,6 +21,7 @@ parameters, then its start's values, then its inputs' coefficients). A law reads
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 
 __all__ = ["Quantities", "grasp3d_quantities", "planar_quantities"]
 
@@ -150,6 +152,7 @@ def grasp3d_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, 
     g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)
     params = {k: p[p_names.index(k)] if k in p_names else ca.SX(v) for k, v in scene.params.items()}
     params["r_ctrl"] = ca.SX(float(scene.r_ctrl))
+    params["rotation0"] = ca.SX(ca.DM(np.asarray(scene.rotation, dtype=float)))
     if scene.start_param_names:
         params["r_bar0"] = ca.vertcat(*[p[p_names.index(k)] for k in scene.start_param_names])
     q, dq, tip, J, grav = [], [], [], [], []
