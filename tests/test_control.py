@@ -197,3 +197,30 @@ def test_paper3d_casadi_function_has_exact_derivatives():
     fd2 = (np.ravel(fn(x + e * w)[0]) - np.ravel(fn(x - e * w)[0])) / (2 * e)
     np.testing.assert_allclose(a1, fd1, rtol=1e-6, atol=1e-6 * np.abs(a1).max())
     np.testing.assert_allclose(a2, fd2, rtol=1e-6, atol=1e-6 * np.abs(a2).max())
+
+
+def test_constraint_and_output_functions_have_exact_derivatives(torque_model):
+    """The contact constraints and the outputs as CasADi Functions: zero on the motion, equal
+    to the compiled outputs, and their Jacobians equal to central differences."""
+    con = torque_model.casadi_function("constraints")
+    out = torque_model.casadi_function("outputs")
+    u = np.array([2e-3, -1e-3])
+    jc, jo = con.jacobian(), out.jacobian()
+    for x in _states_on_the_motion(torque_model):
+        assert np.abs(np.ravel(con(x, []))).max() < 1e-9
+        compiled = torque_model.outputs(x, torque_model.with_inputs(None, u))
+        np.testing.assert_allclose(np.ravel(out(x, u, [])), list(compiled.values()), rtol=1e-9,
+                                   atol=1e-9)
+        Jc = np.array(jc(x, [], 0)[0])
+        Jo = np.array(jo(x, u, [], 0)[0])
+        for i in range(x.size):
+            e = np.zeros(x.size)
+            e[i] = 1e-6 * max(1.0, abs(x[i]))
+            fdc = (np.ravel(con(x + e, [])) - np.ravel(con(x - e, []))) / (2 * e[i])
+            fdo = (np.ravel(out(x + e, u, [])) - np.ravel(out(x - e, u, []))) / (2 * e[i])
+            np.testing.assert_allclose(Jc[:, i], fdc, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(Jc).max()))
+            # the outputs include max(|Q|, |R|), whose derivative jumps where they cross: compare
+            # the smooth ones
+            smooth = [k for k, name in enumerate(torque_model.output_names) if name != "constraint_residual"]
+            np.testing.assert_allclose(Jo[smooth, i], fdo[smooth], rtol=1e-6,
+                                       atol=1e-6 * np.abs(Jo[smooth]).max())
