@@ -3,7 +3,7 @@ in 1 s, with the least effort, the contact kept closed.
 
 paper2d with no controller and joint torques ``u`` as inputs: direct collocation (Legendre,
 degree 3) in CasADi's ``Opti`` with IPOPT and exact Hessians of the exact closed loop
-(``model.casadi_function``), ``min ∫ |u|² dt`` with the normal force ``f >= 0.1 N`` along the
+(``model.casadi_function``, evaluated by compiled C), ``min ∫ |u|² dt`` with the normal force ``f >= 0.1 N`` along the
 way. The optimal ``u`` (piecewise constant) is then re-simulated by the compiled model.
 
 Run: ``python examples/ocp_paper2d.py [out.png]``.
@@ -50,10 +50,13 @@ def squeeze(model, x0: np.ndarray) -> np.ndarray:
     return -J.T @ ((p["fd"] / p["r"]) * (tip - pivot))
 
 
-def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, verbose: bool = False) -> dict:
-    """The optimal control problem; returns the solution and IPOPT's figures."""
-    f = model.casadi_function("ode")
-    y = model.casadi_function("outputs")
+def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool = True,
+          verbose: bool = False) -> dict:
+    """The optimal control problem; returns the solution and IPOPT's figures. ``compiled``:
+    the closed loop and its derivatives evaluated by compiled C (built once and kept with the
+    model), else by CasADi's virtual machine on the SX expanded into the problem."""
+    f = model.casadi_function("ode", compiled=compiled)
+    y = model.casadi_function("outputs", compiled=compiled)
     i_f = model.output_names.index("f")
     x0 = model.initial_state()
     nx, nu = x0.size, len(model.input_names)
@@ -111,7 +114,7 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, verbose: bool = 
     opti.subject_to(X[i_theta, n] == THETA_TARGET)
     opti.subject_to(X[i_dtheta, n] == 0)
     opti.minimize(COST_SCALE * cost)
-    opti.solver("ipopt", {"expand": True, "print_time": verbose},
+    opti.solver("ipopt", {"expand": not compiled, "print_time": verbose},
                 {"print_level": 5 if verbose else 0, "hessian_approximation": "exact"})
     t0 = time.perf_counter()
     sol = opti.solve()

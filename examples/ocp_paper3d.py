@@ -41,9 +41,11 @@ def _quat_matrix(q):
         ca.horzcat(2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z)) / n2
 
 
-def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, verbose: bool = False) -> dict:
-    f = model.casadi_function("ode")
-    y = model.casadi_function("outputs")
+def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool = False,
+          verbose: bool = False) -> dict:
+    """The optimal control problem (``compiled``: see examples/ocp_paper2d.py)."""
+    f = model.casadi_function("ode", compiled=compiled)
+    y = model.casadi_function("outputs", compiled=compiled)
     i_f = [model.output_names.index(k) for k in ("f1", "f2")]
     x0 = model.initial_state()
     nx, nu = x0.size, len(model.input_names)

@@ -19,7 +19,7 @@ def _example(name: str):
 
 def test_ocp_paper2d_reaches_the_target_with_the_contact_closed(tmp_path):
     ocp = _example("ocp_paper2d")
-    out = ocp.main(str(tmp_path / "ocp.png"))
+    out = ocp.main(str(tmp_path / "ocp.png"))  # the compiled functions (compiled=True)
     assert out["status"] == "Solve_Succeeded"
     # the compiled model under the optimal torques: theta(1 s) within 1e-4 rad of the target
     assert abs(out["theta_end"] - ocp.THETA_TARGET) < 1e-4
@@ -66,3 +66,34 @@ def test_ocp_paper3d_turns_the_held_ellipsoid_on_a_coarse_mesh():
     phi = ocp.turn(model, res, result["R0"])
     assert abs(phi[-1] - ocp.ANGLE) < 0.02
     assert min(res["f1"].min(), res["f2"].min()) > ocp.F_MIN
+
+
+def test_compiled_casadi_functions_equal_the_sx_ones_and_their_derivatives():
+    """model.casadi_function(compiled=True): the C of the SX function and of its Jacobian,
+    forward, reverse and forward-over-reverse derivatives, loaded through casadi.external,
+    gives the SX function's values and derivatives."""
+    import casadi as ca
+
+    import grasping_sym as gs
+
+    ocp = _example("ocp_paper2d")
+    model = gs.build(ocp.scene())
+    f, fc = model.casadi_function(), model.casadi_function(compiled=True)
+    assert fc.class_name() == "External"
+    x = model.simulate(0.2, u=[5e-3, 1e-3], method="radau", rtol=1e-8, atol=1e-12,
+                       t_eval=[0, 0.2]).x[-1]
+    u = np.array([5e-3, 1e-3])
+    np.testing.assert_allclose(np.ravel(fc(x, u, [])), np.ravel(f(x, u, [])), rtol=1e-12, atol=1e-12)
+    w = np.random.default_rng(0).normal(size=x.size)
+    X, U = ca.MX.sym("x", x.size), ca.MX.sym("u", u.size)
+    for g in (f, fc):  # the gradient of w.f and its Hessian along a direction, through MX
+        lag = ca.dot(ca.DM(w), g(X, U, ca.DM.zeros(0, 1)))
+        grad = ca.gradient(lag, X)
+        hv = ca.jtimes(grad, X, ca.DM(w))
+        out = ca.Function("o", [X, U], [grad, hv, ca.jacobian(g(X, U, ca.DM.zeros(0, 1)), X)])
+        vals = [np.array(v) for v in out(x, u)]
+        if g is f:
+            ref = vals
+        else:
+            for a, b in zip(vals, ref):
+                np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10 * np.abs(b).max())

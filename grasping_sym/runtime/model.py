@@ -438,24 +438,33 @@ class Model:
         return t, X, stats
 
     # ------------------------------------------------------------------ CasADi
-    def casadi_function(self, which: str = "ode", *, time: bool = False):
+    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
         """The closed loop as a CasADi Function with exact derivatives of any order
         (``codegen.casadi_api``): ``"ode"`` ``(x, u, p) -> xdot`` (default),
         ``"constraints"`` ``(x, p) -> C`` or ``"outputs"`` ``(x, u, p) -> y``; ``u`` the inputs
         (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
         start's values the model's. With ``time`` the ode and outputs take the time first.
+
+        ``compiled=True``: the same functions evaluated by C compiled from them, with their
+        Jacobian, forward, reverse and forward-over-reverse derivatives
+        (``codegen.casadi_api.compiled_functions``: what ``Opti``/IPOPT with exact Hessians
+        and the integrators' sensitivities call), compiled once and kept beside the model
+        (use them in ``Opti`` without ``expand``, which would inline the SX again).
         Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
         scene = getattr(self, "scene", None)
         if scene is None:
             raise ValueError("casadi_function needs the model's scene: make the model with "
                              "gs.build(scene) (a model from gs.load has no scene)")
-        key = (which, time)
+        key = (which, time, bool(compiled))
         if key not in self._public:
-            from grasping_sym.codegen.casadi_api import public_functions  # noqa: PLC0415
+            from grasping_sym.codegen import casadi_api  # noqa: PLC0415
 
-            fns = public_functions(scene, self.start_params, time=time)
+            fns = casadi_api.public_functions(scene, self.start_params, time=time)
+            if compiled:
+                where = safety.ensure_dir(self.directory / "casadi_api", root=self.directory)
+                fns = casadi_api.compiled_functions(fns, where)
             for k, f in fns.items():
-                self._public[(k, time)] = f
+                self._public[(k, time, bool(compiled))] = f
         if key not in self._public:
             raise ValueError(f"which = {which!r}: choose 'ode', 'constraints' or 'outputs' "
                              "(the latter only for a model with outputs)")
