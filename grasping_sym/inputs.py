@@ -119,6 +119,10 @@ def as_schedule(u, n: int) -> Schedule:
         return constant(np.zeros(n))
     if isinstance(u, Schedule):
         sched = u
+    elif _symbolic(u):
+        raise TypeError("u holds symbolic expressions: an expression of time is a controller term, "
+                        "compiled with the model: build the scene with controller=gs.controllers."
+                        "paper2d() + gs.controllers.feedforward([...]) (or paper3d() + ...)")
     elif callable(u) and not isinstance(u, np.ndarray):
         raise TypeError("u is a Python function: the compiled model cannot call it. Give numbers, "
                         "gs.inputs.piecewise_linear / zero_order_hold tables, or write the law as a "
@@ -131,3 +135,9 @@ def as_schedule(u, n: int) -> Schedule:
             and all(math.isfinite(k) for k in sched.knots)):
         raise ValueError("u has non-finite values")
     return sched
+
+
+def _symbolic(u) -> bool:
+    """Whether ``u`` is or holds a SymPy/CasADi expression."""
+    items = u if isinstance(u, (list, tuple)) else [u]
+    return any(hasattr(v, "free_symbols") or type(v).__module__.startswith("casadi") for v in items)

@@ -114,6 +114,10 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     # a law that reads the time: the outputs take it as one more last entry of p, so the C
     # driver (whose p has the model's size) does not call them (Model._output_row does)
     outputs_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(scene.p_names) + 1
+    from grasping_sym.codegen.controller import controller_function  # noqa: PLC0415
+
+    ctrl = controller_function(scene, "c")
+    law = scene.controller
     manifest = {
         "name": scene.name,
         "hash": digest["hash"],
@@ -127,6 +131,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "lower": lower,
         "upper": upper,
         "outputs_time": outputs_time,
+        # the control layer: the law (its name), whether it reads the object's state and the time
+        "controller": {"law": law if isinstance(law, str) or law is None else law.name,
+                       "uses_object": ctrl.uses_object, "reads_time": ctrl.reads_time},
         "driver_defines": driver_defines(cm.rhs, None if outputs_time else cm.outputs, jac_fn=cm.jac,
                                          constraints_fn=cm.constraints,
                                          rhs_lanes=lanes.lanes_symbol(cm.rhs) if lane_c else None),

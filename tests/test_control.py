@@ -32,6 +32,8 @@ def test_torque_inputs_are_named_and_zero_by_default(torque_model, closed_loop):
     assert closed_loop.input_names == ()
     # the same structure: the controller is a layer apart (nothing re-derived)
     assert torque_model.manifest["structure"] == closed_loop.manifest["structure"]
+    assert closed_loop.manifest["controller"] == {"law": "paper", "uses_object": False,
+                                                  "reads_time": False}
     a = torque_model.simulate(1.0, **RADAU)
     b = closed_loop.simulate(1.0, **RADAU)
     np.testing.assert_array_equal(a.x, b.x)
@@ -75,6 +77,7 @@ def test_feedforward_expressions_of_time_are_evaluated_in_c(torque_model):
     ff = gs.build(gs.scenes.paper2d(controller=gs.controllers.paper2d()
                                     + gs.controllers.feedforward([2e-3 * (1 - t), sp.Integer(0)])))
     assert ff.manifest["outputs_time"] is True
+    assert ff.manifest["controller"]["reads_time"] is True
     tab = gs.inputs.piecewise_linear([0.0, 1.0], [[2e-3, 0.0], [0.0, 0.0]])
     a = ff.simulate(1.0, **RADAU)
     b = torque_model.simulate(1.0, u=tab, **RADAU)
@@ -150,6 +153,8 @@ def test_bad_control_input_is_refused_by_name(torque_model, closed_loop):
         torque_model.simulate(0.1, u=[1e-3])
     with pytest.raises(TypeError, match="controller"):
         torque_model.simulate(0.1, u=lambda t: [0, 0])
+    with pytest.raises(TypeError, match="feedforward"):
+        torque_model.simulate(0.1, u=[sp.Symbol("t") * 1e-3, 0])
     with pytest.raises(ValueError, match="non-finite"):
         torque_model.simulate(0.1, u=[np.nan, 0.0])
     with pytest.raises(ValueError, match="rk4"):
@@ -224,3 +229,9 @@ def test_constraint_and_output_functions_have_exact_derivatives(torque_model):
             smooth = [k for k, name in enumerate(torque_model.output_names) if name != "constraint_residual"]
             np.testing.assert_allclose(Jo[smooth, i], fdo[smooth], rtol=1e-6,
                                        atol=1e-6 * np.abs(Jo[smooth]).max())
+
+
+def test_the_manifest_says_when_a_law_reads_the_object():
+    model = gs.build(gs.scenes.paper2d(controller=gs.controllers.orientation2d(0.3, 50.0, 0.3)))
+    assert model.manifest["controller"] == {"law": "paper2d + orientation2d(0.3)",
+                                            "uses_object": True, "reads_time": False}

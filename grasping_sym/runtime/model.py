@@ -74,8 +74,9 @@ class Model:
             self.rhs = self._rhs_with_inputs
 
     def __repr__(self) -> str:
+        inputs = f", inputs={self.input_names}" if self.input_names else ""
         return (f"Model({self.name!r}, states={self.state_names}, "
-                f"outputs={self.output_names}, runtime params={self.param_names})")
+                f"outputs={self.output_names}, runtime params={self.param_names}{inputs})")
 
     # ------------------------------------------------------------------ calls
     @property
