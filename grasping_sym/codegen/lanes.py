@@ -154,6 +154,12 @@ def rhs_lanes(rhs: ca.Function) -> tuple[str | None, str]:
                           ("t", "x", "z", "p", "u", "xdot"))
 
 
+def _once(g: str, helper: str) -> str:
+    """``helper`` (the lane version of ``g``) defined once per C file, however many lane
+    functions the file holds."""
+    return f"#ifndef GS_L4_HAVE_{g}\n#define GS_L4_HAVE_{g}\n{helper}\n#endif"
+
+
 def function_lanes(f: ca.Function, symbol: str, kinds: tuple[str, ...],
                    names: tuple[str, ...]) -> tuple[str | None, str]:
     """C source of ``int <symbol>(...)``: ``f`` at four points at once (see ``_translate``
@@ -171,9 +177,9 @@ def function_lanes(f: ca.Function, symbol: str, kinds: tuple[str, ...],
     body = decls + body
     helpers = []
     vec = {g for g in used if g in vecmath.VECTOR_FUNCTIONS}
-    helpers += [_SQRT if g == "sqrt" else f"GS_L4_{'V' if g in vec else ''}1({g})"
+    helpers += [_once(g, _SQRT if g == "sqrt" else f"GS_L4_{'V' if g in vec else ''}1({g})")
                 for g in UNARY if g in used]
-    helpers += [f"GS_L4_{'V' if g in vec else ''}2({g})" for g in BINARY if g in used]
+    helpers += [_once(g, f"GS_L4_{'V' if g in vec else ''}2({g})") for g in BINARY if g in used]
     ctype = {"t": "const double* ", "shared": "const double* ", "lane": "const double* const* "}
     params = [ctype[k] + a for k, a in zip(kinds, names) if k != "none"]
     params += [f"double* const* {a}" for a in names[len(kinds):]]

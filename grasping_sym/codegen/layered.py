@@ -150,8 +150,8 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
 def lanes_glue(name: str, contours: ca.Function, structure_lanes: str | None,
                n_leaves: int, controller: ca.Function, tau_kept: list[int]) -> tuple[str | None, str]:
     """C of ``<name>_rhs_lanes`` (the driver's 4-lane rhs, ``codegen.lanes``): the contours
-    at the four states (four at once where ``contours`` has a lane version, else one by one)
-    and the controller's torques (lane by lane), then the structure's 4-lane rhs
+    and the controller's torques at the four states (four at once where they have a lane
+    version, else one by one), then the structure's 4-lane rhs
     ``structure_lanes`` (which reads the torques ``tau_kept``); or None and why not."""
     if structure_lanes is None:
         return None, "not made: the structure has no 4-lane rhs"
@@ -188,17 +188,28 @@ def lanes_glue(name: str, contours: ca.Function, structure_lanes: str | None,
                  "      arg[0] = x[s]; res[0] = L[s];",
                  f"      if ({contours.name()}(arg, res, iw, w, 0)) return 1;",
                  "    }", "  }"]
-    body += ["  {", *work(controller),
-             "    for (int s = 0; s < 4; ++s) {",
-             "      arg[0] = t + s; arg[1] = x[s]; arg[2] = p; res[0] = full[s];",
-             f"      if ({controller.name()}(arg, res, iw, w, 0)) return 1;",
-             *[f"      tau[s][{j}] = full[s][{k}];" for j, k in enumerate(tau_kept)],
-             "    }", "  }"]
+    ctrl_lanes, ctrl_status = lanes.function_lanes(controller, f"{name}_controller_lanes",
+                                                   ("t", "lane", "shared"), ("t", "x", "p", "tau"))
+    if ctrl_lanes is not None:
+        body += ["  double* F[4] = {full[0], full[1], full[2], full[3]};",
+                 f"  {name}_controller_lanes(t, x, p, F);",
+                 "  for (int s = 0; s < 4; ++s) {",
+                 *[f"    tau[s][{j}] = full[s][{k}];" for j, k in enumerate(tau_kept)],
+                 "  }"]
+    else:
+        body += ["  {", *work(controller),
+                 "    for (int s = 0; s < 4; ++s) {",
+                 "      arg[0] = t + s; arg[1] = x[s]; arg[2] = p; res[0] = full[s];",
+                 f"      if ({controller.name()}(arg, res, iw, w, 0)) return 1;",
+                 *[f"      tau[s][{j}] = full[s][{k}];" for j, k in enumerate(tau_kept)],
+                 "    }", "  }"]
     body += [f"  return {structure_lanes}(t, x, p, (const double* const*)L, "
              "(const double* const*)tau, xdot);", "}"]
-    text = (c_lanes or "") + "\n".join(head + body) + "\n"
+    text = (c_lanes or "") + (ctrl_lanes or "") + "\n".join(head + body) + "\n"
     how = "contours four at a time" if c_lanes is not None else f"contours one lane at a time ({status})"
-    return text, f"applied ({how}, the controller lane by lane, then the structure's 4-lane rhs)"
+    how_ctrl = ("the controller four at a time" if ctrl_lanes is not None
+                else f"the controller one lane at a time ({ctrl_status})")
+    return text, f"applied ({how}, {how_ctrl}, then the structure's 4-lane rhs)"
 
 
 def jets_functions(surfaces, slots, nx: int, name: str, entries: dict[str, list[int]]
