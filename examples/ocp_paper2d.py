@@ -61,17 +61,10 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
     x0 = model.initial_state()
     nx, nu = x0.size, len(model.input_names)
     i_theta, i_dtheta = model.state_names.index("theta"), model.state_names.index("dtheta")
-    tau = np.append(0.0, ca.collocation_points(degree, "legendre"))
-    C, D = np.zeros((degree + 1, degree + 1)), np.zeros(degree + 1)
-    for j in range(degree + 1):  # Lagrange basis: its derivatives at the points, its end value
-        coeff = np.poly1d([1.0])
-        for r in range(degree + 1):
-            if r != j:
-                coeff *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
-        D[j] = coeff(1.0)
-        dcoeff = np.polyder(coeff)
-        for r in range(degree + 1):
-            C[j, r] = dcoeff(tau[r])
+    # Lagrange basis on [0, 1] through 0 and the Legendre points: its derivatives at the
+    # collocation points (C) and its end values (D)
+    C, D, _ = (np.array(m) for m in ca.collocation_coeff(ca.collocation_points(degree, "legendre")))
+    D = D.ravel()
     h = T_FINAL / n
     opti = ca.Opti()
     u_guess = squeeze(model, x0)
@@ -90,7 +83,7 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
         cols = slice(k * degree, (k + 1) * degree)
         xs = ca.horzcat(X[:, k], Xc[:, cols])
         # collocation: the polynomial's slope at each point is the closed loop's rate there
-        opti.subject_to(h * F[:, cols] == xs @ C[:, 1:])
+        opti.subject_to(h * F[:, cols] == xs @ C)
         opti.subject_to(X[:, k + 1] == xs @ D)
         cost = cost + h * ca.sumsqr(U[:, k])
     opti.subject_to(Y[i_f, :] >= F_MIN)

@@ -52,17 +52,10 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
     names = model.state_names
     iq, iom, iv = names.index("qw"), names.index("omegaX"), names.index("vx")
     R0 = np.array(ca.evalf(_quat_matrix(ca.DM(x0[iq:iq + 4]))))
-    tau = np.append(0.0, ca.collocation_points(degree, "legendre"))
-    C, D = np.zeros((degree + 1, degree + 1)), np.zeros(degree + 1)
-    for j in range(degree + 1):
-        coeff = np.poly1d([1.0])
-        for r in range(degree + 1):
-            if r != j:
-                coeff *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
-        D[j] = coeff(1.0)
-        dcoeff = np.polyder(coeff)
-        for r in range(degree + 1):
-            C[j, r] = dcoeff(tau[r])
+    # Lagrange basis on [0, 1] through 0 and the Legendre points: its derivatives at the
+    # collocation points (C) and its end values (D)
+    C, D, _ = (np.array(m) for m in ca.collocation_coeff(ca.collocation_points(degree, "legendre")))
+    D = D.ravel()
     h = T_FINAL / n
     opti = ca.Opti()
     X = opti.variable(nx, n + 1)
@@ -77,7 +70,7 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
     for k in range(n):
         cols = slice(k * degree, (k + 1) * degree)
         xs = ca.horzcat(X[:, k], Xc[:, cols])
-        opti.subject_to(h * F[:, cols] == xs @ C[:, 1:])
+        opti.subject_to(h * F[:, cols] == xs @ C)
         opti.subject_to(X[:, k + 1] == xs @ D)
         cost = cost + h * ca.sumsqr(U[:, k])
     for i in i_f:

@@ -235,3 +235,20 @@ def test_the_manifest_says_when_a_law_reads_the_object():
     model = gs.build(gs.scenes.paper2d(controller=gs.controllers.orientation2d(0.3, 50.0, 0.3)))
     assert model.manifest["controller"] == {"law": "paper2d + orientation2d(0.3)",
                                             "uses_object": True, "reads_time": False}
+
+
+def test_bad_controller_arguments_are_refused_by_name():
+    with pytest.raises(ValueError, match="max_force"):
+        gs.controllers.orientation2d(0.3, 50.0, max_force=0.0)
+    with pytest.raises(ValueError, match="axis"):
+        gs.controllers.turn3d(0.2, 1.0, axis=(0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="rotation matrix"):
+        gs.controllers.turn3d(0.2, 1.0, reference=np.ones((3, 3)))
+    with pytest.raises(ValueError, match="max_torque"):
+        gs.controllers.turn3d(0.2, 1.0, max_torque=-1.0)
+    with pytest.raises(ValueError, match="besides the time"):
+        gs.controllers.feedforward([sp.Symbol("t") * sp.Symbol("k"), 0])
+    with pytest.raises(TypeError, match="function of the model's quantities"):
+        gs.controllers.law(0.5)
+    with pytest.raises(KeyError, match="parameter 'nope'"):
+        gs.build(gs.scenes.paper2d(controller=gs.controllers.law(lambda m: [m.param("nope") * m.dq[0]])))
