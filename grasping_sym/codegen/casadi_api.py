@@ -37,11 +37,11 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
     if full.numel() != len(names):
         raise AssertionError(f"p of {full.numel()} entries for {names}")
     reads_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(names) + 1
-    tt = t if time else ca.SX(0)
-    (xdot,) = cm.rhs(tt, x, ca.SX(0, 1), full, ca.SX(0, 1))[:1]
-    if ca.depends_on(cm.rhs(t, x, ca.SX(0, 1), full, ca.SX(0, 1))[0], t) and not time:
+    xdot = cm.rhs(t, x, ca.SX(0, 1), full, ca.SX(0, 1))[0]
+    if not time and ca.depends_on(xdot, t):
         raise ValueError(f"the controller of {scene.name} reads the time: ask for "
                          "model.casadi_function(time=True), a function of (t, x, u, p)")
+    tt = t if time else ca.SX(0)
     head = [t] if time else []
     hnames = ["t"] if time else []
     out = {"ode": ca.Function(f"{scene.name}_ode", [*head, x, u, p], [xdot],
@@ -56,30 +56,25 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
     return out
 
 
-#: What is compiled of each function (CasADi's names, which ``casadi.external`` looks up for
-#: derivatives): the function, its Jacobian, one forward and one reverse direction, and the
-#: forward derivative of the reverse one (the Hessian-vector products IPOPT's exact Hessian
-#: takes). Other derivatives are not found in the library and CasADi refuses them by name.
-DERIVATIVES = ("jac", "fwd1", "adj1", "fwd1_adj1")
-
-
 def derivative_functions(g: ca.Function) -> list[ca.Function]:
-    """``g`` and the derivative functions of :data:`DERIVATIVES`, named as CasADi names them."""
+    """What is compiled of ``g``, under the names ``casadi.external`` looks up for derivatives:
+    ``g``, ``jac_g``, ``fwd1_g``, ``adj1_g`` and ``fwd1_adj1_g`` (the forward derivative of the
+    reverse one: the Hessian-vector products IPOPT's exact Hessian takes). Other derivatives
+    are not in the library, and CasADi refuses them by name."""
     adj = g.reverse(1)
     return [g, g.jacobian(), g.forward(1), adj, adj.forward(1)]
 
 
 def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: None) -> dict:
-    """``fns`` evaluated by compiled C: their C and their derivatives' (:data:`DERIVATIVES`)
-    written, compiled once into ``directory`` (a file named by the hash of the C, the compiler
-    and the instruction set; its SHA-256 recorded beside it and checked before every load) and
-    loaded through ``casadi.external``."""
+    """``fns`` evaluated by compiled C: their C and their derivatives'
+    (:func:`derivative_functions`) written, compiled once into ``directory`` (a file named by
+    the hash of the C, the compiler and the instruction set; its SHA-256 recorded beside it
+    and checked before every load) and loaded through ``casadi.external``."""
     import hashlib  # noqa: PLC0415
-    import json  # noqa: PLC0415
     from pathlib import Path  # noqa: PLC0415
 
     from grasping_sym.codegen.compiler import compile_shared  # noqa: PLC0415
-    from grasping_sym.runtime import safety  # noqa: PLC0415
+    from grasping_sym.runtime import safety, stored  # noqa: PLC0415
     from grasping_sym.runtime.loader import library_tag  # noqa: PLC0415
 
     cg = ca.CodeGenerator("gs_casadi_api.c", {"with_header": False, "casadi_int": "long long int"})
@@ -91,14 +86,12 @@ def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: Non
     directory = Path(directory)
     lib = directory / f"api-{digest}.so"
     record = directory / f"api-{digest}.json"
-    want = None
-    if lib.exists() and record.exists():
-        safety.check_tree(directory, (lib.name, record.name))
-        want = json.loads(record.read_text()).get("sha256")
-    if want is None or safety.sha256_file(lib) != want:
+    safety.check_tree(directory, (lib.name, record.name))
+    want = (stored.read_json(record) or {}).get("sha256")  # None: absent or unreadable
+    if want is None or not lib.exists() or safety.sha256_file(lib) != want:
         say(f"compiling {len(fns)} CasADi functions and their derivatives ({len(text) // 1000} kB of C)")
         src = safety.write_text(directory / f"api-{digest}.c", text)
         compile_shared([src], lib, extra_flags=("-O1",))
-        safety.write_text(record, json.dumps({"sha256": safety.sha256_file(lib)}))
+        stored.write_json(record, {"sha256": safety.sha256_file(lib)})
         src.unlink()
     return {k: ca.external(g.name(), str(lib)) for k, g in fns.items()}

@@ -98,7 +98,7 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
     tau = controller(t, x, p)
     entries = meta["leaf_entries"]
 
-    def args(kind, torques=tau, x=x):
+    def args(kind, torques=tau):
         """The contour values and the torques the structure's function ``kind`` reads."""
         leaves = contours[kind].call([x])
         kept = entries[kind].get("tau", [])
@@ -109,16 +109,12 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
                       ca.dyn_in(), ca.dyn_out())
     Jx, Jp, Jtau = structure["jac"](t, x, ps, *args("jac"))
     # the torques' share by the chain rule (the controller's Jacobian is its own SX's)
+    Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p))  # the inputs act only through tau
     kept = entries["jac"].get("tau", [])
     if kept:
-        ctrl_jac = controller.jacobian()
-        cj = ctrl_jac(t, x, p, tau)
-        dtau_dx = ca.vertcat(*[cj[1][k, :] for k in kept])
-        dtau_dp = ca.vertcat(*[cj[2][k, :] for k in kept])
-        Jx = Jx + ca.mtimes(Jtau, dtau_dx)
-        Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p)) + ca.mtimes(Jtau, dtau_dp)
-    else:
-        Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p))
+        cj = controller.jacobian()(t, x, p, tau)
+        Jx = Jx + ca.mtimes(Jtau, ca.vertcat(*[cj[1][k, :] for k in kept]))
+        Jp = Jp + ca.mtimes(Jtau, ca.vertcat(*[cj[2][k, :] for k in kept]))
     ins, outs = _jacobian_layout(nx, np_)
     jin = [t, x, z, p, u] + [ca.MX.sym(n, s) for n, s in ins[5:]]
     blocks = {"jac_ode_x": Jx, "jac_ode_p": Jp}
@@ -128,7 +124,7 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
     output_names = tuple(meta["output_names"])
     if output_names:
         # the outputs are functions of (x, p): the torques at t = 0, or at the time in a last
-        # entry of p when the law reads the time (``codegen.controller.outputs_time``)
+        # entry of p when the law reads the time (``codegen.controller.outputs_p``)
         p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
         y = structure["outputs"](x, pm[:n_structure_p], *args("outputs", controller(t_out, x, pm)))
         out_fn = ca.Function(f"{name}_outputs", [x, p_out], [y], ["x", "p"], ["y"])

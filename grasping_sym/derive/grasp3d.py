@@ -225,19 +225,11 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = F
     p = ca.SX.sym("p", len(p_names))
     prm = {k: (p[scene.runtime.index(k)] if k in scene.runtime else ca.SX(v))
            for k, v in scene.params.items()}
-    k = 0
-    q = x[k:k + nQ]
-    k += nQ
-    pos = x[k:k + 3] if free else ca.DM(scene.position)
-    k += 3 if free else 0
-    quat = x[k:k + 4]
-    k += 4
-    dq = x[k:k + nQ]
-    k += nQ
-    vel = x[k:k + 3] if free else None
-    k += 3 if free else 0
-    om = x[k:k + 3]
-    k += 3
+    sl = state_slices(scene)
+    q, quat, dq, om = x[sl["q"]], x[sl["quat"]], x[sl["dq"]], x[sl["om"]]
+    pos = x[sl["pos"]] if free else ca.DM(scene.position)
+    vel = x[sl["vel"]] if free else None
+    k = sl["om"].stop
     etas = [x[k + i * n_eta:k + (i + 1) * n_eta] for i in range(N)]
     g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)
     R, quat_dot, Eq = _quat_pieces(quat, om)

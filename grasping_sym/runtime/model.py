@@ -236,7 +236,6 @@ class Model:
             opts = {} if has_jac else {"enable_fd": True, "fd_method": "forward"}
             self._guarded = ca.external(self.manifest["rhs_guarded"], str(self.library_path), opts)
         return self._guarded
-        return self._external
 
     # ------------------------------------------------------------------ simulate
     def simulate(self, t_final: float, *, x0=None, method: str = "cvodes",
@@ -500,16 +499,23 @@ class Model:
 
     def _outputs_along(self, t, X, p, sched) -> dict[str, np.ndarray]:
         """The outputs at the rows of ``X`` (times ``t``): the inputs' value at each time
-        (``a + b t`` as ``a``), and the time itself for a law that reads it."""
+        (``a + b t`` as ``a``), and the time itself for a law that reads it. Rows where the
+        inputs are constant go to the compiled batch call, segment by segment."""
         timed = bool(self.manifest.get("outputs_time"))
         if sched is None and not timed:
             return self.outputs_batch(X, p)
         p = self._p(p)
-        rows = []
-        for ti, xi in zip(t, X):
-            pi = p if sched is None else self.with_inputs(p, sched(float(ti)))
-            rows.append(self._output_row(xi, pi, ti if timed else None))
-        Y = np.array(rows)
+        Y = np.empty((len(t), len(self.output_names)))
+        segment = np.searchsorted(sched.knots, t, side="right") if sched is not None else \
+            np.zeros(len(t), dtype=int)
+        for k in np.unique(segment):
+            rows = np.flatnonzero(segment == k)
+            if sched is not None and not timed and not np.any(sched.b[k]):
+                Y[rows] = self.library.outputs_batch(X[rows], self.with_inputs(p, sched.a[k]))
+                continue
+            for i in rows:
+                pi = p if sched is None else self.with_inputs(p, sched(float(t[i])))
+                Y[i] = self._output_row(X[i], pi, t[i] if timed else None)
         return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
 
     def _output_row(self, x, p, t=None) -> np.ndarray:
