@@ -97,3 +97,43 @@ def test_compiled_casadi_functions_equal_the_sx_ones_and_their_derivatives():
         else:
             for a, b in zip(vals, ref):
                 np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10 * np.abs(b).max())
+
+
+def test_a_damaged_compiled_functions_library_is_rebuilt_not_loaded():
+    """A flipped byte in the compiled functions' library and an unreadable checksum record:
+    the next process rebuilds the library (the same bytes) instead of loading it."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    from grasping_sym.runtime import stored
+
+    script = (
+        "import sys, json, numpy as np; sys.path.insert(0, sys.argv[1]); import ocp_paper2d as o; "
+        "import grasping_sym as gs; m = gs.build(o.scene()); "
+        "c = m.casadi_function('constraints', compiled=True); "
+        "print(json.dumps({'dir': str(m.directory), "
+        "'residual': float(np.abs(np.ravel(c(m.initial_state(), []))).max())}))")
+
+    def run() -> dict:
+        out = subprocess.run([sys.executable, "-c", script, str(EXAMPLES)], check=True,
+                             capture_output=True, text=True).stdout
+        return json.loads(out.strip().splitlines()[-1])
+
+    import grasping_sym as gs
+
+    model = gs.build(_example("ocp_paper2d").scene())
+    model.casadi_function("constraints", compiled=True)  # compiled (or found) here
+    lib = next((model.directory / "casadi_api").glob("api-*.so"))
+    record = lib.with_suffix(".json")
+    good = stored.read_json(record)["sha256"]
+    data = bytearray(lib.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    damaged = lib.parent / "damaged.tmp"
+    damaged.write_bytes(bytes(data))
+    os.replace(damaged, lib)  # a new file: nothing that has the library loaded is touched
+    record.write_text("{not json")
+    again = run()
+    assert stored.read_json(record)["sha256"] == good  # rebuilt, the same bytes
+    assert again["residual"] < 1e-9
