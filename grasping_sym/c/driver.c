@@ -14,6 +14,8 @@
  *   dopri5.c       gs_dopri5
  *   stop.c         gs_sigint_install, gs_set_time_limit, gs_stop_cause: Ctrl-C and a
  *                  wall-time limit stop the loops (GS_ERR_INTERRUPT)
+ *   batch.c        gs_batch: many runs of gs_radau5 / gs_dopri5 / gs_rk4 in one call, over a
+ *                  pool of threads
  *   gs_internal.h  what they share: the macro defaults and checks, error codes, GS_ST_*
  *                  indices, work arrays, the CasADi prototypes and the small helpers
  *   gs_driver.h    the gs_ prototypes used by pyfast.c

@@ -25,6 +25,9 @@ int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
 int gs_outputs(const double* x, const double* p, double* y);
 int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
 #endif
+long gs_rk4(double t0, double h, long nsteps, long stride, const double* x0, const double* p,
+            const double* lo, const double* hi, const int* proj_mask, double proj_tol,
+            double* out, double* stats, double* t_fail);
 long gs_radau5(double t0, long n_out, const double* t_out, const double* x0, const double* p,
                double rtol, double atol, double h0, long max_steps, const double* lo,
                const double* hi, const int* proj_mask, double proj_tol, double* out,

@@ -13,6 +13,8 @@
  *              (forward differences)
  *   lu.c       gs_radau5's dense real and complex LU factorisations
  *   dopri5.c   adaptive Dormand-Prince 5(4): gs_dopri5
+ *   stop.c     Ctrl-C and the wall-time limit
+ *   batch.c    many runs over a pool of threads: gs_batch
  *
  * Helpers used by several files are static inline here; the functions defined in one
  * file and called from another are declared here with GS_HIDDEN, so the shared library
@@ -132,6 +134,13 @@ typedef struct {
  * (SIGINT, the time limit). */
 GS_HIDDEN void gs_stop_reset(void);
 GS_HIDDEN int gs_stop_requested(void);
+/* stop.c, for gs_batch: clear Ctrl-C once; mark this thread's runs as a batch's (on = 1, with
+ * the batch's deadline in monotonic s, 0: none) or not (on = 0); the monotonic clock; whether
+ * Ctrl-C was pressed. */
+GS_HIDDEN void gs_stop_batch_reset(void);
+GS_HIDDEN void gs_stop_batch_thread(int on, double deadline);
+GS_HIDDEN double gs_stop_now(void);
+GS_HIDDEN int gs_stop_sigint(void);
 
 /* Prototypes of the CasADi-generated functions (standard calling convention). */
 int GS_RHS(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);

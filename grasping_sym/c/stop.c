@@ -11,7 +11,7 @@
  * returns GS_ERR_INTERRUPT when that is non-zero; gs_stop_cause() then says why (1: SIGINT,
  * 2: the time limit). A step costs microseconds, so a loop stops within a few of them; the
  * clock is read every 16th step. Nothing is called per run from Python unless a time limit
- * is set.
+ * is set. gs_batch (batch.c) shares one Ctrl-C and one deadline among its threads.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <signal.h>
@@ -26,6 +26,9 @@ static int gs_installed = 0;
 static _Thread_local double gs_deadline = 0.0;
 static _Thread_local unsigned gs_ticks = 0;
 static _Thread_local int gs_cause = 0;
+/* Inside gs_batch (batch.c): a run's start must not clear a Ctrl-C that another thread's run
+ * saw, so the batch clears the flag once and each run leaves it. */
+static _Thread_local int gs_in_batch = 0;
 
 /* Note the signal, then pass it on to the handler it replaced (CPython's, which makes the
  * interpreter raise KeyboardInterrupt when it next runs Python code). */
@@ -67,9 +70,25 @@ GS_EXPORT void gs_set_time_limit(double seconds) {
 GS_EXPORT int gs_stop_cause(void) { return gs_cause; }
 
 GS_HIDDEN void gs_stop_reset(void) {
-  gs_sigint_flag = 0;
+  if (!gs_in_batch) gs_sigint_flag = 0;
   gs_cause = 0;
 }
+
+/* gs_batch: clear Ctrl-C once before its runs. */
+GS_HIDDEN void gs_stop_batch_reset(void) { gs_sigint_flag = 0; }
+
+/* gs_batch's threads: with `on`, this thread's runs belong to a batch whose wall-time limit
+ * ends at the monotonic time `deadline` (0: none); without, they are single runs again. */
+GS_HIDDEN void gs_stop_batch_thread(int on, double deadline) {
+  gs_in_batch = on;
+  gs_deadline = on ? deadline : 0.0;
+  gs_ticks = 0;
+}
+
+GS_HIDDEN double gs_stop_now(void) { return gs_now(); }
+
+/* Non-zero when Ctrl-C was pressed since the batch started (the batch stops its threads). */
+GS_HIDDEN int gs_stop_sigint(void) { return gs_sigint_flag != 0; }
 
 GS_HIDDEN int gs_stop_requested(void) {
   if (gs_sigint_flag) return gs_cause = 1;

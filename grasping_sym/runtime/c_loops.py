@@ -20,6 +20,7 @@ from grasping_sym.errors import IntegratorError
 _ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
 _ERR_PROJECT, _ERR_STIFF, _ERR_INTERRUPT = -7, -8, -9
 ERR_PROJECT = _ERR_PROJECT
+ERR_INTERRUPT, ERR_ARGS = _ERR_INTERRUPT, _ERR_ARGS
 _RK4_EXTRA_ROWS = 2
 _ADAPTIVE_EXTRA_ROWS = 1
 NSTATS = 16  # GS_NSTATS
@@ -65,6 +66,14 @@ def as_vector(a: Any, n: int, name: str) -> np.ndarray:
     return arr
 
 
+def rk4_steps(t0: float, t_final: float, h: float, stride: int) -> tuple[float, int]:
+    """``(h_eff, nsteps)``: the steps of at most ``h`` from ``t0`` to ``t_final``, a multiple of
+    ``stride`` of them, so that the last stored row is ``t_final`` exactly."""
+    nblocks = max(1, math.ceil((t_final - t0) / (h * stride) - 1e-9))
+    nsteps = nblocks * stride
+    return (t_final - t0) / nsteps, nsteps
+
+
 def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: Any = None,
         lo: Any = None, hi: Any = None, proj_mask: Any = None, proj_tol: float = 0.0,
         stats: dict | None = None, time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -87,10 +96,8 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
     if bad:
         raise IntegratorError(t0, x0a, f"initial state: {bad}", lib.state_names)
 
-    nblocks = max(1, math.ceil((t_final - t0) / (h * stride) - 1e-9))
-    nsteps = nblocks * stride
-    h_eff = (t_final - t0) / nsteps
-    rows = nblocks + 1
+    h_eff, nsteps = rk4_steps(t0, t_final, h, stride)
+    rows = nsteps // stride + 1
     out = np.empty((rows + _RK4_EXTRA_ROWS, lib.nx))
     t_fail = _double(math.nan)
     stats_a = np.zeros(NSTATS)

@@ -310,3 +310,52 @@ def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
             err.kappa_sum = k_last
             err.trajectory = getattr(exc, "trajectory", None)
             raise err from exc
+
+
+# ---------------------------------------------------------------- many runs at once
+def initial_ok(model, Y0: np.ndarray | None, CD0: np.ndarray | None, rates: bool) -> np.ndarray:
+    """``check_initial_state`` over many runs (``Model.simulate_many``): per run, False where it
+    would raise, from the outputs ``Y0`` (``(N, ny)``) and the max|Cdot| ``CD0`` (``(N,)``) at
+    each run's ``x0``. The same thresholds and comparisons (NaN fails), so a run passes here
+    exactly when it passes there."""
+    n = len(CD0) if CD0 is not None else len(Y0) if Y0 is not None else 0
+    ok = np.ones(n, dtype=bool)
+    if rates and CD0 is not None:
+        ok &= CD0 <= INITIAL_RATE
+    names = model.output_names
+    watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
+    if Y0 is None or not set(names) & watched:
+        return ok
+    y = {k: Y0[:, i] for i, k in enumerate(names)}
+    if "Q" in y and "R" in y:
+        ok &= np.maximum(np.abs(y["Q"]), np.abs(y["R"])) <= INITIAL_RESIDUAL
+    elif "constraint_residual" in y:
+        ok &= np.abs(y["constraint_residual"]) <= INITIAL_RESIDUAL
+    for name in curvature_outputs(names):
+        if name == "kappa_sum":
+            size = _scene_size(model)
+            threshold = KAPPA_SUM_INITIAL / size if size > 0 else 0.0
+        else:
+            threshold = 0.0
+        ok &= y[name] > threshold
+    for name, thr in _denominator_thresholds(model).items():
+        if name in y:
+            ok &= np.abs(y[name]) > thr
+    return ok
+
+
+def trajectory_clean(model, t: np.ndarray, outs: dict, initial: dict) -> np.ndarray:
+    """``trajectory_event`` over many runs: per run, True where it finds no event, from the
+    outputs ``outs`` (name -> ``(N, m)`` at the times ``t``) and their values at each run's
+    start ``initial`` (name -> ``(N,)``: the curvatures' references)."""
+    n = len(next(iter(outs.values()))) if outs else 0
+    clean = np.ones(n, dtype=bool)
+    for name in curvature_outputs(outs):
+        k_ref = initial.get(name, outs[name][:, 0])
+        clean &= np.all(outs[name] > (KAPPA_SUM_RELATIVE * k_ref)[:, None], axis=1)
+    for name, thr in _denominator_thresholds(model).items():
+        if name in outs:
+            clean &= np.all(np.abs(outs[name]) > thr, axis=1)
+    for name in force_outputs(outs):
+        clean &= np.all(outs[name] > 0.0, axis=1)
+    return clean

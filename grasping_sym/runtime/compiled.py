@@ -138,6 +138,13 @@ class CompiledLibrary:
         self._c_dopri = lib.gs_dopri5
         self._c_dopri.argtypes = adaptive + [_long] + tail
         self._c_dopri.restype = _long
+        self._c_batch = getattr(lib, "gs_batch", None)  # (libraries of older versions lack it)
+        if self._c_batch is not None:
+            self._c_batch.argtypes = ([ctypes.c_int, _long, _long, _long, _dp, _double, _long, _long,
+                                       _dp, _dp, _long, _double, _double, _double, _long, _long,
+                                       _dp, _dp, _dp, _double, _double, ctypes.c_int]
+                                      + [_dp] * 7)
+            self._c_batch.restype = _long
         lib.gs_set_time_limit.argtypes = [_double]
         lib.gs_set_time_limit.restype = None
         lib.gs_stop_cause.restype = ctypes.c_int
@@ -452,6 +459,59 @@ class CompiledLibrary:
         return int(rc), t_fail.value
 
     # -- constraints and projection -------------------------------------------------
+    def batch(self, method: str, t_out: np.ndarray, X0: np.ndarray, P: np.ndarray | None, *,
+              threads: int, rtol: float = 0.0, atol: float = 0.0, h0: float = 0.0,
+              max_steps: int = 1, nstiff: int = 0, rk4: tuple[float, int, int] | None = None,
+              lo: np.ndarray | None = None, hi: np.ndarray | None = None,
+              proj_mask: np.ndarray | None = None, proj_tol: float = 0.0,
+              time_limit: float | None = None, keep: bool = False, outputs: bool = False,
+              initial: bool = False) -> dict:
+        """``gs_batch`` (``c/batch.c``): one run per row of ``X0`` (shape ``(N, nx)``) with the
+        parameters ``P`` (``(N, np)``, one row per run, or ``(np,)`` shared), over the common
+        output times ``t_out``, on ``threads`` threads with the GIL released: each run is the
+        single loop's (``radau5``, ``dopri5``, ``rk4``) call with the same arguments, bit for bit.
+
+        The arguments are expected already validated (``runtime.batch`` does that); returned:
+        ``X`` (``(N, m, nx)`` with ``keep``, else the final states ``(N, nx)``; NaN after a
+        failure), ``Y`` (the outputs there, with ``outputs``), ``Y0`` and ``CD0`` (the outputs
+        and max|Cdot| at ``X0``, with ``initial``), ``status`` (each loop's return value),
+        ``t_fail``, ``stats`` (``(N, NSTATS)``) and ``rc`` (runs that succeeded, or an error
+        code). Ctrl-C raises KeyboardInterrupt (carrying what finished as ``.batch``)."""
+        if self._c_batch is None:
+            raise RuntimeError(f"{self.path.name} has no gs_batch (built by an older grasping_sym): "
+                               "rebuild the model with gs.build(scene, force=True)")
+        n, m = X0.shape[0], t_out.shape[0]
+        rows = (n, m) if keep else (n,)
+        res = {"X": np.empty((*rows, self.nx)), "status": np.zeros(n, dtype=np.int64),
+               "t_fail": np.empty(n), "stats": np.empty((n, c_loops.NSTATS))}
+        if outputs:
+            self._need_outputs()
+            res["Y"] = np.empty((*rows, self.ny))
+        if initial:
+            res["Y0"] = np.empty((n, self.ny)) if self.has_outputs else None
+            res["CD0"] = np.empty(n) if self.has_constraints else None
+        h, nsteps, stride = rk4 or (0.0, 0, 0)
+        code = {"radau": 0, "dopri5": 1, "rk4": 2}[method]
+        shared = P is not None and P.ndim == 1
+        with c_loops.stoppable(self, None):
+            rc = self._c_batch(
+                code, int(threads), n, m, t_out.ctypes.data, float(h), int(nsteps), int(stride),
+                X0.ctypes.data, self._ptr(P), 0 if shared or P is None else self.np, float(rtol),
+                float(atol), float(h0), int(max_steps), int(nstiff), self._ptr(lo), self._ptr(hi),
+                self._ptr(proj_mask), float(proj_tol), float(time_limit or 0.0), int(keep),
+                res["X"].ctypes.data, self._ptr(res.get("Y")), self._ptr(res.get("Y0")), self._ptr(res.get("CD0")),
+                res["status"].ctypes.data, res["t_fail"].ctypes.data, res["stats"].ctypes.data)
+        res["rc"] = int(rc)
+        if rc == c_loops.ERR_INTERRUPT and self._lib.gs_stop_cause() == 1:
+            err = KeyboardInterrupt(f"simulate_many stopped by Ctrl-C ({int(np.sum(res['status'] == m))} "
+                                    f"of {n} runs had finished)")
+            err.batch = res  # type: ignore[attr-defined]
+            raise err
+        if rc == c_loops.ERR_ARGS:
+            raise ValueError(f"gs_batch rejected its arguments (method {method!r}, {n} runs, "
+                             f"{m} output times, threads = {threads})")
+        return res
+
     def _need_constraints(self) -> None:
         if not self.has_constraints:
             raise ValueError(f"{self.path.name} was built without a constraints function "

@@ -366,6 +366,58 @@ class Model:
         p = self.params(params)
         proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
+        return self._run(t_eval, drop_first, x0, own_start, p, u, method=method, rtol=rtol,
+                         atol=atol, h=h, max_steps=max_steps, outputs=outputs, checks=checks,
+                         proj=proj, time_limit=time_limit)
+
+    def simulate_many(self, t_final: float, *, x0=None, params=None, u=None, method: str = "radau",
+                      rtol: float = 1e-6, atol: float = 1e-8, t_eval=None, h: float = 1e-4,
+                      max_steps: int = 1_000_000, project: bool | float = False,
+                      outputs: bool = False, checks: bool = True, threads: int | None = None,
+                      time_limit: float | None = None):
+        """Many runs in one call: N simulations over a pool of threads in C, the GIL released
+        (``runtime.batch``); returns a ``BatchResult``.
+
+        Each run is bit for bit ``simulate(t_final, x0=x0[i], params={k: params[k][i]}, u=u[i],
+        ...)`` with the same settings (the same C loop, the same arguments); a run that fails
+        is recorded (``status``, and ``errors`` with the message ``simulate`` would raise) and
+        loses nothing of the others.
+
+        Parameters
+        ----------
+        x0
+            ``(N, n_states)`` initial states, or one state for every run (default: the
+            model's start; ``initial_state(...)`` solves consistent ones).
+        params
+            Run-time parameters (``param_names``, and the start's run-time values
+            ``start_params``) by name: one number, or an array ``(N,)``.
+        u
+            Constant inputs, ``(n_inputs,)`` or ``(N, n_inputs)``, or one table of
+            ``grasping_sym.inputs`` for every run.
+        method, rtol, atol, h, max_steps, project, checks, time_limit
+            As for ``simulate`` (the loops in C: 'radau', 'dopri5', 'rk4'); ``time_limit`` is
+            for the whole batch (runs not finished by then get status -9).
+        t_eval
+            Output times common to every run: ``x`` (``(N, m, n_states)``) and the outputs are
+            kept there; without, only the final states are.
+        outputs
+            Evaluate the outputs (at the final states, or at ``t_eval``) and, with ``checks``,
+            check the events along them as ``simulate`` does.
+        threads
+            Threads to run on (default: every core this process may use).
+        """
+        from grasping_sym.runtime import batch  # noqa: PLC0415
+
+        return batch.simulate_many(self, t_final, x0=x0, params=params, u=u, method=method,
+                                   rtol=rtol, atol=atol, t_eval=t_eval, h=h, max_steps=max_steps,
+                                   project=project, outputs=outputs, checks=checks,
+                                   threads=threads, time_limit=time_limit)
+
+    def _run(self, t_eval, drop_first, x0, own_start, p, u, *, method, rtol, atol, h, max_steps,
+             outputs, checks, proj, time_limit) -> SimulationResult:
+        """``simulate`` once its arguments are checked: ``p`` is every entry of ``p_names``
+        (the inputs' set from ``u``), ``t_eval`` starts at 0 (``drop_first``: the caller's did
+        not, so the first row is dropped), ``proj`` is ``projection.settings``'s."""
         sched = self._schedule(u, method, t_eval)
         segments = [(0.0, float(t_eval[-1]), None, None)] if sched is None else \
             sched.segments(0.0, float(t_eval[-1]))

@@ -1,0 +1,411 @@
+"""Many runs in one call: ``Model.simulate_many``.
+
+The runs go to ``gs_batch`` (``c/batch.c``): one C call integrates all of them over a pool of
+threads with the GIL released, each by the loop a single ``simulate`` calls, with the same
+arguments, so that every run's numbers are bit for bit the single run's. What ``simulate``
+checks in Python is checked here on arrays: the initial state (from the outputs and the
+constraint rates the C call evaluates at every ``x0``) and, with ``outputs=True``, the events
+along the output samples. A run that fails, in C or at a check, is run once more on its own
+through ``simulate``'s code, so its message is the single run's named error; it loses nothing
+of the other runs.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from time import perf_counter
+
+import numpy as np
+
+from grasping_sym.errors import GraspingSymError
+from grasping_sym.runtime import c_loops, projection
+from grasping_sym.runtime import checks as checks_
+
+#: The methods ``simulate_many`` runs (the loops in C).
+METHODS = ("radau", "dopri5", "rk4")
+#: ``BatchResult.status`` values besides 0 (success) and the C loops' codes (-1 ... -9).
+REFUSED, EVENT = -10, -11
+STATUS = {0: "ok", -1: "non-finite state", -2: "contact left its contour", -3: "evaluation error",
+          -5: "step size too small", -6: "too many steps", -7: "projection failed",
+          -8: "stiff (dopri5)", -9: "stopped (time limit)", REFUSED: "initial state refused",
+          EVENT: "event along the run"}
+
+
+@dataclass(repr=False)
+class BatchResult:
+    """The runs of ``Model.simulate_many``, row ``i`` for run ``i``.
+
+    Attributes
+    ----------
+    x_final
+        Final states, shape ``(N, n_states)`` (NaN where the run failed).
+    status
+        Per run: 0 success, else the reason's code (``STATUS``: the C loops' codes, ``-10`` an
+        initial state the checks refuse, ``-11`` an event along the run).
+    errors
+        Per run: ``""`` on success, else the message ``simulate`` would raise for that run.
+    t
+        The output times, shape ``(m,)`` (``[0, t_final]`` without ``t_eval``).
+    x
+        With ``t_eval``: the states at ``t``, shape ``(N, m, n_states)`` (NaN after a failure);
+        else None.
+    outputs
+        With ``outputs=True``: name -> values at the final state ``(N,)``, or at ``t``
+        ``(N, m)`` with ``t_eval``.
+    x0, params
+        The runs' initial states ``(N, n_states)`` and run-time parameters (name -> ``(N,)``).
+    stats
+        Per-run integrator counters (name -> ``(N,)``), as ``simulate``'s ``stats``.
+    wall_time
+        Seconds for the whole call.
+    """
+
+    x_final: np.ndarray
+    status: np.ndarray
+    errors: np.ndarray
+    t: np.ndarray
+    state_names: tuple[str, ...]
+    method: str
+    x0: np.ndarray
+    params: dict[str, np.ndarray]
+    x: np.ndarray | None = None
+    outputs: dict[str, np.ndarray] = field(default_factory=dict)
+    stats: dict[str, np.ndarray] = field(default_factory=dict)
+    wall_time: float = 0.0
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Per run: True where it succeeded."""
+        return self.status == 0
+
+    def __len__(self) -> int:
+        return len(self.status)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A final state or an output by name, over the runs (``(N,)``, or ``(N, m)`` for an
+        output at every output time)."""
+        if name in self.state_names:
+            return self.x_final[:, self.state_names.index(name)]
+        if name in self.outputs:
+            return self.outputs[name]
+        raise KeyError(f"{name!r} is neither a state {self.state_names} nor an output "
+                       f"{tuple(self.outputs)}")
+
+    def __repr__(self) -> str:
+        n, failed = len(self), int(np.sum(self.status != 0))
+        why = ""
+        if failed:
+            codes, counts = np.unique(self.status[self.status != 0], return_counts=True)
+            why = " (" + ", ".join(f"{c} {STATUS.get(int(k), k)}" for k, c in zip(codes, counts)) + ")"
+        dense = f", {len(self.t)} output times" if self.x is not None else ""
+        return (f"BatchResult({n} runs of {self.method}, {n - failed} ok, {failed} failed{why}"
+                f"{dense}, {self.wall_time:.3g} s)")
+
+
+def default_threads() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = None, u=None,
+                  method: str = "radau", rtol: float = 1e-6, atol: float = 1e-8, t_eval=None,
+                  h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float = False,
+                  outputs: bool = False, checks: bool = True, threads: int | None = None,
+                  time_limit: float | None = None) -> BatchResult:
+    """``Model.simulate_many`` (documented there)."""
+    from grasping_sym.runtime.model import _output_times, _positive, _states, real  # noqa: PLC0415
+
+    start = perf_counter()
+    if method not in METHODS:
+        raise ValueError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
+                         "(cvodes and idas run through CasADi one at a time: loop over simulate)")
+    t_final = real("t_final", t_final, "seconds")
+    if not t_final > 0:
+        raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
+    _positive("rtol", rtol)
+    _positive("atol", atol)
+    if method == "rk4":
+        _positive("h", h, "the RK4 step (s)")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps <= 0:
+        raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
+    if time_limit is not None:
+        time_limit = real("time_limit", time_limit, "seconds of wall time")
+        if not time_limit > 0:
+            raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds) or None")
+    threads = default_threads() if threads is None else threads
+    if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
+        raise ValueError(f"threads = {threads!r} must be a positive integer (None: every core)")
+    dense = t_eval is not None
+    grid, drop_first = _output_times([0.0, t_final] if t_eval is None else t_eval, t_final)
+    if outputs and not model.output_names:
+        raise ValueError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
+                         "the scene with outputs=(...) naming the ones you need")
+
+    n_runs = _count(model, x0, params, u)
+    X0 = _initial_states(model, x0, n_runs, _states)
+    P, pdict = _parameters(model, params, n_runs)
+    sched, U = _inputs(model, u, n_runs, method, grid)
+    if U is not None:
+        k = model.p_names.index(model.input_names[0])
+        P[:, k:k + len(model.input_names)] = U
+    proj = projection.settings(model, project, method)
+    settings = dict(method=method, rtol=float(rtol), atol=float(atol), h=float(h),
+                    max_steps=int(max_steps), proj=proj, time_limit=time_limit)
+
+    res = _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, settings)
+    status = np.where(res["status"] == res["ok_code"], 0, res["status"]).astype(np.int64)
+    X, Y = res["X"], res.get("Y")
+    if checks and n_runs:
+        own = x0 is None
+        refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own)
+        started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
+        status[refused & started] = REFUSED  # simulate refuses before it integrates
+        if outputs and Y is not None:
+            Y0 = res.get("Y0")
+            ys = _output_dict(model, Y if dense else np.stack([Y0, Y], axis=1))
+            hit = ~checks_.trajectory_clean(model, grid, ys, initial=_output_dict(model, Y0))
+            status[hit & (status == 0)] = EVENT
+    failed = np.flatnonzero(status != 0)
+    errors = np.full(n_runs, "", dtype=object)
+    for i in failed:
+        if status[i] == c_loops.ERR_INTERRUPT:  # the batch's time limit: not the run's doing
+            errors[i] = (f"stopped: the batch's wall-time limit of {time_limit:g} s was reached "
+                         "before this run finished (raise time_limit, or run fewer at a time)")
+            continue
+        errors[i] = _message(model, i, grid, drop_first, X0[i], x0 is None, P[i], U, sched,
+                             outputs, checks, settings, int(status[i]))
+    bad = status != 0
+    if dense:
+        X[bad] = np.nan
+        x_final = X[:, -1, :].copy()
+    else:
+        X[bad] = np.nan
+        x_final = X
+    outs = {}
+    if outputs and Y is not None:
+        Y[bad] = np.nan
+        outs = _output_dict(model, Y)
+    t_out = grid
+    x_all = X if dense else None
+    if dense and drop_first:
+        t_out, x_all = grid[1:], X[:, 1:]
+        outs = {k: v[:, 1:] for k, v in outs.items()}
+    stats = _stats(method, res["stats"], proj[0] is not None)
+    return BatchResult(x_final=x_final, status=status, errors=errors,
+                       t=t_out if dense else np.array([0.0, t_final]),
+                       state_names=model.state_names, method=method, x0=X0, params=pdict,
+                       x=x_all, outputs=outs, stats=stats, wall_time=perf_counter() - start)
+
+
+def _count(model, x0, params, u) -> int:
+    """N: the rows of ``x0`` (2-D), of the parameters' arrays and of a per-run ``u``, which
+    must agree (1 when everything is shared)."""
+    sizes = {}
+    if x0 is not None and np.ndim(x0) == 2:
+        sizes["x0"] = np.shape(x0)[0]
+    for k, v in (params or {}).items() if isinstance(params, Mapping) else ():
+        if np.ndim(v) == 1:
+            sizes[f"params[{k!r}]"] = len(v)
+        elif np.ndim(v) > 1:
+            raise ValueError(f"params[{k!r}] has shape {np.shape(v)}: give one number, or one per "
+                             "run (shape (N,))")
+    if u is not None and not hasattr(u, "segments") and np.ndim(u) == 2:
+        sizes["u"] = np.shape(u)[0]
+    if len(set(sizes.values())) > 1:
+        raise ValueError("simulate_many: the number of runs differs between "
+                         + ", ".join(f"{k} ({v} rows)" for k, v in sizes.items())
+                         + ": give every per-run array the same length N")
+    return next(iter(sizes.values()), 1)
+
+
+def _initial_states(model, x0, n: int, as_numbers) -> np.ndarray:
+    nx = len(model.state_names)
+    if x0 is None:
+        return np.tile(model.initial_state(), (n, 1))
+    X0 = as_numbers("x0", x0)
+    if X0.ndim == 1:
+        X0 = np.tile(X0, (n, 1))
+    if X0.shape != (n, nx):
+        raise ValueError(f"x0 has shape {np.shape(x0)}; give ({nx},) for every run or (N, {nx}), "
+                         f"columns ordered as {model.state_names}")
+    bad = np.flatnonzero(~np.all(np.isfinite(X0), axis=1))
+    if bad.size:
+        raise ValueError(f"x0 has non-finite entries in {bad.size} row(s), the first row {int(bad[0])}: "
+                         "give finite initial states")
+    return np.ascontiguousarray(X0)
+
+
+def _parameters(model, params, n: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Every run's ``p`` (``(N, len(p_names))``) and the run-time parameters by name. ``params``
+    may name the run-time parameters and the start's run-time values (``model.start_params``:
+    e.g. the 3D spring's rest point of a start set with ``with_start``)."""
+    if params is not None and not isinstance(params, Mapping):
+        raise TypeError(f"params is {type(params).__name__}: give a dict name -> number or array (N,)")
+    P = np.tile(model.default_params, (n, 1)) if model.p_names else np.zeros((n, 0))
+    allowed = (*model.param_names, *model.start_params)
+    rules = model.manifest.get("param_rules", {})
+    for k, v in (params or {}).items():
+        if k not in allowed:
+            folded = "" if model.param_names else " (this model has none: build the scene with runtime=(...))"
+            raise ValueError(f"{k!r} is not a run-time parameter of this model{folded}; run-time: "
+                             f"{model.param_names}, start values: {tuple(model.start_params)}")
+        arr = np.asarray(v)
+        if arr.dtype.kind not in "fiu":
+            raise TypeError(f"params[{k!r}] must be numbers, got {arr.dtype} ({v!r:.60})")
+        arr = np.broadcast_to(arr.astype(float), (n,))
+        rule = rules.get(k, "finite")
+        bad = ~np.isfinite(arr) | ((arr <= 0) if rule == "positive" else (arr < 0) if rule == "nonnegative"
+                                   else np.zeros(n, dtype=bool))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            need = {"positive": "finite and > 0", "nonnegative": "finite and >= 0"}.get(rule, "finite")
+            raise ValueError(f"params[{k!r}] must be {need} (as the scene requires of {k}); run {i} "
+                             f"has {arr[i]!r} ({int(bad.sum())} run(s) bad)")
+        P[:, model.p_names.index(k)] = arr
+    pdict = {k: P[:, model.p_names.index(k)].copy() for k in model.param_names}
+    return P, pdict
+
+
+def _inputs(model, u, n: int, method: str, grid: np.ndarray):
+    """``(schedule, U)``: a table shared by every run (``grasping_sym.inputs``, the runs restart
+    at its knots, as ``simulate``'s), or constant inputs ``U`` of shape ``(N, n_inputs)``."""
+    if not model.input_names:
+        if u is not None:
+            raise ValueError("u given, but this model has no inputs: build the scene with "
+                             "inputs='torques'")
+        return None, None
+    k = len(model.input_names)
+    if u is not None and hasattr(u, "segments"):
+        sched = model._schedule(u, method, grid)
+        if len(sched.segments(0.0, float(grid[-1]))) == 1:
+            return None, np.tile(sched(0.0), (n, 1))
+        return sched, None
+    arr = np.zeros(k) if u is None else np.asarray(u)
+    if arr.dtype.kind not in "fiu":
+        raise TypeError(f"u must be numbers (one per input {model.input_names}, or (N, {k})) or a "
+                        "table of grasping_sym.inputs")
+    arr = arr.astype(float)
+    if arr.shape not in ((k,), (n, k)) and not (arr.ndim == 0 and k == 1):
+        raise ValueError(f"u has shape {arr.shape}; give ({k},) for every run or (N, {k}), "
+                         f"ordered as {model.input_names}")
+    U = np.broadcast_to(arr.reshape(-1, k) if arr.ndim else arr.reshape(1, 1), (n, k)).copy()
+    if not np.all(np.isfinite(U)):
+        raise ValueError("u has non-finite entries: give finite torques (N m)")
+    return None, U
+
+
+def _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, s) -> dict:
+    """The C batch over the output ``grid`` (segment by segment for a table of inputs)."""
+    lib = model.library
+    method = s["method"]
+    timed = bool(model.manifest.get("outputs_time"))
+    in_c = not timed and sched is None  # outputs the compiled batch can evaluate itself
+    kw = dict(threads=threads, rtol=s["rtol"], atol=s["atol"], max_steps=s["max_steps"],
+              nstiff=c_loops.NSTIFF if method == "dopri5" else 0, lo=model.lower, hi=model.upper,
+              proj_mask=s["proj"][0], proj_tol=s["proj"][1], time_limit=s["time_limit"],
+              rk4=_rk4_grid(grid, s["h"]) if method == "rk4" else None)
+    if sched is None:
+        res = lib.batch(method, grid, X0, P, keep=dense, outputs=outputs and in_c,
+                        initial=checks and not timed, **kw)
+    else:
+        res = _segments(model, method, grid, X0, P, sched, dense, checks and not timed, kw)
+    res["ok_code"] = len(grid)
+    first = (P if sched is None else
+             np.array([model.with_inputs(row, *sched.segments(0.0, float(grid[-1]))[0][2:])
+                       for row in P]))
+    if checks and timed and model.output_names:  # a law that reads the time: at t = 0
+        res["Y0"] = np.array([model._output_row(x, p, 0.0) for x, p in zip(X0, first)])
+    if outputs and not in_c:  # outputs that read the time or a table's ramps: run by run
+        rows = res["X"] if dense else res["X"][:, None, :]
+        tt = grid if dense else grid[-1:]
+        Y = np.full((*rows.shape[:2], len(model.output_names)), np.nan)
+        for i in np.flatnonzero(res["status"] == res["ok_code"]):
+            outs = model._outputs_along(tt, rows[i], P[i], sched)
+            Y[i] = np.column_stack([outs[k] for k in model.output_names])
+        res["Y"] = Y if dense else Y[:, 0, :]
+    return res
+
+
+def _segments(model, method, grid, X0, P, sched, dense, initial, kw) -> dict:
+    """A table of inputs: every run restarts at its knots, as ``simulate``'s runs do, each
+    segment one C batch over the runs still going (on the single run's grid: the same
+    numbers)."""
+    lib = model.library
+    n, nx = X0.shape
+    x_now = X0.copy()
+    status = np.full(n, len(grid), dtype=np.int64)
+    t_fail = np.full(n, np.nan)
+    stats = np.zeros((n, c_loops.NSTATS))
+    rows_t, rows_x, out = [], [], {}
+    for k, (s0, s1, a, b) in enumerate(sched.segments(0.0, float(grid[-1]))):
+        go = np.flatnonzero(status == len(grid))
+        g = np.array([s0, *grid[(grid > s0) & (grid < s1)], s1])
+        Xk = np.full((n, len(g), nx), np.nan)
+        if len(go):
+            Pk = np.array([model.with_inputs(row, a, b) for row in P[go]])
+            res = lib.batch(method, g, np.ascontiguousarray(x_now[go]), Pk, keep=True,
+                            initial=initial and k == 0, **kw)
+            if k == 0 and initial:
+                out = {"Y0": res.get("Y0"), "CD0": res.get("CD0")}
+            ok = res["status"] == len(g)
+            status[go[~ok]] = res["status"][~ok]
+            t_fail[go[~ok]] = res["t_fail"][~ok]
+            stats[go] += res["stats"]
+            Xk[go] = res["X"]
+            x_now[go[ok]] = res["X"][ok, -1]
+        rows_t.append(g if k == 0 else g[1:])
+        rows_x.append(Xk if k == 0 else Xk[:, 1:])
+    keep = np.isin(np.concatenate(rows_t), grid)
+    X = np.concatenate(rows_x, axis=1)[:, keep]
+    return {**out, "X": np.ascontiguousarray(X if dense else X[:, -1]), "status": status,
+            "t_fail": t_fail, "stats": stats}
+
+
+def _rk4_grid(grid: np.ndarray, h: float) -> tuple[float, int, int]:
+    """``(h, nsteps, stride)`` of ``gs_rk4`` for the uniform ``grid``, as a single run takes them
+    (``integrators.rk4``, ``c_loops.rk4``)."""
+    t0, t1 = float(grid[0]), float(grid[-1])
+    n_out = len(grid) - 1
+    dt_out = (t1 - t0) / n_out
+    if not np.allclose(np.diff(grid), dt_out, rtol=1e-9, atol=1e-15):
+        raise ValueError("rk4 reports on a uniform grid: give a uniformly spaced t_eval")
+    stride = max(1, math.ceil(dt_out / h - 1e-9))
+    h_eff, nsteps = c_loops.rk4_steps(t0, t1, dt_out / stride, stride)
+    return h_eff, nsteps, stride
+
+
+def _output_dict(model, Y: np.ndarray | None) -> dict[str, np.ndarray]:
+    if Y is None:
+        return {}
+    return {k: np.ascontiguousarray(Y[..., i]) for i, k in enumerate(model.output_names)}
+
+
+def _message(model, i, grid, drop_first, x0, own_start, p, U, sched, outputs, checks, s,
+             status: int) -> str:
+    """Run ``i`` once more on its own, by ``simulate``'s code: its named error's message."""
+    u = sched if sched is not None else (None if U is None else U[i])
+    try:
+        model._run(grid, drop_first, x0, own_start, p, u, method=s["method"], rtol=s["rtol"],
+                   atol=s["atol"], h=s["h"], max_steps=s["max_steps"], outputs=outputs,
+                   checks=checks, proj=s["proj"], time_limit=s["time_limit"])
+    except (GraspingSymError, ValueError) as exc:
+        return f"{type(exc).__name__}: {exc}"
+    return (f"status {status} ({STATUS.get(status, 'unknown')}) in the batch, but the run alone "
+            "succeeded: please report this")
+
+
+def _stats(method: str, st: np.ndarray, projected: bool) -> dict[str, np.ndarray]:
+    names = c_loops._STATS.get(method, ("n_steps", "n_rejected", "n_rhs"))
+    out = {k: st[:, j].astype(np.int64) for j, k in enumerate(names)}
+    if method == "rk4":
+        out = {"n_steps": st[:, 0].astype(np.int64), "n_rhs": st[:, 2].astype(np.int64)}
+    if projected:
+        out.update(n_constraint_evals=st[:, 8].astype(np.int64), max_drift=st[:, 9].copy(),
+                   max_drift_rate=st[:, 10].copy())
+    return out
