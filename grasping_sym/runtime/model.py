@@ -13,7 +13,7 @@ from grasping_sym.errors import (
     IntegratorError,
 )
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import integrators, projection, safety, stored
+from grasping_sym.runtime import fastpath, integrators, projection, safety, stored
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
 
@@ -66,6 +66,9 @@ class Model:
         self._guarded = None
         self._integrators: dict = {}
         self._public: dict = {}
+        self._plans: dict = {}  # runtime.fastpath: settings the full path accepted
+        self._checked: dict = {}  # runtime.fastpath: initial states whose checks passed
+        self._pdict = dict(zip(self.param_names, map(float, self.default_params)))
         if not self.p_names:
             # bind the compiled calls directly: no Python wrapper in the way
             self.rhs = self.library.rhs
@@ -335,6 +338,15 @@ class Model:
         InconsistentInitialStateError
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
+        short = (t_eval is not None and params is None and u is None and time_limit is None
+                 and (not outputs or not self.output_names))
+        if short:  # runtime.fastpath: settings a previous call accepted, straight to C
+            plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks)
+            plan = self._plans.get(plan_key) if plan_key is not None else None
+            if plan is not None and type(t_final) in (float, int):
+                res = fastpath.run(self, plan, t_final, t_eval, x0)
+                if res is not None:
+                    return res
         if method not in integrators.METHODS:
             raise ValueError(f"method {method!r} unknown: choose one of {integrators.METHODS}")
         t_final = real("t_final", t_final, "seconds")
@@ -366,9 +378,15 @@ class Model:
         p = self.params(params)
         proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
-        return self._run(t_eval, drop_first, x0, own_start, p, u, method=method, rtol=rtol,
-                         atol=atol, h=h, max_steps=max_steps, outputs=outputs, checks=checks,
-                         proj=proj, time_limit=time_limit)
+        res = self._run(t_eval, drop_first, x0, own_start, p, u, method=method, rtol=rtol,
+                        atol=atol, h=h, max_steps=max_steps, outputs=outputs, checks=checks,
+                        proj=proj, time_limit=time_limit)
+        if short:  # the settings and x0 passed: later calls may take the short way
+            fastpath.remember(self, fastpath.key(method, rtol, atol, max_steps, project, checks),
+                              method, rtol, atol, max_steps, proj, checks)
+            if checks:
+                fastpath.checked(self, None if own_start else x0)
+        return res
 
     def simulate_many(self, t_final: float, *, x0=None, params=None, u=None, method: str = "radau",
                       rtol: float = 1e-6, atol: float = 1e-8, t_eval=None, h: float = 1e-4,

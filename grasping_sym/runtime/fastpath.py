@@ -1,0 +1,106 @@
+"""The short way through ``Model.simulate`` for the calls a loop makes again and again.
+
+A call with output times given, no outputs, no inputs, no run-time parameters given and no time
+limit, whose settings (method, tolerances, ``max_steps``, ``project``, ``checks``) a previous
+call of the full path accepted, goes straight to the C loop (``gs_radau5`` / ``gs_dopri5``
+through the library's CPython extension): the settings were validated then and are kept here as
+a *plan*; the initial checks of an ``x0`` (a pure function of ``x0`` and ``p``) are
+remembered for the last few states. The C loop validates the output times and ``x0`` itself; a
+run that fails, or arguments this path does not take, go the full way, which names the
+problem. The numbers are the full path's, bit for bit (the same call with the same arrays).
+"""
+from __future__ import annotations
+
+from time import perf_counter
+
+import numpy as np
+
+from grasping_sym.runtime.c_loops import _STATS, ERR_INTERRUPT, NSTATS, NSTIFF
+from grasping_sym.runtime.result import SimulationResult
+
+#: Initial states whose checks passed, remembered per model (the oldest dropped beyond this).
+CHECKED_STATES = 64
+
+
+class Plan:
+    """What the full path decided for one set of settings."""
+
+    __slots__ = ("method", "code", "rtol", "atol", "max_steps", "nstiff", "mask", "proj_tol",
+                 "checks", "names", "projected")
+
+    def __init__(self, method: str, rtol: float, atol: float, max_steps: int, proj, checks: bool):
+        self.method, self.code = method, 0 if method == "radau" else 1
+        self.rtol, self.atol, self.max_steps = float(rtol), float(atol), int(max_steps)
+        self.nstiff = NSTIFF if method == "dopri5" else 0
+        self.mask, self.proj_tol = proj
+        self.projected = self.mask is not None
+        self.checks = bool(checks)
+        self.names = _STATS[method]
+
+
+def key(method, rtol, atol, max_steps, project, checks):
+    """The settings' key of a plan (None when one of them cannot be a key)."""
+    try:
+        k = (method, rtol, atol, max_steps, project, checks)
+        hash(k)
+    except TypeError:
+        return None
+    return k
+
+
+def remember(model, k, method, rtol, atol, max_steps, proj, checks) -> None:
+    """After the full path ran with these settings: keep them as a plan (C-loop methods with
+    the fast extension only)."""
+    if k is None or method not in ("radau", "dopri5") or not model.library.fast:
+        return
+    model._plans[k] = Plan(method, rtol, atol, max_steps, proj, checks)
+
+
+def checked(model, x0: np.ndarray | None) -> None:
+    """Remember that ``x0`` (None: the model's start) passed the initial checks with the
+    model's own ``p``."""
+    memo = model._checked
+    memo[b"" if x0 is None else x0.tobytes()] = True
+    if len(memo) > CHECKED_STATES:
+        del memo[next(iter(memo))]
+
+
+def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
+    """The run on the short way, or None when it must go the full way (arguments it does not
+    take, checks not yet passed for this ``x0``, or a failed run)."""
+    t = np.array(t_eval, dtype=float)
+    if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or t[-1] != t_final:
+        return None
+    if x0 is None:
+        x = model._x0
+        if plan.checks and b"" not in model._checked:
+            return None
+    else:
+        x = np.ascontiguousarray(x0, dtype=float)
+        if x.shape != model._x0.shape or (plan.checks and x.tobytes() not in model._checked):
+            return None
+    m = t.size
+    lib = model.library
+    out = np.empty((m + 1, lib.nx))
+    stats = np.zeros(NSTATS)
+    start = perf_counter()
+    rc, _ = lib._ext.adaptive(plan.code, t, x, model.default_params if model.p_names else None,
+                              plan.rtol, plan.atol, 0.0, plan.max_steps, plan.nstiff, model.lower,
+                              model.upper, plan.mask, plan.proj_tol, out, stats)
+    wall = perf_counter() - start
+    if rc != m:
+        if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
+            raise KeyboardInterrupt(f"{plan.method} stopped by Ctrl-C")
+        return None
+    st = stats.tolist()
+    info = {k: int(v) for k, v in zip(plan.names, st)}
+    info["h_last"] = st[7]
+    info["wall_time"] = wall
+    if plan.projected:
+        info["n_constraint_evals"] = int(st[8])
+        info["max_drift"] = st[9]
+        info["max_drift_rate"] = st[10]
+    if plan.code == 1:
+        info["h_lambda"] = st[13]
+        info["n_stiff_tests"] = int(st[14])
+    return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))
