@@ -24,10 +24,11 @@ _LAZY = {
     "Model": ("grasping_sym.runtime.model", "Model"),
     "controllers": ("grasping_sym.controllers", None),
     "inputs": ("grasping_sym.inputs", None),
+    "sweep": ("grasping_sym.sweeps", "sweep"),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "controllers", "inputs", "__version__"]
+           "controllers", "inputs", "sweep", "__version__"]
 
 
 def __getattr__(name: str):

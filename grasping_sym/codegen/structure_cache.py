@@ -30,8 +30,8 @@ from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
 from grasping_sym.codegen.structure import StructureFunctions
 from grasping_sym.runtime import safety, stored
 
-__all__ = ["META", "derive_afresh", "ensure", "externals", "library", "link_objects", "structure_name",
-           "write_structure"]
+__all__ = ["META", "derive_afresh", "ensure", "externals", "install_files", "library", "link_objects",
+           "structure_name", "write_structure"]
 
 META = "structure.json"
 DIR = "structures"
@@ -146,6 +146,20 @@ def _install(directory: Path, fill) -> None:
         names = sorted(p.name for p in Path(tmp).iterdir())
         for n in sorted(names, key=lambda n: n == META):  # the record last: it marks complete
             os.replace(Path(tmp) / n, directory / n)
+
+
+def install_files(entry: dict, files: dict[str, bytes]) -> None:
+    """A structure's files as another machine sent them (``runtime.portable``), into this
+    machine's cache when it lacks the structure ``entry`` names."""
+    try:
+        locate(entry)
+        return
+    except FileNotFoundError:
+        pass
+    if any(Path(f).name != f for f in files):
+        raise safety.CorruptCacheError(f"the structure sent names files outside its directory: {sorted(files)}")
+    _install(_entries() / entry["name"],
+             lambda d: [(d / f).write_bytes(content) for f, content in files.items()])
 
 
 def link_objects(meta: dict, directory: Path) -> list[Path]:

@@ -76,6 +76,13 @@ class Model:
         elif self.input_names:
             self.rhs = self._rhs_with_inputs
 
+    def __reduce__(self):
+        """Pickled as its manifest, start, C and library bytes (``runtime.portable``): another
+        process or machine makes the same model from its cache, the bytes, or the C."""
+        from grasping_sym.runtime import portable  # noqa: PLC0415
+
+        return portable.restore, (portable.payload(self),)
+
     def __repr__(self) -> str:
         inputs = f", inputs={self.input_names}" if self.input_names else ""
         return (f"Model({self.name!r}, states={self.state_names}, "

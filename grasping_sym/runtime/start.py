@@ -43,13 +43,19 @@ def start_record(model, values: dict[str, float]) -> dict:
     fingertip centre there), or the model's own where the scene fixes them (2D: the pivot)."""
     from grasping_sym.runtime import stored  # noqa: PLC0415
 
-    x = solve(model, values)
-    implied = _conditions_function(model)(x)[2]
-    start = dict(model.start_params)
-    if implied.size:
-        start = dict(zip(model.start_params, map(float, implied)))
+    x, start = start_point(model, values)
     key = hashlib.sha256(f"{model.start['key']}+{sorted(values.items())!r}".encode()).hexdigest()
     return stored.start_record(x, start, key, {"given": dict(values), "from": model.start["key"]})
+
+
+def start_point(model, values: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
+    """``solve``'s state and the start's run-time values it implies (3D: the centre spring's
+    rest point at the new mean fingertip centre; 2D: the model's own, the pivot stays)."""
+    x = solve(model, values)
+    implied = _conditions_function(model)(x)[2]
+    if implied.size:
+        return x, dict(zip(model.start_params, map(float, implied)))
+    return x, dict(model.start_params)
 
 
 def solve(model, values: dict[str, float]) -> np.ndarray:
