@@ -1,4 +1,4 @@
-"""Command line: ``grasping-sym list | simulate | generate | bench``.
+"""Command line: ``grasping-sym list | simulate | sweep | generate | bench``.
 
 Errors raised on purpose by the package (``GraspingSymError``) are printed as one message
 on stderr with exit code 2, without a traceback. Progress of slow stages (deriving,
@@ -122,6 +122,54 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- sweep
+def cmd_sweep(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from grasping_sym.pipeline import build
+    from grasping_sym.sweep_plots import FAILURE, sweep_figure
+    from grasping_sym.sweeps import parse_range, sweep
+
+    try:
+        grid = dict(parse_range(text) for text in args.param)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if not grid:
+        raise UsageError("give at least one --param NAME=START:STOP:NUM")
+    factory = _scene_factory(args.name)
+    probe = factory()
+    runtime = tuple(k for k in grid if not (k.endswith("_0") and k[:-2] in probe.state_names)
+                    and k not in getattr(probe, "input_names", ()))
+    scene = factory(runtime=runtime) if runtime else probe
+    model = build(scene, progress=_say)
+    show = args.show or ("theta" if "theta" in model.state_names else model.state_names[0])
+    measures = [f"{show.split('_', 1)[0]}:{show.split('_', 1)[1]}"] \
+        if show.split("_", 1)[0] in ("min", "max", "settle") and "_" in show else []
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    n = int(np.prod([len(v) for v in grid.values()]))
+    _say(f"sweeping {scene.name} over {' x '.join(f'{k} ({len(v)})' for k, v in grid.items())} = "
+         f"{n} runs of {args.t_final:g} s")
+    t0 = time.perf_counter()
+    ds = sweep(model, grid, args.t_final, store=out / "sweep.zarr", measures=measures,
+               method=args.method, rtol=args.rtol, atol=args.atol, chunk=args.chunk,
+               client="processes" if args.processes else None, progress=not args.quiet)
+    wall = time.perf_counter() - t0
+    figure = sweep_figure(ds, show, out / f"{show}.png")
+    status = ds["status"].values
+    codes, counts = np.unique(status[status != 0], return_counts=True)
+    lines = [f"scene            {scene.name}",
+             f"points           {n} ({int((status == 0).sum())} ok"
+             + "".join(f", {c} with status {k}" for k, c in zip(codes, counts)) + ")",
+             f"run now          {ds.attrs['chunks_run']} of {ds.attrs['chunks_total']} chunks "
+             f"({ds.attrs['chunks_total'] - ds.attrs['chunks_run']} were stored already)",
+             f"wall time        {wall:.2f} s",
+             f"store            {out / 'sweep.zarr'} (group {ds.attrs['group']})",
+             f"figure           {figure}" + ("" if show != FAILURE else " (failures)")]
+    print("\n".join(lines))
+    return 0
+
+
 # ---------------------------------------------------------------------------- generate
 # Regenerates the committed C of built-in scenes (generated/<name>/) or, with --check,
 # verifies it is up to date (grasping_sym.pipeline.generate_committed).
@@ -191,6 +239,32 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--h", type=_positive_float, default=1e-4,
                    help="fixed step of rk4 in s (default 1e-4)")
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("sweep", help="simulate a scene over a grid of parameters and starting poses, "
+                                     "store the results (Zarr) and draw a heat map",
+                       description="Runs every point of the grid (the Cartesian product of the --param "
+                                   "ranges) with simulate_many on Dask, stores the results in "
+                                   "OUT/sweep.zarr (a rerun resumes) and draws --show over the grid.")
+    p.add_argument("name", metavar="NAME", help="built-in scene (see `list`)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=START:STOP:NUM",
+                   help="a grid axis: a run-time parameter (e.g. fd), a starting pose value "
+                        "(e.g. q1_0) or an input; NUM values from START to STOP, or V1,V2,...; "
+                        "repeat for more axes")
+    p.add_argument("--t-final", type=_positive_float, default=3.0, help="simulated time in s (default 3)")
+    p.add_argument("--out", required=True, help="output directory (created if missing)")
+    p.add_argument("--show", default=None,
+                   help="what the figure shows: a final state (e.g. theta, the default), "
+                        "settle_<state> (settling time), min_<output> (e.g. min_f, the smallest "
+                        "normal force), max_<output>, or failure")
+    p.add_argument("--method", choices=("radau", "dopri5", "rk4"), default="radau",
+                   help="integrator (default radau)")
+    p.add_argument("--rtol", type=_positive_float, default=1e-6, help="relative tolerance (default 1e-6)")
+    p.add_argument("--atol", type=_positive_float, default=1e-8, help="absolute tolerance (default 1e-8)")
+    p.add_argument("--chunk", type=int, default=None, help="runs per Dask task (default 2000)")
+    p.add_argument("--processes", action="store_true",
+                   help="run on a local cluster of worker processes (default: threads here)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("generate", help="regenerate (or --check) the committed C of built-ins")
     p.add_argument("names", nargs="*", metavar="NAMES", help="scenes (default: all)")
