@@ -143,8 +143,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     scene = factory(runtime=runtime) if runtime else probe
     model = build(scene, progress=_say)
     show = args.show or ("theta" if "theta" in model.state_names else model.state_names[0])
-    measures = [f"{show.split('_', 1)[0]}:{show.split('_', 1)[1]}"] \
-        if show.split("_", 1)[0] in ("min", "max", "settle") and "_" in show else []
+    kind, _, quantity = show.partition("_")
+    # the same measures whatever is shown, so that another --show reads the same store
+    measures = ["settle:theta"] if "theta" in model.state_names else []
+    measures += [f"min:{f}" for f in model.output_names if f == "f" or f[:1] == "f" and f[1:].isdigit()]
+    if kind in ("min", "max", "settle") and quantity and f"{kind}:{quantity}" not in measures:
+        measures.append(f"{kind}:{quantity}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     n = int(np.prod([len(v) for v in grid.values()]))

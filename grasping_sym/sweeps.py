@@ -376,10 +376,10 @@ def _client(client):
 
     if client is None:
         return Client(processes=False, n_workers=1, threads_per_worker=default_threads(),
-                      dashboard_address=None), True
+                      dashboard_address=":0"), True
     if client == "processes":
         cluster = LocalCluster(n_workers=default_threads(), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")
         return Client(cluster), True
     if not hasattr(client, "submit"):
         raise TypeError(f"client = {client!r}: give None (threads here), 'processes' or a "
