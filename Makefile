@@ -1,5 +1,5 @@
 # Developer loop. Every target installs what it needs into .venv first (scripts/env.sh).
-.PHONY: install demo test bench bench-control generate lint clean
+.PHONY: install demo test bench bench-control bench-batch generate lint clean
 SH := bash
 
 install:
@@ -16,6 +16,9 @@ bench:
 
 bench-control:
 	$(SH) -c 'source scripts/env.sh && python -m benchmarks.control'
+
+bench-batch:
+	$(SH) -c 'source scripts/env.sh && python -m benchmarks.batch'
 
 generate:
 	$(SH) -c 'source scripts/env.sh && grasping-sym generate --all'
