@@ -77,8 +77,13 @@ def paper2d(log) -> dict:
         model.simulate(T_FINAL, params={"fd": float(f)}, **single)
     loop = loop_n / (time.perf_counter() - t0)
     log(f"  paper2d: {one['per_s']:.0f}/s on 1 thread, {two['per_s']:.0f}/s on 2, loop {loop:.0f}/s")
+    # the paper's own run (fd = 0.5 N), N times: the setting that meets 1e-8 for it alone
+    own = {"fd": np.full(n, 0.5)}
+    kw_own, err_own = _choose(model, own, CANDIDATES_2D, np.array([0]), log)
+    paper = {**_rate(model, own, kw_own, 1), "settings": kw_own, "error": err_own}
+    log(f"  paper2d, the paper's run repeated: {paper['per_s']:.0f}/s on 1 thread")
     return {"settings": kw, "error": err, "one": one, "two": two, "loop_per_s": loop,
-            "scaling": two["per_s"] / one["per_s"], "vs_loop": one["per_s"] / loop}
+            "scaling": two["per_s"] / one["per_s"], "vs_loop": one["per_s"] / loop, "paper": paper}
 
 
 def overhead(log) -> dict:
@@ -116,12 +121,15 @@ def sweep(log, n_fd: int = 400, n_q: int = 250) -> dict:
     model = gs.build(gs.scenes.paper2d(name="paper2d_proj", gf=0, gl=0, wf=0, wl=0, runtime=("fd",)))
     kw = dict(method="radau", rtol=1e-3, atol=1e-7, project=True)
     fd, q1 = np.linspace(0.4, 0.8, n_fd), np.linspace(0.55, 0.9, n_q)
-    starts = np.array([model.initial_state(q1=q) for q in q1])
-    x0 = np.repeat(starts[None], n_fd, axis=0).reshape(-1, starts.shape[1])
-    pf = np.repeat(fd, n_q)
-    t0 = time.perf_counter()
-    ref = model.simulate_many(T_FINAL, x0=x0, params={"fd": pf}, threads=2, **kw)
-    t_many = time.perf_counter() - t0
+    many = []
+    for _ in range(2):  # the user of simulate_many solves the starts too: counted
+        t0 = time.perf_counter()
+        starts = np.array([model.initial_state(q1=q) for q in q1])
+        x0 = np.repeat(starts[None], n_fd, axis=0).reshape(-1, starts.shape[1])
+        pf = np.repeat(fd, n_q)
+        ref = model.simulate_many(T_FINAL, x0=x0, params={"fd": pf}, threads=2, **kw)
+        many.append(time.perf_counter() - t0)
+    t_many = min(many)
     t0 = time.perf_counter()
     cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0")
     client = Client(cluster)
@@ -129,13 +137,16 @@ def sweep(log, n_fd: int = 400, n_q: int = 250) -> dict:
     t_start = time.perf_counter() - t0
     store = Path(tempfile.mkdtemp()) / "bench.zarr"
     try:
-        t0 = time.perf_counter()
-        ds = gs.sweep(model, {"fd": fd, "q1_0": q1}, T_FINAL, store=store, client=client,
-                      progress=False, **kw)
-        t_sweep = time.perf_counter() - t0
+        sweeps = []
+        for k in range(2):
+            t0 = time.perf_counter()
+            ds = gs.sweep(model, {"fd": fd, "q1_0": q1}, T_FINAL, store=store / str(k), client=client,
+                          progress=False, **kw)
+            sweeps.append(time.perf_counter() - t0)
+        t_sweep = min(sweeps)
         same = bool(np.array_equal(ds["theta"].values.ravel(), ref["theta"]))
         t0 = time.perf_counter()
-        gs.sweep(model, {"fd": fd, "q1_0": q1}, T_FINAL, store=store, client=client,
+        gs.sweep(model, {"fd": fd, "q1_0": q1}, T_FINAL, store=store / "1", client=client,
                  progress=False, **kw)
         t_resume = time.perf_counter() - t0
     finally:
@@ -173,7 +184,11 @@ def report(r: dict) -> str:
          f"{p2['one']['per_s']:.0f}/s ({s2['method']} + projection, rtol {s2['rtol']:g}, atol "
          f"{s2['atol']:g}; max error {p2['error']:.1e})", status(p2["one"]["per_s"] >= 15000,
                                                                f"by {15000 / p2['one']['per_s']:.2f}×")),
-        ("the same on two cores", "≥ 1.8× one core",
+        ("the same for the paper's own run (fd = 0.5 N) repeated", "≥ 15 000",
+         f"{p2['paper']['per_s']:.0f}/s (rtol {p2['paper']['settings']['rtol']:g}, atol "
+         f"{p2['paper']['settings']['atol']:g}; error {p2['paper']['error']:.1e})",
+         status(p2["paper"]["per_s"] >= 15000, f"by {15000 / p2['paper']['per_s']:.2f}×")),
+        ("the fd sweep on two cores", "≥ 1.8× one core",
          f"{p2['two']['per_s']:.0f}/s ({p2['scaling']:.2f}×)", status(p2["scaling"] >= 1.8)),
         ("Python around one simulate() (t_eval=[0, t_final], outputs=False)", "≤ 5 µs",
          f"{ov['short']['overhead_us']:.1f} µs (full path {ov['full']['overhead_us']:.1f} µs)",
@@ -226,7 +241,7 @@ def report(r: dict) -> str:
         "",
         "## Sweep on Dask",
         "",
-        f"`gs.sweep` over fd × q1_0 ({sw['points']} points, chunks of {sw['chunk']}) on a "
+        f"`gs.sweep` over fd × q1_0 ({sw['points']} points, chunks of {sw['chunk']}, the default) on a "
         "`LocalCluster` of 2 worker processes (started beforehand) against `simulate_many` on "
         "2 threads over the same points (its starts solved beforehand; the sweep solves them in "
         f"its tasks). Results identical: {sw['identical']}. A rerun of the finished sweep (every "

@@ -264,7 +264,8 @@ def make_parser() -> argparse.ArgumentParser:
                    help="integrator (default radau)")
     p.add_argument("--rtol", type=_positive_float, default=1e-6, help="relative tolerance (default 1e-6)")
     p.add_argument("--atol", type=_positive_float, default=1e-8, help="absolute tolerance (default 1e-8)")
-    p.add_argument("--chunk", type=int, default=None, help="runs per Dask task (default 2000)")
+    p.add_argument("--chunk", type=int, default=None,
+                   help="runs per Dask task (default: about 8 tasks per thread, 1000 to 20000 runs)")
     p.add_argument("--processes", action="store_true",
                    help="run on a local cluster of worker processes (default: threads here)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

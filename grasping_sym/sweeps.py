@@ -17,7 +17,7 @@ dimension per grid name.
   ``settle_tol`` of its final value, on ``samples`` output times), ``status`` (0, or
   ``runtime.batch.STATUS``'s code; ``START`` when the pose cannot be reached) and ``error``
   (the message, ``""`` on success).
-- **Runs** go in chunks of ``chunk`` points (default ``CHUNK``) to ``Model.simulate_many``,
+- **Runs** go in chunks of ``chunk`` points (default ``default_chunk``) to ``Model.simulate_many``,
   one task each, on Dask: in this process on a thread per core by default (no cluster
   needed), on local worker processes with ``client="processes"``, or on any
   ``dask.distributed.Client``. The model reaches the workers pickled
@@ -40,8 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-#: Points per task by default: Dask's per-task overhead (0.2-1 ms) against ~0.07 ms per run.
-CHUNK = 2000
+#: Points per task by default: about ``TASKS_PER_THREAD`` tasks per worker thread, within
+#: ``CHUNK`` (Dask's per-task overhead is 0.2-1 ms, one run ~0.07 ms; each task's results are
+#: written by the client, which shares the cores on one machine: fewer, larger tasks cost less,
+#: smaller ones resume and report progress in finer steps).
+CHUNK = (1000, 20_000)
+TASKS_PER_THREAD = 8
 #: ``status`` of a point whose starting pose cannot be reached (``UnreachableStartError``).
 START = -12
 #: Output times per run for the measures along it, by default.
@@ -285,8 +289,9 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
 
     ``client``: None (this process, a thread per core), ``"processes"`` (a local cluster of
     one worker process per core) or a ``dask.distributed.Client``. ``chunk``: points per task
-    (default ``CHUNK``). ``method``, ``rtol``, ``atol``, ``project``, ``max_steps``, ``checks``:
-    as for ``simulate_many``. ``progress``: a progress bar on stderr.
+    (default ``default_chunk``: about 8 tasks per thread, 1000 to 20 000 points). ``method``,
+    ``rtol``, ``atol``, ``project``, ``max_steps``, ``checks``: as for ``simulate_many``.
+    ``progress``: a progress bar on stderr.
     """
     from grasping_sym.runtime.model import Model  # noqa: PLC0415
 
@@ -307,7 +312,7 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
             "settings": dict(method=method, rtol=rtol, atol=atol, project=project,
                              max_steps=max_steps, checks=checks, threads=1)}
     _check_settings(model, task)  # bad settings are named here, before any task is sent
-    chunk = int(chunk or CHUNK)
+    chunk = int(chunk or default_chunk(g.size, client))
     variables = [*model.state_names, *(v for v, _, _ in task["measures"])]
     key = _key(model, task, variables, chunk)
     group = _open_group(store, key, model, task, variables, chunk, g)
@@ -318,6 +323,14 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
     ds = open(store, key)
     ds.attrs["chunks_run"] = len(pending)
     return ds
+
+
+def default_chunk(n: int, client) -> int:
+    """Points per task for ``n`` points on ``client``'s threads (module constants)."""
+    from grasping_sym.runtime.batch import default_threads  # noqa: PLC0415
+
+    threads = sum(client.nthreads().values()) if hasattr(client, "nthreads") else default_threads()
+    return int(min(max(math.ceil(n / (TASKS_PER_THREAD * max(threads, 1))), CHUNK[0]), CHUNK[1]))
 
 
 def _check_settings(model, task) -> None:
