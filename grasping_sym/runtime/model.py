@@ -84,9 +84,26 @@ class Model:
         return portable.restore, (portable.payload(self),)
 
     def __repr__(self) -> str:
-        inputs = f", inputs={self.input_names}" if self.input_names else ""
-        return (f"Model({self.name!r}, states={self.state_names}, "
-                f"outputs={self.output_names}, runtime params={self.param_names}{inputs})")
+        """One screen: what the model integrates, what can vary at run time, where it lives."""
+        def join(values) -> str:
+            text = ", ".join(values)
+            return text if len(text) <= 90 else text[:87] + "..."
+
+        law = (self.manifest.get("controller") or {}).get("law")
+        lines = [f"Model {self.name!r}: {len(self.state_names)} states, {len(self.output_names)} "
+                 f"outputs, {len(self.param_names)} run-time parameters",
+                 f"  states      {join(self.state_names)}",
+                 f"  outputs     {join(self.output_names) or '(none)'}"]
+        if self.param_names:
+            lines.append("  run-time    " + join(f"{k} = {v:g}" for k, v in
+                                                 zip(self.param_names, self.default_params)))
+        if self.start_params:
+            lines.append("  start       " + join(f"{k} = {v:.6g}" for k, v in self.start_params.items()))
+        if self.input_names:
+            lines.append(f"  inputs      {join(self.input_names)}")
+        lines.append(f"  controller  {law if law else 'none (open loop)'}")
+        lines.append(f"  directory   {self.directory}")
+        return "\n".join(lines)
 
     # ------------------------------------------------------------------ calls
     @property
