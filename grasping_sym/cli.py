@@ -1,4 +1,4 @@
-"""Command line: ``grasping-sym list | simulate | sweep | generate | bench``.
+"""Command line: ``grasping-sym list | simulate | sweep | cache | generate | bench``.
 
 Errors raised on purpose by the package (``GraspingSymError``) are printed as one message
 on stderr with exit code 2, without a traceback. Progress of slow stages (deriving,
@@ -35,8 +35,17 @@ def _builtin() -> dict:
 
 
 def _describe(func) -> str:
+    """The first sentence of ``func``'s docstring, on one line, without RST markup."""
+    import re  # noqa: PLC0415
+
     doc = (func.__doc__ or "").strip()
-    return doc.splitlines()[0] if doc else "(no description)"
+    if not doc:
+        return "(no description)"
+    paragraph = " ".join(line.strip() for line in doc.split("\n\n")[0].splitlines())
+    text = re.sub(r"``([^`]*)``", r"\1", paragraph)
+    text = re.sub(r":\w+:`([^`]*)`", r"\1", text)
+    end = re.search(r"(?<!\be\.g)(?<!\bi\.e)\.(\s|$)", text)
+    return text[:end.start() + 1] if end else text
 
 
 def _scene_factory(name: str):
@@ -84,13 +93,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     factory = _scene_factory(args.name)
     _say(f"defining scene {args.name}")
-    scene = factory()
+    params = _params(args.param)
+    scene = factory(runtime=tuple(params)) if params else factory()
     t_final, method, rtol, atol = simulate_settings(args, scene)
     model = build(scene, progress=_say)
     info = model.build_info
     _say(f"simulating {scene.name} for {t_final:g} s with {method}")
     t0 = time.perf_counter()
-    result = model.simulate(t_final, method=method, rtol=rtol, atol=atol, h=args.h)
+    result = model.simulate(t_final, method=method, rtol=rtol, atol=atol, h=args.h,
+                            params=params or None)
     sim_wall = time.perf_counter() - t0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -119,6 +130,56 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         lines += [f"figure           {path}" for path in figures]
     lines.append(f"figures          {len(figures)} PNG files in {out}")
     print("\n".join(lines))
+    return 0
+
+
+def _params(texts) -> dict[str, float]:
+    """``NAME=VALUE`` pairs (numbers parsed as numbers, nothing evaluated)."""
+    out = {}
+    for text in texts or ():
+        name, sep, value = text.partition("=")
+        try:
+            v = float(value)
+        except ValueError:
+            v = math.nan
+        if not sep or not name.strip() or not math.isfinite(v):
+            raise UsageError(f"--param {text!r}: write NAME=VALUE with a finite number, e.g. fd=0.8")
+        out[name.strip()] = v
+    return out
+
+
+# ---------------------------------------------------------------------------- cache
+def cmd_cache(args: argparse.Namespace) -> int:
+    import shutil  # noqa: PLC0415
+
+    from grasping_sym.codegen.cache import cache_root  # noqa: PLC0415
+    from grasping_sym.runtime import safety  # noqa: PLC0415
+
+    root = cache_root()
+    if not root.exists():
+        print(f"{root}: empty (no cache yet)")
+        return 0
+    safety.check_dir(root)  # another user's, or writable by others: refused by name
+    entries = sorted(p for p in root.iterdir() if not p.name.startswith("."))
+    if args.action == "list":
+        total = 0
+        for p in entries:
+            size = sum(f.stat().st_size for f in p.rglob("*") if f.is_file()) if p.is_dir() else p.stat().st_size
+            total += size
+            print(f"{p.name:<40} {size / 1e6:9.2f} MB")
+        print(f"{len(entries)} entries, {total / 1e6:.2f} MB in {root}")
+        return 0
+    chosen = [p for p in entries if not args.names or p.name in args.names
+              or p.name.rsplit("-", 1)[0] in args.names]
+    unknown = [n for n in args.names if not any(p.name == n or p.name.rsplit("-", 1)[0] == n
+                                                 for p in entries)]
+    if unknown:
+        raise UsageError(f"no cache entries named {unknown} in {root} (see `{PROG} cache list`)")
+    for p in chosen:
+        safety.check_dir(p) if p.is_dir() else safety.check_file(p)
+        shutil.rmtree(p) if p.is_dir() else p.unlink()
+        print(f"removed {p}")
+    print(f"{len(chosen)} entries removed from {root}")
     return 0
 
 
@@ -211,7 +272,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise UsageError(f"no benchmarks/ beside the package at {root}: the benchmarks ship with the "
                          "source repository; run `grasping-sym bench` from an editable install of a "
                          "clone (pip install -e .)")
-    cmd = [sys.executable, "-m", "benchmarks.run", *args.bench_args]
+    opts = (["--quick"] if args.quick else []) + (["--only", args.only] if args.only else []) + \
+        (["--out", args.out] if args.out else [])
+    cmd = [sys.executable, "-m", "benchmarks.run", *opts]
     _say(f"running {' '.join(cmd[1:])} in {root}")
     return subprocess.call(cmd, cwd=root)
 
@@ -222,6 +285,9 @@ def make_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description="Rolling contact between smooth shapes: build, simulate and plot scenes.",
     )
+    from grasping_sym import __version__  # noqa: PLC0415
+
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("list", help="list the built-in scenes")
@@ -242,6 +308,9 @@ def make_parser() -> argparse.ArgumentParser:
                         "1e-9 for radau on 3D scenes)")
     p.add_argument("--h", type=_positive_float, default=1e-4,
                    help="fixed step of rk4 in s (default 1e-4)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="a scene parameter's value for this run (made a run-time parameter: no "
+                        "rebuild for the next value), e.g. --param fd=0.8; repeat for more")
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("sweep", help="simulate a scene over a grid of parameters and starting poses, "
@@ -279,20 +348,32 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_generate)
 
     p = sub.add_parser("bench", help="run the benchmarks, write benchmarks/results/ (as `make bench`)",
-                       description="Passes its arguments to `python -m benchmarks.run` (e.g. --quick, "
-                                   "--only paper3d, --out DIR).")
+                       description="Runs `python -m benchmarks.run` in the source checkout: build "
+                                   "stages, rhs costs and work-precision of paper2d and paper3d "
+                                   "against the peers (about 9 minutes; --quick about 2). The other "
+                                   "benchmarks: `make bench-control`, `make bench-batch`.")
+    p.add_argument("--quick", action="store_true", help="fewer settings and repeats (a smoke test)")
+    p.add_argument("--only", choices=("paper2d", "paper3d"), default=None,
+                   help="the benchmarks of one scene only (default: both)")
+    p.add_argument("--out", default=None,
+                   help="output directory (default benchmarks/results, or results/quick)")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("cache", help="list or clear the cache of built models",
+                       description="The cache root is $GRASPING_SYM_CACHE, else "
+                                   "$XDG_CACHE_HOME/grasping_sym (~/.cache/grasping_sym).")
+    p.add_argument("action", choices=("list", "clear"), help="list the entries, or remove them")
+    p.add_argument("names", nargs="*", metavar="NAME",
+                   help="clear: only these entries (a directory name, or a scene name for all its "
+                        "builds); default every entry")
+    p.set_defaults(func=cmd_cache)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``grasping-sym``; returns the exit code."""
     parser = make_parser()
-    args, extra = parser.parse_known_args(argv)
-    if args.command == "bench":
-        args.bench_args = extra        # passed through to benchmarks.run
-    elif extra:
-        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args = parser.parse_args(argv)
     try:
         return args.func(args)
     except GraspingSymError as exc:
