@@ -59,25 +59,62 @@ class Pose:
     contact_object: np.ndarray  # contact point on the object, (2,)
 
 
-def contact_parameters(scene: PlanarFingerScene, x: Sequence[float]) -> tuple[float, float]:
-    """``(u0, u1)``: the contact parameters on the fingertip and object contours at ``x``."""
+@dataclass(frozen=True)
+class Finger:
+    """What draws one finger of a scene: its joint states, base, link lengths, fingertip
+    contour and the states of its contact parameters (fingertip, object)."""
+
+    joints: tuple[str, str]
+    base: tuple[float, float]
+    lengths: tuple[float, float]
+    fingertip: object
+    contact: tuple[str, str]
+
+
+def fingers(scene: PlanarFingerScene) -> list[Finger]:
+    """Finger 1 (joints at the origin) and the scene's extra fingers, in order."""
+    if not scene.extra_fingers:
+        contact = ("s", "s") if scene.shared_parameter else ("u0", "u1")
+        return [Finger(("q1", "q2"), (0.0, 0.0), (scene.params["l11"], scene.params["l12"]),
+                       scene.fingertip, contact)]
+    out = [Finger(("q11", "q12"), (0.0, 0.0), (scene.params["l11"], scene.params["l12"]),
+                  scene.fingertip, ("u0_1", "u1_1"))]
+    for i, f in enumerate(scene.extra_fingers, start=2):
+        out.append(Finger((f"q{i}1", f"q{i}2"), tuple(f.base), tuple(f.lengths), f.fingertip,
+                          (f"u0_{i}", f"u1_{i}")))
+    return out
+
+
+def contact_parameters(scene: PlanarFingerScene, x: Sequence[float], finger: int = 0) -> tuple[float, float]:
+    """``(u0, u1)``: the contact parameters on the fingertip and object contours at ``x`` (of
+    finger ``finger``, 0 the first)."""
     names = scene.state_names
-    if scene.shared_parameter:
-        s = float(x[names.index("s")])
-        return s, s
-    return float(x[names.index("u0")]), float(x[names.index("u1")])
+    a, b = fingers(scene)[finger].contact
+    return float(x[names.index(a)]), float(x[names.index(b)])
 
 
 def pose(scene: PlanarFingerScene, x: Sequence[float]) -> Pose:
-    """Inertial positions of links, contours, pivot and contact at the state ``x``.
+    """Inertial positions of links, contours, pivot and contact at the state ``x`` (finger 1;
+    ``poses`` gives every finger's).
 
     ``x`` is ordered as ``scene.state_names``.
     """
+    return poses(scene, x)[0]
+
+
+def poses(scene: PlanarFingerScene, x: Sequence[float]) -> list[Pose]:
+    """``pose`` of every finger (each with the same object and pivot)."""
+    return [_finger_pose(scene, x, k) for k in range(len(fingers(scene)))]
+
+
+def _finger_pose(scene: PlanarFingerScene, x: Sequence[float], k: int) -> Pose:
     names = scene.state_names
-    theta, q1, q2 = (float(x[names.index(k)]) for k in ("theta", "q1", "q2"))
-    l11, l12 = scene.params["l11"], scene.params["l12"]
-    joint1 = np.zeros(2)
-    joint2 = l11 * np.array([math.sin(q1), math.cos(q1)])
+    fg = fingers(scene)[k]
+    theta = float(x[names.index("theta")])
+    q1, q2 = (float(x[names.index(j)]) for j in fg.joints)
+    l11, l12 = fg.lengths
+    joint1 = np.asarray(fg.base, dtype=float)
+    joint2 = joint1 + l11 * np.array([math.sin(q1), math.cos(q1)])
     o01 = joint2 + l12 * np.array([math.sin(q1 + q2), math.cos(q1 + q2)])
     om = np.asarray(scene.pivot, dtype=float)
     r_finger = _rot(math.pi / 2 - q1 - q2)
@@ -89,12 +126,12 @@ def pose(scene: PlanarFingerScene, x: Sequence[float]) -> Pose:
         return np.column_stack([np.broadcast_to(ev["x"], t.shape),
                                 np.broadcast_to(ev["y"], t.shape)])
 
-    t0 = np.linspace(*scene.fingertip.domain, CONTOUR_SAMPLES)
+    t0 = np.linspace(*fg.fingertip.domain, CONTOUR_SAMPLES)
     t1 = np.linspace(*scene.object.domain, CONTOUR_SAMPLES)
-    u0, u1 = contact_parameters(scene, x)
-    fingertip = o01 + local(scene.fingertip, t0) @ r_finger.T
+    u0, u1 = contact_parameters(scene, x, k)
+    fingertip = o01 + local(fg.fingertip, t0) @ r_finger.T
     obj = om + local(scene.object, t1) @ r_object.T
-    c_f = o01 + local(scene.fingertip, u0)[0] @ r_finger.T
+    c_f = o01 + local(fg.fingertip, u0)[0] @ r_finger.T
     c_o = om + local(scene.object, u1)[0] @ r_object.T
     return Pose(joint1, joint2, o01, om, fingertip, obj, c_f, c_o)
 
@@ -106,22 +143,29 @@ def draw_scene(ax: Axes, scene: PlanarFingerScene, x: Sequence[float]) -> Pose:
     domains in the inertial frame; ``Om``, ``O01`` and the contact point are marked. The
     axes get equal aspect and labels in metres. Returns the computed ``Pose``.
     """
-    p = pose(scene, x)
-    links = np.vstack([p.joint1, p.joint2, p.o01])
-    ax.plot(links[:, 0], links[:, 1], "-", color="0.35", linewidth=5, solid_capstyle="round",
-            zorder=2, label="finger links")
-    ax.plot(links[:2, 0], links[:2, 1], "o", color="0.1", markersize=7, zorder=3)
-    ax.plot(*p.fingertip.T, "-", color=FINGER_COLOR, linewidth=2, zorder=4,
-            label=f"fingertip ({scene.fingertip.name})")
+    every = poses(scene, x)
+    many = len(every) > 1
+    for k, (p, fg) in enumerate(zip(every, fingers(scene))):
+        first = k == 0
+        links = np.vstack([p.joint1, p.joint2, p.o01])
+        ax.plot(links[:, 0], links[:, 1], "-", color="0.35", linewidth=5, solid_capstyle="round",
+                zorder=2, label="finger links" if first else None)
+        ax.plot(links[:2, 0], links[:2, 1], "o", color="0.1", markersize=7, zorder=3)
+        ax.plot(*p.fingertip.T, "-", color=FINGER_COLOR, linewidth=2, zorder=4,
+                label=(f"fingertip{'s' if many else ''} ({fg.fingertip.name}"
+                       + (", ..." if many else "") + ")") if first else None)
+        ax.plot(*p.o01, "s", color=FINGER_COLOR, markersize=6, zorder=5)
+        ax.annotate(f"$O_{{0{k + 1}}}$" if many else "$O_{01}$", p.o01, textcoords="offset points",
+                    xytext=(-18, 6))
+        ax.plot(*p.contact_object, "o", markerfacecolor="none", markeredgecolor=CONTACT_COLOR,
+                markersize=10, markeredgewidth=1.5, zorder=6,
+                label=("contact points" if many else "contact point") if first else None)
+        ax.plot(*p.contact_finger, ".", color=CONTACT_COLOR, markersize=5, zorder=7)
+    p = every[0]
     ax.plot(*p.object.T, "-", color=OBJECT_COLOR, linewidth=2, zorder=4,
             label=f"object ({scene.object.name})")
-    ax.plot(*p.o01, "s", color=FINGER_COLOR, markersize=6, zorder=5)
-    ax.annotate("$O_{01}$", p.o01, textcoords="offset points", xytext=(-18, 6))
     ax.plot(*p.pivot, "P", color=OBJECT_COLOR, markersize=9, zorder=5)
     ax.annotate("$O_m$", p.pivot, textcoords="offset points", xytext=(6, 6))
-    ax.plot(*p.contact_object, "o", markerfacecolor="none", markeredgecolor=CONTACT_COLOR,
-            markersize=10, markeredgewidth=1.5, zorder=6, label="contact point")
-    ax.plot(*p.contact_finger, ".", color=CONTACT_COLOR, markersize=5, zorder=7)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -159,8 +203,9 @@ def snapshot_figure(scene: PlanarFingerScene, result: SimulationResult,
     points = []
     for k, (ax, t) in enumerate(zip(axes, times)):
         t_i, x = _state_at(result, t)
-        p = draw_scene(ax, scene, x)
-        points += [p.joint1[None], p.fingertip, p.object, p.pivot[None]]
+        draw_scene(ax, scene, x)
+        for p in poses(scene, x):
+            points += [p.joint1[None], p.fingertip, p.object, p.pivot[None]]
         label = "initial pose" if t_i == result.t[0] else f"after {_fmt_time(t_i)} s"
         ax.set_title(f"({chr(ord('a') + k)}) {label}")
     allp = np.vstack(points)
@@ -170,7 +215,9 @@ def snapshot_figure(scene: PlanarFingerScene, result: SimulationResult,
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_aspect("equal", adjustable="box")
-    axes[0].legend(loc="upper left", fontsize=8)
+    # the legend below the panels, where it covers no finger
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4), fontsize=8)
     fig.suptitle(f"{scene.name}: motion of pinching a 2-D object")
     return fig
 
@@ -186,28 +233,48 @@ class TimePlot:
     curves: Callable[[PlanarFingerScene, SimulationResult], list[tuple[str, np.ndarray]] | None]
 
 
+def _per_finger(names, name: str, n: int) -> list[tuple[int, str]]:
+    """``[(finger, key)]``: ``name`` itself, or its per-finger keys ``name1`` / ``name_1`` ..."""
+    if name in names:
+        return [(0, name)]
+    return [(i, k) for i in range(1, n + 1) for k in (f"{name}{i}", f"{name}_{i}") if k in names]
+
+
 def _output(name: str, label: str, scale: Callable | None = None):
     def get(scene, result):
-        if name not in result.outputs:
+        keys = _per_finger(result.outputs, name, len(fingers(scene)))
+        if not keys:
             return None
-        y = np.asarray(result.outputs[name], dtype=float)
-        return [(label, y * scale(scene, result) if scale else y)]
+        k = scale(scene, result) if scale else 1.0
+        return [(label if i == 0 else f"{label}, finger {i}", np.asarray(result.outputs[key], float) * k)
+                for i, key in keys]
     return get
 
 
 def _state(name: str, label: str):
+    """A joint speed ``dq1`` / ``dq2``: finger 1's, or each finger's (``dq11``, ``dq21``, ...)."""
     def get(scene, result):
-        if name not in result.state_names:
+        if name in result.state_names:
+            return [(label, result[name])]
+        if not name.startswith("dq"):
             return None
-        return [(label, result[name])]
+        j = name[2:]
+        keys = [(i, f"dq{i}{j}") for i in range(1, len(fingers(scene)) + 1)]
+        curves = [(f"{label}, finger {i}", result[k]) for i, k in keys if k in result.state_names]
+        return curves or None
     return get
 
 
 def _contact_params(scene, result):
     if "s" in result.state_names:
         return [("$s$", result["s"])]
-    names = [k for k in ("u0", "u1") if k in result.state_names]
-    return [(f"${k[0]}_{k[1]}$", result[k]) for k in names] or None
+    curves = []
+    for i, fg in enumerate(fingers(scene), start=1):
+        for k in dict.fromkeys(fg.contact):
+            if k in result.state_names:
+                tag = f"${k[0]}_{k[1]}$" + (f", finger {i}" if len(fingers(scene)) > 1 else "")
+                curves.append((tag, result[k]))
+    return curves or None
 
 
 def _fd_over_r(scene: PlanarFingerScene, result: SimulationResult) -> float:
@@ -242,7 +309,7 @@ def _draw_time_plot(ax: Axes, plot: TimePlot, curves, scene, result) -> None:
     ax.set_title(f"Fig. {plot.paper_fig}: {plot.title}")
     ax.set_xlim(result.t[0], result.t[-1])
     ax.grid(True, linewidth=0.3)
-    if plot.key == "s" and len(curves) == 2:
+    if plot.key == "s" and len(curves) == 2 and not scene.extra_fingers:
         # two-parameter scene: u0 (fingertip) and u1 (object) may differ in unit and scale
         (l0, y0), (l1, y1) = curves
         h0 = ax.plot(result.t, y0, linewidth=1.5, color="tab:blue", label=l0)

@@ -60,6 +60,35 @@ def test_mirror_symmetric_pair_holds_what_one_finger_turns():
     assert o["f1"].min() > 0.5
 
 
+def test_two_finger_scenes_have_default_outputs_and_plot(tmp_path):
+    """Default outputs: each per-contact output once per finger; the figures draw both fingers
+    and plot each finger's curves."""
+    from grasping_sym import plots
+
+    xm, _ = _pivot()
+    pair = ExtraFinger(_tip("tip2"), base=(2 * xm, 0.0), u1_0=U1 - math.pi + 0.2)
+    scene = gs.scenes.planar_finger(_tip("tip"), _object(), name="pair2", u1_0=-U1,
+                                    extra_fingers=(pair,))
+    assert scene.outputs[:4] == ("Q1", "Q2", "R1", "R2")
+    assert "N1_2" in scene.outputs and "kappa_sum2" in scene.outputs
+    assert "constraint_residual" in scene.outputs
+    # the figures need no build: a short made-up trajectory at the scene's start
+    x0 = np.array(scene.initial_state(), dtype=float)
+    t = np.linspace(0, 0.1, 5)
+    outs = {k: np.linspace(0.1, 0.2, 5) for k in scene.outputs}
+    res = gs.SimulationResult(t=t, x=np.tile(x0, (5, 1)), state_names=scene.state_names,
+                              outputs=outs, method="made-up")
+    every = plots.poses(scene, x0)
+    assert len(every) == 2 and np.allclose(every[1].joint1, (2 * xm, 0.0))
+    # both fingertips touch the object at the start: contact points coincide
+    for p in every:
+        assert np.linalg.norm(p.contact_finger - p.contact_object) < 1e-9
+    paths = scene.write_figures(res, tmp_path)
+    assert len(paths) == 11 and all(p.stat().st_size > 10_000 for p in paths)
+    curves = plots.TIME_PLOTS[0].curves(scene, res)
+    assert [c[0] for c in curves] == [r"$\Delta f$, finger 1", r"$\Delta f$, finger 2"]
+
+
 def test_two_fingers_compiled_equal_the_symbolic_reference():
     """The template/compose path for several contacts against SymPy lambdify of the same
     derivation, at states along a run (on the constraint manifold). Stabilisation gains 0:

@@ -155,6 +155,8 @@ class PlanarFingerScene:
         object.__setattr__(self, "extra_fingers", tuple(self.extra_fingers))
         object.__setattr__(self, "runtime", tuple(self.runtime))
         object.__setattr__(self, "outputs", tuple(self.outputs))
+        if self.extra_fingers and self.outputs == DEFAULT_OUTPUTS:
+            object.__setattr__(self, "outputs", self.default_outputs())
         problems = self._parameter_problems()
         if problems:
             # the error path: add the contour checks too, so every problem is named at once
@@ -188,6 +190,19 @@ class PlanarFingerScene:
         names = [f"{k}{i}" for i in range(1, self.n_fingers + 1) for k in per]
         names += [f"N1_{i}" for i in range(1, self.n_fingers + 1)]
         return (*names, "constraint_residual", "kinetic_energy", "potential_energy", "power")
+
+    def default_outputs(self) -> tuple[str, ...]:
+        """``DEFAULT_OUTPUTS`` for this scene: with several fingers, each per-contact output once
+        per finger (``Q1, Q2, ...``, ``N1_1, N1_2, ...``)."""
+        known = self.output_names()
+        out: list[str] = []
+        for k in DEFAULT_OUTPUTS:
+            if k in known:
+                out.append(k)
+                continue
+            for i in range(1, self.n_fingers + 1):
+                out += [n for n in (f"{k}{i}", f"{k}_{i}") if n in known]
+        return tuple(out)
 
     @property
     def q2_0(self) -> float:
