@@ -63,8 +63,8 @@ def test_formulations_agree_while_contact_moves(moving_run, record_property):
     moved = np.linalg.norm(sr.y[13:15, -1] - sr.y[13:15, 0])
     print(f"\nbody state max diff {body_err:.2e}, contact point max diff {point_err:.2e} m, "
           f"object (u, v) moved {moved:.3f}, s(T) = {sp_.y[15, -1]:.4e} m")
-    record_property("body_err", body_err)
-    record_property("point_err", point_err)
+    record_property("body_err", float(body_err))
+    record_property("point_err", float(point_err))
     assert moved > 1e-2
     assert body_err <= 1e-8 and point_err <= 1e-8
     # the surface coordinates and psi agree too
@@ -80,7 +80,7 @@ def test_frames_stay_orthonormal(moving_run, record_property):
     normal = max(o["normal_drift"] for o in outs)
     print(f"\nframes: orthonormality {ortho:.2e}, R Psi0 D - Pi Psi1 {match:.2e}, "
           f"n - surface normal {normal:.2e}")
-    record_property("frame_orthonormality", ortho)
+    record_property("frame_orthonormality", float(ortho))
     assert ortho <= 1e-9 and match <= 1e-9 and normal <= 1e-9
 
 
@@ -105,8 +105,8 @@ def test_paper_formulation_stops_at_rest(rest_run, record_property):
     assert np.all(np.isfinite(log))
     print(f"\nMovingFrameSingularityError at t = {err.t:.4f} s: D = {err.denominator:.3e} rad/s "
           f"(threshold {err.threshold:.3e}), s' = {err.s_dot:.3e} m/s; peak |s'| {np.abs(log[:, 3]).max():.3e}")
-    record_property("t_singular", err.t)
-    record_property("denominator", err.denominator)
+    record_property("t_singular", float(err.t))
+    record_property("denominator", float(err.denominator))
     assert err.t is not None and 0.1 < err.t < 3.0
     assert math.isfinite(err.denominator) and abs(err.denominator) < err.threshold
     assert abs(err.s_dot) <= 1e-5 and abs(err.s_dot) <= 1e-3 * np.abs(log[:, 3]).max()
