@@ -103,4 +103,6 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     if plan.code == 1:
         info["h_lambda"] = st[13]
         info["n_stiff_tests"] = int(st[14])
-    return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))
+    res = SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))
+    res.scene = getattr(model, "scene", None)
+    return res

@@ -492,8 +492,10 @@ class Model:
             t, X = t[1:], X[1:]
             outs = {k: v[1:].copy() for k, v in outs.items()}
         pdict = dict(zip(self.param_names, [] if p is None else map(float, p)))
-        return SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
-                                method=method, stats=stats, params=pdict)
+        res = SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
+                               method=method, stats=stats, params=pdict)
+        res.scene = getattr(self, "scene", None)  # for res.animate (a model from gs.build has it)
+        return res
 
     def _integrate(self, method, x0, t_eval, p, start, checks, *, rtol, atol, max_steps, h, proj,
                    time_limit):

@@ -109,6 +109,14 @@ class SimulationResult:
                  "stats": json.dumps(_plain(self.stats))}
         return xr.Dataset(data, coords={"t": self.t}, attrs=attrs)
 
+    def animate(self, path: Path | str, scene=None, **options) -> Path:
+        """Write the motion to ``path`` (``.gif``, or ``.mp4`` with ffmpeg): the scene drawn at
+        evenly spaced times (``grasping_sym.animation``; ``fps``, ``seconds``, ``dpi``).
+        ``scene`` defaults to the run's (a model made by ``gs.build`` sets it)."""
+        from grasping_sym.animation import animate  # noqa: PLC0415
+
+        return animate(self, path, scene, **options)
+
     # ------------------------------------------------------------ files
     def save(self, path: Path | str) -> Path:
         """Write the result to ``path`` (``.npz``: the arrays, and the names, method, parameters
