@@ -1,5 +1,5 @@
 # Developer loop. Every target installs what it needs into .venv first (scripts/env.sh).
-.PHONY: install demo test bench bench-control bench-batch generate lint clean
+.PHONY: install demo test docs bench bench-control bench-batch generate lint clean
 SH := bash
 
 install:
@@ -10,6 +10,9 @@ demo:
 
 test:
 	$(SH) scripts/test.sh
+
+docs:
+	$(SH) -c 'source scripts/env.sh && NO_MKDOCS_2_WARNING=1 mkdocs build --strict'
 
 bench:
 	$(SH) -c 'source scripts/env.sh && python -m benchmarks.run'
@@ -27,4 +30,4 @@ lint:
 	$(SH) -c 'source scripts/env.sh && python -m pip install --quiet ruff && ruff check grasping_sym tests benchmarks examples'
 
 clean:
-	rm -rf out build .pytest_cache
+	rm -rf out build site .pytest_cache
