@@ -1,4 +1,5 @@
-"""The documentation site builds with no warning, and every tutorial's code runs as written."""
+"""The documentation site builds with no warning, and the code of every tutorial and of the
+README's quickstart runs as written."""
 from __future__ import annotations
 
 import os
@@ -24,8 +25,9 @@ def test_the_site_builds_with_no_warning(tmp_path):
         assert name in api, name
 
 
-@pytest.mark.parametrize("page", TUTORIALS, ids=[p.stem for p in TUTORIALS])
-def test_every_tutorial_runs_as_written(page, tmp_path, monkeypatch):
+@pytest.mark.parametrize("page", [*TUTORIALS, ROOT / "README.md"],
+                         ids=[*(p.stem for p in TUTORIALS), "README"])
+def test_every_tutorial_and_the_quickstart_run_as_written(page, tmp_path, monkeypatch):
     blocks = re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)
     assert blocks, f"{page.name} has no code"
     monkeypatch.chdir(tmp_path)
