@@ -331,8 +331,10 @@ def make_parser() -> argparse.ArgumentParser:
                         "normal force), max_<output>, or failure")
     p.add_argument("--method", choices=("radau", "dopri5", "rk4"), default="radau",
                    help="integrator (default radau)")
-    p.add_argument("--rtol", type=_positive_float, default=1e-6, help="relative tolerance (default 1e-6)")
-    p.add_argument("--atol", type=_positive_float, default=1e-8, help="absolute tolerance (default 1e-8)")
+    p.add_argument("--rtol", type=_positive_float, default=None,
+                   help="relative tolerance (default: the method's, radau 1e-6)")
+    p.add_argument("--atol", type=_positive_float, default=None,
+                   help="absolute tolerance (default: the method's, radau 1e-9)")
     p.add_argument("--chunk", type=int, default=None,
                    help="runs per Dask task (default: about 8 tasks per thread, 1000 to 20000 runs)")
     p.add_argument("--processes", action="store_true",

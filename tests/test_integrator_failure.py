@@ -9,14 +9,14 @@ from grasping_sym.errors import IntegratorError
 
 def test_cvodes_step_budget_failure_names_time_state_reason(paper2d_model):
     with pytest.raises(IntegratorError) as info:
-        paper2d_model.simulate(3.0, max_steps=50, t_eval=[0.0, 3.0])
+        paper2d_model.simulate(3.0, method="cvodes", max_steps=50, t_eval=[0.0, 3.0])
     err = info.value
     assert 0.0 < err.t < 3.0
     assert err.x is not None and err.x.shape == (7,) and np.all(np.isfinite(err.x))
     assert "CV_TOO_MUCH_WORK" in err.reason and "max_steps" in err.reason
     assert "theta=" in str(err) and f"{err.t:.6g}" in str(err)
     # the reported state is the trajectory's state at that time
-    ref = paper2d_model.simulate(err.t, t_eval=[0.0, err.t], outputs=False).x[-1]
+    ref = paper2d_model.simulate(err.t, method="cvodes", t_eval=[0.0, err.t], outputs=False).x[-1]
     np.testing.assert_allclose(err.x, ref, rtol=1e-6, atol=1e-9)
 
 

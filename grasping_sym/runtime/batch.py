@@ -114,17 +114,18 @@ def default_threads() -> int:
 
 
 def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = None, u=None,
-                  method: str = "radau", rtol: float = 1e-6, atol: float = 1e-8, t_eval=None,
+                  method: str = "radau", rtol: float | None = None, atol: float | None = None, t_eval=None,
                   h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float = False,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
-    from grasping_sym.runtime.model import _output_times, _positive, _states, real  # noqa: PLC0415
+    from grasping_sym.runtime.model import _output_times, _positive, _states, real, tolerances  # noqa: PLC0415
 
     start = perf_counter()
     if method not in METHODS:
         raise ValueError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
                          "(cvodes and idas run through CasADi one at a time: loop over simulate)")
+    rtol, atol = tolerances(method, rtol, atol)
     t_final = real("t_final", t_final, "seconds")
     if not t_final > 0:
         raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
