@@ -109,6 +109,26 @@ def overhead(log) -> dict:
     return out
 
 
+def default_run(log) -> dict:
+    """``model.simulate(3.0)`` with every argument at its default (output every ms, the
+    outputs and checks) on paper2d, against CVODES (the former default) on the same call."""
+    model = gs.build(gs.scenes.paper2d())
+    ref = model.simulate(T_FINAL, method="cvodes", rtol=1e-13, atol=1e-14, t_eval=[0.0, T_FINAL],
+                         outputs=False).x[-1]
+    out = {}
+    for label, kw in (("default", {}), ("cvodes", {"method": "cvodes"})):
+        res = model.simulate(T_FINAL, **kw)
+        calls = []
+        for _ in range(30 if label == "default" else 7):
+            t0 = time.perf_counter()
+            res = model.simulate(T_FINAL, **kw)
+            calls.append(time.perf_counter() - t0)
+        out[label] = {"ms": median(calls) * 1e3, "error": float(np.max(np.abs(res.x[-1] - ref))),
+                      "method": res.method, "samples": len(res.t), "outputs": len(res.outputs)}
+        log(f"  simulate(3.0) {label}: {out[label]['ms']:.2f} ms, error {out[label]['error']:.1e}")
+    return out
+
+
 def sweep(log, n_fd: int = 400, n_q: int = 250) -> dict:
     """A 10^5-point sweep (fd x q1_0) on a 2-worker LocalCluster against simulate_many on the
     same points and cores (the starts solved beforehand for simulate_many, inside the tasks for
@@ -172,7 +192,7 @@ def paper3d(log) -> dict:
 
 
 def report(r: dict) -> str:
-    p2, ov, sw, p3 = r["paper2d"], r["overhead"], r["sweep"], r["paper3d"]
+    p2, ov, sw, p3, dr = r["paper2d"], r["overhead"], r["sweep"], r["paper3d"], r["default"]
 
     def status(ok: bool, missed: str = "") -> str:
         return "**met**" if ok else f"**missed** {missed}"
@@ -196,6 +216,12 @@ def report(r: dict) -> str:
         (f"sweep of {sw['points']} points on a 2-worker LocalCluster vs simulate_many, same cores",
          "≤ 1.3×", f"{sw['ratio']:.2f}× ({sw['sweep_s']:.2f} s against {sw['simulate_many_s']:.2f} s"
          f"; cluster start {sw['cluster_start_s']:.1f} s not counted)", status(sw["ratio"] <= 1.3)),
+        ("paper2d `simulate(3.0)` with default arguments (output every ms, outputs, checks), "
+         "at final-state error ≤ 1e-9 (issue 16)", "≤ 1 ms",
+         f"{dr['default']['ms']:.2f} ms ({dr['default']['method']}, {dr['default']['samples']} "
+         f"samples, {dr['default']['outputs']} outputs; error {dr['default']['error']:.1e}); "
+         f"cvodes {dr['cvodes']['ms']:.1f} ms", status(dr["default"]["ms"] <= 1.0
+                                                      and dr["default"]["error"] <= 1e-9)),
         ("paper3d 3 s at error ≤ 1e-8, simulations/s per core", "≥ 500",
          f"{p3['one']['per_s']:.0f}/s ({s3['method']} + projection, rtol {s3['rtol']:g}, atol "
          f"{s3['atol']:g}; max error {p3['error']:.1e}); {p3['two']['per_s']:.0f}/s on two",
@@ -273,6 +299,8 @@ def main() -> None:
     r["paper2d"] = paper2d(log)
     log("simulate() overhead")
     r["overhead"] = overhead(log)
+    log("default simulate")
+    r["default"] = default_run(log)
     log("sweep")
     r["sweep"] = sweep(log)
     log("paper3d rates")
