@@ -351,6 +351,9 @@ def time_figures(scene: PlanarFingerScene, result: SimulationResult,
         path = out_dir / f"fig{plot.paper_fig:02d}_{plot.key}.png"
         fig.savefig(path, dpi=120)
         paths.append(path)
+    path = constraints_log_figure(scene, result, out_dir)
+    if path is not None:
+        paths.append(path)
     if available:
         ncols = 3
         nrows = math.ceil(len(available) / ncols)
@@ -365,6 +368,29 @@ def time_figures(scene: PlanarFingerScene, result: SimulationResult,
         fig.savefig(path, dpi=100)
         paths.append(path)
     return paths
+
+
+def constraints_log_figure(scene: PlanarFingerScene, result: SimulationResult,
+                           out_dir: Path) -> Path | None:
+    """``constraints_log.png``: |Q| and |R| of every contact on a log scale (the paper's Figs 13
+    and 14 are linear, where rounding-level residuals are a flat line); None without them."""
+    curves = [(f"|{c[0].strip('$')}|" + c[0][len(c[0].split(',')[0]):], y)
+              for key in ("Q", "R") for c, y in ((c, c[1]) for c in (_output(key, key)(scene, result) or []))]
+    if not curves:
+        return None
+    fig = _new_figure(6.4, 4.0)
+    ax = fig.add_subplot()
+    for label, y in curves:
+        ax.semilogy(result.t, np.maximum(np.abs(y), 1e-20), linewidth=1.0, label=label)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("contact constraint [m] (log)")
+    ax.set_xlim(result.t[0], result.t[-1])
+    ax.grid(True, which="both", linewidth=0.3)
+    ax.set_title("|Q|, |R| on a log scale")
+    ax.legend(fontsize=8, loc="best")
+    path = out_dir / "constraints_log.png"
+    fig.savefig(path, dpi=120)
+    return path
 
 
 def write_figures(scene: PlanarFingerScene, result: SimulationResult,

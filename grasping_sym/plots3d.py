@@ -347,10 +347,47 @@ def arclength_figure(scene: GraspScene3D, result: SimulationResult, traces: list
     return fig
 
 
+def pose_figure(scene: GraspScene3D, result: SimulationResult) -> Figure | None:
+    """The object's pose and the fingers' joint angles against time: the centre's displacement
+    from its start (mm, a free object), the angle the object has turned since the start (from
+    the quaternion), and every joint angle."""
+    names = result.state_names
+    joints = [k for k in names if k.startswith("q") and k[1:].isdigit()]
+    has_quat = all(k in names for k in ("qw", "qx", "qy", "qz"))
+    free = all(k in names for k in ("x", "y", "z"))
+    if not joints:
+        return None
+    panels = 1 + int(has_quat) + int(free)
+    fig = _new_figure(6.4, 2.6 * panels)
+    axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
+    k = 0
+    if free:
+        for c in ("x", "y", "z"):
+            axes[k].plot(result.t, (result[c] - result[c][0]) * 1e3, linewidth=1.2, label=c)
+        _time_axes(axes[k], result, "displacement [mm]", "object centre, from its start")
+        k += 1
+    if has_quat:
+        q = np.column_stack([result[c] for c in ("qw", "qx", "qy", "qz")])
+        q = q / np.linalg.norm(q, axis=1, keepdims=True)
+        dot = np.clip(np.abs(q @ q[0]), 0.0, 1.0)
+        axes[k].plot(result.t, 2 * np.arccos(dot), color=OBJECT_COLOR, linewidth=1.2,
+                     label="angle turned")
+        _time_axes(axes[k], result, "angle [rad]", "object: rotation since the start")
+        k += 1
+    for j in joints:
+        axes[k].plot(result.t, result[j], linewidth=1.0, label=j)
+    _time_axes(axes[k], result, "joint angle [rad]", "finger joints")
+    axes[k].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    for ax in axes[:-1]:
+        ax.set_xlabel("")
+    return fig
+
+
 def write_figures3d(scene: GraspScene3D, result: SimulationResult, out_dir: Path | str, *,
                     geo=None) -> list[Path]:
     """Write ``snapshots.png``, ``contact_traces.png``, ``multipliers.png`` (when the model
-    generated multipliers) and ``arclengths_residuals.png`` into ``out_dir``.
+    generated multipliers), ``arclengths_residuals.png`` and ``pose_joints.png`` into
+    ``out_dir``.
 
     ``geo``: the scene's geometry function (default: ``geometry_function(scene)``).
     """
@@ -361,7 +398,8 @@ def write_figures3d(scene: GraspScene3D, result: SimulationResult, out_dir: Path
     figures = {"snapshots": snapshot_figure3d(scene, result, geo),
                "contact_traces": traces_figure(scene, traces),
                "multipliers": multipliers_figure(scene, result),
-               "arclengths_residuals": arclength_figure(scene, result, traces)}
+               "arclengths_residuals": arclength_figure(scene, result, traces),
+               "pose_joints": pose_figure(scene, result)}
     for name, fig in figures.items():
         if fig is not None:
             fig.savefig(out_dir / f"{name}.png", dpi=110)

@@ -43,7 +43,7 @@ def test_simulate_paper2d_writes_csv_and_figures(tmp_path, capsys):
     assert rows[0] == PAPER2D_HEADER
     assert len(rows) == 1 + 51  # t_eval every ms from 0 to 0.05 s
     assert float(rows[-1][0]) == pytest.approx(0.05)
-    for name in ["fig05_snapshots.png", *TIME_PNGS, "overview.png"]:
+    for name in ["fig05_snapshots.png", *TIME_PNGS, "constraints_log.png", "overview.png"]:
         assert (out_dir / name).stat().st_size > 5000, name
     assert _png_has_content(out_dir / "fig05_snapshots.png")
     assert _png_has_content(out_dir / "fig06_delta_f.png")

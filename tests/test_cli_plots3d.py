@@ -16,7 +16,8 @@ from grasping_sym.geometry import surface_library
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.scenes import paper2d, paper3d, pivot3d
 
-FIGURES_3D = ["snapshots.png", "contact_traces.png", "multipliers.png", "arclengths_residuals.png"]
+FIGURES_3D = ["snapshots.png", "contact_traces.png", "multipliers.png", "arclengths_residuals.png",
+              "pose_joints.png"]
 
 
 def _png_has_content(path) -> bool:

@@ -84,7 +84,8 @@ def test_two_finger_scenes_have_default_outputs_and_plot(tmp_path):
     for p in every:
         assert np.linalg.norm(p.contact_finger - p.contact_object) < 1e-9
     paths = scene.write_figures(res, tmp_path)
-    assert len(paths) == 11 and all(p.stat().st_size > 10_000 for p in paths)
+    assert len(paths) == 12 and all(p.stat().st_size > 10_000 for p in paths)
+    assert any(p.name == "constraints_log.png" for p in paths)
     curves = plots.TIME_PLOTS[0].curves(scene, res)
     assert [c[0] for c in curves] == [r"$\Delta f$, finger 1", r"$\Delta f$, finger 2"]
 
