@@ -91,10 +91,19 @@ def cmd_list(args: argparse.Namespace) -> int:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from grasping_sym.pipeline import build
 
-    factory = _scene_factory(args.name)
-    _say(f"defining scene {args.name}")
     params = _params(args.param)
-    scene = factory(runtime=tuple(params)) if params else factory()
+    _say(f"defining scene {args.name}")
+    if args.name.endswith(".toml"):  # a scene file (grasping_sym.scene_files)
+        from grasping_sym.scene_files import load_scene
+
+        scene = load_scene(args.name)
+        missing = [k for k in params if k not in scene.runtime]
+        if missing:
+            raise UsageError(f"--param {missing}: a scene file's run-time parameters are its "
+                             f"runtime = [...] list ({list(scene.runtime)}); add them there")
+    else:
+        factory = _scene_factory(args.name)
+        scene = factory(runtime=tuple(params)) if params else factory()
     t_final, method, rtol, atol = simulate_settings(args, scene)
     model = build(scene, progress=_say)
     info = model.build_info
@@ -294,7 +303,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_list)
 
     p = sub.add_parser("simulate", help="build a scene, simulate it, write CSV and figures")
-    p.add_argument("name", metavar="NAME", help="built-in scene (see `list`)")
+    p.add_argument("name", metavar="NAME", help="built-in scene (see `list`), or a scene file "
+                                                "(.toml: grasping_sym.scene_files)")
     p.add_argument("--t-final", type=_positive_float, default=None,
                    help="simulated time in s (default 3 for 2D scenes, 5 for 3D scenes)")
     p.add_argument("--out", required=True, help="output directory (created if missing)")
