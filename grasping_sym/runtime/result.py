@@ -117,6 +117,13 @@ class SimulationResult:
 
         return animate(self, path, scene, **options)
 
+    def view(self, path: Path | str, scene=None, **options) -> Path:
+        """Write an interactive 3D viewer of the run to ``path`` (one self-contained ``.html``:
+        no network, nothing to install; ``grasping_sym.viewer``)."""
+        from grasping_sym.viewer import write_viewer  # noqa: PLC0415
+
+        return write_viewer(self, path, scene, **options)
+
     # ------------------------------------------------------------ files
     def save(self, path: Path | str) -> Path:
         """Write the result to ``path`` (``.npz``: the arrays, and the names, method, parameters
