@@ -1,5 +1,5 @@
 # Developer loop. Every target installs what it needs into .venv first (scripts/env.sh).
-.PHONY: install demo test docs bench bench-control bench-batch generate lint clean
+.PHONY: install demo test docs bench bench-control bench-batch bench-soft generate lint clean
 SH := bash
 
 install:
@@ -22,6 +22,9 @@ bench-control:
 
 bench-batch:
 	$(SH) -c 'source scripts/env.sh && python -m benchmarks.batch'
+
+bench-soft:
+	$(SH) -c 'source scripts/env.sh && python -m benchmarks.soft_contact'
 
 generate:
 	$(SH) -c 'source scripts/env.sh && grasping-sym generate --all'
