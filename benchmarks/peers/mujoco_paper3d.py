@@ -33,8 +33,8 @@ def _rod_inertia(mass: float, vector) -> list[float]:
     L = float(np.linalg.norm(d))
     # the rod's inertia about its own axis is 0; MuJoCo needs it positive: 1e-10 kg m^2 (no
     # joint of these fingers turns a link about its own axis)
-    I = mass * L * L / 12.0 * (np.eye(3) - np.outer(d, d) / (L * L)) + 1e-10 * np.eye(3)
-    return [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
+    inertia = mass * L * L / 12.0 * (np.eye(3) - np.outer(d, d) / (L * L)) + 1e-10 * np.eye(3)
+    return [inertia[i, j] for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))]
 
 
 def mjcf(scene, x0: np.ndarray, state_names, timestep: float = 1e-3, noslip: int = 0) -> str:
@@ -82,7 +82,8 @@ def mjcf(scene, x0: np.ndarray, state_names, timestep: float = 1e-3, noslip: int
       <freejoint name="object"/>
       <inertial pos="0 0 0" mass="{scene.mass:.10g}" diaginertia="{" ".join(f"{v:.10g}" for v in inertia)}"/>
       <geom name="object" type="ellipsoid" size="{a:.10g} {b:.10g} {c:.10g}" contype="2"
-            conaffinity="1" condim="4" friction="{FRICTION} {TORSION} 0" margin="0.001" gap="0.001" mass="0" rgba=".85 .2 .2 .5"/>
+            conaffinity="1" condim="4" friction="{FRICTION} {TORSION} 0" margin="0.001" gap="0.001"
+            mass="0" rgba=".85 .2 .2 .5"/>
     </body>
   </worldbody>
 </mujoco>"""
