@@ -79,10 +79,31 @@ def geometry_at(geo, scene: GraspScene3D, result: SimulationResult,
 
 def surface_mesh(surface: ParametricSurface, box=None, n: int = MESH_SAMPLES) -> np.ndarray:
     """Points ``(n, n, 3)`` of ``surface`` (own frame, m) on a grid over ``box``
-    ``((u0, u1), (v0, v1))``, default the whole domain."""
-    (u0, u1), (v0, v1) = surface.domain if box is None else box
+    ``((u0, u1), (v0, v1))``, default the whole domain, closed over the poles of a
+    latitude-longitude chart (``drawing_box``)."""
+    (u0, u1), (v0, v1) = drawing_box(surface) if box is None else box
     uu, vv = np.meshgrid(np.linspace(u0, u1, n), np.linspace(v0, v1, n))
     return surface.evaluate(uu, vv)["point"]
+
+
+def drawing_box(surface: ParametricSurface):
+    """The box a drawing covers: the domain, except that a latitude-longitude chart (sphere,
+    ellipsoid, superquadric: its chart stops short of the poles, where it is singular) is drawn
+    up to latitudes +-pi/2 when the surface closes there (one point for every longitude), so
+    the drawn body has no holes at its poles."""
+    (u0, u1), (v0, v1) = surface.domain
+    if u1 - u0 < 2 * math.pi - 1e-9 or not (-math.pi / 2 < v0 and v1 < math.pi / 2):
+        return surface.domain
+    lon = np.linspace(u0, u1, 7)
+    size = float(np.ptp(surface.evaluate(*np.meshgrid(lon, np.linspace(v0, v1, 5)))["point"]
+                        .reshape(-1, 3), axis=0).max())
+    box = [v0, v1]
+    for k, pole in ((0, -math.pi / 2), (1, math.pi / 2)):
+        with np.errstate(all="ignore"):
+            pts = surface.evaluate(lon, np.full_like(lon, pole))["point"].reshape(-1, 3)
+        if np.all(np.isfinite(pts)) and float(np.ptp(pts, axis=0).max()) <= 1e-9 * size:
+            box[k] = pole
+    return (u0, u1), tuple(box)
 
 
 def _to_world(points: np.ndarray, rot: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -141,7 +162,7 @@ def _equal_box(ax, points: np.ndarray, unit: str, pad: float = 0.0, flat: float 
     for name, m, h in zip("xyz", 0.5 * (lo + hi), 0.5 * span):
         getattr(ax, f"set_{name}lim")(m - h, m + h)
         getattr(ax, f"set_{name}label")(f"{name} [{unit}]", fontsize=8)
-    ax.set_box_aspect(tuple(span), zoom=1.1)
+    ax.set_box_aspect(tuple(span), zoom=0.9)  # below 1: the axis labels stay inside the panel
     ax.locator_params(nbins=4)
     ax.tick_params(labelsize=6)
 
