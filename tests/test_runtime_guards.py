@@ -141,6 +141,10 @@ try:
     if method == "dopri5":
         m.library.dopri5(m.initial_state(), [0.0, 1e4], rtol=1e-12, atol=1e-14, max_steps=10**9,
                          nstiff=0)
+    elif method == "simulate_many":  # four long runs on two threads: every thread stops
+        import numpy as np
+        m.simulate_many(1e4, x0=np.tile(m.initial_state(), (4, 1)), method="radau", rtol=1e-12,
+                        atol=1e-14, max_steps=10**9, threads=2)
     else:
         m.simulate(1e4, method=method, **kw)
     print(json.dumps({"outcome": "finished"}))
@@ -149,10 +153,11 @@ except KeyboardInterrupt:
 """
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", [*METHODS, "simulate_many"])
 def test_ctrl_c_stops_every_method_within_a_tenth_of_a_second(slow_model, method):
+    kw = {} if method == "simulate_many" else _long(method)
     out = subprocess.run([sys.executable, "-c", textwrap.dedent(_CTRL_C), method,
-                          json.dumps(_long(method))], capture_output=True, text=True, timeout=120)
+                          json.dumps(kw)], capture_output=True, text=True, timeout=120)
     res = json.loads(out.stdout.strip().splitlines()[-1])
     assert res["outcome"] == "KeyboardInterrupt", out.stderr[-1000:]
     assert res["delay"] < 0.1, res
