@@ -179,25 +179,27 @@ def _view_from(ax, direction: np.ndarray, tilt: float) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- figures
-def draw_scene3d(ax, scene: GraspScene3D, g: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+def draw_scene3d(ax, scene: GraspScene3D, g: dict[str, np.ndarray], clip: bool = False) -> tuple[np.ndarray, ...]:
     """Draw links, fingertips (wireframes), object (mesh, body axes) and contact points at the
     geometry ``g`` (one ``geometry_at`` dict). Returns the drawn points ``(n, 3)``: all, and
-    those of the object and fingertips only (for the axes' limits)."""
+    those of the object and fingertips only (for the axes' limits). ``clip``: nothing drawn
+    outside the axes' limits (a zoomed view)."""
+    c = {"axlim_clip": True} if clip else {}
     ax.computed_zorder = False  # draw in call order: lines stay on top of the meshes
     obj = _to_world(surface_mesh(scene.object_surface), g["R"], g["pos"])
-    ax.plot_surface(*obj.transpose(2, 0, 1), color=OBJECT_COLOR, alpha=0.35, linewidth=0)
+    ax.plot_surface(*obj.transpose(2, 0, 1), color=OBJECT_COLOR, alpha=0.35, linewidth=0, **c)
     near, links = [obj.reshape(-1, 3)], []
     size = 0.6 * float(np.max(np.ptp(near[0], axis=0)))
     for k, style in enumerate(("-", "--", ":")):  # the object's body axes X, Y, Z
         ax.plot(*np.column_stack([g["pos"], g["pos"] + size * g["R"][:, k]]),
-                color=OBJECT_COLOR, linewidth=1.2, linestyle=style)
+                color=OBJECT_COLOR, linewidth=1.2, linestyle=style, **c)
     for i, finger in enumerate(scene.fingers, start=1):
         joints = g[f"joints{i}"].reshape(3, -1)
         tip = _to_world(surface_mesh(finger.tip, n=18), g[f"Pi{i}"], joints[:, -1])
-        ax.plot_wireframe(*tip.transpose(2, 0, 1), color=_color(i), linewidth=0.4, alpha=0.7)
-        ax.plot(*joints, "-", color="0.3", linewidth=3, solid_capstyle="round")
-        ax.plot(*joints[:, :-1], "o", color="0.1", markersize=4)
-        ax.plot(*g[f"p_o{i}"].reshape(3, 1), "o", color="black", markersize=4)
+        ax.plot_wireframe(*tip.transpose(2, 0, 1), color=_color(i), linewidth=0.4, alpha=0.7, **c)
+        ax.plot(*joints, "-", color="0.3", linewidth=3, solid_capstyle="round", **c)
+        ax.plot(*joints[:, :-1], "o", color="0.1", markersize=4, **c)
+        ax.plot(*g[f"p_o{i}"].reshape(3, 1), "o", color="black", markersize=4, **c)
         links.append(joints.T)
         near.append(tip.reshape(-1, 3))
     return np.vstack(near + links), np.vstack(near)
@@ -219,24 +221,29 @@ def snapshot_figure3d(scene: GraspScene3D, result: SimulationResult, geo,
     g = scene.gravity if scene.gravity and any(scene.gravity) else (0.0, -1.0, 0.0)
     vertical = "xyz"[int(np.argmax(np.abs(g)))]  # no gravity: y up
     n = len(rows)
-    fig = _new_figure(4.4 * n, 8.0)
-    grid, axes, pts = fig.add_gridspec(2, n, height_ratios=(1.0, 1.5)), [[], []], [[], []]
+    fig = _new_figure(5.2 * n, 14.0)
+    grid, axes, pts = fig.add_gridspec(3, n, height_ratios=(1.0, 1.5, 1.5)), [[], [], []], [[], [], []]
+    # the third row: around contact 1, over where its contact point travels in the whole run
+    travel = np.array([g["p_o1"] for g in path]).reshape(-1, 3)
+    reach = 1.5 * float(np.max(np.ptp(travel, axis=0))) + 2e-3
+    near = np.vstack([travel.min(axis=0) - reach, travel.max(axis=0) + reach])
     for k, row in enumerate(rows):
-        for r in range(2):
+        for r in range(3):
             ax = fig.add_subplot(grid[r, k], projection="3d")
             ax.view_init(elev=25, azim=-60 if vertical == "z" else 35, vertical_axis=vertical)
-            for p, drawn in zip(pts, draw_scene3d(ax, scene, geos[k])):
+            for p, drawn in zip(pts, draw_scene3d(ax, scene, geos[k], clip=r == 2)):
                 p.append(drawn)
             upto = [j for j, pr in enumerate(path_rows) if pr <= row]
             for i in range(1, scene.n_contacts + 1 if len(upto) > 1 else 1):
                 ax.plot(*np.array([path[j][f"p_o{i}"] for j in upto]).T, color=_color(i),
                         linewidth=1.5, label=f"path of contact {i}")
-            where = "whole scene" if r == 0 else "object and fingertips"
+            where = ("whole scene", "object and fingertips", "around contact 1")[r]
             ax.set_title(f"({chr(ord('a') + k)}) t = {t[row]:.3g} s, {where}", fontsize=9)
             axes[r].append(ax)
-    for r in range(2):
+    for r in range(3):
         for ax in axes[r]:
-            _equal_box(ax, np.vstack(pts[r]), "m", pad=0.02 if r == 0 else 0.0)
+            box = near if r == 2 else np.vstack(pts[r])
+            _equal_box(ax, box, "m", pad=0.02 if r == 0 else 0.0, flat=1.0 if r == 2 else 0.25)
     if axes[1][-1].get_legend_handles_labels()[0]:
         axes[1][-1].legend(fontsize=7, loc="upper left")
     fig.suptitle(f"{scene.name}: fingers (links, tip wireframes), object (mesh; body axes "
