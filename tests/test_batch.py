@@ -136,3 +136,20 @@ def test_a_time_limit_stops_the_batch_and_keeps_what_finished(model):
     assert np.isnan(batch.x_final[stopped]).all() and np.isfinite(batch.x_final[batch.ok]).all()
     assert all("wall-time limit of 0.02 s" in e for e in batch.errors[stopped])
     assert all(e == "" for e in batch.errors[batch.ok])
+
+
+def test_a_law_that_reads_the_time_runs_and_is_checked_as_simulate_runs_it():
+    law = gs.controllers.paper2d() + gs.controllers.feedforward(["2e-3 * sin(10 * t)", "0"])
+    m = gs.build(gs.scenes.paper2d(name="batch_timed", controller=law))
+    assert m.manifest["outputs_time"]
+    x0 = np.array([m.initial_state(), m.initial_state(q1=0.6), m.initial_state()])
+    x0[2, m.state_names.index("dq1")] = 5.0  # off the velocity constraints: refused
+    t_eval = np.linspace(0, 0.5, 11)
+    kw = dict(method="radau", rtol=1e-6, atol=1e-8)
+    batch = m.simulate_many(0.5, x0=x0, t_eval=t_eval, outputs=True, **kw)
+    assert batch.status.tolist() == [0, 0, REFUSED]
+    for i in (0, 1):
+        single = m.simulate(0.5, x0=x0[i], t_eval=t_eval, **kw)
+        assert np.array_equal(single.x, batch.x[i])
+        assert np.array_equal(single.outputs["f"], batch.outputs["f"][i])
+    assert "Cdot" in batch.errors[2]

@@ -313,14 +313,13 @@ def _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, s) ->
               rk4=_rk4_grid(grid, s["h"]) if method == "rk4" else None)
     if sched is None:
         res = lib.batch(method, grid, X0, P, keep=dense, outputs=outputs and in_c,
-                        initial=checks and not timed, **kw)
+                        initial=checks, initial_outputs=not timed, **kw)
     else:
-        res = _segments(model, method, grid, X0, P, sched, dense, checks and not timed, kw)
+        res = _segments(model, method, grid, X0, P, sched, dense, checks, not timed, kw)
     res["ok_code"] = len(grid)
-    first = (P if sched is None else
-             np.array([model.with_inputs(row, *sched.segments(0.0, float(grid[-1]))[0][2:])
-                       for row in P]))
     if checks and timed and model.output_names:  # a law that reads the time: at t = 0
+        first = P if sched is None else np.array(
+            [model.with_inputs(row, *sched.segments(0.0, float(grid[-1]))[0][2:]) for row in P])
         res["Y0"] = np.array([model._output_row(x, p, 0.0) for x, p in zip(X0, first)])
     if outputs and not in_c:  # outputs that read the time or a table's ramps: run by run
         rows = res["X"] if dense else res["X"][:, None, :]
@@ -333,7 +332,7 @@ def _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, s) ->
     return res
 
 
-def _segments(model, method, grid, X0, P, sched, dense, initial, kw) -> dict:
+def _segments(model, method, grid, X0, P, sched, dense, initial, initial_outputs, kw) -> dict:
     """A table of inputs: every run restarts at its knots, as ``simulate``'s runs do, each
     segment one C batch over the runs still going (on the single run's grid: the same
     numbers)."""
@@ -351,7 +350,7 @@ def _segments(model, method, grid, X0, P, sched, dense, initial, kw) -> dict:
         if len(go):
             Pk = np.array([model.with_inputs(row, a, b) for row in P[go]])
             res = lib.batch(method, g, np.ascontiguousarray(x_now[go]), Pk, keep=True,
-                            initial=initial and k == 0, **kw)
+                            initial=initial and k == 0, initial_outputs=initial_outputs, **kw)
             if k == 0 and initial:
                 out = {"Y0": res.get("Y0"), "CD0": res.get("CD0")}
             ok = res["status"] == len(g)

@@ -465,7 +465,7 @@ class CompiledLibrary:
               lo: np.ndarray | None = None, hi: np.ndarray | None = None,
               proj_mask: np.ndarray | None = None, proj_tol: float = 0.0,
               time_limit: float | None = None, keep: bool = False, outputs: bool = False,
-              initial: bool = False) -> dict:
+              initial: bool = False, initial_outputs: bool = True) -> dict:
         """``gs_batch`` (``c/batch.c``): one run per row of ``X0`` (shape ``(N, nx)``) with the
         parameters ``P`` (``(N, np)``, one row per run, or ``(np,)`` shared), over the common
         output times ``t_out``, on ``threads`` threads with the GIL released: each run is the
@@ -474,7 +474,8 @@ class CompiledLibrary:
         The arguments are expected already validated (``runtime.batch`` does that); returned:
         ``X`` (``(N, m, nx)`` with ``keep``, else the final states ``(N, nx)``; NaN after a
         failure), ``Y`` (the outputs there, with ``outputs``), ``Y0`` and ``CD0`` (the outputs
-        and max|Cdot| at ``X0``, with ``initial``), ``status`` (each loop's return value),
+        and max|Cdot| at ``X0``, with ``initial``; the outputs not with ``initial_outputs``
+        False), ``status`` (each loop's return value),
         ``t_fail``, ``stats`` (``(N, NSTATS)``) and ``rc`` (runs that succeeded, or an error
         code). Ctrl-C raises KeyboardInterrupt (carrying what finished as ``.batch``)."""
         if self._c_batch is None:
@@ -487,8 +488,8 @@ class CompiledLibrary:
         if outputs:
             self._need_outputs()
             res["Y"] = np.empty((*rows, self.ny))
-        if initial:
-            res["Y0"] = np.empty((n, self.ny)) if self.has_outputs else None
+        if initial:  # (initial_outputs False: a law reading the time, its outputs need t)
+            res["Y0"] = np.empty((n, self.ny)) if self.has_outputs and initial_outputs else None
             res["CD0"] = np.empty(n) if self.has_constraints else None
         h, nsteps, stride = rk4 or (0.0, 0, 0)
         code = {"radau": 0, "dopri5": 1, "rk4": 2}[method]
