@@ -67,20 +67,16 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
 
 
 def _frames_2d(fig, scene, result, rows):
-    from grasping_sym.plots import draw_scene, poses  # noqa: PLC0415
+    from grasping_sym.plots import draw_scene, motion_limits  # noqa: PLC0415
 
     ax = fig.add_subplot()
-    pts = [np.vstack([p.joint1[None], p.fingertip, p.object, p.pivot[None]])
-           for r in rows[:: max(1, len(rows) // 20)] for p in poses(scene, result.x[r])]
-    allp = np.vstack(pts)
-    lo, hi = allp.min(axis=0), allp.max(axis=0)
-    pad = 0.05 * float(np.max(hi - lo))
+    lo, hi = motion_limits(scene, result.x[rows[:: max(1, len(rows) // 20)]])
 
     def draw(k):
         ax.clear()
         draw_scene(ax, scene, result.x[rows[k]])
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal", adjustable="box")
         ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s")
         ax.legend(loc="lower right", fontsize=7)
@@ -88,18 +84,21 @@ def _frames_2d(fig, scene, result, rows):
 
 
 def _frames_3d(fig, scene, result, rows):
-    from grasping_sym.plots3d import _equal_box, draw_scene3d, geometry_at, geometry_function  # noqa: PLC0415
+    from grasping_sym.plots3d import (  # noqa: PLC0415
+        _equal_box,
+        draw_scene3d,
+        geometry_at,
+        geometry_function,
+        parts_points,
+        scene_parts3d,
+    )
 
     geos = geometry_at(geometry_function(scene), scene, result, rows)
     ax = fig.add_subplot(projection="3d")
     g = scene.gravity if scene.gravity and any(scene.gravity) else (0.0, -1.0, 0.0)
     vertical = "xyz"[int(np.argmax(np.abs(g)))]
-    # the limits of the whole motion, from a first pass over a few frames
-    seen = []
-    for geo in geos[:: max(1, len(geos) // 6)]:
-        seen.append(draw_scene3d(ax, scene, geo)[0])
-        ax.clear()
-    box = np.vstack(seen)
+    # the limits of the whole motion, from the parts at a few frames
+    box = np.vstack([parts_points(scene_parts3d(scene, geo))[0] for geo in geos[:: max(1, len(geos) // 6)]])
 
     def draw(k):
         ax.clear()

@@ -200,26 +200,33 @@ def snapshot_figure(scene: PlanarFingerScene, result: SimulationResult,
         times = (float(result.t[0]), float(result.t[-1]))
     fig = _new_figure(5.0 * len(times), 5.0)
     axes = fig.subplots(1, len(times), squeeze=False)[0]
-    points = []
+    states = []
     for k, (ax, t) in enumerate(zip(axes, times)):
         t_i, x = _state_at(result, t)
         draw_scene(ax, scene, x)
-        for p in poses(scene, x):
-            points += [p.joint1[None], p.fingertip, p.object, p.pivot[None]]
+        states.append(x)
         label = "initial pose" if t_i == result.t[0] else f"after {_fmt_time(t_i)} s"
         ax.set_title(f"({chr(ord('a') + k)}) {label}")
-    allp = np.vstack(points)
-    lo, hi = allp.min(axis=0), allp.max(axis=0)
-    pad = 0.05 * float(np.max(hi - lo))
+    lo, hi = motion_limits(scene, states)
     for ax in axes:
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal", adjustable="box")
     # the legend below the panels, where it covers no finger
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4), fontsize=8)
     fig.suptitle(f"{scene.name}: motion of pinching a 2-D object")
     return fig
+
+
+def motion_limits(scene: PlanarFingerScene, states) -> tuple[np.ndarray, np.ndarray]:
+    """Axis limits ``(lo, hi)`` (m) that hold every finger, contour and the pivot at each of
+    ``states``, with a margin of 5 %: the same in every panel or frame."""
+    pts = np.vstack([np.vstack([p.joint1[None], p.fingertip, p.object, p.pivot[None]])
+                     for x in states for p in poses(scene, x)])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * float(np.max(hi - lo))
+    return lo - pad, hi + pad
 
 
 @dataclass(frozen=True)

@@ -179,30 +179,42 @@ def _view_from(ax, direction: np.ndarray, tilt: float) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- figures
+def scene_parts3d(scene: GraspScene3D, g: dict[str, np.ndarray]) -> dict:
+    """The scene's parts in the world at the geometry ``g`` (one ``geometry_at`` dict): the
+    object's mesh ``(n, n, 3)``, each fingertip's mesh and each finger's joints ``(3, k)``."""
+    return {"object": _to_world(surface_mesh(scene.object_surface), g["R"], g["pos"]),
+            "joints": [g[f"joints{i}"].reshape(3, -1) for i in range(1, len(scene.fingers) + 1)],
+            "tips": [_to_world(surface_mesh(f.tip, n=18), g[f"Pi{i}"], g[f"joints{i}"].reshape(3, -1)[:, -1])
+                     for i, f in enumerate(scene.fingers, start=1)]}
+
+
+def parts_points(parts: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``(n, 3)`` of ``scene_parts3d``'s parts: all, and those of the object and
+    fingertips only (for the axes' limits)."""
+    near = [parts["object"].reshape(-1, 3), *(t.reshape(-1, 3) for t in parts["tips"])]
+    return np.vstack(near + [j.T for j in parts["joints"]]), np.vstack(near)
+
+
 def draw_scene3d(ax, scene: GraspScene3D, g: dict[str, np.ndarray], clip: bool = False) -> tuple[np.ndarray, ...]:
     """Draw links, fingertips (wireframes), object (mesh, body axes) and contact points at the
     geometry ``g`` (one ``geometry_at`` dict). Returns the drawn points ``(n, 3)``: all, and
-    those of the object and fingertips only (for the axes' limits). ``clip``: nothing drawn
-    outside the axes' limits (a zoomed view)."""
+    those of the object and fingertips only (``parts_points``, for the axes' limits). ``clip``:
+    nothing drawn outside the axes' limits (a zoomed view)."""
     c = {"axlim_clip": True} if clip else {}
     ax.computed_zorder = False  # draw in call order: lines stay on top of the meshes
-    obj = _to_world(surface_mesh(scene.object_surface), g["R"], g["pos"])
+    parts = scene_parts3d(scene, g)
+    obj = parts["object"]
     ax.plot_surface(*obj.transpose(2, 0, 1), color=OBJECT_COLOR, alpha=0.35, linewidth=0, **c)
-    near, links = [obj.reshape(-1, 3)], []
-    size = 0.6 * float(np.max(np.ptp(near[0], axis=0)))
+    size = 0.6 * float(np.max(np.ptp(obj.reshape(-1, 3), axis=0)))
     for k, style in enumerate(("-", "--", ":")):  # the object's body axes X, Y, Z
         ax.plot(*np.column_stack([g["pos"], g["pos"] + size * g["R"][:, k]]),
                 color=OBJECT_COLOR, linewidth=1.2, linestyle=style, **c)
-    for i, finger in enumerate(scene.fingers, start=1):
-        joints = g[f"joints{i}"].reshape(3, -1)
-        tip = _to_world(surface_mesh(finger.tip, n=18), g[f"Pi{i}"], joints[:, -1])
+    for i, (joints, tip) in enumerate(zip(parts["joints"], parts["tips"]), start=1):
         ax.plot_wireframe(*tip.transpose(2, 0, 1), color=_color(i), linewidth=0.4, alpha=0.7, **c)
         ax.plot(*joints, "-", color="0.3", linewidth=3, solid_capstyle="round", **c)
         ax.plot(*joints[:, :-1], "o", color="0.1", markersize=4, **c)
         ax.plot(*g[f"p_o{i}"].reshape(3, 1), "o", color="black", markersize=4, **c)
-        links.append(joints.T)
-        near.append(tip.reshape(-1, 3))
-    return np.vstack(near + links), np.vstack(near)
+    return parts_points(parts)
 
 
 def snapshot_figure3d(scene: GraspScene3D, result: SimulationResult, geo,

@@ -119,26 +119,14 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
-    from grasping_sym.runtime.model import _output_times, _positive, _states, real, tolerances  # noqa: PLC0415
+    from grasping_sym.runtime.model import _output_times, _states, run_settings  # noqa: PLC0415
 
     start = perf_counter()
     if method not in METHODS:
         raise ValueError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
                          "(cvodes and idas run through CasADi one at a time: loop over simulate)")
-    rtol, atol = tolerances(method, rtol, atol)
-    t_final = real("t_final", t_final, "seconds")
-    if not t_final > 0:
-        raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
-    _positive("rtol", rtol)
-    _positive("atol", atol)
-    if method == "rk4":
-        _positive("h", h, "the RK4 step (s)")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps <= 0:
-        raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
-    if time_limit is not None:
-        time_limit = real("time_limit", time_limit, "seconds of wall time")
-        if not time_limit > 0:
-            raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds) or None")
+    t_final, rtol, atol, max_steps, time_limit = run_settings(method, t_final, rtol, atol, h,
+                                                              max_steps, time_limit)
     threads = default_threads() if threads is None else threads
     if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
         raise ValueError(f"threads = {threads!r} must be a positive integer (None: every core)")
@@ -157,7 +145,7 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
         P[:, k:k + len(model.input_names)] = U
     proj = projection.settings(model, project, method)
     settings = dict(method=method, rtol=float(rtol), atol=float(atol), h=float(h),
-                    max_steps=int(max_steps), proj=proj, time_limit=time_limit)
+                    max_steps=max_steps, proj=proj, time_limit=time_limit)
 
     res = _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, settings)
     status = np.where(res["status"] == res["ok_code"], 0, res["status"]).astype(np.int64)

@@ -183,15 +183,7 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
         rc, tf = lib._call_adaptive(method, t_arr, x0a, pa, rtol, atol, h0, max_steps,
                                     int(nstiff), lo_a, hi_a, mask, proj_tol, out, stats_a)
     wall = perf_counter() - start
-    st = stats_a.tolist()  # Python floats: cheaper to pick from than the array
-    stats: dict = dict(zip(_STATS[method], map(int, st)))
-    stats["h_last"] = st[7]
-    stats["wall_time"] = wall
-    if mask is not None:
-        stats.update(projection_stats(st))
-    if method == "dopri5":
-        stats["h_lambda"] = st[13]
-        stats["n_stiff_tests"] = int(st[14])
+    stats = adaptive_stats(method, stats_a.tolist(), wall, mask is not None)
     c_name = "gs_radau5" if method == "radau" else "gs_dopri5"
     if rc >= 0:
         if rc != m:
@@ -213,6 +205,20 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
         raise err
     raise _failure(lib, method, c_name, rc, tf, t_arr, out, stats, stats_a, lo_a, hi_a,
                    max_steps, proj_tol)
+
+
+def adaptive_stats(method: str, st: list, wall: float, projected: bool) -> dict:
+    """``simulate``'s ``stats`` of a radau / dopri5 run from its GS_NSTATS counters (``st``: the
+    array's ``tolist()``, Python floats being cheaper to pick from)."""
+    stats: dict = dict(zip(_STATS[method], map(int, st)))
+    stats["h_last"] = st[7]
+    stats["wall_time"] = wall
+    if projected:
+        stats.update(projection_stats(st))
+    if method == "dopri5":
+        stats["h_lambda"] = st[13]
+        stats["n_stiff_tests"] = int(st[14])
+    return stats
 
 
 def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarray,

@@ -467,7 +467,7 @@ class CompiledLibrary:
               time_limit: float | None = None, keep: bool = False, outputs: bool = False,
               initial: bool = False, initial_outputs: bool = True) -> dict:
         """``gs_batch`` (``c/batch.c``): one run per row of ``X0`` (shape ``(N, nx)``) with the
-        parameters ``P`` (``(N, np)``, one row per run, or ``(np,)`` shared), over the common
+        parameters ``P`` (``(N, np)``, one row per run), over the common
         output times ``t_out``, on ``threads`` threads with the GIL released: each run is the
         single loop's (``radau5``, ``dopri5``, ``rk4``) call with the same arguments, bit for bit.
 
@@ -493,11 +493,10 @@ class CompiledLibrary:
             res["CD0"] = np.empty(n) if self.has_constraints else None
         h, nsteps, stride = rk4 or (0.0, 0, 0)
         code = {"radau": 0, "dopri5": 1, "rk4": 2}[method]
-        shared = P is not None and P.ndim == 1
         with c_loops.stoppable(self, None):
             rc = self._c_batch(
                 code, int(threads), n, m, t_out.ctypes.data, float(h), int(nsteps), int(stride),
-                X0.ctypes.data, self._ptr(P), 0 if shared or P is None else self.np, float(rtol),
+                X0.ctypes.data, self._ptr(P), 0 if P is None else self.np, float(rtol),
                 float(atol), float(h0), int(max_steps), int(nstiff), self._ptr(lo), self._ptr(hi),
                 self._ptr(proj_mask), float(proj_tol), float(time_limit or 0.0), int(keep),
                 res["X"].ctypes.data, self._ptr(res.get("Y")), self._ptr(res.get("Y0")), self._ptr(res.get("CD0")),

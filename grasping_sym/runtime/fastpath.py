@@ -15,7 +15,7 @@ from time import perf_counter
 
 import numpy as np
 
-from grasping_sym.runtime.c_loops import _STATS, ERR_INTERRUPT, NSTATS, NSTIFF
+from grasping_sym.runtime.c_loops import ERR_INTERRUPT, NSTATS, NSTIFF, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
 
 #: Initial states whose checks passed, remembered per model (the oldest dropped beyond this).
@@ -26,7 +26,7 @@ class Plan:
     """What the full path decided for one set of settings."""
 
     __slots__ = ("method", "code", "rtol", "atol", "max_steps", "nstiff", "mask", "proj_tol",
-                 "checks", "names", "projected")
+                 "checks", "projected")
 
     def __init__(self, method: str, rtol: float, atol: float, max_steps: int, proj, checks: bool):
         self.method, self.code = method, 0 if method == "radau" else 1
@@ -35,7 +35,6 @@ class Plan:
         self.mask, self.proj_tol = proj
         self.projected = self.mask is not None
         self.checks = bool(checks)
-        self.names = _STATS[method]
 
 
 def key(method, rtol, atol, max_steps, project, checks):
@@ -92,17 +91,7 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
             raise KeyboardInterrupt(f"{plan.method} stopped by Ctrl-C")
         return None
-    st = stats.tolist()
-    info = {k: int(v) for k, v in zip(plan.names, st)}
-    info["h_last"] = st[7]
-    info["wall_time"] = wall
-    if plan.projected:
-        info["n_constraint_evals"] = int(st[8])
-        info["max_drift"] = st[9]
-        info["max_drift_rate"] = st[10]
-    if plan.code == 1:
-        info["h_lambda"] = st[13]
-        info["n_stiff_tests"] = int(st[14])
+    info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     res = SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))
     res.scene = getattr(model, "scene", None)
     return res

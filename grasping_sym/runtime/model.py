@@ -376,18 +376,8 @@ class Model:
                     return res
         if method not in integrators.METHODS:
             raise ValueError(f"method {method!r} unknown: choose one of {integrators.METHODS}")
-        rtol, atol = tolerances(method, rtol, atol)
-        t_final = real("t_final", t_final, "seconds")
-        if not t_final > 0:
-            raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
-        if t_final < SUNDIALS_MIN_T and method in ("cvodes", "idas"):
-            raise ValueError(f"t_final = {t_final:g} s is shorter than {SUNDIALS_MIN_T:g} s, below "
-                             f"what {method}'s step control starts on (IDAS fails, CVODES returns "
-                             "x0): use method='radau', 'dopri5' or 'rk4' for so short a run")
-        if time_limit is not None:
-            time_limit = real("time_limit", time_limit, "seconds of wall time")
-            if not time_limit > 0:
-                raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
+        t_final, rtol, atol, max_steps, time_limit = run_settings(method, t_final, rtol, atol, h,
+                                                                  max_steps, time_limit)
         own_start = x0 is None  # the stored start: its speeds are consistent by construction
         x0 = self.initial_state() if own_start else _states("x0", x0)
         if x0.shape != (len(self.state_names),):
@@ -396,13 +386,6 @@ class Model:
         if not np.all(np.isfinite(x0)):
             raise ValueError(f"x0 = {x0} has non-finite entries")
         self._check_bounds(0.0, x0)
-        _positive("rtol", rtol)
-        _positive("atol", atol)
-        if method == "rk4":
-            _positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
-        if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps <= 0:
-            raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
-        max_steps = int(max_steps)
         p = self.params(params)
         proj = projection.settings(self, project, method)
         t_eval, drop_first = _output_times(t_eval, float(t_final))
@@ -713,6 +696,30 @@ def tolerances(method: str, rtol, atol) -> tuple:
     """``(rtol, atol)`` with the method's defaults where None."""
     d = DEFAULT_TOLERANCES.get(method, (1e-10, 1e-12))
     return (d[0] if rtol is None else rtol), (d[1] if atol is None else atol)
+
+
+def run_settings(method: str, t_final, rtol, atol, h, max_steps, time_limit) -> tuple:
+    """``(t_final, rtol, atol, max_steps, time_limit)`` of ``simulate`` / ``simulate_many``,
+    checked, with the method's default tolerances where None; a bad one is refused by name."""
+    rtol, atol = tolerances(method, rtol, atol)
+    t_final = real("t_final", t_final, "seconds")
+    if not t_final > 0:
+        raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
+    if t_final < SUNDIALS_MIN_T and method in ("cvodes", "idas"):
+        raise ValueError(f"t_final = {t_final:g} s is shorter than {SUNDIALS_MIN_T:g} s, below "
+                         f"what {method}'s step control starts on (IDAS fails, CVODES returns "
+                         "x0): use method='radau', 'dopri5' or 'rk4' for so short a run")
+    if time_limit is not None:
+        time_limit = real("time_limit", time_limit, "seconds of wall time")
+        if not time_limit > 0:
+            raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
+    _positive("rtol", rtol)
+    _positive("atol", atol)
+    if method == "rk4":
+        _positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps <= 0:
+        raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
+    return t_final, rtol, atol, int(max_steps), time_limit
 
 
 def real(name: str, value, what: str = "") -> float:
