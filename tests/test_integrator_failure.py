@@ -13,7 +13,7 @@ def test_cvodes_step_budget_failure_names_time_state_reason(paper2d_model):
     err = info.value
     assert 0.0 < err.t < 3.0
     assert err.x is not None and err.x.shape == (7,) and np.all(np.isfinite(err.x))
-    assert "CV_TOO_MUCH_WORK" in err.reason and "max_steps" in err.reason
+    assert "max_steps = 50 step attempts in total" in err.reason
     assert "theta=" in str(err) and f"{err.t:.6g}" in str(err)
     # the reported state is the trajectory's state at that time
     ref = paper2d_model.simulate(err.t, method="cvodes", t_eval=[0.0, err.t], outputs=False).x[-1]
@@ -27,3 +27,20 @@ def test_rk4_unstable_step_reports_non_finite_with_time(paper2d_model):
     err = info.value
     assert "non-finite" in err.reason or "left" in err.reason
     assert 0.0 <= err.t < 3.0
+
+
+@pytest.mark.parametrize("method", ["cvodes", "idas"])
+def test_sundials_max_steps_is_a_total_over_all_outputs(paper2d_model, method):
+    """SUNDIALS's own limit restarts at every output time; the budget in C (c/budget.c)
+    counts the whole run: with an output every ms (3000 intervals, each far below the limit),
+    the run stops once it has attempted max_steps steps, and a run given exactly the
+    attempts it needs completes."""
+    run = paper2d_model.simulate(3.0, method=method, outputs=False)
+    needed = run.stats["n_attempts"]
+    assert run.stats["n_steps"] <= needed < 2 * run.stats["n_steps"] + 50
+    again = paper2d_model.simulate(3.0, method=method, outputs=False, max_steps=needed)
+    np.testing.assert_array_equal(again.x, run.x)
+    with pytest.raises(IntegratorError, match="in total") as info:
+        paper2d_model.simulate(3.0, method=method, outputs=False, max_steps=needed // 2)
+    assert 0.0 < info.value.t < 3.0
+    assert info.value.x is not None and np.all(np.isfinite(info.value.x))

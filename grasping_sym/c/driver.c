@@ -16,6 +16,8 @@
  *                  wall-time limit stop the loops (GS_ERR_INTERRUPT)
  *   batch.c        gs_batch: many runs of gs_radau5 / gs_dopri5 / gs_rk4 in one call, over a
  *                  pool of threads
+ *   budget.c       gs_step_budget: a CasADi external that bounds a SUNDIALS run's steps in
+ *                  total (gs_budget_begin, gs_budget_hit)
  *   gs_internal.h  what they share: the macro defaults and checks, error codes, GS_ST_*
  *                  indices, work arrays, the CasADi prototypes and the small helpers
  *   gs_driver.h    the gs_ prototypes used by pyfast.c

@@ -145,6 +145,14 @@ class CompiledLibrary:
                                        _dp, _dp, _dp, _double, _double, ctypes.c_int]
                                       + [_dp] * 7)
             self._c_batch.restype = _long
+        # the SUNDIALS step budget (c/budget.c; libraries of older versions lack it)
+        self.has_budget = hasattr(lib, "gs_step_budget")
+        if self.has_budget:
+            lib.gs_budget_begin.argtypes = [ctypes.c_longlong]
+            lib.gs_budget_begin.restype = None
+            lib.gs_budget_count.restype = ctypes.c_longlong
+            lib.gs_budget_hit.restype = ctypes.c_int
+            lib.gs_budget_last_t.restype = _double
         lib.gs_set_time_limit.argtypes = [_double]
         lib.gs_set_time_limit.restype = None
         lib.gs_stop_cause.restype = ctypes.c_int
@@ -257,6 +265,24 @@ class CompiledLibrary:
         if self._c_out_batch(X.shape[0], X.ctypes.data, self._ptr(pa), out.ctypes.data):
             raise RuntimeError("outputs_batch: the CasADi function reported an evaluation error")
         return out
+
+    # -- the SUNDIALS step budget (c/budget.c) -------------------------------------
+    def budget_begin(self, limit: int) -> None:
+        """This thread's next SUNDIALS run may attempt ``limit`` steps in total (0: no limit)."""
+        if self.has_budget:
+            self._lib.gs_budget_begin(int(limit))
+
+    def budget_hit(self) -> bool:
+        """Whether the budget stopped this thread's last SUNDIALS run."""
+        return bool(self.has_budget and self._lib.gs_budget_hit())
+
+    def budget_last_t(self) -> float:
+        """The time of the last step attempt the budget counted."""
+        return float(self._lib.gs_budget_last_t()) if self.has_budget else math.nan
+
+    def budget_count(self) -> int:
+        """The step attempts counted since ``budget_begin`` (-1 without the budget)."""
+        return int(self._lib.gs_budget_count()) if self.has_budget else -1
 
     # -- integration -------------------------------------------------------------
     def rk4(

@@ -104,9 +104,64 @@ def _step_floor(method: str, t_eval: np.ndarray) -> dict:
 
 
 def _rhs_for(model, method: str):
-    """The compiled rhs a SUNDIALS method integrates: CVODES the guarded one (NaN outside the
-    contours' domains: it stops at the step where a contact leaves), IDAS the plain one."""
-    return model.external_rhs_guarded() if method == "cvodes" else model.external_rhs()
+    """The function a SUNDIALS method integrates (``dae_for``), cached on the model."""
+    key = ("dae", method)
+    if key not in model._integrators_dae:
+        model._integrators_dae[key] = dae_for(model, method)
+    return model._integrators_dae[key]
+
+
+def dae_for(model, method: str):
+    """What CVODES or IDAS integrates: the compiled rhs plus ``gs_step_budget(t)`` (``c/budget.c``,
+    zero, but it fails once a run has attempted more than its ``max_steps`` steps in total).
+
+    CVODES gets the guarded rhs (NaN outside the contours' domains: it stops at the step where a
+    contact leaves). IDAS, given the same, crawls toward the boundary in ever smaller steps, so it
+    gets the plain rhs and one more state, ``e' = sum(max(0, x - upper) + max(0, lower - x))``
+    over the bounded states, ``e(0) = 0``: ``e`` stays exactly zero unless a step ends outside a
+    domain, so an excursion between two outputs shows in ``e`` at the next one
+    (``excursion_intervals``), where the C Radau loop locates it at its step."""
+    import casadi as ca  # noqa: PLC0415
+
+    rhs = model.external_rhs_guarded() if method == "cvodes" else model.external_rhs()
+    if model.library.has_budget:
+        budget = ca.external("gs_step_budget", str(model.library_path))
+    else:  # a library built before c/budget.c: SUNDIALS's own per-interval limit only
+        def budget(t):
+            return ca.MX(0)
+    ins = [ca.MX.sym(rhs.name_in(i), rhs.sparsity_in(i)) for i in range(rhs.n_in())]
+    names_in = [rhs.name_in(i) for i in range(rhs.n_in())]
+    names_out = [rhs.name_out(i) for i in range(rhs.n_out())]
+    nx = len(model.state_names)
+    bounded = [i for i in range(nx)
+               if math.isfinite(model.lower[i]) or math.isfinite(model.upper[i])]
+    if method == "cvodes" or not bounded:
+        outs = rhs.call(ins)
+        outs[0] = outs[0] + budget(ins[0])
+        return ca.Function(f"{model.name}_{method}_dae", ins, outs, names_in, names_out)
+    x_aug = ca.MX.sym(names_in[1], nx + 1)
+    x = x_aug[:nx]
+    outs = rhs.call([ins[0], x, *ins[2:]])
+    excess = ca.MX(0)
+    for i in bounded:
+        if math.isfinite(model.upper[i]):
+            excess += ca.fmax(0, x[i] - float(model.upper[i]))
+        if math.isfinite(model.lower[i]):
+            excess += ca.fmax(0, float(model.lower[i]) - x[i])
+    ode = ca.vertcat(outs[0] + budget(ins[0]), excess)
+    return ca.Function(f"{model.name}_{method}_dae", [ins[0], x_aug, *ins[2:]], [ode, *outs[1:]],
+                       names_in, names_out)
+
+
+def augmented(model, method: str) -> bool:
+    """Whether ``dae_for(model, method)`` carries the excursion state ``e`` after the states."""
+    return method == "idas" and bool(np.any(np.isfinite(model.lower) | np.isfinite(model.upper)))
+
+
+def excursion_intervals(e: np.ndarray) -> list[int]:
+    """The output intervals ``k`` (from output ``k - 1`` to ``k``) over which the excursion
+    state ``e`` of ``dae_for`` grew: a step ended outside a contour's domain there."""
+    return [int(k) for k in np.flatnonzero(np.diff(e) > 0) + 1]
 
 
 def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray,
@@ -114,8 +169,10 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
              time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Integrate with CVODES or IDAS through CasADi, reporting at ``t_eval``.
 
-    ``max_steps`` bounds SUNDIALS's steps per output interval (its own limit) and the total
-    is checked after the run; ``time_limit`` (s of wall time) and Ctrl-C stop the run."""
+    ``max_steps`` bounds the step attempts of the whole run (``c/budget.c``; SUNDIALS's own
+    limit, per output interval, is set to the same); ``time_limit`` (s of wall time) and Ctrl-C
+    stop the run. ``stats["excursions"]`` (IDAS): the output intervals over which a step ended
+    outside a contour's domain (``dae_for``)."""
     import casadi as ca  # noqa: PLC0415 - only the SUNDIALS methods need CasADi at run time
 
     key = (method, float(rtol), float(atol), int(max_steps), t_eval.tobytes())
@@ -129,10 +186,13 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     model._integrators[key] = integ  # most recently used last
     while len(model._integrators) > INTEGRATOR_CACHE_SIZE:
         model._integrators.pop(next(iter(model._integrators)))
+    xa = np.append(x0, 0.0) if augmented(model, method) else x0
+    lib = model.library
     start = time.perf_counter()
     with _watch(time_limit) as watch:
+        lib.budget_begin(max_steps)
         try:
-            out = integ(x0=x0, p=p)
+            out = integ(x0=xa, p=p)
         except RuntimeError as exc:
             failure = exc
         else:
@@ -144,12 +204,22 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
             raise IntegratorError(math.nan, None, f"{method}: the wall-time limit of "
                                   f"{time_limit:g} s was reached (raise time_limit, or loosen "
                                   "the tolerances)", model.state_names) from None
+        if lib.budget_hit():
+            raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure),
+                           at=(lib.budget_last_t(), f"more than max_steps = {max_steps} step "
+                               "attempts in total (raise max_steps, or loosen rtol/atol)")
+                           ) from None
         raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure)) from None
     wall = time.perf_counter() - start
-    X = np.vstack([x0, np.array(out["xf"]).T])
+    X = np.vstack([xa, np.array(out["xf"]).T])
     st = integ.stats()
     stats = {"wall_time": wall, "n_steps": int(st.get("nsteps", 0)),
-             "n_rhs": int(st.get("nfevals", 0)), "n_jac": int(st.get("n_call_jacF", 0))}
+             "n_rhs": int(st.get("nfevals", 0)), "n_jac": int(st.get("n_call_jacF", 0)),
+             "n_attempts": lib.budget_count()}
+    nx = len(model.state_names)
+    if X.shape[1] > nx:
+        stats["excursions"] = excursion_intervals(X[:, nx])
+        X = X[:, :nx]
     if stats["n_steps"] > max_steps:
         raise IntegratorError(float(t_eval[-1]), X[-1], f"{method}: {stats['n_steps']} steps, "
                               f"more than max_steps = {max_steps} (raise max_steps or loosen "
@@ -158,30 +228,37 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
 
 
 def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
-             message: str) -> IntegratorError:
+             message: str, at: tuple[float, str] | None = None) -> IntegratorError:
     """Build the error for a SUNDIALS failure: the reason, the time and the state there.
 
     SUNDIALS prints the failure time ("At t = ...") from C but CasADi's exception does not
     carry it, so the failing run is repeated once with SUNDIALS' messages captured at the
     file-descriptor level; the trajectory is then recovered on the output grid up to just
     before that time, with a bounded step budget (``err.trajectory``, ``err.x`` its last
-    state). This only runs on the failure path.
+    state). This only runs on the failure path. ``at``: the failure's time and reason when
+    known (the step budget's), which spares the repeated run.
     """
     import casadi as ca  # noqa: PLC0415
-    reason = _sundials_reason(message)
     opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps, **_step_floor(method, t_eval)}
-    grid = [float(t) for t in t_eval[1:]]
-    integ = ca.integrator("failing", method, _rhs_for(model, method), float(t_eval[0]), grid, opts)
-    with _captured_fds() as captured:
-        try:
-            integ(x0=x0, p=p)
-        except RuntimeError:
-            pass
-    times = re.findall(r"t\s*=\s*([-+0-9.eE]+)", captured.read())
-    if not times:
-        return IntegratorError(float("nan"), None, f"{method}: {reason} (time not reported)",
-                               model.state_names)
-    t_fail = float(times[0])
+    xa = np.append(x0, 0.0) if augmented(model, method) else x0
+    if at is not None:
+        t_fail, reason = at
+    else:
+        reason = _sundials_reason(message)
+        grid = [float(t) for t in t_eval[1:]]
+        integ = ca.integrator("failing", method, _rhs_for(model, method), float(t_eval[0]), grid,
+                              opts)
+        with _captured_fds() as captured:
+            model.library.budget_begin(max_steps)
+            try:
+                integ(x0=xa, p=p)
+            except RuntimeError:
+                pass
+        times = re.findall(r"t\s*=\s*([-+0-9.eE]+)", captured.read())
+        if not times:
+            return IntegratorError(float("nan"), None, f"{method}: {reason} (time not reported)",
+                                   model.state_names)
+        t_fail = float(times[0])
     if t_fail <= t_eval[0]:
         return IntegratorError(t_fail, np.asarray(x0, dtype=float), f"{method}: {reason}",
                                model.state_names)
@@ -195,8 +272,9 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
         rec = ca.integrator("recover", method, _rhs_for(model, method), t0, grid,
                             {**opts, "max_num_steps": RECOVERY_MAX_STEPS,
                              "disable_internal_warnings": True})
+        model.library.budget_begin(RECOVERY_MAX_STEPS)
         try:
-            X = np.vstack([x0, np.array(rec(x0=x0, p=p)["xf"]).T])
+            X = np.vstack([xa, np.array(rec(x0=xa, p=p)["xf"]).T])[:, :len(model.state_names)]
         except RuntimeError:
             continue
         x_fail, trajectory = X[-1], (np.array([t0, *grid]), X)

@@ -65,6 +65,7 @@ class Model:
         self._external = None
         self._guarded = None
         self._integrators: dict = {}
+        self._integrators_dae: dict = {}  # runtime.integrators.dae_for, per SUNDIALS method
         self._public: dict = {}
         self._plans: dict = {}  # runtime.fastpath: settings the full path accepted
         self._checked: dict = {}  # runtime.fastpath: initial states whose checks passed
@@ -253,7 +254,8 @@ class Model:
         (``codegen.functions.guarded_rhs``; the plain one when the model has no bounds): CVODES
         cannot step past a contact leaving its contour and fails at the step where it happens,
         not at the next output time. (IDAS, given the same, crawls toward the boundary up to
-        ``max_steps`` steps: it keeps the plain rhs.)"""
+        ``max_steps`` steps: it keeps the plain rhs and an excursion state instead,
+        ``runtime.integrators.dae_for``.)"""
         if "rhs_guarded" not in self.manifest:
             return self.external_rhs()
         if self._guarded is None:
@@ -296,9 +298,9 @@ class Model:
             (``DEFAULT_TOLERANCES``: radau 1e-6 / 1e-9, dopri5 1e-8 / 1e-10, cvodes and idas
             1e-10 / 1e-12).
         max_steps
-            The most steps a run may take: in total for 'radau' and 'dopri5'; for 'cvodes' and
-            'idas' SUNDIALS bounds each output interval by it and the total is checked after
-            the run (use ``time_limit`` to bound their wall time).
+            The most steps a run may take, in total: for 'cvodes' and 'idas' the step
+            attempts, counted in C as the run goes (``c/budget.c``), so a run stops as soon
+            as it has taken them.
         time_limit
             Seconds of wall time the integration may take (None: no limit); past it the run
             stops with an ``IntegratorError``. Ctrl-C stops every method within a few steps
@@ -507,6 +509,16 @@ class Model:
                 if checks:
                     checks_.raise_earlier_event(self, exc, p, start)
                 raise exc from None
+            for k in stats.pop("excursions", ()):  # IDAS: a step ended outside a domain
+                found = ContactLeftContourError(t[k], X[k], "a contact left its contour between "
+                                                "the outputs", self.state_names)
+                exc = self._locate_exit(found, t[k - 1], X[k - 1], t[min(k + 1, len(t) - 1)], p,
+                                        rtol, atol)
+                if exc is not found:
+                    if checks:
+                        exc.trajectory = (t[:k].copy(), X[:k].copy())
+                        checks_.raise_earlier_event(self, exc, p, start)
+                    raise exc from None
             for i in range(len(t)):
                 try:
                     self._check_bounds(t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
