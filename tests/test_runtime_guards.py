@@ -124,6 +124,19 @@ def test_time_limit_stops_every_method(slow_model, method):
     assert time.perf_counter() - t0 < 1.5
 
 
+@pytest.mark.parametrize("method", ["cvodes", "idas"])
+def test_time_limit_stops_sundials_in_another_thread(slow_model, method):
+    """No signal handler outside the main thread: the step budget in C reads the deadline."""
+    import concurrent.futures
+    import time
+    t0 = time.perf_counter()
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        future = pool.submit(_run_long, slow_model, method, 0.3)
+        with pytest.raises(IntegratorError, match="wall-time limit of 0.3 s"):
+            future.result(timeout=60)
+    assert time.perf_counter() - t0 < 1.5
+
+
 _CTRL_C = """
 import json, os, signal, sys, threading, time
 import grasping_sym as gs

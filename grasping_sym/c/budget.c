@@ -10,7 +10,12 @@
  *
  *   gs_budget_begin(limit)   this thread's next run may attempt `limit` steps (0: no limit)
  *   gs_budget_count()        the step attempts counted since
- *   gs_budget_hit()          1 when the limit stopped the run, then gs_budget_last_t() its time
+ *   gs_budget_hit()          1 when the limit stopped the run, 2 when Ctrl-C or the wall-time
+ *                            limit did (c/stop.c: gs_stop_cause() says which); then
+ *                            gs_budget_last_t() is its time
+ *
+ * So a SUNDIALS run also stops on the C loops' wall-time limit (gs_set_time_limit), in any
+ * thread, and on Ctrl-C where the library's SIGINT handler sees it.
  *
  * The state is thread-local: CasADi evaluates the function in the thread that calls the
  * integrator. jac_gs_step_budget is its derivative, structurally zero, so that CasADi's
@@ -30,6 +35,7 @@ GS_EXPORT void gs_budget_begin(long long limit) {
   gs_budget_started = 0;
   gs_budget_stop = 0;
   gs_budget_t = 0.0;
+  gs_stop_reset();
 }
 
 GS_EXPORT long long gs_budget_count(void) { return gs_budget_n; }
@@ -43,6 +49,7 @@ static const GS_CASADI_INT gs_budget_zero[4] = {1, 1, 0, 0};      /* 1x1, no ent
 GS_EXPORT int gs_step_budget(const double** arg, double** res, GS_CASADI_INT* iw, double* w,
                              int mem) {
   (void)iw; (void)w; (void)mem;
+  if (gs_budget_stop) return 1; /* stopped: every later call fails too, so SUNDIALS gives up */
   double t = (arg && arg[0]) ? arg[0][0] : 0.0;
   if (!gs_budget_started || t != gs_budget_t) {
     gs_budget_started = 1;
@@ -51,6 +58,10 @@ GS_EXPORT int gs_step_budget(const double** arg, double** res, GS_CASADI_INT* iw
   }
   if (gs_budget_limit > 0 && gs_budget_n > gs_budget_limit) {
     gs_budget_stop = 1;
+    return 1;
+  }
+  if (gs_stop_requested()) {
+    gs_budget_stop = 2;
     return 1;
   }
   if (res && res[0]) res[0][0] = 0.0;

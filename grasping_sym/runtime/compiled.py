@@ -272,9 +272,10 @@ class CompiledLibrary:
         if self.has_budget:
             self._lib.gs_budget_begin(int(limit))
 
-    def budget_hit(self) -> bool:
-        """Whether the budget stopped this thread's last SUNDIALS run."""
-        return bool(self.has_budget and self._lib.gs_budget_hit())
+    def budget_hit(self) -> int:
+        """What stopped this thread's last SUNDIALS run in the budget: 0 nothing, 1 its step
+        limit, 2 Ctrl-C or the wall-time limit (``gs_stop_cause`` says which)."""
+        return int(self._lib.gs_budget_hit()) if self.has_budget else 0
 
     def budget_last_t(self) -> float:
         """The time of the last step attempt the budget counted."""

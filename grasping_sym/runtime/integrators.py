@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym.errors import IntegratorError
+from grasping_sym.runtime import c_loops
 
 METHODS = ("cvodes", "idas", "rk4", "radau", "dopri5")
 #: The methods whose whole loop runs in C (``c/rk4.c``, ``c/radau5.c``, ``c/dopri5.c``).
@@ -54,20 +55,17 @@ class _Watch:
 
 @contextlib.contextmanager
 def _watch(time_limit: float | None):
-    """Ctrl-C and a wall-time limit for a CasADi integrator call. CasADi polls Python's
-    signals while SUNDIALS runs and stops with an error when a handler raises; these handlers
-    note why, so that the caller raises KeyboardInterrupt or the time limit's error instead
-    of retrying the run. Signal handlers are the main thread's only: elsewhere a time limit
-    is refused (use a C-loop method)."""
+    """Ctrl-C and a wall-time limit for a CasADi integrator call in the main thread. CasADi
+    polls Python's signals while SUNDIALS runs and stops with an error when a handler raises;
+    these handlers note why, so that the caller raises KeyboardInterrupt or the time limit's
+    error instead of retrying the run. Signal handlers are the main thread's only: elsewhere
+    the step budget in C (``c/budget.c``) stops the run at the time limit."""
     import signal  # noqa: PLC0415
     import threading  # noqa: PLC0415
 
     w = _Watch()
     if threading.current_thread() is not threading.main_thread():
-        if time_limit:
-            raise ValueError("time_limit with cvodes or idas works in the main thread only: "
-                             "use method='radau', 'dopri5' or 'rk4' in other threads")
-        yield w
+        yield w  # no signal handlers here: the step budget (c/budget.c) reads the time limit
         return
 
     def on_int(signum, frame):
@@ -189,7 +187,7 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     xa = np.append(x0, 0.0) if augmented(model, method) else x0
     lib = model.library
     start = time.perf_counter()
-    with _watch(time_limit) as watch:
+    with _watch(time_limit) as watch, c_loops.stoppable(lib, time_limit):
         lib.budget_begin(max_steps)
         try:
             out = integ(x0=xa, p=p)
@@ -198,12 +196,12 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
         else:
             failure = None
     if failure is not None:
-        if watch.sigint:
+        if watch.sigint or lib.budget_hit() == 2 and lib._lib.gs_stop_cause() == 1:
             raise KeyboardInterrupt(f"{method} stopped by Ctrl-C") from None
-        if watch.timeout:
-            raise IntegratorError(math.nan, None, f"{method}: the wall-time limit of "
-                                  f"{time_limit:g} s was reached (raise time_limit, or loosen "
-                                  "the tolerances)", model.state_names) from None
+        if watch.timeout or lib.budget_hit() == 2:
+            raise IntegratorError(lib.budget_last_t(), None, f"{method}: the wall-time limit "
+                                  f"of {time_limit:g} s was reached (raise time_limit, or "
+                                  "loosen the tolerances)", model.state_names) from None
         if lib.budget_hit():
             raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure),
                            at=(lib.budget_last_t(), f"more than max_steps = {max_steps} step "

@@ -304,7 +304,7 @@ class Model:
         time_limit
             Seconds of wall time the integration may take (None: no limit); past it the run
             stops with an ``IntegratorError``. Ctrl-C stops every method within a few steps
-            and raises ``KeyboardInterrupt``. (cvodes, idas: the limit needs the main thread.)
+            and raises ``KeyboardInterrupt``.
         t_eval
             Output times (s); default every millisecond from 0 to ``t_final`` (and at least
             ``[0, t_final]``).
