@@ -61,8 +61,14 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
     draw = _frames_3d(fig, scene, result, rows) if three_d else _frames_2d(fig, scene, result, rows)
     writer = animation.PillowWriter(fps=fps) if path.suffix == ".gif" else animation.FFMpegWriter(fps=fps)
     path.parent.mkdir(parents=True, exist_ok=True)
-    anim = animation.FuncAnimation(fig, draw, frames=len(rows), blit=False)
-    anim.save(str(path), writer=writer, dpi=dpi)
+    # one drawing per frame (FuncAnimation.save draws each frame three times), and the layout
+    # computed on the first frame only: the panels then stay put from frame to frame
+    with writer.saving(fig, str(path), dpi):
+        for k in range(len(rows)):
+            draw(k)
+            writer.grab_frame()
+            if k == 0:
+                fig.set_layout_engine("none")
     return path
 
 
