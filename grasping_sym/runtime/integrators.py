@@ -156,6 +156,19 @@ def augmented(model, method: str) -> bool:
     return method == "idas" and bool(np.any(np.isfinite(model.lower) | np.isfinite(model.upper)))
 
 
+def _tolerances(model, method: str, rtol: float, atol: float) -> dict:
+    """SUNDIALS's tolerance options. With the excursion state (``augmented``) its weight is
+    ~0 (it is an indicator, exactly 0 while the run stays inside) and the states' tolerances
+    are divided by sqrt((n + 1) / n): the weighted RMS norm of the error, now over n + 1
+    components, is then the same number as without the extra state, and so are the steps
+    (left alone, IDAS took 25-40 % more steps on paper3d)."""
+    if not augmented(model, method):
+        return {"abstol": atol, "reltol": rtol}
+    n = len(model.state_names)
+    s = math.sqrt((n + 1) / n)
+    return {"abstol": atol / s, "abstolv": [atol / s] * n + [1.0], "reltol": rtol / s}
+
+
 def excursion_intervals(e: np.ndarray) -> list[int]:
     """The output intervals ``k`` (from output ``k - 1`` to ``k``) over which the excursion
     state ``e`` of ``dae_for`` grew: a step ended outside a contour's domain there."""
@@ -176,7 +189,7 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     key = (method, float(rtol), float(atol), int(max_steps), t_eval.tobytes())
     integ = model._integrators.pop(key, None)
     if integ is None:
-        opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps,
+        opts = {**_tolerances(model, method, rtol, atol), "max_num_steps": max_steps,
                 "disable_internal_warnings": True, **_step_floor(method, t_eval)}
         grid = [float(t) for t in t_eval[1:]]
         integ = ca.integrator(f"{model.name}_{method}", method, _rhs_for(model, method),
@@ -237,7 +250,8 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
     known (the step budget's), which spares the repeated run.
     """
     import casadi as ca  # noqa: PLC0415
-    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps, **_step_floor(method, t_eval)}
+    opts = {**_tolerances(model, method, rtol, atol), "max_num_steps": max_steps,
+            **_step_floor(method, t_eval)}
     xa = np.append(x0, 0.0) if augmented(model, method) else x0
     if at is not None:
         t_fail, reason = at
