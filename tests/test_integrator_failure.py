@@ -44,3 +44,12 @@ def test_sundials_max_steps_is_a_total_over_all_outputs(paper2d_model, method):
         paper2d_model.simulate(3.0, method=method, outputs=False, max_steps=needed // 2)
     assert 0.0 < info.value.t < 3.0
     assert info.value.x is not None and np.all(np.isfinite(info.value.x))
+
+
+def test_idas_integrates_a_run_reported_only_at_its_end(paper2d_model):
+    """IDAS's initial-condition solver takes the first output time as its time scale; told
+    1e4 s it failed (IDA_CONV_FAIL) before the first step. It is told at most 1 ms now."""
+    long = paper2d_model.simulate(1e4, method="idas", t_eval=[0.0, 1e4], outputs=False)
+    ref = paper2d_model.simulate(1e4, method="radau", rtol=1e-9, atol=1e-10,
+                                 t_eval=[0.0, 1e4], outputs=False)
+    np.testing.assert_allclose(long.x[-1], ref.x[-1], rtol=0, atol=1e-7)

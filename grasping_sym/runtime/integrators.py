@@ -95,9 +95,16 @@ def _watch(time_limit: float | None):
 MIN_STEP_RELATIVE = 1e-15
 
 
+#: IDAS's first time scale (s): the initial-condition solver (IDACalcIC) is told the first
+#: output time as the problem's time scale; a first output far away (``t_eval=[0, 1e4]``)
+#: makes it fail (IDA_CONV_FAIL), so it is told at most this.
+IDAS_FIRST_TIME = 1e-3
+
+
 def _step_floor(method: str, t_eval: np.ndarray) -> dict:
-    if method != "cvodes":
-        return {}
+    """CVODES's smallest step; IDAS's first time scale (``IDAS_FIRST_TIME``)."""
+    if method == "idas":
+        return {"first_time": float(t_eval[0]) + min(float(t_eval[1] - t_eval[0]), IDAS_FIRST_TIME)}
     return {"min_step_size": MIN_STEP_RELATIVE * max(1.0, float(t_eval[-1] - t_eval[0]))}
 
 
@@ -339,6 +346,10 @@ def _sundials_reason(message: str) -> str:
                            "contact: check kappa0 + kappa1 and the state)",
         "CV_ERR_FAILURE": "error test failed repeatedly (the solution is not smooth here)",
         "CV_RHSFUNC_FAIL": "the right-hand side returned non-finite values",
+        "IDA_CONV_FAIL": "Newton iteration failed repeatedly (stiff blow-up or a singular "
+                         "contact: check kappa0 + kappa1 and the state)",
+        "IDA_ERR_FAIL": "error test failed repeatedly (the solution is not smooth here)",
+        "IDA_REP_RES_ERR": "the right-hand side failed repeatedly (non-finite values)",
     }
     if m:
         code = m.group(1)
