@@ -227,7 +227,8 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
                            at=(lib.budget_last_t(), f"more than max_steps = {max_steps} step "
                                "attempts in total (raise max_steps, or loosen rtol/atol)")
                            ) from None
-        raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure)) from None
+        raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure),
+                       t_hint=lib.budget_last_t()) from None
     wall = time.perf_counter() - start
     X = np.vstack([xa, np.array(out["xf"]).T])
     st = integ.stats()
@@ -246,7 +247,8 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
 
 
 def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
-             message: str, at: tuple[float, str] | None = None) -> IntegratorError:
+             message: str, at: tuple[float, str] | None = None,
+             t_hint: float = math.nan) -> IntegratorError:
     """Build the error for a SUNDIALS failure: the reason, the time and the state there.
 
     SUNDIALS prints the failure time ("At t = ...") from C but CasADi's exception does not
@@ -254,7 +256,8 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
     file-descriptor level; the trajectory is then recovered on the output grid up to just
     before that time, with a bounded step budget (``err.trajectory``, ``err.x`` its last
     state). This only runs on the failure path. ``at``: the failure's time and reason when
-    known (the step budget's), which spares the repeated run.
+    known (the step budget's), which spares the repeated run; ``t_hint``: the time of the last
+    step attempted (``c/budget.c``), the failure's time when SUNDIALS prints none.
     """
     import casadi as ca  # noqa: PLC0415
     opts = {**_tolerances(model, method, rtol, atol), "max_num_steps": max_steps,
@@ -274,10 +277,10 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
             except RuntimeError:
                 pass
         times = re.findall(r"t\s*=\s*([-+0-9.eE]+)", captured.read())
-        if not times:
+        if not times and not math.isfinite(t_hint):
             return IntegratorError(float("nan"), None, f"{method}: {reason} (time not reported)",
                                    model.state_names)
-        t_fail = float(times[0])
+        t_fail = float(times[0]) if times else t_hint
     if t_fail <= t_eval[0]:
         return IntegratorError(t_fail, np.asarray(x0, dtype=float), f"{method}: {reason}",
                                model.state_names)
