@@ -11,9 +11,11 @@
   points and the same two cores;
 - paper3d, 3 s, at final-state error <= 1e-8: simulations per second per core.
 
-The error of a setting is the largest max-norm of (final state - reference) over a sample of
-the runs, the reference the same runs at rtol 1e-10 (radau, projection). The settings are the
-cheapest of a few that meet 1e-8 on that sample.
+The error of a setting is the largest max-norm of (final state - reference) over every run
+measured, the reference the same runs at rtol 1e-10 (radau, projection). The settings are the
+cheapest of a few candidates that meet 1e-8: a sample of the runs screens the candidates, and
+the one that passes is then checked on every run (a sample alone can miss the worst run: over
+paper3d's 400 runs, dopri5 at rtol 5e-7, atol 1e-8 reaches 2.1e-8 where 8 of them show 8.5e-9).
 """
 from __future__ import annotations
 
@@ -33,20 +35,34 @@ T_FINAL = 3.0
 CANDIDATES_2D = [("radau", 3e-3, 1e-7), ("radau", 1e-3, 1e-7), ("radau", 5e-4, 1e-7),
                  ("radau", 3e-4, 1e-7), ("radau", 1e-4, 1e-8)]
 CANDIDATES_3D = [("dopri5", 1e-5, 1e-7), ("dopri5", 3e-6, 1e-8), ("dopri5", 1e-6, 1e-8),
-                 ("dopri5", 1e-7, 1e-9)]
+                 ("dopri5", 1e-6, 3e-9), ("dopri5", 5e-7, 3e-9), ("dopri5", 1e-7, 1e-9)]
 REFERENCE = dict(method="radau", rtol=1e-10, atol=1e-12, project=True)
 
 
 def _choose(model, params: dict, candidates, sample: np.ndarray, log) -> tuple[dict, float]:
-    """The cheapest candidate whose largest error over the ``sample`` runs is <= 1e-8."""
+    """The cheapest candidate whose largest error is <= 1e-8 over the ``sample`` runs and then
+    over every run of ``params``; returns its settings and that largest error."""
     sub = {k: v[sample] for k, v in params.items()}
     ref = model.simulate_many(T_FINAL, params=sub, **REFERENCE)
     assert ref.ok.all(), ref.errors[~ref.ok][:1]
+    n = len(next(iter(params.values())))
+    distinct = len(np.unique(np.column_stack(list(params.values())), axis=0))
+    ref_all = None
     for method, rtol, atol in candidates:
         kw = dict(method=method, rtol=rtol, atol=atol, project=True)
         b = model.simulate_many(T_FINAL, params=sub, **kw)
         err = float(np.max(np.abs(b.x_final - ref.x_final))) if b.ok.all() else np.inf
         log(f"  {method} rtol {rtol:g} atol {atol:g}: max error {err:.2e} over {len(sample)} runs")
+        if err > 1e-8:
+            continue
+        if distinct <= len(np.unique(sample)):  # the sample holds every distinct run
+            return kw, err
+        if ref_all is None:
+            ref_all = model.simulate_many(T_FINAL, params=params, **REFERENCE)
+            assert ref_all.ok.all(), ref_all.errors[~ref_all.ok][:1]
+        b = model.simulate_many(T_FINAL, params=params, **kw)
+        err = float(np.max(np.abs(b.x_final - ref_all.x_final))) if b.ok.all() else np.inf
+        log(f"    over all {n} runs: max error {err:.2e}")
         if err <= 1e-8:
             return kw, err
     raise RuntimeError("no candidate setting reaches 1e-8")
@@ -245,8 +261,8 @@ def report(r: dict) -> str:
         f"`gs.scenes.paper2d(gf=0, gl=0, wf=0, wl=0, runtime=('fd',))` (the paper's scene, its "
         f"constraint gains at 0, projection after every step), fd from 0.4 to 0.8 N over "
         f"{p2['one']['runs']} runs of 3 s. The setting is the cheapest of {len(CANDIDATES_2D)} "
-        "candidates whose largest final-state error over 40 of the runs is ≤ 1e-8 (reference: "
-        "the same runs at rtol 1e-10).",
+        "candidates whose largest final-state error is ≤ 1e-8 over 40 of the runs and then over "
+        "every run (reference: the same runs at rtol 1e-10).",
         "",
         "| how | runs/s | vs a loop of simulate() |",
         "|---|---|---|",
@@ -277,7 +293,9 @@ def report(r: dict) -> str:
         "",
         f"`gs.scenes.paper3d(gain=0, runtime=('fd',))` with projection, fd from 0.45 to 0.55 N "
         f"over {p3['one']['runs']} runs: {p3['one']['per_s']:.0f}/s on one thread, "
-        f"{p3['two']['per_s']:.0f}/s on two.",
+        f"{p3['two']['per_s']:.0f}/s on two. The setting is the cheapest of "
+        f"{len(CANDIDATES_3D)} candidates whose largest final-state error is ≤ 1e-8 over 8 of "
+        "the runs and then over every run.",
         "",
         "## Machine",
         "",
