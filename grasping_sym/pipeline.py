@@ -40,7 +40,7 @@ from grasping_sym import __version__
 from grasping_sym.codegen import cache, cwriter, lanes, structure_cache
 from grasping_sym.codegen.compiler import COMPILER_FLAGS, vector_libm
 from grasping_sym.codegen.functions import guarded_rhs
-from grasping_sym.codegen.library import compile_model, driver_defines
+from grasping_sym.codegen.library import compile_model, model_defines, outputs_read_time
 from grasping_sym.runtime import safety, stored
 from grasping_sym.runtime.loader import library_name
 from grasping_sym.runtime.manifest_schema import manifest_problems
@@ -111,9 +111,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     ops = dict(cm.op_counts)
     if count_ops:
         ops.update(scene.sympy_op_counts())
-    # a law that reads the time: the outputs take it as one more last entry of p, so the C
-    # driver (whose p has the model's size) does not call them (Model._output_row does)
-    outputs_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(scene.p_names) + 1
+    outputs_time = outputs_read_time(cm, len(scene.p_names))
     from grasping_sym.codegen.controller import controller_function  # noqa: PLC0415
 
     ctrl = controller_function(scene, "c")
@@ -134,9 +132,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         # the control layer: the law (its name), whether it reads the object's state and the time
         "controller": {"law": law if isinstance(law, str) or law is None else law.name,
                        "uses_object": ctrl.uses_object, "reads_time": ctrl.reads_time},
-        "driver_defines": driver_defines(cm.rhs, None if outputs_time else cm.outputs, jac_fn=cm.jac,
-                                         constraints_fn=cm.constraints,
-                                         rhs_lanes=lanes.lanes_symbol(cm.rhs) if lane_c else None),
+        "driver_defines": model_defines(cm, len(scene.p_names), lanes=bool(lane_c)),
         "c_symbols": [f.name() for f in cm.functions()],
         "files": files,
         "constraints": _constraints_entry(cm, scene.state_names),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -35,14 +36,34 @@ def _dense(v) -> np.ndarray:
     return np.array(ca.DM(v).full(), dtype=float)
 
 
+def _two_finger_scene():
+    """A second finger opposite the first (base mirrored about the pivot): a structure whose
+    Jacobian is split in two (``structure.split_jacobian``)."""
+    from grasping_sym.model.planar import ExtraFinger
+
+    tip = gs.curves.circle(0.01, name="tip")
+    ellipse = gs.curves.ellipse(0.025, 0.018, span=6.2, clockwise=True, name="ellipse")
+    u1 = -(math.pi + 0.3)
+    xm, _ = gs.scenes.planar_finger(tip, ellipse, name="one", u1_0=u1).pivot
+    second = ExtraFinger(gs.curves.circle(0.01, name="tip2"), base=(2 * xm, 0.0), u1_0=0.35)
+    return gs.scenes.planar_finger(tip, ellipse, name="layers_two", u1_0=u1, extra_fingers=(second,),
+                                   outputs=("constraint_residual", "f1", "f2"))
+
+
 @pytest.mark.parametrize("make", [
     lambda: _ellipse_scene(runtime=("fd", "I")),       # two contact parameters, run-time p
     lambda: replace(gs.scenes.paper2d(), name="layers_paper2d"),  # one shared, folded speed
+    _two_finger_scene,                                 # the structure's Jacobian split in two
 ])
 def test_layered_functions_equal_the_single_piece_composition(make):
     scene = make()
     model = gs.build(scene)
     assert "structure" in model.manifest
+    meta, _ = structure_cache.locate(model.manifest["structure"])
+    split = "jac2" in meta["functions"]
+    assert split == (scene.n_fingers > 1)  # one finger's Jacobian is small enough to stay whole
+    # the parts of a split Jacobian are compiled quick, each in its own file
+    assert meta["quick_files"] == ([f"{meta['name']}_{k}.c" for k in (2, 3)] if split else [])
     one = _single_piece(scene)
     lib = str(model.library_path)
     ext = {k: ca.external(f"{scene.name}_{k}", lib) for k in ("rhs", "outputs", "constraints",
@@ -154,3 +175,20 @@ def test_a_new_3d_surface_pair_reuses_the_structure():
     assert b.build_info["structure_source"] == "cache"
     res = b.simulate(0.2, method="dopri5", project=True, rtol=1e-8, atol=1e-11)
     assert np.all(np.isfinite(res.x)) and res.outputs["constraint_residual"].max() < 1e-9
+
+
+def test_quick_files_compile_at_o1_and_the_others_at_o2(tmp_path, monkeypatch):
+    """``compile_objects(quick=...)``: the files named compile with ``QUICK_FLAGS`` (last, so
+    they override -O2), the others with the base flags only."""
+    from grasping_sym.codegen import compiler
+
+    commands = []
+    monkeypatch.setattr(compiler, "_run_all", lambda jobs: commands.extend(cmd for cmd, _ in jobs))
+    a, b = tmp_path / "a.c", tmp_path / "b.c"
+    for f in (a, b):
+        f.write_text("int f(void) { return 0; }\n")
+    compiler.compile_objects([a, b], tmp_path, quick=[b])
+    flags = {Path(cmd[cmd.index("-c") + 1]).name: cmd for cmd in commands}
+    assert compiler.QUICK_FLAGS == ("-O1",)
+    assert "-O1" not in flags["a.c"] and "-O2" in flags["a.c"]
+    assert flags["b.c"].index("-O1") > flags["b.c"].index("-O2")

@@ -31,28 +31,36 @@ HEADER = (
 C_FILES = 2
 
 
-def partition(functions: list, n: int = C_FILES) -> list[list]:
+def partition(functions: list, n: int = C_FILES, extra: dict | None = None) -> list[list]:
     """``functions`` in at most ``n`` groups of about equal instruction counts (largest first
-    into the lightest group), each group in the functions' own order; the rhs's group first."""
+    into the lightest group; ``extra``: instructions added to a function's, by name, for code
+    written beside it), each group in the functions' own order; the rhs's group first."""
+    extra = extra or {}
+
+    def weight(f):
+        return f.n_instructions() + extra.get(f.name(), 0)
+
     groups: list[list] = [[] for _ in range(min(n, len(functions)))]
     load = [0] * len(groups)
-    for f in sorted(functions, key=lambda f: -f.n_instructions()):
+    for f in sorted(functions, key=lambda f: -weight(f)):
         k = load.index(min(load))
         groups[k].append(f)
-        load[k] += f.n_instructions()
+        load[k] += weight(f)
     order = {f.name(): i for i, f in enumerate(functions)}
     groups = [sorted(g, key=lambda f: order[f.name()]) for g in groups if g]
     return sorted(groups, key=lambda g: min(order[f.name()] for f in g))
 
 
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
-            extra_c: str | None = None, n_files: int = C_FILES) -> tuple[list[str], dict[str, int]]:
+            extra_c: str | None = None, n_files: int = C_FILES,
+            groups: list[list] | None = None) -> tuple[list[str], dict[str, int]]:
     """Generate the C of ``model``'s functions into ``directory`` (created if needed), in
     ``C_FILES`` files ``{name}_1.c``, ``{name}_2.c`` (with their headers) that gcc compiles in
     parallel (``n_files``: one for a model in layers, whose MX glue must share a file with the
     SX functions it calls, so that it calls their rewritten bodies, not copies); the libm calls
     are grouped by ``codegen.vecmath`` and ``extra_c`` (the 4-lane rhs of ``codegen.lanes``) is
-    appended to the rhs's file.
+    appended to the rhs's file. ``groups`` (the rhs's first), when given, are the files'
+    functions instead of ``partition``'s.
 
     Returns the file names written (C, then header, per file) and vecmath's report: per
     function, the number of libm calls placed in groups.
@@ -62,7 +70,10 @@ def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version
     header = HEADER.format(version=version, name=name, digest=digest)
     files: list[str] = []
     report: dict[str, int] = {}
-    for k, group in enumerate(partition(model.functions(), n_files), start=1):
+    # the 4-lane rhs (``extra_c``) has about the rhs's instructions, in the rhs's file
+    lanes_weight = {model.rhs.name(): model.rhs.n_instructions()} if extra_c else {}
+    groups = groups or partition(model.functions(), n_files, lanes_weight)
+    for k, group in enumerate(groups, start=1):
         part = f"{name}_{k}"
         cg = ca.CodeGenerator(f"{part}.c", {"with_header": True, "casadi_int": "long long int"})
         for f in group:

@@ -113,14 +113,16 @@ def build_template(system: ConstrainedSystem) -> Template:
     L = ca.SX.sym("L", sum(len(f.leaves()) for pair in families for f in pair))
     symbols = {s: x[i] for i, s in enumerate(system.state)}
     symbols.update({s: q[i] for i, s in enumerate(qsyms)})
-    k = 0
+    slots = []  # (leaf class, its contact state index), in the order of L
     for (i0, i1), pair in zip(contacts, families):
         for fns, i in zip(pair, (i0, i1)):
             for cls in fns.leaves():
-                symbols[cls(system.state[i])] = L[k]
-                k += 1
+                symbols[cls(system.state[i])] = L[len(slots)]
+                slots.append((cls, i))
     tr = SympyToCasadi(symbols)
-    pieces = [tr(mat) for mat in system.pieces()]
+    pieces = [None if mat is None else tr(mat) for mat in system.pieces()]
+    if system.acc_jac is None:
+        pieces[4], pieces[5] = _acceleration_terms(system, tr, x, L, slots)
     v = x[system.n:2 * system.n]
     xdot, mu = assemble(system.n, v, pieces, **_casadi_backend())
     for i, m in enumerate(system.multipliers):
@@ -133,6 +135,30 @@ def build_template(system: ConstrainedSystem) -> Template:
         state_names=tuple(names), param_names=tuple(str(s) for s in qsyms),
         output_names=out_names, contact_index=tuple(contacts),
     )
+
+
+def _acceleration_terms(system: ConstrainedSystem, tr: SympyToCasadi, x: ca.SX, L: ca.SX,
+                        slots: list) -> tuple[ca.SX, ca.SX]:
+    """``Ahat = dC'/dv`` and ``bhat = dC'/dz z'`` (speeds held) by CasADi's AD of the
+    translated ``C'``: along ``z' = (v, sigma)`` each contour leaf ``L[k]`` at contact
+    parameter ``u`` moves by its Frenet derivative (``contour_functions``) times ``u'``."""
+    n = system.n
+    Cdot = tr(system.constraint_rate)
+    sigma = tr(system.contact_rates)
+    zdir = ca.vertcat(x[n:2 * n], ca.SX.zeros(n), sigma)
+    dL = []
+    for k, (cls, i) in enumerate(slots):
+        u = system.state[i]
+        try:
+            d = tr(sp.diff(cls(u), u))
+        except NotImplementedError:
+            if ca.depends_on(Cdot, L[k]):
+                raise
+            d = ca.SX(0)
+        dL.append(d * zdir[i])
+    v = x[n:2 * n]
+    bhat = ca.jtimes(Cdot, x, zdir) + ca.jtimes(Cdot, L, ca.vertcat(*dL))
+    return ca.jacobian(Cdot, v), bhat
 
 
 def _contact_states(names: list[str]) -> list[tuple[int, int]]:
@@ -348,7 +374,7 @@ def build_casadi(system: ConstrainedSystem, fingertip, object_, name: str) -> Ca
 
 def sympy_op_counts(system: ConstrainedSystem) -> dict[str, int]:
     """Operation counts of the SymPy pieces before and after SymPy's CSE."""
-    exprs = [e for mat in system.pieces() for e in mat]
+    exprs = [e for mat in system.pieces() if mat is not None for e in mat]
     before = sum(sp.count_ops(e) for e in exprs)
     repl, reduced = sp.cse(exprs, optimizations=None)
     after = sum(sp.count_ops(r) for _, r in repl) + sum(sp.count_ops(e) for e in reduced)

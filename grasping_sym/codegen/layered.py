@@ -107,7 +107,12 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
     xdot = structure["rhs"](t, x, ps, *args("rhs"))
     rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u], [xdot, empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out())
-    Jx, Jp, Jtau = structure["jac"](t, x, ps, *args("jac"))
+    if "jac2" in structure:  # split in two (``structure.split_jacobian``): same inputs
+        jac_args = args("jac")
+        Jx_rest, Jp, Jtau = structure["jac2"](t, x, ps, *jac_args)
+        Jx = ca.horzcat(structure["jac"](t, x, ps, *jac_args), Jx_rest)
+    else:
+        Jx, Jp, Jtau = structure["jac"](t, x, ps, *args("jac"))
     # the torques' share by the chain rule (the controller's Jacobian is its own SX's)
     Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p))  # the inputs act only through tau
     kept = entries["jac"].get("tau", [])

@@ -17,8 +17,10 @@ import numpy as np
 
 from grasping_sym.codegen import objects as object_cache
 from grasping_sym.codegen.compiler import compile_shared
+from grasping_sym.codegen.lanes import lanes_symbol
 
-__all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines"]
+__all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines",
+           "model_defines", "outputs_read_time"]
 
 _C_DIR = Path(__file__).resolve().parent.parent / "c"
 #: The hand-written C driver compiled next to the CasADi-generated file (``driver.c`` first:
@@ -113,8 +115,25 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
     return defines
 
 
-def _python_include_dirs() -> list[str]:
-    return [sysconfig.get_paths()["include"], np.get_include()]
+def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
+    """The driver's macros for a model's functions (``functions.CasadiModel``) with ``n_p``
+    parameters, and a 4-lane rhs when ``lanes``. A law that reads the time gives outputs that
+    take it as one more last entry of p: the driver (whose p has the model's size) then does
+    not call them (``Model._output_row`` does)."""
+    return driver_defines(cm.rhs, None if outputs_read_time(cm, n_p) else cm.outputs,
+                          jac_fn=cm.jac, constraints_fn=cm.constraints,
+                          rhs_lanes=lanes_symbol(cm.rhs) if lanes else None)
+
+
+def outputs_read_time(cm, n_p: int) -> bool:
+    """Whether ``cm``'s outputs take the time as a last entry of p (see ``model_defines``)."""
+    return cm.outputs is not None and cm.outputs.nnz_in(1) == n_p + 1
+
+
+def _driver_inputs(fast: bool) -> tuple[list[Path], list[str]]:
+    """The driver's sources and include directories (``fast``: with the CPython front end)."""
+    return ([*DRIVER_SOURCES] + ([PYFAST_C] if fast else []),
+            [sysconfig.get_paths()["include"], np.get_include()] if fast else [])
 
 
 def build_library(
@@ -172,12 +191,12 @@ def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True,
     are linked in too.
     """
     generated = [Path(c) for c in casadi_c] if isinstance(casadi_c, (list, tuple)) else [Path(casadi_c)]
-    drivers = [*DRIVER_SOURCES] + ([PYFAST_C] if fast else [])
-    include_dirs = _python_include_dirs() if fast else []
-    driver = [*objects, *object_cache.driver_objects(drivers, defines, include_dirs)]
+    drivers, include_dirs = _driver_inputs(fast)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.links-") as tmp:
         links = Path(tmp) / "gs_links.c"
         links.write_text(object_cache.links_c(defines))
-        return compile_shared([*generated, links], out, objects=driver)
+        # the driver's objects, when not cached, compile side by side with the model's C
+        return compile_shared([*generated, links], out, objects=lambda: [
+            *objects, *object_cache.driver_objects(drivers, defines, include_dirs)])

@@ -122,17 +122,18 @@ def driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
 
 def cached_objects(sources: Sequence[Path], directory: Path,
                    defines: Mapping[str, str | int] | None = None,
-                   include_dirs: Sequence[str] = ()) -> list[Path]:
+                   include_dirs: Sequence[str] = (), quick: Sequence[Path] = ()) -> list[Path]:
     """The object files ``<directory>/<stem>.o`` of ``sources``: checked (``runtime.safety``)
     when there, else compiled now (in parallel, each installed atomically, so concurrent
-    builds agree). ``directory`` must exist and be the caller's to fill."""
+    builds agree; ``quick``: sources compiled with ``compiler.QUICK_FLAGS``). ``directory``
+    must exist and be the caller's to fill."""
     objects = [Path(directory) / f"{Path(src).stem}.o" for src in sources]
     if all(os.path.lexists(o) for o in objects):
         for o in objects:
             safety.check_file(o)
         return objects
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        built = compile_objects(sources, Path(tmp), defines, include_dirs)
+        built = compile_objects(sources, Path(tmp), defines, include_dirs, quick=quick)
         for obj, final in zip(built, objects):
             os.replace(obj, final)
     return objects

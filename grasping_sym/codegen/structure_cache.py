@@ -15,6 +15,7 @@ built-in scenes are committed under ``generated/structures/`` and copied from th
 """
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -31,7 +32,7 @@ from grasping_sym.codegen.structure import StructureFunctions
 from grasping_sym.runtime import safety, stored
 
 __all__ = ["META", "derive_afresh", "ensure", "externals", "install_files", "library", "link_objects",
-           "structure_name", "write_structure"]
+           "structure_meta", "structure_name", "write_structure"]
 
 META = "structure.json"
 DIR = "structures"
@@ -73,6 +74,22 @@ def _complete(directory: Path, digest: str, trusted: bool = False) -> dict | Non
     return meta
 
 
+def structure_meta(sf: StructureFunctions, lanes: bool) -> dict:
+    """What ``structure.json`` records of ``sf`` for the model glue, as read back from JSON
+    (``lanes``: whether the structure has a 4-lane rhs)."""
+    meta = {
+        "slots": [list(map(lambda v: list(v) if isinstance(v, tuple) else v, s)) for s in sf.slots],
+        "n_leaves": sf.n_leaves, "functions": sf.kinds(),
+        "output_names": list(sf.output_names), "constraint_info": sf.constraint_info,
+        "start_names": list(sf.start_names),
+        "rhs_lanes": f"{sf.name}_rhs_lanes" if lanes else None,
+        "op_counts": {f"{k}_sx_instructions": f.n_instructions()
+                      for k, f in sf.by_kind() if f is not None},
+        **(sf.extra_meta or {}),
+    }
+    return json.loads(json.dumps(meta))
+
+
 def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: str) -> dict:
     """Write the C of the structure ``sf`` (named ``structure_name(digest)``) and its
     ``structure.json`` into ``directory``; return the latter."""
@@ -80,21 +97,15 @@ def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: s
     lane_c, lanes_status = None, "not made: the structure's rhs has no lane layout"
     if sf.lanes is not None:
         lane_c, lanes_status = lanes.function_lanes(sf.rhs, f"{name}_rhs_lanes", *sf.lanes)
-    files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c)
-    meta = {
-        "name": name, "hash": digest, "key": key, "files": files,
-        "slots": [list(map(lambda v: list(v) if isinstance(v, tuple) else v, s)) for s in sf.slots],
-        "n_leaves": sf.n_leaves, "functions": sf.kinds(),
-        "output_names": list(sf.output_names), "constraint_info": sf.constraint_info,
-        "start_names": list(sf.start_names),
-        "rhs_lanes": f"{name}_rhs_lanes" if lane_c else None,
-        "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped},
-        "op_counts": {f"{k}_sx_instructions": f.n_instructions()
-                      for k, f in (("rhs", sf.rhs), ("jac", sf.jac), ("outputs", sf.outputs),
-                                   ("constraints", sf.constraints), ("start", sf.start))
-                      if f is not None},
-        **(sf.extra_meta or {}),
-    }
+    groups = None
+    if sf.jac2 is not None:  # a split Jacobian: each part in a file of its own, compiled quick
+        groups = [[f for f in sf.functions() if f not in (sf.jac, sf.jac2)], [sf.jac], [sf.jac2]]
+    files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c,
+                                     groups=groups)
+    quick = [f"{name}_{k}.c" for k in (2, 3)] if groups else []  # the Jacobian's parts
+    meta = {"name": name, "hash": digest, "key": key, "files": files, "quick_files": quick,
+            **structure_meta(sf, lanes=lane_c is not None),
+            "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped}}
     stored.write_json(directory / META, meta)
     return meta
 
@@ -167,7 +178,8 @@ def link_objects(meta: dict, directory: Path) -> list[Path]:
     missing), for linking into a model library."""
     out = safety.ensure_dir(directory / f"obj-{objects.flags_digest()[:12]}", root=directory)
     sources = [directory / f for f in meta["files"] if f.endswith(".c")]
-    return objects.cached_objects(sources, out)
+    quick = [directory / f for f in meta.get("quick_files", []) if f in meta["files"]]
+    return objects.cached_objects(sources, out, quick=quick)
 
 
 def library(meta: dict, directory: Path) -> Path:

@@ -220,10 +220,9 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
     Cz = C.jacobian(z)
     A = Cz[:, :len(q)]
     Cdot = Cz * zdot
-    # C' is a function of (z, v) (u' = sigma(z, v) written out), so along the motion
-    # C'' = dC'/dz z' + dC'/dv a: the dependence of u'' on a enters through dC'/dv.
-    Ahat = Cdot.jacobian(v)
-    bhat = Cdot.jacobian(z) * zdot
+    # C'' = dC'/dz z' + dC'/dv a (C' is a function of (z, v), u' = sigma(z, v) written out):
+    # derived from C' by the translation to CasADi (acc_jac, acc_bias None), where AD through
+    # the Frenet rules costs a fraction of SymPy's second derivatives.
 
     # ---- joint torques: symbols (the controller layer gives them)
     taus = [P[k] for k in torque_names(n_fingers)]
@@ -234,7 +233,7 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
                      real=True)
     system = ConstrainedSystem(
         state=[*q, *v, *us], n=len(q), params=[], mass_matrix=M, bias=h, force=tau,
-        constraint=C, constraint_jac=A, constraint_rate=Cdot, acc_jac=Ahat, acc_bias=bhat,
+        constraint=C, constraint_jac=A, constraint_rate=Cdot, acc_jac=None, acc_bias=None,
         csm_damping=sp.Matrix([2 * P["gf"], 2 * P["gl"]] * n_fingers),
         csm_stiffness=sp.Matrix([P["wf"], P["wl"]] * n_fingers),
         contact_rates=sigma, multipliers=list(mus),
@@ -251,7 +250,7 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
             f"tangency_defect{tag}": c["delta"],
         })
     available.update({
-        "constraint_residual": sp.Max(*[sp.Abs(e) for e in C]),
+        "constraint_residual": sp.Max(*[sp.Abs(e, evaluate=False) for e in C], evaluate=False),
         "kinetic_energy": kin, "potential_energy": pot,
         "power": sum((fin["v"].dot(ctrl) for fin, ctrl in zip(fingers, ctrls)), sp.Integer(0)),
     })

@@ -33,8 +33,10 @@ class ConstrainedSystem:
     constraint: sp.Matrix             # (m, 1) C
     constraint_jac: sp.Matrix         # (m, n) A = dC/dq with u fixed
     constraint_rate: sp.Matrix        # (m, 1) C' (total)
-    acc_jac: sp.Matrix                # (m, n) Ahat, d C'' / d a
-    acc_bias: sp.Matrix               # (m, 1) bhat = C'' at a = 0
+    # (m, n) Ahat = d C'' / d a, and (m, 1) bhat = C'' at a = 0; None: not derived in SymPy,
+    # the translation to CasADi derives them from ``constraint_rate`` (``codegen.functions``)
+    acc_jac: sp.Matrix | None
+    acc_bias: sp.Matrix | None
     csm_damping: sp.Matrix            # (m, 1) D (diagonal)
     csm_stiffness: sp.Matrix          # (m, 1) K (diagonal)
     contact_rates: sp.Matrix          # (k, 1) sigma

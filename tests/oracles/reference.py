@@ -8,6 +8,7 @@ same ``assemble`` as the generated code, with NumPy's linear solver.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import sympy as sp
@@ -51,12 +52,26 @@ def _lambdify(args, expr):
     return sp.lambdify(args, expr, "numpy", printer=printer, cse=True)
 
 
+def with_acceleration_terms(system: ConstrainedSystem) -> ConstrainedSystem:
+    """``system`` with ``Ahat = dC'/dv`` and ``bhat = dC'/dz z'`` derived in SymPy when the
+    derivation left them to the translation to CasADi (which derives them by AD): SymPy's
+    own second derivatives, an independent path to the same terms."""
+    if system.acc_jac is not None:
+        return system
+    n = system.n
+    v = sp.Matrix(system.state[n:2 * n])
+    z = sp.Matrix([*system.state[:n], *system.state[2 * n:]])
+    zdot = sp.Matrix([*v, *system.contact_rates])
+    Cdot = system.constraint_rate
+    return replace(system, acc_jac=Cdot.jacobian(v), acc_bias=Cdot.jacobian(z) * zdot)
+
+
 class ReferenceModel:
     """NumPy evaluation of a scene's closed loop, straight from the SymPy derivation."""
 
     def __init__(self, scene: PlanarFingerScene, system: ConstrainedSystem | None = None):
         self.scene = scene
-        self.system = system or derive_planar(scene)
+        self.system = with_acceleration_terms(system or derive_planar(scene))
         leaves = leaf_expressions(OBJECT, scene.object)
         tips = [scene.fingertip, *(f.fingertip for f in scene.extra_fingers)]
         for i, tip in enumerate(tips, start=1):
