@@ -83,9 +83,10 @@ SCENES_3D = {
          "lon=(-1.5707963267948966, 4.71238898038469), name='object'), fingers=tuple("
          "dataclasses.replace(f, tip=sl.sphere(0.009, name=f'tip{i}')) for i, f in "
          "enumerate(gs.scenes.paper3d().fingers)))"),
-    # another grip force is folded into the code: a structure neither cached nor committed
-    "first build of a 3D structure (derived: paper3d with fd = 0.6 N folded in)":
-        ("", "gs.scenes.paper3d(name='paper3d_new', fd=0.6)"),
+    # another torsional friction is folded into the code: a structure neither cached nor
+    # committed (fd, a run-time parameter now, no longer makes one)
+    "first build of a 3D structure (derived: paper3d with spin damping 3e-5 N m s folded in)":
+        ("", "gs.scenes.paper3d(name='paper3d_new', spin_damping=3e-5)"),
 }
 
 
@@ -222,8 +223,8 @@ def markdown(res: dict) -> str:
         "layers: its structure (the closed loop of its template, with its constants; written "
         "and compiled once: *structure ms*, *structure compile ms*), then its own contour "
         "functions and the glue that calls the structure (*compose*, *write C*, *compile*: the "
-        "model's small C only; the driver's objects are compiled once per set of sizes, in the "
-        "first row of a cache). A 3D scene likewise: its structure (derived with SymPy and "
+        "model's small C, and the driver's objects beside it when this cache has none for the "
+        "model's sizes, as in the first row). A 3D scene likewise: its structure (derived with SymPy and "
         "CasADi's AD, with the surfaces' jets as inputs), then its surfaces' jets and the glue. "
         "`gs.build` is the wall time of the call.",
         "",

@@ -98,8 +98,13 @@ def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: s
     if sf.lanes is not None:
         lane_c, lanes_status = lanes.function_lanes(sf.rhs, f"{name}_rhs_lanes", *sf.lanes)
     groups = None
-    if sf.jac2 is not None:  # a split Jacobian: each part in a file of its own, compiled quick
-        groups = [[f for f in sf.functions() if f not in (sf.jac, sf.jac2)], [sf.jac], [sf.jac2]]
+    if sf.jac2 is not None:
+        # a split Jacobian: each part in a file of its own, compiled quick, with the functions
+        # called once per output or start (the outputs with one part, the start with the other)
+        rare = {sf.outputs: 1, sf.start: 2}
+        groups = [[f for f in sf.functions() if f not in (sf.jac, sf.jac2, *rare)],
+                  [sf.jac] + [f for f, k in rare.items() if k == 1 and f is not None],
+                  [sf.jac2] + [f for f, k in rare.items() if k == 2 and f is not None]]
     files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c,
                                      groups=groups)
     quick = [f"{name}_{k}.c" for k in (2, 3)] if groups else []  # the Jacobian's parts
