@@ -183,7 +183,8 @@ def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     from grasping_sym.codegen import compiler
 
     commands = []
-    monkeypatch.setattr(compiler, "_run_all", lambda jobs: commands.extend(cmd for cmd, _ in jobs))
+    monkeypatch.setattr(compiler, "_run_all",
+                        lambda jobs, at_once=None: commands.extend(cmd for cmd, _ in jobs))
     a, b = tmp_path / "a.c", tmp_path / "b.c"
     for f in (a, b):
         f.write_text("int f(void) { return 0; }\n")
@@ -192,3 +193,24 @@ def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     assert compiler.QUICK_FLAGS == ("-Og",)
     assert "-Og" not in flags["a.c"] and "-O2" in flags["a.c"]
     assert flags["b.c"].index("-Og") > flags["b.c"].index("-O2")
+
+
+@pytest.mark.parametrize("make", [
+    lambda: replace(gs.scenes.paper2d(), name="layers_predict_2d"),
+    _two_finger_scene,
+    lambda: _surface_pair_scene("layers_predict_3d"),
+])
+def test_the_driver_objects_compiled_ahead_are_the_models(make, monkeypatch):
+    """A build predicts its driver's macros before it derives anything and compiles their
+    objects meanwhile (``library.predicted_defines``): the prediction is the model's own,
+    so the objects it makes are the ones the model links."""
+    from grasping_sym.codegen import library, objects
+
+    predicted = []
+    real = library.prefetch_driver
+    monkeypatch.setattr(library, "prefetch_driver",
+                        lambda defines, fast=True: (predicted.append(defines), real(defines, fast)))
+    model = gs.build(make(), force=True)
+    assert len(predicted) == 1
+    assert (objects.object_defines(predicted[0])
+            == objects.object_defines(model.manifest["driver_defines"]))

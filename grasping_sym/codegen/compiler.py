@@ -259,8 +259,13 @@ def compiler_env() -> dict[str, str]:
     return env
 
 
-def _run_all(jobs: list[tuple[list[str], str]]) -> None:
-    """Run compiler commands concurrently (one per source file); raise on the first failure."""
+def _run_all(jobs: list[tuple[list[str], str]], at_once: int | None = None) -> None:
+    """Run compiler commands concurrently (one per source file; ``at_once``: at most that many
+    at a time, in order); raise on the first failure."""
+    if at_once is not None and len(jobs) > at_once:
+        for k in range(0, len(jobs), at_once):
+            _run_all(jobs[k:k + at_once])
+        return
     procs = []
     env = compiler_env()
     for cmd, what in jobs:
@@ -321,10 +326,12 @@ def compile_objects(
     include_dirs: Iterable[Path | str] = (),
     extra_flags: Iterable[str] = (),
     quick: Iterable[Path | str] = (),
+    at_once: int | None = None,
 ) -> list[Path]:
-    """Compile C sources, in parallel, into object files ``<out_dir>/<k>_<stem>.o`` (same
-    flags as :func:`compile_shared`, and :data:`QUICK_FLAGS` for the sources in ``quick``);
-    return their paths in the order of ``sources``.
+    """Compile C sources, in parallel (``at_once``: at most that many at a time), into object
+    files ``<out_dir>/<k>_<stem>.o`` (same flags as :func:`compile_shared`, and
+    :data:`QUICK_FLAGS` for the sources in ``quick``); return their paths in the order of
+    ``sources``.
 
     Raises
     ------
@@ -346,7 +353,7 @@ def compile_objects(
         jobs.append(([*cc, *common, *per_file, "-c", str(src), "-o", str(obj)],
                      f"compiling {src.name}"))
         objects.append(obj)
-    _run_all(jobs)  # the files compile in parallel
+    _run_all(jobs, at_once)  # the files compile in parallel
     return objects
 
 

@@ -20,7 +20,7 @@ from grasping_sym.codegen.compiler import compile_shared
 from grasping_sym.codegen.lanes import lanes_symbol
 
 __all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines",
-           "model_defines", "outputs_read_time"]
+           "model_defines", "outputs_read_time", "predicted_defines", "prefetch_driver"]
 
 _C_DIR = Path(__file__).resolve().parent.parent / "c"
 #: The hand-written C driver compiled next to the CasADi-generated file (``driver.c`` first:
@@ -128,6 +128,35 @@ def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
 def outputs_read_time(cm, n_p: int) -> bool:
     """Whether ``cm``'s outputs take the time as a last entry of p (see ``model_defines``)."""
     return cm.outputs is not None and cm.outputs.nnz_in(1) == n_p + 1
+
+
+def predicted_defines(nx: int, np_: int, ny: int, nc: int, *, jac: bool,
+                      lanes: bool) -> dict[str, str | int]:
+    """The driver's macros of a model with ``nx`` states, ``np_`` parameters, ``ny`` outputs
+    the driver calls (0: none), ``nc`` constraints, a generated Jacobian or not and a 4-lane
+    rhs or not, before its functions exist: ``driver_defines`` of stand-in functions of these
+    sizes. The work sizes are the stand-ins', below what ``objects.object_defines`` rounds
+    every size up to, so the objects are the model's whenever its own work sizes are too."""
+    import casadi as ca  # noqa: PLC0415
+
+    x, p = ca.SX.sym("x", nx), ca.SX.sym("p", np_)
+    none = ca.SX(0, 1)
+    rhs = ca.Function("m_rhs", [ca.SX.sym("t"), x, ca.SX.sym("z", 0), p, ca.SX.sym("u", 0)],
+                      [x, none, none, none], ca.dyn_in(), ca.dyn_out())
+    outputs = ca.Function("m_outputs", [x, p], [ca.SX.zeros(ny)]) if ny else None
+    dense = ca.densify(ca.SX.zeros(nc, nx))
+    constraints = ca.Function("m_constraints", [x, p], [ca.SX.zeros(nc), dense, ca.SX.zeros(nc),
+                                                      dense]) if nc else None
+    return driver_defines(rhs, outputs, jac_fn=rhs.jacobian() if jac else None,
+                          constraints_fn=constraints,
+                          rhs_lanes=lanes_symbol(rhs) if lanes else None)
+
+
+def prefetch_driver(defines: dict, fast: bool = True) -> None:
+    """Start compiling, in the background, the driver's objects for ``defines`` when they are
+    not cached (``objects.prefetch_driver_objects``)."""
+    drivers, include_dirs = _driver_inputs(fast)
+    object_cache.prefetch_driver_objects(drivers, defines, include_dirs)
 
 
 def _driver_inputs(fast: bool) -> tuple[list[Path], list[str]]:

@@ -20,7 +20,9 @@ import functools
 import hashlib
 import os
 import tempfile
+import threading
 from collections.abc import Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 from grasping_sym.codegen import cache
@@ -35,32 +37,35 @@ from grasping_sym.codegen.compiler import (
 from grasping_sym.runtime import safety
 
 __all__ = ["ALIASES", "cached_objects", "driver_objects", "flags_digest", "links_c",
-           "object_defines"]
+           "object_defines", "prefetch_driver_objects"]
 
 #: The driver's macros that name a model function, and the fixed name each one gets.
 ALIASES: dict[str, str] = {
     "GS_RHS": "gs_model_rhs", "GS_OUT": "gs_model_outputs", "GS_JAC": "gs_model_jac",
     "GS_CON": "gs_model_constraints", "GS_RHS_LANES": "gs_model_rhs_lanes",
 }
-_WORK_SIZES = ("GS_SZ_ARG", "GS_SZ_RES", "GS_SZ_IW", "GS_SZ_W")
+#: The work sizes and the least each is rounded up to: most models' sizes are below these, so
+#: that their driver objects depend on the model's dimensions alone, which a build knows
+#: before it derives anything (``prefetch_driver_objects``). Unused stack costs nothing.
+_WORK_SIZES = {"GS_SZ_ARG": 64, "GS_SZ_RES": 64, "GS_SZ_IW": 64, "GS_SZ_W": 4096}
 _CASADI_SIG = "(const double** arg, double** res, long long int* iw, double* w, int mem)"
 _LANES_SIG = "(const double* t, const double* const* x, const double* p, double* const* xdot)"
 
 
-def _bucket(n: int) -> int:
-    """``n`` rounded up to a power of two (at least 16)."""
-    return max(16, 1 << max(0, int(n) - 1).bit_length())
+def _bucket(n: int, least: int) -> int:
+    """``n`` rounded up to a power of two, at least ``least``."""
+    return max(least, 1 << max(0, int(n) - 1).bit_length())
 
 
 def object_defines(defines: Mapping[str, str | int]) -> dict[str, str | int]:
     """The macros the driver's objects are compiled with: function names replaced by
-    :data:`ALIASES`, work sizes rounded up to powers of two."""
+    :data:`ALIASES`, work sizes rounded up to powers of two (at least ``_WORK_SIZES``')."""
     out = dict(defines)
     for k, alias in ALIASES.items():
         if k in out:
             out[k] = alias
-    for k in _WORK_SIZES:
-        out[k] = _bucket(int(out[k]))
+    for k, least in _WORK_SIZES.items():
+        out[k] = _bucket(int(out[k]), least)
     return out
 
 
@@ -108,32 +113,75 @@ def _digest(sources: Sequence[Path], defines: Mapping, include_dirs: Sequence[st
     return h.hexdigest()
 
 
+#: Driver compilations started ahead (``prefetch_driver_objects``), by object directory.
+_AHEAD: dict[Path, Future] = {}
+_AHEAD_LOCK = threading.Lock()
+
+
+def _driver_directory(sources: Sequence[Path], defs: Mapping, include_dirs: Sequence[str]) -> Path:
+    return cache.cache_root() / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}"
+
+
+def _compile_driver(sources, defs, include_dirs, directory: Path,
+                    at_once: int | None = None) -> list[Path]:
+    return cached_objects(sources, safety.ensure_dir(directory, root=cache.cache_root()), defs,
+                          include_dirs, at_once=at_once)
+
+
 def driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
                    include_dirs: Sequence[str] = ()) -> list[Path]:
     """The object files of the driver ``sources`` compiled with ``object_defines(defines)``:
     from ``<cache root>/objects/`` or compiled there now (in parallel, each installed
-    atomically, so concurrent builds agree)."""
+    atomically, so concurrent builds agree), or by a compilation started ahead for the same
+    macros (``prefetch_driver_objects``), waited for."""
     defs = object_defines(defines)
-    root = cache.cache_root()
-    directory = safety.ensure_dir(
-        root / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}", root=root)
-    return cached_objects(sources, directory, defs, include_dirs)
+    directory = _driver_directory(sources, defs, include_dirs)
+    with _AHEAD_LOCK:
+        ahead = _AHEAD.pop(directory, None)
+    if ahead is not None:
+        try:
+            return ahead.result()
+        except Exception:  # noqa: BLE001 - compiled again below, which raises its error
+            pass
+    return _compile_driver(sources, defs, include_dirs, directory)
+
+
+def prefetch_driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
+                            include_dirs: Sequence[str] = ()) -> None:
+    """Start compiling the driver's objects for ``defines`` in a background thread, unless
+    they are cached or already under way: a build that predicts its model's macros before it
+    derives anything (``library.predicted_defines``) compiles them meanwhile, and
+    :func:`driver_objects` waits for them. Only a head start: a wrong prediction costs the
+    compilation, never a wrong object."""
+    defs = object_defines(defines)
+    directory = _driver_directory(sources, defs, include_dirs)
+    if all(os.path.lexists(directory / f"{Path(src).stem}.o") for src in sources):
+        return
+    with _AHEAD_LOCK:
+        if directory not in _AHEAD:
+            pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gs-driver")
+            # one file at a time: the build's own work keeps the other CPU
+            _AHEAD[directory] = pool.submit(_compile_driver, sources, defs, include_dirs,
+                                            directory, 1)
+            pool.shutdown(wait=False)
 
 
 def cached_objects(sources: Sequence[Path], directory: Path,
                    defines: Mapping[str, str | int] | None = None,
-                   include_dirs: Sequence[str] = (), quick: Sequence[Path] = ()) -> list[Path]:
+                   include_dirs: Sequence[str] = (), quick: Sequence[Path] = (),
+                   at_once: int | None = None) -> list[Path]:
     """The object files ``<directory>/<stem>.o`` of ``sources``: checked (``runtime.safety``)
     when there, else compiled now (in parallel, each installed atomically, so concurrent
-    builds agree; ``quick``: sources compiled with ``compiler.QUICK_FLAGS``). ``directory``
-    must exist and be the caller's to fill."""
+    builds agree; ``quick``: sources compiled with ``compiler.QUICK_FLAGS``; ``at_once``: at
+    most that many compilers at a time). ``directory`` must exist and be the caller's to fill."""
     objects = [Path(directory) / f"{Path(src).stem}.o" for src in sources]
     if all(os.path.lexists(o) for o in objects):
         for o in objects:
             safety.check_file(o)
         return objects
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        built = compile_objects(sources, Path(tmp), defines, include_dirs, quick=quick)
+        built = compile_objects(sources, Path(tmp), defines, include_dirs, quick=quick,
+                                at_once=at_once)
         for obj, final in zip(built, objects):
             os.replace(obj, final)
     return objects

@@ -39,6 +39,8 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     scene.validate()
+    ctrl = controller_function(scene, scene.name)
+    _prefetch_driver(scene, ctrl, n_constraints=2 * scene.n_fingers, jac=True, lanes=True)
     spec, leaves = planar_structure(scene)
     shared, gravity, inputs = spec.shared, spec.gravity, spec.inputs
     t1 = time.perf_counter()
@@ -54,7 +56,6 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     say("composing the contours with the structure (CasADi)")
     nx = len(scene.state_names)
     contours = contour_functions(leaves, meta["slots"], nx, scene.name, meta["leaf_entries"])
-    ctrl = controller_function(scene, scene.name)
     cm = compose_layered(structure_cache.externals(meta, so), meta, contours, nx,
                          len(scene.p_names), scene.name, ctrl, len(inputs))
     glue = lanes_glue(scene.name, contours["rhs"], meta["rhs_lanes"],
@@ -65,6 +66,17 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
                                "structure_source": source, "structure_compile": t3 - t2,
                                "compose": t4 - t3},
                           structure={"name": meta["name"], "hash": meta["hash"]}, lanes=glue)
+
+
+def _prefetch_driver(scene, ctrl, *, n_constraints: int, jac: bool, lanes: bool) -> None:
+    """Start compiling the driver's objects for the model's predicted macros
+    (``library.predicted_defines``) while the structure is derived and compiled: a model of
+    dimensions this cache has not seen compiles them no later than its own C."""
+    from grasping_sym.codegen.library import predicted_defines, prefetch_driver  # noqa: PLC0415
+
+    ny = 0 if ctrl.reads_time else len(scene.outputs)  # outputs that read the time: not the driver's
+    prefetch_driver(predicted_defines(len(scene.state_names), len(scene.p_names), ny,
+                                      n_constraints, jac=jac, lanes=lanes))
 
 
 def planar_single_piece(scene) -> SceneFunctions:
@@ -117,6 +129,8 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
+    ctrl = controller_function(scene, scene.name)
+    _prefetch_driver(scene, ctrl, n_constraints=3 * len(scene.fingers), jac=False, lanes=False)
     spec = Structure3DSpec(scene.structure_key(), tuple(scene.hashed_sources))
 
     def make(name):
@@ -134,8 +148,7 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
                           meta["jet_entries"])
     inputs = (*scene.runtime, *scene.start_param_names)
     cm = compose_layered_3d(structure_cache.externals(meta, so), meta, jets, nx,
-                            len(scene.p_names), scene.name, controller_function(scene, scene.name),
-                            len(inputs))
+                            len(scene.p_names), scene.name, ctrl, len(inputs))
     t3 = time.perf_counter()
     return SceneFunctions(cm, {"structure": t1 - t0, "structure_source": source,
                                "structure_compile": t2 - t1, "compose": t3 - t2},
