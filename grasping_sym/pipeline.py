@@ -106,7 +106,8 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         lane_c, lanes_status = None, (f"not made: the rhs has {cm.rhs.n_instructions()} > "
                                       f"{LANES_MAX_INSTRUCTIONS} instructions")
     files, grouped = cwriter.write_c(cm, scene.name, directory, digest["hash"], __version__,
-                                     extra_c=lane_c, n_files=1 if fns.structure else cwriter.C_FILES)
+                                     extra_c=lane_c,
+                                     groups=cwriter.layered_groups(cm) if fns.structure else None)
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
     if count_ops:

@@ -200,17 +200,20 @@ def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     _two_finger_scene,
     lambda: _surface_pair_scene("layers_predict_3d"),
 ])
-def test_the_driver_objects_compiled_ahead_are_the_models(make, monkeypatch):
-    """A build predicts its driver's macros before it derives anything and compiles their
+def test_the_driver_objects_compiled_ahead_are_the_models(make, monkeypatch, tmp_path):
+    """A build that derives a structure predicts its driver's macros first and compiles their
     objects meanwhile (``library.predicted_defines``): the prediction is the model's own,
     so the objects it makes are the ones the model links."""
     from grasping_sym.codegen import library, objects
 
+    monkeypatch.setenv("GRASPING_SYM_CACHE", str(tmp_path))  # nothing cached: all derived
     predicted = []
     real = library.prefetch_driver
     monkeypatch.setattr(library, "prefetch_driver",
                         lambda defines, fast=True: (predicted.append(defines), real(defines, fast)))
-    model = gs.build(make(), force=True)
+    with structure_cache.derive_afresh():  # not copied from the committed structures
+        model = gs.build(make())
+    assert model.build_info["structure_source"].startswith("derived")
     assert len(predicted) == 1
     assert (objects.object_defines(predicted[0])
             == objects.object_defines(model.manifest["driver_defines"]))

@@ -51,16 +51,28 @@ def partition(functions: list, n: int = C_FILES, extra: dict | None = None) -> l
     return sorted(groups, key=lambda g: min(order[f.name()] for f in g))
 
 
+def layered_groups(model: CasadiModel) -> list[list]:
+    """The files of a model in layers: the glue of the rhs and of the constraints (called at
+    every step) with every function of the scene's own that the glue calls (contours or
+    jets, controller) and the 4-lane rhs; then, compiled side by side with it, the glue of the
+    Jacobians, the outputs and the start. CasADi writes into the second file its own copies
+    of the scene's functions that glue calls, which keep their libm calls as CasADi wrote
+    them (``vecmath`` groups those of the exported functions only)."""
+    apart = [f for f in (model.jac, model.outputs, model.start) if f is not None]
+    apart += [f for f in model.helpers if f.name().startswith("jac_")]  # the guarded rhs's
+    return [[f for f in model.functions() if not any(f is g for g in apart)], apart]
+
+
 def write_c(model: CasadiModel, name: str, directory: Path, digest: str, version: str,
             extra_c: str | None = None, n_files: int = C_FILES,
             groups: list[list] | None = None) -> tuple[list[str], dict[str, int]]:
     """Generate the C of ``model``'s functions into ``directory`` (created if needed), in
-    ``C_FILES`` files ``{name}_1.c``, ``{name}_2.c`` (with their headers) that gcc compiles in
-    parallel (``n_files``: one for a model in layers, whose MX glue must share a file with the
-    SX functions it calls, so that it calls their rewritten bodies, not copies); the libm calls
-    are grouped by ``codegen.vecmath`` and ``extra_c`` (the 4-lane rhs of ``codegen.lanes``) is
-    appended to the rhs's file. ``groups`` (the rhs's first), when given, are the files'
-    functions instead of ``partition``'s.
+    ``n_files`` files ``{name}_1.c``, ``{name}_2.c`` (with their headers) that gcc compiles in
+    parallel; the libm calls are grouped by ``codegen.vecmath`` and ``extra_c`` (the 4-lane rhs
+    of ``codegen.lanes``) is appended to the rhs's file. ``groups`` (the rhs's first), when
+    given, are the files' functions instead of ``partition``'s (a model in layers:
+    ``layered_groups``, so that its hot MX glue shares a file with the SX functions it calls
+    and calls their rewritten bodies, not copies).
 
     Returns the file names written (C, then header, per file) and vecmath's report: per
     function, the number of libm calls placed in groups.

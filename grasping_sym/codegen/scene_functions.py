@@ -40,12 +40,12 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     t0 = time.perf_counter()
     scene.validate()
     ctrl = controller_function(scene, scene.name)
-    _prefetch_driver(scene, ctrl, n_constraints=2 * scene.n_fingers, jac=True, lanes=True)
     spec, leaves = planar_structure(scene)
     shared, gravity, inputs = spec.shared, spec.gravity, spec.inputs
     t1 = time.perf_counter()
     say(f"structure of {scene.name} (compiled once per structure)")
     def make(name):
+        _prefetch_driver(scene, ctrl, n_constraints=2 * scene.n_fingers, jac=True, lanes=True)
         template, source = templates.planar_template(shared, gravity, scene.n_fingers)
         return structure_functions(template, spec, name), f"template: {source}"
 
@@ -70,8 +70,9 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
 
 def _prefetch_driver(scene, ctrl, *, n_constraints: int, jac: bool, lanes: bool) -> None:
     """Start compiling the driver's objects for the model's predicted macros
-    (``library.predicted_defines``) while the structure is derived and compiled: a model of
-    dimensions this cache has not seen compiles them no later than its own C."""
+    (``library.predicted_defines``) while a new structure is derived and compiled: the first
+    model of a structure, whose dimensions this cache has likely not seen, then waits for
+    them no longer than for its own C."""
     from grasping_sym.codegen.library import predicted_defines, prefetch_driver  # noqa: PLC0415
 
     ny = 0 if ctrl.reads_time else len(scene.outputs)  # outputs that read the time: not the driver's
@@ -130,10 +131,10 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     ctrl = controller_function(scene, scene.name)
-    _prefetch_driver(scene, ctrl, n_constraints=3 * len(scene.fingers), jac=False, lanes=False)
     spec = Structure3DSpec(scene.structure_key(), tuple(scene.hashed_sources))
 
     def make(name):
+        _prefetch_driver(scene, ctrl, n_constraints=3 * len(scene.fingers), jac=False, lanes=False)
         return structure3d_functions(scene, name), "SymPy and CasADi's AD"
 
     say(f"structure of {scene.name} (compiled once per structure)")
