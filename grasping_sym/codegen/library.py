@@ -17,7 +17,6 @@ import numpy as np
 
 from grasping_sym.codegen import objects as object_cache
 from grasping_sym.codegen.compiler import compile_shared
-from grasping_sym.codegen.lanes import lanes_symbol
 
 __all__ = ["DRIVER_SOURCES", "PYFAST_C", "build_library", "compile_model", "driver_defines",
            "model_defines", "outputs_read_time", "predicted_defines", "prefetch_driver"]
@@ -120,6 +119,8 @@ def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
     parameters, and a 4-lane rhs when ``lanes``. A law that reads the time gives outputs that
     take it as one more last entry of p: the driver (whose p has the model's size) then does
     not call them (``Model._output_row`` does)."""
+    from grasping_sym.codegen.lanes import lanes_symbol  # noqa: PLC0415 - imports CasADi
+
     return driver_defines(cm.rhs, None if outputs_read_time(cm, n_p) else cm.outputs,
                           jac_fn=cm.jac, constraints_fn=cm.constraints,
                           rhs_lanes=lanes_symbol(cm.rhs) if lanes else None)
@@ -138,6 +139,8 @@ def predicted_defines(nx: int, np_: int, ny: int, nc: int, *, jac: bool,
     sizes. The work sizes are the stand-ins', below what ``objects.object_defines`` rounds
     every size up to, so the objects are the model's whenever its own work sizes are too."""
     import casadi as ca  # noqa: PLC0415
+
+    from grasping_sym.codegen.lanes import lanes_symbol  # noqa: PLC0415
 
     x, p = ca.SX.sym("x", nx), ca.SX.sym("p", np_)
     none = ca.SX(0, 1)
