@@ -185,9 +185,35 @@ def _generate_check(log) -> list[dict]:
     return rows
 
 
+#: A fixed compile that tells how fast the machine runs gcc during this run (it is shared with
+#: other work, and its speed moves by tens of percent): the driver's LU routines for 14
+#: states, as the first build of a 2-finger structure compiles them.
+_REFERENCE_DEFINES = {"GS_RHS": "r", "GS_NX": 14, "GS_NP": 2, "GS_HAS_OUT": 0, "GS_HAS_JAC": 0,
+                      "GS_HAS_CON": 0, "GS_HAS_RHS_LANES": 0, "GS_SZ_ARG": 64, "GS_SZ_RES": 64,
+                      "GS_SZ_IW": 64, "GS_SZ_W": 4096}
+
+
+def _reference_compile_s() -> float:
+    """The best of 5 wall times of gcc compiling ``c/lu.c`` with ``_REFERENCE_DEFINES``."""
+    from grasping_sym.codegen.compiler import compile_objects
+    from grasping_sym.codegen.library import DRIVER_SOURCES
+
+    lu = next(s for s in DRIVER_SOURCES if s.name == "lu.c")
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(5):
+            t0 = time.perf_counter()
+            compile_objects([lu], tmp, _REFERENCE_DEFINES)
+            times.append(time.perf_counter() - t0)
+    return min(times)
+
+
 def run(*, runs: int = 3, log=print) -> dict:
     os.environ["PYTHONPATH"] = str(REPO)  # the fresh processes import this tree's package
-    return {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version()},
+    ref = _reference_compile_s()
+    log(f"reference compile (c/lu.c, 14 states): {ref:.3f} s")
+    return {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version(),
+                        "reference_compile_s": ref},
             "builds_2d": _builds(SCENES_2D, runs, log),
             "builds_3d": _builds(SCENES_3D, max(1, runs - 1), log),
             "rhs": _rhs_costs(log), "load": _load(log), "generate_check": _generate_check(log)}
@@ -214,7 +240,10 @@ def markdown(res: dict) -> str:
         "# The layered pipeline: build, rhs cost, load, reproducibility",
         "",
         f"`python -m benchmarks.layers` on {res['machine']['cpu']}, Python {res['machine']['python']}. "
-        "Fresh interpreter and private cache per build; medians, in ms.",
+        "Fresh interpreter and private cache per build; medians, in ms. The machine is shared "
+        "and its speed moves by tens of percent: gcc compiled the driver's `c/lu.c` (14 "
+        f"states, the best of 5) in {1e3 * res['machine'].get('reference_compile_s', float('nan')):.0f} ms "
+        "in this run: compare it between runs before comparing their build times.",
         "",
         "## Builds",
         "",
