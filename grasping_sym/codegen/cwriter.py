@@ -52,17 +52,17 @@ def partition(functions: list, n: int = C_FILES, extra: dict | None = None) -> l
 
 
 def layered_groups(model: CasadiModel) -> list[list]:
-    """The files of a model in layers, compiled side by side: the glue of the rhs and of the
-    constraints (called at every step), the 4-lane rhs and the scene's own functions (contours
-    or jets, controller) that glue calls; then the glue of the Jacobians, the outputs and the
-    start, with the scene's functions that only they call. A glue function calls the
-    vecmath-rewritten body of a scene's function in its own file; of one in the other file,
-    CasADi writes it a copy, whose libm calls stay as CasADi wrote them (``vecmath`` rewrites
-    exported functions only)."""
-    rest = [f for f in (model.jac, model.outputs, model.start) if f is not None]
+    """The files of a model in layers, compiled side by side: the glue of the rhs, the
+    constraints and the outputs (called at every step or output time), the 4-lane rhs and the
+    scene's own functions (contours or jets, controller) that glue calls; then the glue of the
+    Jacobians and the start, with the scene's functions that only they call. A glue function
+    calls the vecmath-rewritten body of a scene's function in its own file; of one in the
+    other file, CasADi writes it a copy, whose libm calls stay as CasADi wrote them
+    (``vecmath`` rewrites exported functions only)."""
+    rest = [f for f in (model.jac, model.start) if f is not None]
     rest += [f for f in model.helpers if f.name().startswith("jac_")]  # the guarded rhs's
     first = [f for f in model.functions() if not any(f is g for g in rest)]
-    glue = {model.rhs.name(), *(f.name() for f in (model.constraints,) if f is not None)}
+    glue = {f.name() for f in (model.rhs, model.constraints, model.outputs) if f is not None}
     hot = {n for f in first if f.name() in glue or f.name().endswith("_guarded")
            for n in f.get_function()}
     cold = {n for f in rest for n in f.get_function()}
