@@ -1,8 +1,8 @@
 """Write the C of a scene's CasADi functions, with a do-not-edit header and a manifest.
 
-A generated directory holds the C of the generated functions in two files (one for a model in
-layers) and their headers (``{name}_1.c``, ``{name}_2.c``, ...; listed in the manifest's
-``files``) and
+A generated directory holds the C of the generated functions in two files or three (a model in
+layers: ``layered_groups``; a structure: ``partition``, or its split Jacobian apart) and their
+headers (``{name}_1.c``, ``{name}_2.c``, ...; listed in the manifest's ``files``) and
 ``manifest.json`` (written by ``runtime.stored``: the content hash of the inputs and what the
 runtime needs to load the model without deriving anything).
 """
