@@ -66,7 +66,7 @@ BASE_FLAGS: tuple[str, ...] = ("-O2", "-fPIC", "-Wall", "-Wextra", "-Wno-unused-
 CASADI_FILE_FLAGS: tuple[str, ...] = ("-Wno-unused-function", "-Wno-unused-variable")
 #: Extra flags for the files a caller names as quick to compile (``compile_objects``'s
 #: ``quick``): a structure's Jacobian, whose C gcc compiles 40 % faster at -Og than at -O2
-#: and runs 6 % slower (a 2-finger structure; -O0 would compile 80 % faster but run 3.5
+#: and runs 7 % slower (a 2-finger structure; -O0 would compile 80 % faster but run 3.3
 #: times slower). With -ffp-contract=off every level computes the same operations.
 QUICK_FLAGS: tuple[str, ...] = ("-Og",)
 #: Flags used when linking the shared library.
