@@ -15,7 +15,6 @@ built-in scenes are committed under ``generated/structures/`` and copied from th
 """
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import tempfile
@@ -32,7 +31,7 @@ from grasping_sym.codegen.structure import StructureFunctions
 from grasping_sym.runtime import safety, stored
 
 __all__ = ["META", "derive_afresh", "ensure", "externals", "install_files", "library", "link_objects",
-           "structure_meta", "structure_name", "write_structure"]
+           "structure_name", "write_structure"]
 
 META = "structure.json"
 DIR = "structures"
@@ -74,22 +73,6 @@ def _complete(directory: Path, digest: str, trusted: bool = False) -> dict | Non
     return meta
 
 
-def structure_meta(sf: StructureFunctions, lanes: bool) -> dict:
-    """What ``structure.json`` records of ``sf`` for the model glue, as read back from JSON
-    (``lanes``: whether the structure has a 4-lane rhs)."""
-    meta = {
-        "slots": [list(map(lambda v: list(v) if isinstance(v, tuple) else v, s)) for s in sf.slots],
-        "n_leaves": sf.n_leaves, "functions": sf.kinds(),
-        "output_names": list(sf.output_names), "constraint_info": sf.constraint_info,
-        "start_names": list(sf.start_names),
-        "rhs_lanes": f"{sf.name}_rhs_lanes" if lanes else None,
-        "op_counts": {f"{k}_sx_instructions": f.n_instructions()
-                      for k, f in sf.by_kind() if f is not None},
-        **(sf.extra_meta or {}),
-    }
-    return json.loads(json.dumps(meta))
-
-
 def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: str) -> dict:
     """Write the C of the structure ``sf`` (named ``structure_name(digest)``) and its
     ``structure.json`` into ``directory``; return the latter."""
@@ -97,20 +80,30 @@ def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: s
     lane_c, lanes_status = None, "not made: the structure's rhs has no lane layout"
     if sf.lanes is not None:
         lane_c, lanes_status = lanes.function_lanes(sf.rhs, f"{name}_rhs_lanes", *sf.lanes)
-    groups = None
+    groups, quick = None, []
     if sf.jac2 is not None:
         # a split Jacobian: each part in a file of its own, compiled quick, with the functions
-        # called once per output or start (the outputs with one part, the start with the other)
-        rare = {sf.outputs: 1, sf.start: 2}
-        groups = [[f for f in sf.functions() if f not in (sf.jac, sf.jac2, *rare)],
-                  [sf.jac] + [f for f, k in rare.items() if k == 1 and f is not None],
-                  [sf.jac2] + [f for f, k in rare.items() if k == 2 and f is not None]]
+        # called once per output time or start (the outputs with one part, the start with
+        # the other)
+        with_jac = [f for f in (sf.jac, sf.outputs) if f is not None]
+        with_jac2 = [f for f in (sf.jac2, sf.start) if f is not None]
+        apart = {id(f) for f in with_jac + with_jac2}
+        groups = [[f for f in sf.functions() if id(f) not in apart], with_jac, with_jac2]
+        quick = [f"{name}_{k}.c" for k in (2, 3)]
     files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c,
                                      groups=groups)
-    quick = [f"{name}_{k}.c" for k in (2, 3)] if groups else []  # the Jacobian's parts
-    meta = {"name": name, "hash": digest, "key": key, "files": files, "quick_files": quick,
-            **structure_meta(sf, lanes=lane_c is not None),
-            "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped}}
+    meta = {
+        "name": name, "hash": digest, "key": key, "files": files, "quick_files": quick,
+        "slots": [list(map(lambda v: list(v) if isinstance(v, tuple) else v, s)) for s in sf.slots],
+        "n_leaves": sf.n_leaves, "functions": sf.kinds(),
+        "output_names": list(sf.output_names), "constraint_info": sf.constraint_info,
+        "start_names": list(sf.start_names),
+        "rhs_lanes": f"{name}_rhs_lanes" if lane_c else None,
+        "rewrites": {"rhs_lanes": lanes_status, "vecmath_grouped_calls": grouped},
+        "op_counts": {f"{k}_sx_instructions": f.n_instructions()
+                      for k, f in sf.by_kind() if f is not None},
+        **(sf.extra_meta or {}),
+    }
     stored.write_json(directory / META, meta)
     return meta
 
