@@ -118,9 +118,17 @@ def paper3d_scalar_libm(paper3d_model):
 
 
 def test_compiled_equals_uncompiled_on_the_manifold(paper3d_scalar_libm, run5):
-    """The generated C (with scalar libm calls, as CasADi's virtual machine makes them) equals
-    the CasADi graph it came from at states along a run."""
+    """The generated C (with scalar libm calls, as CasADi's virtual machine makes them)
+    computes the CasADi graph it came from at states along a run, as accurately as CasADi
+    does: judged against the graph evaluated in 60-digit arithmetic.
+
+    Not bit for bit, nor to 1e-12: the compiled code is the structure and the surfaces' jets
+    in layers, with shared reciprocals (``codegen.reciprocals``), and CasADi's own double
+    evaluation of the graph is off the exact value by up to ~4e-11 of the largest rate here
+    (the closed loop's solves amplify roundings)."""
+    from grasping_sym.codegen import algorithm
     from grasping_sym.derive.grasp3d import derive_grasp3d
+    from tests.oracles.program import run
     paper3d_model = paper3d_scalar_libm
 
     scene = gs.scenes.paper3d()
@@ -128,13 +136,23 @@ def test_compiled_equals_uncompiled_on_the_manifold(paper3d_scalar_libm, run5):
     f = system.function("check", "outputs")
     import casadi as ca
 
-    xdot = ca.Function("xdot", [system.x, system.p], [system.xdot])
+    xdot = ca.Function("xdot", [system.x, system.p], [system.xdot], {"cse": True})
+    program = algorithm.read(xdot)
+    p = np.asarray(paper3d_model.default_params, float)
     rng = np.random.default_rng(3)
-    for k in rng.choice(len(run5.t), 6, replace=False):
+    err_casadi, err_compiled = [], []
+    picks = rng.choice(len(run5.t), 6, replace=False)
+    for k in picks:
         x = run5.x[k]
-        ref = np.asarray(xdot(x, paper3d_model.default_params), float).ravel()
-        got = paper3d_model.rhs(x)
-        assert np.max(np.abs(got - ref)) <= 1e-12 * (1 + np.max(np.abs(ref)))
+        ref = np.asarray(xdot(x, p), float).ravel()
+        exact, = run(program, [x, p], [xdot.nnz_out(0)], exact=True)
+        scale = 1 + np.max(np.abs(exact))
+        err_casadi.append(np.max(np.abs(ref - exact)) / scale)
+        err_compiled.append(np.max(np.abs(paper3d_model.rhs(x) - exact)) / scale)
+    assert max(err_casadi) <= 1e-10                  # the oracle itself: rounding, no more
+    assert max(err_compiled) <= 2 * max(err_casadi) + 1e-15
+    for k in picks:
+        x = run5.x[k]
         y = paper3d_model.outputs(x)
         yr = f(x=x, p=paper3d_model.default_params)
         for name in ("f1", "f2", "constraint_residual"):

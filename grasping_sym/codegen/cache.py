@@ -51,7 +51,8 @@ HASHED_SOURCES = (
     "c/radau5.c", "c/radau5.h", "c/jac.c", "c/lu.c", "c/dopri5.c", "c/stop.c", "c/batch.c",
     "c/budget.c", "c/gs_internal.h",
     "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "codegen/lanes.py",
-    "codegen/vecmath.py", "codegen/algorithm.py", "codegen/objects.py", "codegen/structure.py",
+    "codegen/vecmath.py", "codegen/algorithm.py", "codegen/reciprocals.py", "codegen/objects.py",
+    "codegen/structure.py",
     "codegen/structure_cache.py", "codegen/layered.py", "pipeline.py", "model/control.py",
     "codegen/controller.py",
 )

@@ -24,6 +24,7 @@ from __future__ import annotations
 import casadi as ca
 
 from grasping_sym.codegen import algorithm, vecmath
+from grasping_sym.codegen.reciprocals import share_reciprocals
 
 __all__ = ["ARITHMETIC", "BINARY", "UNARY", "function_lanes", "lanes_symbol", "rhs_lanes",
            "rhs_lanes_c"]
@@ -168,7 +169,7 @@ def function_lanes(f: ca.Function, symbol: str, kinds: tuple[str, ...],
     """
     used: set[str] = set()
     try:
-        program = algorithm.read(f)
+        program = share_reciprocals(algorithm.read(f))
         body = _translate(program, used, kinds, names)
     except algorithm.UnsupportedAlgorithm as exc:
         return None, str(exc)

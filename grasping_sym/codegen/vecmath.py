@@ -141,9 +141,10 @@ def _nodes(program: list[algorithm.Instruction]):
     return nodes, depth
 
 
-def _batch_body(program: list[algorithm.Instruction], used: set[str]) -> list[str] | None:
+def _batch_body(program: list[algorithm.Instruction], used: set[str],
+                force: bool = False) -> list[str] | None:
     """The function's statements in single-assignment form with the libm calls grouped, or
-    None when it calls no vector function.
+    None when it calls no vector function (and ``force`` is false).
 
     CasADi reuses its work variables and loads inputs just before their first use, so the
     calls are grouped on the dependency graph: every assignment gets its own variable; a
@@ -154,7 +155,7 @@ def _batch_body(program: list[algorithm.Instruction], used: set[str]) -> list[st
     once, when the last argument of its members is known).
     """
     nodes, depth = _nodes(program)
-    if not any(call for *_, call in nodes):
+    if not force and not any(call for *_, call in nodes):
         return None
     # groups: calls of one function at one depth, in fours, in program order
     groups: dict[tuple[str, int], list[list[int]]] = {}
@@ -213,6 +214,7 @@ def batch_libm_calls(code: str, functions) -> tuple[str, dict[str, int]]:
     groups (0: none to group, or calls of other functions: its body left as CasADi wrote it).
     """
     from grasping_sym.codegen import algorithm  # noqa: PLC0415 - needs CasADi
+    from grasping_sym.codegen.reciprocals import share_reciprocals  # noqa: PLC0415
 
     bodies = {m.group(2): m for m in _BODY.finditer(code)}
     index = {m.group(1): m.group(2) for m in _WRAPPER.finditer(code)}
@@ -226,7 +228,9 @@ def batch_libm_calls(code: str, functions) -> tuple[str, dict[str, int]]:
     new_bodies: dict[str, list[str]] = {}
     for f in functions:
         try:
-            stmts = _batch_body(algorithm.read(f), used)
+            program = algorithm.read(f)
+            shared = share_reciprocals(program)
+            stmts = _batch_body(shared, used, force=shared is not program)
         except algorithm.UnsupportedAlgorithm:
             stmts = None
         report[f.name()] = 0 if stmts is None else sum(
@@ -242,7 +246,7 @@ def batch_libm_calls(code: str, functions) -> tuple[str, dict[str, int]]:
         last = m.end()
     out.append(code[last:])
     text = "".join(out)
-    if not used:
-        return code, report
+    if not used:  # bodies rewritten for their reciprocals only (codegen.reciprocals)
+        return text, report
     first = _BODY.search(text)
     return text[:first.start()] + _prelude(used) + "\n" + text[first.start():], report

@@ -276,11 +276,13 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = F
         eta_vars, eta_rates = eta_reg, sigma
     z = ca.vertcat(zb, eta_vars)
     zdot = ca.vertcat(zb_dot, eta_rates)
-    Cz = ca.jacobian(C, z)
-    A = ca.jacobian(ca.jacobian(C, zb) @ zb_dot_lin, Vs)
-    Cdot = Cz @ zdot
+    # C' and C'' along the motion as forward directional derivatives (jtimes), not through
+    # the full Jacobians dC/dz and dC'/dz: paper3d's closed loop has 7146 instructions this
+    # way against 11448 (bhat alone 3263 against 8472)
+    A = ca.jacobian(ca.jtimes(C, zb, zb_dot_lin), Vs)
+    Cdot = ca.jtimes(C, z, zdot)
     Ahat = ca.jacobian(Cdot, Vs)
-    bhat = ca.jacobian(Cdot, z) @ zdot
+    bhat = ca.jtimes(Cdot, z, zdot)
     H = ca.DM(np.asarray(scene.inertia))
     m = float(scene.mass)
     blocks = [fin["G"] for fin in fingers] + ([m * ca.DM.eye(3)] if free else []) + [H]

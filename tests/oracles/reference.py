@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
+import mpmath
 import numpy as np
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
@@ -26,6 +27,20 @@ _NUMPY = dict(
     mul=lambda a, b: a * b,
     transpose=lambda a: a.T,
 )
+
+
+
+def _mp_solve(A, B):
+    """``A^-1 B`` for object arrays of mpf (mpmath's LU, at the working precision)."""
+    A_mp = mpmath.matrix(A.tolist())
+    cols = B.reshape(B.shape[0], -1)
+    out = [mpmath.lu_solve(A_mp, mpmath.matrix(cols[:, j].tolist())) for j in range(cols.shape[1])]
+    return np.array([[out[j][i] for j in range(len(out))] for i in range(cols.shape[0])],
+                    dtype=object).reshape(B.shape)
+
+
+#: ``assemble``'s backend in mpmath (``ReferenceModel.evaluate(exact=True)``).
+_MPMATH = dict(_NUMPY, solve=_mp_solve)
 
 
 def substitute_leaves(expr, leaves: dict[type, sp.Expr]):
@@ -78,10 +93,10 @@ class ReferenceModel:
             leaves.update(leaf_expressions(fingertip_functions(i), tip))
         self._constants = list(self.system.constants.values())
         args = [*self.system.state, *self.system.params, *self.system.constants]
-        self._pieces = [
-            _lambdify(args, substitute_leaves(m, leaves))
-            for m in self.system.pieces()
-        ]
+        self._args = args
+        self._concrete = [substitute_leaves(m, leaves) for m in self.system.pieces()]
+        self._pieces = [_lambdify(args, m) for m in self._concrete]
+        self._exact_pieces: list[Callable] | None = None
         names = tuple(self.system.outputs)
         self.output_names = names
         outs = sp.Matrix([substitute_leaves(sp.sympify(self.system.outputs[k]), leaves)
@@ -104,6 +119,22 @@ class ReferenceModel:
         v = np.asarray(x, dtype=float)[n:2 * n, None]
         xdot, mu = assemble(n, v, pieces, **_NUMPY)
         return xdot, np.ravel(mu)
+
+    def rhs_exact(self, x, p=None, digits: int = 40) -> np.ndarray:
+        """The closed-loop right-hand side at the doubles ``x``, ``p`` evaluated in
+        ``digits``-digit arithmetic (mpmath), rounded to doubles at the end: the exact value
+        that double-precision evaluations are judged against."""
+        if self._exact_pieces is None:
+            self._exact_pieces = [sp.lambdify(self._args, m, "mpmath", cse=True)
+                                  for m in self._concrete]
+        with mpmath.workdps(digits):
+            args = [mpmath.mpf(float(a)) for a in (*np.ravel(x), *self._p(p), *self._constants)]
+            pieces = [np.array(mpmath.matrix(f(*args)).tolist(), dtype=object)
+                      for f in self._exact_pieces]
+            n = self.system.n
+            v = np.array([[mpmath.mpf(float(a))] for a in np.ravel(x)[n:2 * n]], dtype=object)
+            xdot, _ = assemble(n, v, pieces, **_MPMATH)
+            return np.array([float(a) for a in np.ravel(xdot)])
 
     def rhs(self, x, p=None) -> np.ndarray:
         """The closed-loop right-hand side."""
