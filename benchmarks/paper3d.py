@@ -57,13 +57,15 @@ SWEEP = {
     "dopri5": [10.0**-k for k in range(3, 11)],
     "radau" + wp.PROJECTED: [10.0**-k for k in range(3, 11)],
     "dopri5" + wp.PROJECTED: [10.0**-k for k in range(3, 12)],
+    "dop853" + wp.PROJECTED: [10.0**-k for k in range(3, 12)],
 }
 QUICK_SWEEP = {"cvodes": [1e-5, 1e-7, 1e-9], "idas": [1e-5, 1e-7, 1e-9],
                "radau": [1e-4, 1e-6, 1e-8], "rk4": [2.5e-3, 1e-3, 2e-4],
                "dopri5": [1e-4, 1e-6, 1e-8], "radau" + wp.PROJECTED: [1e-4, 1e-6],
-               "dopri5" + wp.PROJECTED: [1e-4, 1e-6, 1e-8]}
+               "dopri5" + wp.PROJECTED: [1e-4, 1e-6, 1e-8],
+               "dop853" + wp.PROJECTED: [1e-4, 1e-6, 1e-8]}
 #: Methods searched on the (rtol, atol) grid near error 1e-8.
-GRID_METHODS = ("cvodes", "idas", "radau", "dopri5" + wp.PROJECTED)
+GRID_METHODS = ("cvodes", "idas", "radau", "dopri5" + wp.PROJECTED, "dop853" + wp.PROJECTED)
 #: Extra (rtol, atol) settings of the adaptive methods near error 1e-8 (markers on the plot):
 #: near there the error does not fall monotonically with the tolerances, so the cheapest
 #: setting reaching 1e-8 is searched on this grid as well.
@@ -897,7 +899,7 @@ def _peers_md(res: dict) -> list[str]:
             "project=True)`: the stabilisation gain at 0, the state projected onto the "
             "contact constraints after every step.",
             "cvodes and idas difference the compiled rhs for their Jacobian (no Jacobian is "
-            "generated for 3D); radau and dopri5 run their whole loop in C."]),
+            "generated for 3D); radau, dopri5 and dop853 run their whole loop in C."]),
     ]
 
 

@@ -647,6 +647,7 @@ STYLES = {"cvodes": ("C0", "o", "-"), "idas": ("C1", "s", "-"), "rk4": ("C2", "^
           "radau": ("C6", "*", "-"), "dopri5": ("C7", "h", "-"),
           "radau + projection, no Baumgarte": ("C6", "X", "-."),
           "dopri5 + projection, no Baumgarte": ("C8", "H", "-."),
+          "dop853 + projection, no Baumgarte": ("#bcbd22", "8", "-."),
           "lambdify+LSODA": ("C3", "D", "--"), "lambdify+Radau": ("C4", "v", "--"),
           "lambdify+DOP853": ("C5", "P", "--"),
           "lambdify+LSODA, no Baumgarte": ("#e377c2", "d", "--"),

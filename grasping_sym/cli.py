@@ -339,7 +339,7 @@ def make_parser() -> argparse.ArgumentParser:
                    help="what the figure shows: a final state (e.g. theta, the default), "
                         "settle_<state> (settling time), min_<output> (e.g. min_f, the smallest "
                         "normal force), max_<output>, or failure")
-    p.add_argument("--method", choices=("radau", "dopri5", "rk4"), default="radau",
+    p.add_argument("--method", choices=("radau", "dopri5", "dop853", "rk4"), default="radau",
                    help="integrator (default radau)")
     p.add_argument("--rtol", type=_positive_float, default=None,
                    help="relative tolerance (default: the method's, radau 1e-6)")

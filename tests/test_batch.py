@@ -24,7 +24,7 @@ def _single(model, i, batch_x0, fd, **kw):
     return model.simulate(3.0, x0=batch_x0[i], params={"fd": float(fd[i])}, **kw)
 
 
-@pytest.mark.parametrize("method", ["radau", "dopri5", "rk4"])
+@pytest.mark.parametrize("method", ["radau", "dopri5", "dop853", "rk4"])
 def test_runs_are_bit_identical_to_single_simulate_calls(model, starts, method):
     fd = np.array([0.4, 0.55, 0.7, 0.9])
     kw = dict(method=method, rtol=1e-6, atol=1e-8, project=True, h=5e-4)

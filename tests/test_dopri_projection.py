@@ -1,5 +1,6 @@
-"""Tests of the adaptive explicit Dormand-Prince 5(4) in C (gs_dopri5, method='dopri5') and of
-the projection onto the constraints after each step (gs_project, simulate(project=True))."""
+"""Tests of the adaptive explicit Dormand-Prince 5(4) and 8(5,3) in C (gs_dopri5, gs_dop853;
+method='dopri5', 'dop853') and of the projection onto the constraints after each step
+(gs_project, simulate(project=True))."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -185,6 +186,60 @@ def test_dopri5_stiffness_test_and_its_switch(toys):
         pr.dopri5([1.0, 0.0], [0.0, 1.0], proj_mask=[1, 0], proj_tol=1e-13)
 
 
+def test_dop853_oscillator_exact_solution_and_its_order(toys):
+    """Exact solution cos t: the error falls with rtol, the continuous extension (order 7)
+    between steps is as accurate as the steps, and at tight tolerances the eighth-order
+    method needs several times fewer evaluations than DOPRI5 for a smaller error."""
+    osc, _ = toys
+    t_out = np.linspace(0.0, 10.0, 1001)
+    exact = np.column_stack([np.cos(t_out), -np.sin(t_out)])
+    errors = []
+    for rtol in (1e-5, 1e-7, 1e-9, 1e-11):
+        t, X, st = osc.dop853([1.0, 0.0], t_out, rtol=rtol, atol=rtol)
+        errors.append(_err(X, exact))
+        assert st["n_steps"] < 200 < len(t_out)  # dense output between steps
+    assert all(a > b for a, b in zip(errors, errors[1:])), errors
+    assert errors[-1] < 1e-10
+    # at the step ends only (no dense output, no extra evaluations) against dopri5
+    _, X8, st8 = osc.dop853([1.0, 0.0], [0.0, 10.0], rtol=1e-11, atol=1e-11)
+    _, X5, st5 = osc.dopri5([1.0, 0.0], [0.0, 10.0], rtol=1e-11, atol=1e-11)
+    e8, e5 = _err(X8[-1], exact[-1]), _err(X5[-1], exact[-1])
+    print(f"rtol 1e-11: dop853 {st8['n_rhs']} evaluations, error {e8:.2e}; "
+          f"dopri5 {st5['n_rhs']}, {e5:.2e}")
+    assert st8["n_rhs"] * 3 < st5["n_rhs"] and e8 < 1e-9
+    assert st8["n_rhs"] == 1 + 1 + 12 * st8["n_steps"] + 11 * st8["n_rejected"]
+    # a start other than 0 and a given first step
+    _, X, _ = osc.dop853([np.cos(2.0), -np.sin(2.0)], [2.0, 3.5], rtol=1e-10, atol=1e-10, h0=1e-3)
+    assert _err(X[-1], [np.cos(3.5), -np.sin(3.5)]) < 1e-9
+
+
+def test_dop853_stiffness_test_and_its_switch(toys):
+    _, pr = toys
+    with pytest.raises(IntegratorError, match="dop853: the system is stiff") as info:
+        pr.dop853([1.0, 0.0], [0.0, 10.0], rtol=1e-3, atol=1e-3)
+    err = info.value  # first test at step 1000, then 14 more stiff steps
+    assert err.code == -8 and err.stats["h_lambda"] > 6.1
+    assert abs(err.x[0] - np.cos(err.t)) < 1e-2  # the state where it stopped
+    # nstiff <= 0: the run completes at the stability limit (the real-axis boundary of
+    # DOP853's stability region lies near -6.4: h ~ 6.4 ms here)
+    t, X, st = pr.dop853([1.0, 0.0], [0.0, 10.0], rtol=1e-3, atol=1e-3, nstiff=0)
+    assert abs(X[-1, 0] - np.cos(10.0)) < 1e-3 and st["n_steps"] > 10.0 * LAMBDA / 7.0
+
+
+def test_dop853_paper3d_with_projection_at_1e8(tmp_path):
+    """The setting of the paper3d sweep benchmark: DOP853 with projection reaches the reference
+    (Radau at rtol 1e-10) to 1e-8 with fewer evaluations than DOPRI5 needs for it."""
+    model = gs.build(gs.scenes.paper3d(name="paper3d_proj", gain=0.0))
+    kw = dict(t_eval=[0.0, 3.0], outputs=False, project=True)
+    ref = model.simulate(3.0, method="radau", rtol=1e-10, atol=1e-12, **kw)
+    d8 = model.simulate(3.0, method="dop853", rtol=3e-5, atol=1e-9, **kw)
+    d5 = model.simulate(3.0, method="dopri5", rtol=1e-6, atol=3e-9, **kw)
+    assert d8.method == "dop853"
+    assert _err(d8.x[-1], ref.x[-1]) <= 1e-8 and _err(d5.x[-1], ref.x[-1]) <= 1e-8
+    assert d8.stats["n_rhs"] < d5.stats["n_rhs"]
+    assert d8.stats["max_drift"] < 1e-9
+
+
 # ------------------------------------------------------------------------- constraints function
 def test_constraints_function_against_finite_differences(paper2d_model):
     lib = paper2d_model.library
@@ -237,6 +292,7 @@ def test_project_one_state(paper2d_model):
 
 # ------------------------------------------------------------------------- projection in the loops
 @pytest.mark.parametrize("method,kw", [("dopri5", {"rtol": 1e-6, "atol": 1e-9}),
+                                       ("dop853", {"rtol": 1e-6, "atol": 1e-9}),
                                        ("radau", {"rtol": 1e-6, "atol": 1e-9}),
                                        ("rk4", {"h": 1e-3})])
 def test_projection_instead_of_baumgarte(gains_model, reference, method, kw):

@@ -3,7 +3,8 @@
  * lists the files).
  *
  * Run i integrates from X0[i] with the parameters P[i] (or the one shared p) over the common
- * output times t_out, by the same loop a single run calls (gs_radau5, gs_dopri5 or gs_rk4)
+ * output times t_out, by the same loop a single run calls (gs_radau5, gs_dopri5, gs_dop853 or
+ * gs_rk4)
  * with the same arguments: its numbers are bit for bit those of the single call.  The runs
  * are handed out one at a time to the threads (an atomic counter), so a slow run holds up no
  * other; which thread ran a run changes nothing in it.  One run's failure is recorded in its
@@ -17,7 +18,7 @@
  *                 double time_limit, int keep, double* X, double* Y, double* Y0,
  *                 double* CD0, long* status, double* t_fail, double* stats);
  *
- *   method      0 gs_radau5, 1 gs_dopri5, 2 gs_rk4 (t_out then uniform: t_out[0], h, nsteps,
+ *   method      0 gs_radau5, 1 gs_dopri5, 3 gs_dop853, 2 gs_rk4 (t_out then uniform: t_out[0], h, nsteps,
  *               stride as gs_rk4 takes them, n_out = nsteps / stride + 1 rows)
  *   n_threads   threads to use (>= 1; the calling thread is one of them)
  *   X0          n_runs x nx initial states, row-major
@@ -88,11 +89,15 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
     rc = gs_dopri5(job->t_out[0], m, job->t_out, x0, p, job->rtol, job->atol, job->h0,
                    job->max_steps, job->nstiff, job->lo, job->hi, job->mask, job->proj_tol,
                    scratch, st, &tf);
+  else if (job->method == 3)
+    rc = gs_dop853(job->t_out[0], m, job->t_out, x0, p, job->rtol, job->atol, job->h0,
+                   job->max_steps, job->nstiff, job->lo, job->hi, job->mask, job->proj_tol,
+                   scratch, st, &tf);
   else
     rc = gs_rk4(job->t_out[0], job->h, job->nsteps, job->stride, x0, p, job->lo, job->hi,
                 job->mask, job->proj_tol, scratch, st, &tf);
   const int ok = rc == m;
-  /* rows written: all on success; else gs_radau5 / gs_dopri5 count them in stats, gs_rk4's
+  /* rows written: all on success; else the adaptive loops count them in stats, gs_rk4's
    * are those up to t_fail */
   long written = m;
   if (!ok) {
@@ -170,7 +175,7 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
                         long nstiff, const double* lo, const double* hi, const int* proj_mask,
                         double proj_tol, double time_limit, int keep, double* X, double* Y,
                         double* Y0, double* CD0, long* status, double* t_fail, double* stats) {
-  if (method < 0 || method > 2 || n_threads < 1 || n_runs < 0 || n_out < 2 || !t_out || !X0 ||
+  if (method < 0 || method > 3 || n_threads < 1 || n_runs < 0 || n_out < 2 || !t_out || !X0 ||
       !X || !status || !t_fail || p_stride < 0 || (GS_NP > 0 && !P) || !(time_limit >= 0.0) ||
       (method == 2 && (nsteps < 1 || stride < 1 || nsteps % stride || nsteps / stride + 1 != n_out)))
     return GS_ERR_ARGS;

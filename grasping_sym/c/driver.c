@@ -12,9 +12,11 @@
  *   radau5.c       gs_radau5 (radau5.h: its coefficients and tuning defaults;
  *                  jac.c: its Jacobian; lu.c: its real and complex LU)
  *   dopri5.c       gs_dopri5
+ *   dop853.c       gs_dop853
  *   stop.c         gs_sigint_install, gs_set_time_limit, gs_stop_cause: Ctrl-C and a
  *                  wall-time limit stop the loops (GS_ERR_INTERRUPT)
- *   batch.c        gs_batch: many runs of gs_radau5 / gs_dopri5 / gs_rk4 in one call, over a
+ *   batch.c        gs_batch: many runs of gs_radau5 / gs_dopri5 / gs_dop853 / gs_rk4 in one
+ *                  call, over a
  *                  pool of threads
  *   budget.c       gs_step_budget: a CasADi external that bounds a SUNDIALS run's steps in
  *                  total (gs_budget_begin, gs_budget_hit)
@@ -91,6 +93,7 @@
  *                    long max_steps, long nstiff, const double* lo, const double* hi,
  *                    const int* proj_mask, double proj_tol, double* out,
  *                    double* stats, double* t_fail);
+ *   long   gs_dop853(...)  the arguments of gs_dopri5
  *   int    gs_con_info(long* nc);
  *   int    gs_constraints(const double* x, const double* p, double* C, double* JC,
  *                         double* Cd, double* JCd);                     (GS_HAS_CON)

@@ -36,6 +36,10 @@ long gs_dopri5(double t0, long n_out, const double* t_out, const double* x0, con
                double rtol, double atol, double h0, long max_steps, long nstiff,
                const double* lo, const double* hi, const int* proj_mask, double proj_tol,
                double* out, double* stats, double* t_fail);
+long gs_dop853(double t0, long n_out, const double* t_out, const double* x0, const double* p,
+               double rtol, double atol, double h0, long max_steps, long nstiff,
+               const double* lo, const double* hi, const int* proj_mask, double proj_tol,
+               double* out, double* stats, double* t_fail);
 int gs_con_info(long* nc);
 #if GS_HAS_CON
 int gs_constraints(const double* x, const double* p, double* C, double* JC, double* Cd,

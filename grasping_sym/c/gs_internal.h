@@ -13,6 +13,7 @@
  *              (forward differences)
  *   lu.c       gs_radau5's dense real and complex LU factorisations
  *   dopri5.c   adaptive Dormand-Prince 5(4): gs_dopri5
+ *   dop853.c   adaptive Dormand-Prince 8(5,3): gs_dop853
  *   stop.c     Ctrl-C and the wall-time limit
  *   batch.c    many runs over a pool of threads: gs_batch
  *
@@ -84,7 +85,7 @@
 #define GS_ERR_STEP      (-5) /* step size too small (Newton / error test)    */
 #define GS_ERR_MAXSTEPS  (-6) /* max_steps reached before the end time       */
 #define GS_ERR_PROJECT   (-7) /* projection onto the constraints failed      */
-#define GS_ERR_STIFF     (-8) /* gs_dopri5: the problem is stiff             */
+#define GS_ERR_STIFF     (-8) /* gs_dopri5, gs_dop853: the problem is stiff  */
 #define GS_ERR_INTERRUPT (-9) /* stopped: SIGINT or the time limit (stop.c)  */
 
 /* Entries of the stats array (GS_NSTATS doubles). */
@@ -101,8 +102,8 @@
 #define GS_ST_DRIFT_CDOT 10 /* largest max|Cdot| found before a velocity projection */
 #define GS_ST_PROJ_PHASE 11 /* projection failure: 1 positions, 2 velocities       */
 #define GS_ST_PROJ_RES 12   /* projection failure: the residual left               */
-#define GS_ST_HLAMBDA 13    /* gs_dopri5: last stiffness estimate h |lambda|       */
-#define GS_ST_STIFF 14      /* gs_dopri5: stiffness tests with h |lambda| > 3.25   */
+#define GS_ST_HLAMBDA 13    /* gs_dopri5, gs_dop853: last estimate h |lambda|      */
+#define GS_ST_STIFF 14      /* stiffness tests above 3.25 (dopri5), 6.1 (dop853)   */
 
 #define GS_EPS 2.220446049250313e-16
 

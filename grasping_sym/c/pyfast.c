@@ -17,7 +17,7 @@
  *   outputs_batch(X, p=None)  -> ndarray (n, ny)    (only if GS_HAS_OUT)
  *   adaptive(method, t_out, x0, p, rtol, atol, h0, max_steps, nstiff, lo, hi, mask,
  *            proj_tol, out, stats) -> (rc, t_fail)
- *       gs_radau5 (method 0) or gs_dopri5 (method 1) with the GIL released; the
+ *       gs_radau5 (method 0), gs_dopri5 (method 1) or gs_dop853 (2) with the GIL released; the
  *       low-level call behind CompiledLibrary.radau5 / dopri5, which validate the
  *       arguments and turn rc into results or errors.  Arrays are not converted:
  *       t_out, x0, p, lo, hi float64 C-contiguous 1-D (p, lo, hi, mask may be None),
@@ -254,8 +254,9 @@ static PyObject* py_adaptive(PyObject* self, PyObject* const* args, Py_ssize_t n
   const long max_steps = PyLong_AsLong(args[7]), nstiff = PyLong_AsLong(args[8]);
   const double proj_tol = PyFloat_AsDouble(args[12]);
   if (PyErr_Occurred()) return NULL;
-  if (method != 0 && method != 1) {
-    PyErr_Format(PyExc_ValueError, "adaptive(): method must be 0 (radau5) or 1 (dopri5), got %ld", method);
+  if (method < 0 || method > 2) {
+    PyErr_Format(PyExc_ValueError,
+                 "adaptive(): method must be 0 (radau5), 1 (dopri5) or 2 (dop853), got %ld", method);
     return NULL;
   }
   void *t_out, *x0, *p, *lo, *hi, *mask, *out, *stats;
@@ -281,8 +282,12 @@ static PyObject* py_adaptive(PyObject* self, PyObject* const* args, Py_ssize_t n
     rc = gs_radau5(t[0], (long)m, t, (const double*)x0, (const double*)p, rtol, atol, h0,
                    max_steps, (const double*)lo, (const double*)hi, (const int*)mask, proj_tol,
                    (double*)out, (double*)stats, &t_fail);
-  else
+  else if (method == 1)
     rc = gs_dopri5(t[0], (long)m, t, (const double*)x0, (const double*)p, rtol, atol, h0,
+                   max_steps, nstiff, (const double*)lo, (const double*)hi, (const int*)mask,
+                   proj_tol, (double*)out, (double*)stats, &t_fail);
+  else
+    rc = gs_dop853(t[0], (long)m, t, (const double*)x0, (const double*)p, rtol, atol, h0,
                    max_steps, nstiff, (const double*)lo, (const double*)hi, (const int*)mask,
                    proj_tol, (double*)out, (double*)stats, &t_fail);
   Py_END_ALLOW_THREADS
@@ -292,7 +297,8 @@ static PyObject* py_adaptive(PyObject* self, PyObject* const* args, Py_ssize_t n
 static PyMethodDef gs_methods[] = {
     {"adaptive", (PyCFunction)(void (*)(void))py_adaptive, METH_FASTCALL,
      "adaptive(method, t_out, x0, p, rtol, atol, h0, max_steps, nstiff, lo, hi, mask, "
-     "proj_tol, out, stats) -> (rc, t_fail): gs_radau5 (0) / gs_dopri5 (1), arrays as-is"},
+     "proj_tol, out, stats) -> (rc, t_fail): gs_radau5 (0) / gs_dopri5 (1) / gs_dop853 (2), "
+     "arrays as-is"},
     {"rhs", (PyCFunction)(void (*)(void))py_rhs, METH_FASTCALL | METH_KEYWORDS,
      "rhs(x, p=None) -> xdot, shape (nx,)"},
     {"rhs_batch", (PyCFunction)(void (*)(void))py_rhs_batch, METH_FASTCALL | METH_KEYWORDS,

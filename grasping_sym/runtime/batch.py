@@ -25,12 +25,12 @@ from grasping_sym.runtime import c_loops, projection
 from grasping_sym.runtime import checks as checks_
 
 #: The methods ``simulate_many`` runs (the loops in C).
-METHODS = ("radau", "dopri5", "rk4")
+METHODS = ("radau", "dopri5", "dop853", "rk4")
 #: ``BatchResult.status`` values besides 0 (success) and the C loops' codes (-1 ... -9).
 REFUSED, EVENT = -10, -11
 STATUS = {0: "ok", -1: "non-finite state", -2: "contact left its contour", -3: "evaluation error",
           -5: "step size too small", -6: "too many steps", -7: "projection failed",
-          -8: "stiff (dopri5)", -9: "stopped (time limit)", REFUSED: "initial state refused",
+          -8: "stiff (explicit method)", -9: "stopped (time limit)", REFUSED: "initial state refused",
           EVENT: "event along the run"}
 
 
@@ -296,7 +296,7 @@ def _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, s) ->
     timed = bool(model.manifest.get("outputs_time"))
     in_c = not timed and sched is None  # outputs the compiled batch can evaluate itself
     kw = dict(threads=threads, rtol=s["rtol"], atol=s["atol"], max_steps=s["max_steps"],
-              nstiff=c_loops.NSTIFF if method == "dopri5" else 0, lo=model.lower, hi=model.upper,
+              nstiff=c_loops.NSTIFF if method in c_loops.STIFF_BOUND else 0, lo=model.lower, hi=model.upper,
               proj_mask=s["proj"][0], proj_tol=s["proj"][1], time_limit=s["time_limit"],
               rk4=_rk4_grid(grid, s["h"]) if method == "rk4" else None)
     if sched is None:

@@ -1,6 +1,8 @@
-"""The integrators whose whole loop runs in C (``gs_rk4``, ``gs_radau5``, ``gs_dopri5``): argument
+"""The integrators whose whole loop runs in C (``gs_rk4``, ``gs_radau5``, ``gs_dopri5``,
+``gs_dop853``): argument
 checks, the call into the compiled library and the translation of its return codes into results
-or named errors. ``CompiledLibrary.rk4`` / ``radau5`` / ``dopri5`` are the documented entry points;
+or named errors. ``CompiledLibrary.rk4`` / ``radau5`` / ``dopri5`` / ``dop853`` are the documented
+entry points;
 the C calls themselves are ``CompiledLibrary._c_rk4`` and ``CompiledLibrary._call_adaptive`` (the
 CPython fast path when the library has it, ctypes otherwise).
 """
@@ -16,7 +18,7 @@ import numpy as np
 
 from grasping_sym.errors import IntegratorError
 
-# Return codes of gs_rk4, gs_radau5, gs_dopri5 and gs_project (see c/gs_internal.h).
+# Return codes of gs_rk4, gs_radau5, gs_dopri5, gs_dop853 and gs_project (see c/gs_internal.h).
 _ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
 _ERR_PROJECT, _ERR_STIFF, _ERR_INTERRUPT = -7, -8, -9
 ERR_PROJECT = _ERR_PROJECT
@@ -25,7 +27,10 @@ _RK4_EXTRA_ROWS = 2
 _ADAPTIVE_EXTRA_ROWS = 1
 NSTATS = 16  # GS_NSTATS
 _STATS = {"radau": ("n_steps", "n_rejected", "n_rhs", "n_jac", "n_lu", "n_newton"),
-          "dopri5": ("n_steps", "n_rejected", "n_rhs")}
+          "dopri5": ("n_steps", "n_rejected", "n_rhs"), "dop853": ("n_steps", "n_rejected", "n_rhs")}
+#: Where each explicit method's stiffness test fires: h |lambda| above this (c/dopri5.c,
+#: c/dop853.c).
+STIFF_BOUND = {"dopri5": 3.25, "dop853": 6.1}
 #: Hairer's DOPRI5 default: the stiffness test runs on every 1000th accepted step.
 NSTIFF = 1000
 _T_OUT = "t_out must be a finite, strictly increasing 1-D array of at least two times"
@@ -152,7 +157,7 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
 def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: float,
              h0: float, max_steps: int, lo: Any, hi: Any, proj_mask: Any, proj_tol: float,
              nstiff: int = 0, time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
-    """``CompiledLibrary.radau5`` (``method='radau'``) or ``dopri5`` (documented there).
+    """``CompiledLibrary.radau5`` (``method='radau'``), ``dopri5`` or ``dop853`` (documented there).
 
     The checks here are the cheap ones (shapes, scalars); the C code validates ``t_out``
     (finite, strictly increasing) and the initial state (finite, inside the bounds) itself,
@@ -184,7 +189,7 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
                                     int(nstiff), lo_a, hi_a, mask, proj_tol, out, stats_a)
     wall = perf_counter() - start
     stats = adaptive_stats(method, stats_a.tolist(), wall, mask is not None)
-    c_name = "gs_radau5" if method == "radau" else "gs_dopri5"
+    c_name = "gs_radau5" if method == "radau" else f"gs_{method}"
     if rc >= 0:
         if rc != m:
             raise RuntimeError(f"{c_name} returned {rc}, expected {m}")
@@ -208,14 +213,14 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
 
 
 def adaptive_stats(method: str, st: list, wall: float, projected: bool) -> dict:
-    """``simulate``'s ``stats`` of a radau / dopri5 run from its GS_NSTATS counters (``st``: the
+    """``simulate``'s ``stats`` of a radau / dopri5 / dop853 run from its GS_NSTATS counters (``st``: the
     array's ``tolist()``, Python floats being cheaper to pick from)."""
     stats: dict = dict(zip(_STATS[method], map(int, st)))
     stats["h_last"] = st[7]
     stats["wall_time"] = wall
     if projected:
         stats.update(projection_stats(st))
-    if method == "dopri5":
+    if method in STIFF_BOUND:
         stats["h_lambda"] = st[13]
         stats["n_stiff_tests"] = int(st[14])
     return stats
@@ -252,10 +257,11 @@ def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarra
     elif rc == _ERR_PROJECT:
         reason = f"{method}: " + projection_reason(stats_a, proj_tol, after)
     elif rc == _ERR_STIFF:
-        reason = (f"dopri5: the system is stiff at t = {tf:.6g} s: the explicit method's step "
+        reason = (f"{method}: the system is stiff at t = {tf:.6g} s: the explicit method's step "
                   f"is limited by its stability, not by accuracy (h |lambda| = "
-                  f"{stats_a[13]:.3g} > 3.25 on 15 steps, h = {stats_a[7]:.3g} s; DOPRI5's "
-                  "stiffness test), so it would crawl: use method='radau' or 'cvodes'")
+                  f"{stats_a[13]:.3g} > {STIFF_BOUND[method]} on 15 steps, h = {stats_a[7]:.3g} s; "
+                  f"{method.upper()}'s stiffness test), so it would crawl: use method='radau' or "
+                  "'cvodes'")
     else:
         reason = f"{method}: {c_name} returned unknown code {rc}"
     err = IntegratorError(tf, x_good, reason, lib.state_names)

@@ -2,7 +2,7 @@
 
 A call with output times given, no outputs, no inputs, no run-time parameters given and no time
 limit, whose settings (method, tolerances, ``max_steps``, ``project``, ``checks``) a previous
-call of the full path accepted, goes straight to the C loop (``gs_radau5`` / ``gs_dopri5``
+call of the full path accepted, goes straight to the C loop (``gs_radau5`` / ``gs_dopri5`` / ``gs_dop853``
 through the library's CPython extension): the settings were validated then and are kept here as
 a *plan*; the initial checks of an ``x0`` (a pure function of ``x0`` and ``p``) are
 remembered for the last few states. The C loop validates the output times and ``x0`` itself; a
@@ -29,9 +29,9 @@ class Plan:
                  "checks", "projected")
 
     def __init__(self, method: str, rtol: float, atol: float, max_steps: int, proj, checks: bool):
-        self.method, self.code = method, 0 if method == "radau" else 1
+        self.method, self.code = method, {"radau": 0, "dopri5": 1, "dop853": 2}[method]
         self.rtol, self.atol, self.max_steps = float(rtol), float(atol), int(max_steps)
-        self.nstiff = NSTIFF if method == "dopri5" else 0
+        self.nstiff = 0 if method == "radau" else NSTIFF
         self.mask, self.proj_tol = proj
         self.projected = self.mask is not None
         self.checks = bool(checks)
@@ -50,7 +50,7 @@ def key(method, rtol, atol, max_steps, project, checks):
 def remember(model, k, method, rtol, atol, max_steps, proj, checks) -> None:
     """After the full path ran with these settings: keep them as a plan (C-loop methods with
     the fast extension only)."""
-    if k is None or method not in ("radau", "dopri5") or not model.library.fast:
+    if k is None or method not in ("radau", "dopri5", "dop853") or not model.library.fast:
         return
     model._plans[k] = Plan(method, rtol, atol, max_steps, proj, checks)
 

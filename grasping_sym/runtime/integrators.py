@@ -11,8 +11,10 @@
 - ``dopri5``: adaptive explicit Dormand-Prince 5(4) whose whole loop runs in C
   (``gs_dopri5``), with dense output and DOPRI5's stiffness detection: a stiff problem stops
   with an ``IntegratorError`` saying so instead of crawling.
+- ``dop853``: adaptive explicit Dormand-Prince 8(5,3) whose whole loop runs in C
+  (``gs_dop853``), the same with eighth-order steps: fewer of them at tight tolerances.
 
-The C loops (``rk4``, ``radau``, ``dopri5``) check the contact parameters after every step and
+The C loops (``rk4``, ``radau``, ``dopri5``, ``dop853``) check the contact parameters after every step and
 can project every step onto the constraints (``runtime/projection.py``).
 Failures raise ``IntegratorError`` with the time, the state and the reason.
 """
@@ -33,9 +35,10 @@ import numpy as np
 from grasping_sym.errors import IntegratorError
 from grasping_sym.runtime import c_loops
 
-METHODS = ("cvodes", "idas", "rk4", "radau", "dopri5")
-#: The methods whose whole loop runs in C (``c/rk4.c``, ``c/radau5.c``, ``c/dopri5.c``).
-C_LOOPS = ("rk4", "radau", "dopri5")
+METHODS = ("cvodes", "idas", "rk4", "radau", "dopri5", "dop853")
+#: The methods whose whole loop runs in C (``c/rk4.c``, ``c/radau5.c``, ``c/dopri5.c``,
+#: ``c/dop853.c``).
+C_LOOPS = ("rk4", "radau", "dopri5", "dop853")
 
 
 #: Step budget for recovering the state just before a SUNDIALS failure (a blow-up can make
@@ -374,9 +377,9 @@ def c_loop(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray
     if method == "radau":
         return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection,
                      time_limit=time_limit)
-    if method == "dopri5":
-        return dopri5(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection,
-                      time_limit=time_limit)
+    if method in ("dopri5", "dop853"):
+        return explicit(model, method, x0, t_eval, p, rtol, atol, max_steps, lo, hi,
+                        projection=projection, time_limit=time_limit)
     raise ValueError(f"method {method!r} has no C loop: choose one of {C_LOOPS}")
 
 
@@ -421,17 +424,19 @@ def radau(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol:
     return t, X, stats
 
 
-def dopri5(model, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, rtol: float,
-           atol: float, max_steps: int, lo: np.ndarray, hi: np.ndarray,
-           h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0),
-           time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Adaptive Dormand-Prince 5(4) in C, reporting at ``t_eval`` (continuous extension).
+def explicit(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None,
+             rtol: float, atol: float, max_steps: int, lo: np.ndarray, hi: np.ndarray,
+             h0: float = 0.0, projection: tuple[np.ndarray | None, float] = (None, 0.0),
+             time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Adaptive Dormand-Prince 5(4) (``method='dopri5'``) or 8(5,3) (``'dop853'``) in C,
+    reporting at ``t_eval`` (continuous extension).
 
     Bounds checked after every accepted step as ``radau``; a stiff problem stops with an
     ``IntegratorError`` (see ``CompiledLibrary.dopri5``).
     """
     start = time.perf_counter()
-    t, X, stats = model.library.dopri5(x0, t_eval, p=p, rtol=rtol, atol=atol, h0=h0,
+    loop = model.library.dopri5 if method == "dopri5" else model.library.dop853
+    t, X, stats = loop(x0, t_eval, p=p, rtol=rtol, atol=atol, h0=h0,
                                        max_steps=max_steps, lo=lo, hi=hi,
                                        proj_mask=projection[0], proj_tol=projection[1],
                                        time_limit=time_limit)

@@ -4,7 +4,7 @@ Every generated model has ``{name}_constraints(x, p) -> (C, dC/dx, Cdot, dCdot/d
 position constraints C (the planar ``(Q, R)``, the 3D gaps ``(Qn, Qb, Qe)`` per contact, in m),
 their total time derivative along the closed loop, the Jacobian of C and the speeds' columns
 of the Jacobian of Cdot. With
-``simulate(..., project=True)`` the C integration loops ('radau', 'dopri5', 'rk4') project
+``simulate(..., project=True)`` the C integration loops ('radau', 'dopri5', 'dop853', 'rk4') project
 after every accepted step (``c/project.c::gs_project``):
 
 1. Gauss-Newton onto ``C(x) = 0`` with the least-norm change of the *position states* (those
@@ -25,7 +25,7 @@ import numpy as np
 #: Default tolerance of the projection: max|C| (m) and max|Cdot| (m/s) after projecting.
 PROJECT_TOL = 1e-13
 #: The integration methods whose loops (in C) can project.
-METHODS = ("radau", "dopri5", "rk4")
+METHODS = ("radau", "dopri5", "dop853", "rk4")
 POSITION, VELOCITY = 1, 2
 
 
