@@ -15,8 +15,7 @@
 
 /* LU with partial pivoting of the row-major n x n matrix A (in place).
  * Returns 0, or 1 if a pivot is exactly zero (singular). */
-GS_HIDDEN int gs_lu_real(double* A, int* piv) {
-  const int n = GS_NX;
+static inline int lu_real(double* A, int* piv, const int n) {
   GS_UNROLL for (int k = 0; k < n; ++k) {
     int m = k;
     double amax = fabs(A[k * n + k]);
@@ -40,8 +39,7 @@ GS_HIDDEN int gs_lu_real(double* A, int* piv) {
   return 0;
 }
 
-GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b) {
-  const int n = GS_NX;
+static inline void lu_solve_real(const double* LU, const int* piv, double* b, const int n) {
   for (int k = 0; k < n; ++k) {
     const int pk = piv[k];
     if (pk > k && pk < n) {
@@ -66,8 +64,7 @@ GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b) {
  * place.  Complex arithmetic is written out in real and imaginary parts: C99
  * complex multiplication and division go through the slow, NaN-careful
  * __muldc3 / __divdc3 unless compiled with -fcx-limited-range. */
-GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv) {
-  const int n = GS_NX;
+static inline int lu_complex(double* Ar, double* Ai, int* piv, const int n) {
   for (int k = 0; k < n; ++k) {
     int m = k;
     double amax = fabs(Ar[k * n + k]) + fabs(Ai[k * n + k]);
@@ -104,9 +101,8 @@ GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv) {
   return 0;
 }
 
-GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
-                                   double* br, double* bi) {
-  const int n = GS_NX;
+static inline void lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
+                                    double* br, double* bi, const int n) {
   for (int k = 0; k < n; ++k) {
     const int pk = piv[k];
     if (pk > k && pk < n) {
@@ -139,4 +135,30 @@ GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int
     br[i] = (sr * pr + si * pi) * d;
     bi[i] = (si * pr - sr * pi) * d;
   }
+}
+
+/* The routines for n = GS_NX (inlined with the size known: the loops unroll as above), and
+ * for a smaller size n <= GS_NX given at run time (gs_radau5's system reduced by its
+ * second-order rows, radau5.c), on matrices stored with row stride n. */
+GS_HIDDEN int gs_lu_real(double* A, int* piv) { return lu_real(A, piv, GS_NX); }
+GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b) {
+  lu_solve_real(LU, piv, b, GS_NX);
+}
+GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv) {
+  return lu_complex(Ar, Ai, piv, GS_NX);
+}
+GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
+                                   double* br, double* bi) {
+  lu_solve_complex(Ar, Ai, piv, br, bi, GS_NX);
+}
+GS_HIDDEN int gs_lu_real_n(double* A, int* piv, int n) { return lu_real(A, piv, n); }
+GS_HIDDEN void gs_lu_solve_real_n(const double* LU, const int* piv, double* b, int n) {
+  lu_solve_real(LU, piv, b, n);
+}
+GS_HIDDEN int gs_lu_complex_n(double* Ar, double* Ai, int* piv, int n) {
+  return lu_complex(Ar, Ai, piv, n);
+}
+GS_HIDDEN void gs_lu_solve_complex_n(const double* Ar, const double* Ai, const int* piv,
+                                     double* br, double* bi, int n) {
+  lu_solve_complex(Ar, Ai, piv, br, bi, n);
 }

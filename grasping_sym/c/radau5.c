@@ -41,6 +41,85 @@ typedef struct {
 #endif
 
 /*
+ * Second-order rows (Hairer's RADAU5, IWORK(9) = M1 = IWORK(10) = M2, H&W IV.8): when the
+ * first m rows of J are x_i' = x_{i+m} exactly (a mechanical system's positions and speeds,
+ * J[i][j] = 1 at j = i + m and 0 elsewhere), the first m unknowns of (mu I - J) z = r are
+ * z_i = (r_i + z_{i+m}) / mu, and the others solve the (n - m) x (n - m) system
+ *   (mu I - J22 - J21' / mu) z2 = r2 + J21 r1 / mu,
+ * J21' being J21 (the rows below m, the columns before m) moved to the speeds' columns.  The
+ * same solution as the full system's, with LU factors of n - m rows instead of n (paper2d:
+ * 4 instead of 7).  gs_radau5 reads m off every Jacobian it evaluates (0: none, the full
+ * system; a finite-difference Jacobian is not exactly identity there).
+ */
+static int gs_second_order_rows(const double* J) {
+  const int n = GS_NX;
+  for (int m = n / 2; m > 0; --m) {
+    int ok = 1;
+    for (int i = 0; i < m && ok; ++i)
+      for (int j = 0; j < n && ok; ++j) ok = J[i * n + j] == (j == i + m ? 1.0 : 0.0);
+    if (ok) return m;
+  }
+  return 0;
+}
+
+/* The reduced matrices (row stride n - m) of mr I - J and (mcr + i mci) I - J, factored. */
+static int gs_radau_reduced_lu(gs_radau_mats* M, int m, double mr, double mcr, double mci) {
+  const int n = GS_NX, k = n - m;
+  const double d = 1.0 / (mcr * mcr + mci * mci), ir = mcr * d, ii = -mci * d; /* 1 / mu */
+  for (int a = 0; a < k; ++a)
+    for (int b = 0; b < k; ++b) {
+      const double jab = M->J[(m + a) * n + m + b], jq = b < m ? M->J[(m + a) * n + b] : 0.0;
+      M->LUr[a * k + b] = (a == b ? mr : 0.0) - jab - jq / mr;
+      M->LUcr[a * k + b] = (a == b ? mcr : 0.0) - jab - jq * ir;
+      M->LUci[a * k + b] = (a == b ? mci : 0.0) - jq * ii;
+    }
+  return gs_lu_real_n(M->LUr, M->pr, k) || gs_lu_complex_n(M->LUcr, M->LUci, M->pc, k);
+}
+
+/* (mr I - J)^-1 b in place: the full LU (m = 0) or the reduced one. */
+static inline void gs_radau_solve_real(const gs_radau_mats* M, int m, double mr, double* b) {
+  const int n = GS_NX;
+  if (!m) {
+    gs_lu_solve_real(M->LUr, M->pr, b);
+    return;
+  }
+  const double inv = 1.0 / mr;
+  for (int a = m; a < n; ++a) {
+    double s = 0.0;
+    for (int j = 0; j < m; ++j) s += M->J[a * n + j] * b[j];
+    b[a] += s * inv;
+  }
+  gs_lu_solve_real_n(M->LUr, M->pr, b + m, n - m);
+  for (int i = 0; i < m; ++i) b[i] = (b[i] + b[i + m]) * inv;
+}
+
+/* ((mcr + i mci) I - J)^-1 (br + i bi) in place. */
+static inline void gs_radau_solve_complex(const gs_radau_mats* M, int m, double mcr, double mci,
+                                          double* br, double* bi) {
+  const int n = GS_NX;
+  if (!m) {
+    gs_lu_solve_complex(M->LUcr, M->LUci, M->pc, br, bi);
+    return;
+  }
+  const double d = 1.0 / (mcr * mcr + mci * mci), ir = mcr * d, ii = -mci * d;
+  for (int a = m; a < n; ++a) {
+    double sr = 0.0, si = 0.0;
+    for (int j = 0; j < m; ++j) {
+      sr += M->J[a * n + j] * br[j];
+      si += M->J[a * n + j] * bi[j];
+    }
+    br[a] += sr * ir - si * ii;
+    bi[a] += sr * ii + si * ir;
+  }
+  gs_lu_solve_complex_n(M->LUcr, M->LUci, M->pc, br + m, bi + m, n - m);
+  for (int i = 0; i < m; ++i) {
+    const double xr = br[i] + br[i + m], xi = bi[i] + bi[i + m];
+    br[i] = xr * ir - xi * ii;
+    bi[i] = xr * ii + xi * ir;
+  }
+}
+
+/*
  * Adaptive Radau IIA (order 5) integration of x' = f(t, x, p), see the comment above.
  *
  * Step control (Hairer's RADAU5, H&W IV.8): the Newton contraction rate theta is
@@ -108,7 +187,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   double st[GS_NSTATS] = {0};
   long row = 0;
   int rc = 0, have_sol = 0, lu_valid = 0, caljac = 0, need_jac = 1, reject = 0, first = 1;
-  int nsing = 0;
+  int nsing = 0, m2 = 0; /* m2: the Jacobian's second-order rows (0: none) */
   double t = t0, told = t0, hsol = 0.0, h;
   double faccon = 1.0, theta = GS_RADAU_THET, theta_meas = 0.0, hacc = 0.0, erracc = 0.0;
   const double t_end = t_out ? t_out[n_out > 0 ? n_out - 1 : 0] : t0;
@@ -192,6 +271,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
       st[2] += n;
 #endif
       st[3] += 1;
+      m2 = gs_second_order_rows(M->J);
+      st[GS_ST_REDUCED] = m2;
       need_jac = 0;
       caljac = 1;
       lu_valid = 0;
@@ -204,6 +285,17 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
     }
     const double mr = GS_MU_REAL / h;
     const double mcr = GS_MU_CRE / h, mci = GS_MU_CIM / h;
+    if (!lu_valid && m2) {
+      st[4] += 2;
+      if (gs_radau_reduced_lu(M, m2, mr, mcr, mci)) {
+        if (++nsing >= 5) {
+          rc = GS_ERR_STEP;
+          goto fail;
+        }
+        goto unexpected; /* singular: halve h */
+      }
+      lu_valid = 1;
+    }
     if (!lu_valid) {
       for (int i = 0; i < n * n; ++i) {
         M->LUr[i] = -M->J[i];
@@ -277,8 +369,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
           dW[1][i] = re - (mcr * W[1][i] - mci * W[2][i]);
           dW[2][i] = im - (mcr * W[2][i] + mci * W[1][i]);
         }
-        gs_lu_solve_real(M->LUr, M->pr, dW[0]);
-        gs_lu_solve_complex(M->LUcr, M->LUci, M->pc, dW[1], dW[2]);
+        gs_radau_solve_real(M, m2, mr, dW[0]);
+        gs_radau_solve_complex(M, m2, mcr, mci, dW[1], dW[2]);
         ++newt;
         const double dyno = gs_rms(&dW[0][0], scale, 3 * n);
         if (newt > 1 && newt < nit) {
@@ -316,7 +408,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
             ze[i] = (gs_rd_E[0] * Z[0][i] + gs_rd_E[1] * Z[1][i] + gs_rd_E[2] * Z[2][i]) / h;
             err[i] = f[i] + ze[i];
           }
-          gs_lu_solve_real(M->LUr, M->pr, err);
+          gs_radau_solve_real(M, m2, mr, err);
           for (int i = 0; i < n; ++i) scale[i] = atol + fmax(fabs(y[i]), fabs(ynew[i])) * rtol;
           double err_norm = gs_rms(err, scale, n);
           if (!(err_norm < 1.0) && (first || reject)) {
@@ -324,7 +416,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
             if ((rc = gs_eval_rhs(wk, &t, tmp, p, fnew))) goto fail;
             st[2] += 1;
             for (int i = 0; i < n; ++i) err[i] = fnew[i] + ze[i];
-            gs_lu_solve_real(M->LUr, M->pr, err);
+            gs_radau_solve_real(M, m2, mr, err);
             err_norm = gs_rms(err, scale, n);
           }
           if (!isfinite(err_norm)) goto unexpected;

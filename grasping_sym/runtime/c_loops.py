@@ -220,6 +220,8 @@ def adaptive_stats(method: str, st: list, wall: float, projected: bool) -> dict:
     stats["wall_time"] = wall
     if projected:
         stats.update(projection_stats(st))
+    if method == "radau":  # the rows its linear systems were reduced by (c/radau5.c)
+        stats["second_order_rows"] = int(st[15])
     if method in STIFF_BOUND:
         stats["h_lambda"] = st[13]
         stats["n_stiff_tests"] = int(st[14])

@@ -406,7 +406,9 @@ class CompiledLibrary:
         stats : dict
             ``n_steps, n_rejected, n_rhs, n_jac, n_lu, n_newton`` (counts;
             rejected counts error-test and Newton failures; each LU of the real
-            and of the complex matrix counts one), ``h_last`` and ``wall_time`` (s);
+            and of the complex matrix counts one), ``h_last`` and ``wall_time`` (s),
+            ``second_order_rows`` (the last Jacobian's rows ``x_i' = x_{i+m}``, m of them,
+            by which the linear systems were reduced: Hairer's M1 = M2, ``c/radau5.c``);
             with projection also ``n_constraint_evals``, ``max_drift`` and
             ``max_drift_rate`` (the largest max|C| and max|Cdot| found before projecting).
 
