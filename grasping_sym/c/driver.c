@@ -55,6 +55,9 @@
  *                                                                 needed if GS_HAS_JAC
  *   GS_JAC_NIN, GS_JAC_NOUT   Function.n_in(), n_out() of GS_JAC  needed if GS_HAS_JAC
  *   GS_JAC_BLOCK  index of the output d ode / d x                 default 1
+ *   GS_RADAU_M    the rows x_i' = x_{i+m} (i < m) GS_JAC has by its sparsity,
+ *                 the size gs_radau5's reduced systems are compiled for
+ *                 (radau5.c, lu.c)                                default 0
  *                 (the GS_SZ_* maxima must include GS_JAC's work sizes)
  *   GS_HAS_CON    1 if a constraints function is compiled in, else 0  default 0
  *   GS_CON        its name, e.g. paper2d_constraints: inputs (x[nx], p[np]), outputs

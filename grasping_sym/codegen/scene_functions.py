@@ -77,7 +77,17 @@ def _prefetch_driver(scene, ctrl, *, n_constraints: int, jac: bool, lanes: bool)
 
     ny = 0 if ctrl.reads_time else len(scene.outputs)  # outputs that read the time: not the driver's
     prefetch_driver(predicted_defines(len(scene.state_names), len(scene.p_names), ny,
-                                      n_constraints, jac=jac, lanes=lanes))
+                                      n_constraints, jac=jac, lanes=lanes,
+                                      second_order=_positions(scene.state_names) if jac else 0))
+
+
+def _positions(names) -> int:
+    """How many leading states have their speeds ``d<name>`` right after them (the states'
+    naming rule, ``model.names``): the Jacobian's second-order rows, predicted."""
+    for m in range(len(names) // 2, 0, -1):
+        if all(names[m + i] == "d" + names[i] for i in range(m)):
+            return m
+    return 0
 
 
 def planar_single_piece(scene) -> SceneFunctions:
