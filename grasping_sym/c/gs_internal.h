@@ -342,5 +342,11 @@ GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b);
 GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv);
 GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
                                    double* br, double* bi);
+/* The same for a size n <= GS_NX given at run time (row stride n). */
+GS_HIDDEN int gs_lu_real_n(double* A, int* piv, int n);
+GS_HIDDEN void gs_lu_solve_real_n(const double* LU, const int* piv, double* b, int n);
+GS_HIDDEN int gs_lu_complex_n(double* Ar, double* Ai, int* piv, int n);
+GS_HIDDEN void gs_lu_solve_complex_n(const double* Ar, const double* Ai, const int* piv,
+                                     double* br, double* bi, int n);
 
 #endif /* GS_INTERNAL_H */

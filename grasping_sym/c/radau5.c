@@ -2,7 +2,6 @@
  * tuning defaults are in radau5.h, its Jacobian in jac.c, its LU factorisations in lu.c. */
 #include "gs_internal.h"
 #include "radau5.h"
-#include "lu_core.h"
 #ifdef GS_RADAU_DEBUG
 #include <stdio.h>
 #endif
@@ -63,16 +62,8 @@ static int gs_second_order_rows(const double* J) {
   return 0;
 }
 
-/* GS_RADAU_M: the second-order rows the model's Jacobian has by its sparsity
- * (codegen.library.second_order_rows); the reduced systems of that size are compiled with
- * it as a constant (loops unrolled: paper2d runs ~3 % faster), any other m takes the same
- * code with m a variable. */
-#ifndef GS_RADAU_M
-#define GS_RADAU_M 0
-#endif
-
 /* The reduced matrices (row stride n - m) of mr I - J and (mcr + i mci) I - J, factored. */
-static inline int reduced_lu(gs_radau_mats* M, const int m, double mr, double mcr, double mci) {
+static int gs_radau_reduced_lu(gs_radau_mats* M, int m, double mr, double mcr, double mci) {
   const int n = GS_NX, k = n - m;
   const double d = 1.0 / (mcr * mcr + mci * mci), ir = mcr * d, ii = -mci * d; /* 1 / mu */
   for (int a = 0; a < k; ++a)
@@ -82,31 +73,34 @@ static inline int reduced_lu(gs_radau_mats* M, const int m, double mr, double mc
       M->LUcr[a * k + b] = (a == b ? mcr : 0.0) - jab - jq * ir;
       M->LUci[a * k + b] = (a == b ? mci : 0.0) - jq * ii;
     }
-  return lu_real(M->LUr, M->pr, k) || lu_complex(M->LUcr, M->LUci, M->pc, k);
+  return gs_lu_real_n(M->LUr, M->pr, k) || gs_lu_complex_n(M->LUcr, M->LUci, M->pc, k);
 }
 
-static int gs_radau_reduced_lu(gs_radau_mats* M, int m, double mr, double mcr, double mci) {
-  if (GS_RADAU_M > 0 && m == GS_RADAU_M) return reduced_lu(M, GS_RADAU_M, mr, mcr, mci);
-  return reduced_lu(M, m, mr, mcr, mci);
-}
-
-/* (mr I - J)^-1 b in place, on the reduced system of m > 0. */
-static inline void reduced_solve_real(const gs_radau_mats* M, const int m, double mr, double* b) {
+/* (mr I - J)^-1 b in place: the full LU (m = 0) or the reduced one. */
+static inline void gs_radau_solve_real(const gs_radau_mats* M, int m, double mr, double* b) {
   const int n = GS_NX;
+  if (!m) {
+    gs_lu_solve_real(M->LUr, M->pr, b);
+    return;
+  }
   const double inv = 1.0 / mr;
   for (int a = m; a < n; ++a) {
     double s = 0.0;
     for (int j = 0; j < m; ++j) s += M->J[a * n + j] * b[j];
     b[a] += s * inv;
   }
-  lu_solve_real(M->LUr, M->pr, b + m, n - m);
+  gs_lu_solve_real_n(M->LUr, M->pr, b + m, n - m);
   for (int i = 0; i < m; ++i) b[i] = (b[i] + b[i + m]) * inv;
 }
 
-/* ((mcr + i mci) I - J)^-1 (br + i bi) in place, on the reduced system of m > 0. */
-static inline void reduced_solve_complex(const gs_radau_mats* M, const int m, double mcr,
-                                         double mci, double* br, double* bi) {
+/* ((mcr + i mci) I - J)^-1 (br + i bi) in place. */
+static inline void gs_radau_solve_complex(const gs_radau_mats* M, int m, double mcr, double mci,
+                                          double* br, double* bi) {
   const int n = GS_NX;
+  if (!m) {
+    gs_lu_solve_complex(M->LUcr, M->LUci, M->pc, br, bi);
+    return;
+  }
   const double d = 1.0 / (mcr * mcr + mci * mci), ir = mcr * d, ii = -mci * d;
   for (int a = m; a < n; ++a) {
     double sr = 0.0, si = 0.0;
@@ -117,33 +111,12 @@ static inline void reduced_solve_complex(const gs_radau_mats* M, const int m, do
     br[a] += sr * ir - si * ii;
     bi[a] += sr * ii + si * ir;
   }
-  lu_solve_complex(M->LUcr, M->LUci, M->pc, br + m, bi + m, n - m);
+  gs_lu_solve_complex_n(M->LUcr, M->LUci, M->pc, br + m, bi + m, n - m);
   for (int i = 0; i < m; ++i) {
     const double xr = br[i] + br[i + m], xi = bi[i] + bi[i + m];
     br[i] = xr * ir - xi * ii;
     bi[i] = xr * ii + xi * ir;
   }
-}
-
-/* (mr I - J)^-1 b in place: the full LU (m = 0) or the reduced one. */
-static void gs_radau_solve_real(const gs_radau_mats* M, int m, double mr, double* b) {
-  if (!m)
-    gs_lu_solve_real(M->LUr, M->pr, b);
-  else if (GS_RADAU_M > 0 && m == GS_RADAU_M)
-    reduced_solve_real(M, GS_RADAU_M, mr, b);
-  else
-    reduced_solve_real(M, m, mr, b);
-}
-
-/* ((mcr + i mci) I - J)^-1 (br + i bi) in place. */
-static void gs_radau_solve_complex(const gs_radau_mats* M, int m, double mcr, double mci,
-                                   double* br, double* bi) {
-  if (!m)
-    gs_lu_solve_complex(M->LUcr, M->LUci, M->pc, br, bi);
-  else if (GS_RADAU_M > 0 && m == GS_RADAU_M)
-    reduced_solve_complex(M, GS_RADAU_M, mcr, mci, br, bi);
-  else
-    reduced_solve_complex(M, m, mcr, mci, br, bi);
 }
 
 /*

@@ -48,7 +48,7 @@ HASHED_SOURCES = (
     "derive/contour_functions.py", "derive/planar.py", "codegen/translate.py",
     "codegen/functions.py", "codegen/cwriter.py", "codegen/templates.py",
     "codegen/scene_functions.py", "codegen/compiler.py", "c/driver.c", "c/project.c", "c/rk4.c",
-    "c/radau5.c", "c/radau5.h", "c/jac.c", "c/lu.c", "c/lu_core.h", "c/dopri5.c", "c/dop853.c",
+    "c/radau5.c", "c/radau5.h", "c/jac.c", "c/lu.c", "c/dopri5.c", "c/dop853.c",
     "c/stop.c", "c/batch.c",
     "c/budget.c", "c/gs_internal.h",
     "c/pyfast.c", "c/gs_driver.h", "codegen/library.py", "codegen/lanes.py",
