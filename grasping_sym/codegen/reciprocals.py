@@ -26,41 +26,39 @@ from grasping_sym.codegen.algorithm import Instruction, n_work
 __all__ = ["share_reciprocals"]
 
 
-def _value_ids(program: list[Instruction]) -> list[tuple[tuple, object]]:
-    """Per instruction, the identities of the values it reads and of the value it writes
-    (``(work index, version)``: CasADi reuses a work index for later values)."""
-    version: dict[int, int] = {}
-    out = []
-    for ins in program:
-        reads = () if ins.op == "INPUT" else tuple((i, version.get(i, 0)) for i in ins.ins)
-        writes = None
-        if ins.op != "OUTPUT":
-            version[ins.out[0]] = version.get(ins.out[0], 0) + 1
-            writes = (ins.out[0], version[ins.out[0]])
-        out.append((reads, writes))
-    return out
-
-
 def share_reciprocals(program: list[Instruction], min_uses: int = 2) -> list[Instruction]:
     """``program`` with each denominator that it divides by at least ``min_uses`` times
     inverted once (``INV`` into a work index of its own, past the program's), at its first
-    division, and each of those divisions a product with the inverse."""
-    ids = _value_ids(program)
-    uses = Counter(reads[1] for ins, (reads, _) in zip(program, ids) if ins.op == "DIV")
+    division, and each of those divisions a product with the inverse.
+
+    A value is identified by its work index and how many times that index had been written
+    before (CasADi reuses a work index for later values); two passes over the program, the
+    first counting the divisions by each value."""
+    version: dict[int, int] = {}
+    uses: Counter = Counter()
+    for ins in program:
+        if ins.op == "DIV":
+            d = ins.ins[1]
+            uses[(d, version.get(d, 0))] += 1
+        if ins.op != "OUTPUT":
+            version[ins.out[0]] = version.get(ins.out[0], 0) + 1
     shared = {d for d, n in uses.items() if n >= min_uses}
     if not shared:
         return program
     fresh = n_work(program)
-    inverse: dict[tuple, int] = {}
+    inverse: dict[tuple[int, int], int] = {}
+    version.clear()
     out = []
-    for ins, (reads, _) in zip(program, ids):
-        if ins.op != "DIV" or reads[1] not in shared:
-            out.append(ins)
-            continue
-        d = reads[1]
-        if d not in inverse:
-            inverse[d] = fresh
-            out.append(Instruction("INV", (ins.ins[1],), (fresh,)))
-            fresh += 1
-        out.append(Instruction("MUL", (ins.ins[0], inverse[d]), ins.out))
+    for ins in program:
+        if ins.op == "DIV":
+            d = (ins.ins[1], version.get(ins.ins[1], 0))
+            if d in shared:
+                if d not in inverse:
+                    inverse[d] = fresh
+                    out.append(Instruction("INV", (ins.ins[1],), (fresh,)))
+                    fresh += 1
+                ins = Instruction("MUL", (ins.ins[0], inverse[d]), ins.out)
+        if ins.op != "OUTPUT":
+            version[ins.out[0]] = version.get(ins.out[0], 0) + 1
+        out.append(ins)
     return out
