@@ -2,12 +2,14 @@
  * of n x n matrices, n = GS_NX, for the Newton iteration of gs_radau5 (radau5.c). */
 #include "gs_internal.h"
 
-/* n = GS_NX is a compile-time constant (7 for paper2d): for n <= 16 the real routines'
+/* n = GS_NX is a compile-time constant (7 for paper2d): for n <= 8 the real routines'
  * loops are unrolled, and the real factorisation runs in 43 ns instead of 65 and a solve in
  * 20 instead of 44 (gcc 12, x86-64-v3); the arithmetic and its order are unchanged, so are
  * the results.  (Unrolling the complex routines or the solve's pivot loop measured no
- * faster; for larger n the code would only grow.) */
-#if defined(__GNUC__) && !defined(__clang__) && GS_NX <= 16
+ * faster.)  Up to n = 16 they used to be unrolled too; but gcc then takes 0.5 s for this
+ * file at n = 14 (0.16 s without), in the background of a first build, and a planar model
+ * with a generated Jacobian solves its reduced systems (radau5.c) instead of these. */
+#if defined(__GNUC__) && !defined(__clang__) && GS_NX <= 8
 #define GS_UNROLL _Pragma("GCC unroll 16")
 #else
 #define GS_UNROLL
