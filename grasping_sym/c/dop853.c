@@ -116,18 +116,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   const double interval = t_end - t0;
 
-  for (int i = 0; i < n; ++i) {
-    y[i] = x0[i];
-    y1[i] = NAN;
-  }
-  if ((rc = gs_check(y, lo, hi))) { /* the initial state itself: nothing written */
-    for (int i = 0; i < n; ++i) y1[i] = y[i];
-    goto fail;
-  }
-  while (row < n_out && t_out[row] <= t0) {
-    for (int i = 0; i < n; ++i) out[row * n + i] = y[i];
-    ++row;
-  }
+  if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, y1, out, &row))) goto fail;
   if (row == n_out) goto done;
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
@@ -297,20 +286,8 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
   }
 
 done:
-  st[GS_ST_ROWS] = (double)row;
-  if (stats)
-    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
-  return n_out;
+  return gs_adaptive_end(n_out, row, t, st, stats, t_fail, out, y, y1);
 
 fail:
-  if (t_fail) *t_fail = t;
-  st[GS_ST_ROWS] = (double)row;
-  if (stats)
-    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
-  for (int i = 0; i < n; ++i) {
-    out[row * n + i] = y[i];
-    out[(row + 1) * n + i] =
-        (rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT) ? y1[i] : NAN;
-  }
-  return rc;
+  return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, y1);
 }

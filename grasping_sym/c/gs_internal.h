@@ -271,6 +271,46 @@ static inline int gs_adaptive_args_ok(double t0, long n_out, const double* t_out
   return isfinite(t_out[n_out - 1]);
 }
 
+/* The start of an adaptive loop: y = x0 and x_bad NaN (x_bad = x0 when x0 itself is refused:
+ * GS_ERR_NONFINITE / GS_ERR_BOUNDS, nothing written), then the output rows at t0 (t_out[r] <=
+ * t0) written with x0; *row the next row. Returns 0 or the refusal's code. */
+static inline int gs_adaptive_begin(double t0, long n_out, const double* t_out, const double* x0,
+                                    const double* lo, const double* hi, double* y,
+                                    double* x_bad, double* out, long* row) {
+  for (int i = 0; i < GS_NX; ++i) {
+    y[i] = x0[i];
+    x_bad[i] = NAN;
+  }
+  const int rc = gs_check(y, lo, hi);
+  if (rc) {
+    for (int i = 0; i < GS_NX; ++i) x_bad[i] = y[i];
+    return rc;
+  }
+  for (; *row < n_out && t_out[*row] <= t0; ++*row)
+    for (int i = 0; i < GS_NX; ++i) out[*row * GS_NX + i] = y[i];
+  return 0;
+}
+
+/* The end of an adaptive loop (gs_radau5, gs_dopri5, gs_dop853), rc its result: the rows
+ * written and the counters go into stats; on a failure (rc < 0) *t_fail = t, output row
+ * `row` holds y (the last accepted state) and row `row` + 1 x_bad (the rejected state of the
+ * failures that have one, see gs_radau5) or NaN. Returns rc. */
+static inline long gs_adaptive_end(long rc, long row, double t, double* st, double* stats,
+                                   double* t_fail, double* out, const double* y,
+                                   const double* x_bad) {
+  st[GS_ST_ROWS] = (double)row;
+  if (stats)
+    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
+  if (rc >= 0) return rc;
+  if (t_fail) *t_fail = t;
+  const int bad = rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT;
+  for (int i = 0; i < GS_NX; ++i) {
+    out[row * GS_NX + i] = y[i];
+    out[(row + 1) * GS_NX + i] = bad ? x_bad[i] : NAN;
+  }
+  return rc;
+}
+
 /* First step size for an error estimate of order `order` (Hairer-Norsett-Wanner I, II.4, as
  * scipy's select_initial_step): h with h^(order+1) max(|f|, |f'|) = 0.01 in the weighted
  * RMS norm, at most `interval` and, when probe_cap > 0, at most probe_cap times the

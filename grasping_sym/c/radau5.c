@@ -201,19 +201,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   fnewt = fmax(GS_RADAU_FNEWT_MIN, fmax(10.0 * GS_EPS / rtol, fmin(GS_RADAU_FNEWT_MAX, sqrt(rtol))));
 
-  for (int i = 0; i < n; ++i) {
-    y[i] = x0[i];
-    ynew[i] = NAN;
-    yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
-  }
-  if ((rc = gs_check(y, lo, hi))) { /* the initial state itself: nothing written */
-    for (int i = 0; i < n; ++i) ynew[i] = y[i];
-    goto fail;
-  }
-  while (row < n_out && t_out[row] <= t0) {
-    for (int i = 0; i < n; ++i) out[row * n + i] = y[i];
-    ++row;
-  }
+  for (int i = 0; i < n; ++i) yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
+  if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, ynew, out, &row))) goto fail;
   if (row == n_out) goto done;
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
@@ -531,20 +520,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
   }
 
 done:
-  st[6] = (double)row;
-  if (stats)
-    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
-  return n_out;
+  return gs_adaptive_end(n_out, row, t, st, stats, t_fail, out, y, ynew);
 
 fail:
-  if (t_fail) *t_fail = t;
-  st[6] = (double)row;
-  if (stats)
-    for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
-  for (int i = 0; i < n; ++i) {
-    out[row * n + i] = y[i];
-    out[(row + 1) * n + i] =
-        (rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT) ? ynew[i] : NAN;
-  }
-  return rc;
+  return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, ynew);
 }
