@@ -28,6 +28,8 @@ _ADAPTIVE_EXTRA_ROWS = 1
 NSTATS = 16  # GS_NSTATS
 _STATS = {"radau": ("n_steps", "n_rejected", "n_rhs", "n_jac", "n_lu", "n_newton"),
           "dopri5": ("n_steps", "n_rejected", "n_rhs"), "dop853": ("n_steps", "n_rejected", "n_rhs")}
+#: The adaptive loops' codes in the CPython extension's ``adaptive()`` (``c/pyfast.c``).
+ADAPTIVE_CODES = {"radau": 0, "dopri5": 1, "dop853": 2}
 #: Where each explicit method's stiffness test fires: h |lambda| above this (c/dopri5.c,
 #: c/dop853.c).
 STIFF_BOUND = {"dopri5": 3.25, "dop853": 6.1}

@@ -43,7 +43,6 @@ __all__ = ["NSTIFF", "CompiledLibrary"]
 _dp = ctypes.c_void_p
 _long = ctypes.c_long
 _double = ctypes.c_double
-_METHOD_CODE = {"radau": 0, "dopri5": 1, "dop853": 2}
 
 
 def _as_matrix(a: Any, n: int, name: str) -> np.ndarray:
@@ -509,7 +508,7 @@ class CompiledLibrary:
                        proj_tol: float, out: np.ndarray, stats: np.ndarray) -> tuple[int, float]:
         """Run gs_radau5 / gs_dopri5 / gs_dop853 on checked, contiguous arrays: ``(rc, t_fail)``."""
         if self._ext is not None:
-            return self._ext.adaptive(_METHOD_CODE[method], t_arr, x0, p, rtol, atol, h0,
+            return self._ext.adaptive(c_loops.ADAPTIVE_CODES[method], t_arr, x0, p, rtol, atol, h0,
                                       max_steps, nstiff, lo, hi, mask, proj_tol, out, stats)
         t_fail = _double(math.nan)
         head = (float(t_arr[0]), t_arr.size, t_arr.ctypes.data, x0.ctypes.data, self._ptr(p),

@@ -15,7 +15,7 @@ from time import perf_counter
 
 import numpy as np
 
-from grasping_sym.runtime.c_loops import ERR_INTERRUPT, NSTATS, NSTIFF, adaptive_stats
+from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
 
 #: Initial states whose checks passed, remembered per model (the oldest dropped beyond this).
@@ -29,9 +29,9 @@ class Plan:
                  "checks", "projected")
 
     def __init__(self, method: str, rtol: float, atol: float, max_steps: int, proj, checks: bool):
-        self.method, self.code = method, {"radau": 0, "dopri5": 1, "dop853": 2}[method]
+        self.method, self.code = method, ADAPTIVE_CODES[method]
         self.rtol, self.atol, self.max_steps = float(rtol), float(atol), int(max_steps)
-        self.nstiff = 0 if method == "radau" else NSTIFF
+        self.nstiff = NSTIFF if method in STIFF_BOUND else 0
         self.mask, self.proj_tol = proj
         self.projected = self.mask is not None
         self.checks = bool(checks)
@@ -50,7 +50,7 @@ def key(method, rtol, atol, max_steps, project, checks):
 def remember(model, k, method, rtol, atol, max_steps, proj, checks) -> None:
     """After the full path ran with these settings: keep them as a plan (C-loop methods with
     the fast extension only)."""
-    if k is None or method not in ("radau", "dopri5", "dop853") or not model.library.fast:
+    if k is None or method not in ADAPTIVE_CODES or not model.library.fast:
         return
     model._plans[k] = Plan(method, rtol, atol, max_steps, proj, checks)
 

@@ -377,7 +377,7 @@ def c_loop(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray
     if method == "radau":
         return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection,
                      time_limit=time_limit)
-    if method in ("dopri5", "dop853"):
+    if method in c_loops.STIFF_BOUND:  # the explicit loops
         return explicit(model, method, x0, t_eval, p, rtol, atol, max_steps, lo, hi,
                         projection=projection, time_limit=time_limit)
     raise ValueError(f"method {method!r} has no C loop: choose one of {C_LOOPS}")
