@@ -160,3 +160,9 @@ class UnsafeTemplateError(GraspingSymError, ValueError):
 class ExpressionError(GraspingSymError, ValueError):
     """A formula given as text is not one ``geometry.expressions.parse_expression`` reads
     (formulas are parsed, never run)."""
+
+
+class RunInterruptedError(GraspingSymError, RuntimeError):
+    """A run was stopped by SIGINT (Ctrl-C) while the process's Python SIGINT handler is not
+    Python's default one (which raises ``KeyboardInterrupt`` instead): the handler was called,
+    and returned, and the run does not pretend to have finished."""

@@ -83,10 +83,10 @@ def test_speeds_off_the_velocity_constraints_are_refused(runtime_model):
 
 
 def test_integrator_cache_is_bounded(runtime_model):
-    from grasping_sym.runtime.integrators import INTEGRATOR_CACHE_SIZE
+    from grasping_sym.runtime.integrators import INTEGRATOR_CACHE_SIZE, _thread_cache
     for k in range(INTEGRATOR_CACHE_SIZE + 4):
         runtime_model.simulate(0.01 + 1e-3 * k, method="cvodes", outputs=False)
-    assert len(runtime_model._integrators) <= INTEGRATOR_CACHE_SIZE
+    assert len(_thread_cache(runtime_model)["integrators"]) == INTEGRATOR_CACHE_SIZE
 
 
 @pytest.fixture(scope="module")

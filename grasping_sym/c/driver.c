@@ -13,8 +13,9 @@
  *                  jac.c: its Jacobian; lu.c: its real and complex LU)
  *   dopri5.c       gs_dopri5
  *   dop853.c       gs_dop853
- *   stop.c         gs_sigint_install, gs_set_time_limit, gs_stop_cause: Ctrl-C and a
- *                  wall-time limit stop the loops (GS_ERR_INTERRUPT)
+ *   stop.c         gs_stop_bind, gs_sigint_ensure, gs_set_time_limit, gs_stop_cause: Ctrl-C
+ *                  (one handler for the process, runtime/interrupt.py) and a wall-time
+ *                  limit stop the loops (GS_ERR_INTERRUPT)
  *   batch.c        gs_batch: many runs of gs_radau5 / gs_dopri5 / gs_dop853 / gs_rk4 in one
  *                  call, over a
  *                  pool of threads

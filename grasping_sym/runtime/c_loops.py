@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from grasping_sym.errors import IntegratorError
+from grasping_sym.runtime import interrupt
 
 # Return codes of gs_rk4, gs_radau5, gs_dopri5, gs_dop853 and gs_project (see c/gs_internal.h).
 _ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
@@ -42,8 +43,9 @@ _double = ctypes.c_double
 @contextlib.contextmanager
 def stoppable(lib, time_limit: float | None):
     """Around a C loop: ``time_limit`` seconds of wall time for it (none: nothing is called).
-    Ctrl-C needs nothing here: the library's SIGINT handler (``c/stop.c``, installed when it
-    is loaded) stops the loop, which returns ``GS_ERR_INTERRUPT``; :func:`stop_error` says
+    Ctrl-C needs nothing here: the process's one SIGINT handler (``c/stop.c``, owned by
+    ``runtime/interrupt.py`` and put back in front at every loop's start) stops the loop,
+    which returns ``GS_ERR_INTERRUPT``; :func:`stop_error` says
     why."""
     if not time_limit:
         yield
@@ -60,7 +62,7 @@ def stop_error(lib, method: str, tf: float, x, time_limit) -> IntegratorError:
     """The error of a loop stopped from outside: KeyboardInterrupt for Ctrl-C (raised here),
     else the wall-time limit's ``IntegratorError``."""
     if lib._lib.gs_stop_cause() == 1:
-        raise KeyboardInterrupt(f"{method} stopped by Ctrl-C at t = {tf:.6g} s")
+        raise interrupt.interrupted(f"{method} stopped by Ctrl-C at t = {tf:.6g} s")
     return IntegratorError(tf, x, f"{method}: the wall-time limit of {time_limit:g} s was "
                            f"reached at t = {tf:.6g} s (raise time_limit, or loosen the "
                            "tolerances)", lib.state_names)

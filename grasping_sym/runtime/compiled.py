@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import threading
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
@@ -35,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from grasping_sym.errors import IntegratorError
-from grasping_sym.runtime import c_loops
+from grasping_sym.runtime import c_loops, interrupt
 from grasping_sym.runtime.c_loops import NSTIFF, as_vector
 
 __all__ = ["NSTIFF", "CompiledLibrary"]
@@ -159,8 +158,8 @@ class CompiledLibrary:
         lib.gs_set_time_limit.argtypes = [_double]
         lib.gs_set_time_limit.restype = None
         lib.gs_stop_cause.restype = ctypes.c_int
-        if threading.current_thread() is threading.main_thread():
-            lib.gs_sigint_install()  # Ctrl-C stops the C loops (c/stop.c)
+        if hasattr(lib, "gs_stop_bind"):  # Ctrl-C stops the C loops: one owner (c/stop.c)
+            interrupt.bind(lib)
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
         lib.gs_con_info.restype = ctypes.c_int
         nc = _long()
@@ -542,7 +541,8 @@ class CompiledLibrary:
         and max|Cdot| at ``X0``, with ``initial``; the outputs not with ``initial_outputs``
         False), ``status`` (each loop's return value),
         ``t_fail``, ``stats`` (``(N, NSTATS)``) and ``rc`` (runs that succeeded, or an error
-        code). Ctrl-C raises KeyboardInterrupt (carrying what finished as ``.batch``)."""
+        code). Ctrl-C raises ``interrupt.interrupted``'s exception, KeyboardInterrupt unless the
+        process's SIGINT handler is the user's (carrying what finished as ``.batch``)."""
         if self._c_batch is None:
             raise RuntimeError(f"{self.path.name} has no gs_batch (built by an older grasping_sym): "
                                "rebuild the model with gs.build(scene, force=True)")
@@ -568,8 +568,8 @@ class CompiledLibrary:
                 res["status"].ctypes.data, res["t_fail"].ctypes.data, res["stats"].ctypes.data)
         res["rc"] = int(rc)
         if rc == c_loops.ERR_INTERRUPT and self._lib.gs_stop_cause() == 1:
-            err = KeyboardInterrupt(f"simulate_many stopped by Ctrl-C ({int(np.sum(res['status'] == m))} "
-                                    f"of {n} runs had finished)")
+            err = interrupt.interrupted(f"simulate_many stopped by Ctrl-C ({int(np.sum(res['status'] == m))} "
+                                        f"of {n} runs had finished)")
             err.batch = res  # type: ignore[attr-defined]
             raise err
         if rc == c_loops.ERR_ARGS:

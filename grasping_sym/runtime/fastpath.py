@@ -15,6 +15,7 @@ from time import perf_counter
 
 import numpy as np
 
+from grasping_sym.runtime import interrupt
 from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
 
@@ -89,7 +90,7 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     wall = perf_counter() - start
     if rc != m:
         if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
-            raise KeyboardInterrupt(f"{plan.method} stopped by Ctrl-C")
+            raise interrupt.interrupted(f"{plan.method} stopped by Ctrl-C")
         return None
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     res = SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))

@@ -25,15 +25,18 @@ import io
 import math
 import os
 import re
+import signal
 import sys
 import tempfile
+import threading
 import time
+import weakref
 from pathlib import Path
 
 import numpy as np
 
 from grasping_sym.errors import IntegratorError
-from grasping_sym.runtime import c_loops
+from grasping_sym.runtime import c_loops, interrupt
 
 METHODS = ("cvodes", "idas", "rk4", "radau", "dopri5", "dop853")
 #: The methods whose whole loop runs in C (``c/rk4.c``, ``c/radau5.c``, ``c/dopri5.c``,
@@ -46,50 +49,55 @@ C_LOOPS = ("rk4", "radau", "dopri5", "dop853")
 RECOVERY_MAX_STEPS = 20_000
 
 
-#: CasADi integrators kept per model (one per method, tolerances and output grid): the least
+#: CasADi integrators kept per model and thread (one per method, tolerances and output grid): the least
 #: recently used beyond this many are dropped (each holds ~150 kB).
 INTEGRATOR_CACHE_SIZE = 8
 
 
 class _Watch:
-    sigint = False
     timeout = False
 
 
 @contextlib.contextmanager
 def _watch(time_limit: float | None):
-    """Ctrl-C and a wall-time limit for a CasADi integrator call in the main thread. CasADi
-    polls Python's signals while SUNDIALS runs and stops with an error when a handler raises;
-    these handlers note why, so that the caller raises KeyboardInterrupt or the time limit's
-    error instead of retrying the run. Signal handlers are the main thread's only: elsewhere
-    the step budget in C (``c/budget.c``) stops the run at the time limit."""
-    import signal  # noqa: PLC0415
-    import threading  # noqa: PLC0415
-
+    """A wall-time limit for a CasADi integrator call in the main thread: CasADi polls Python's
+    signals while SUNDIALS runs and stops with an error when a handler raises; this SIGALRM
+    handler notes why, so that the caller raises the time limit's error instead of retrying the
+    run. Elsewhere (and always, besides) the step budget in C (``c/budget.c``) reads the time
+    limit. Ctrl-C needs nothing here: the step budget stops the run on the process's one
+    SIGINT flag (``runtime/interrupt.py``); no SIGINT handler is swapped."""
     w = _Watch()
-    if threading.current_thread() is not threading.main_thread():
-        yield w  # no signal handlers here: the step budget (c/budget.c) reads the time limit
+    if not time_limit or threading.current_thread() is not threading.main_thread():
+        yield w
         return
-
-    def on_int(signum, frame):
-        w.sigint = True
-        raise KeyboardInterrupt
 
     def on_alarm(signum, frame):
         w.timeout = True
         raise TimeoutError
 
-    old_int = signal.signal(signal.SIGINT, on_int)
-    old_alarm = signal.signal(signal.SIGALRM, on_alarm) if time_limit else None
-    if time_limit:
-        signal.setitimer(signal.ITIMER_REAL, float(time_limit))
+    old_alarm = signal.signal(signal.SIGALRM, on_alarm)
+    signal.setitimer(signal.ITIMER_REAL, float(time_limit))
     try:
         yield w
     finally:
-        if time_limit:
-            signal.setitimer(signal.ITIMER_REAL, 0.0)
-            signal.signal(signal.SIGALRM, old_alarm)
-        signal.signal(signal.SIGINT, old_int)
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, old_alarm)
+
+
+_THREAD = threading.local()
+
+
+def _thread_cache(model) -> dict:
+    """This thread's CasADi objects of ``model`` (its SUNDIALS integrators and the functions
+    they integrate). A CasADi integrator holds its solver's memory: two threads calling the
+    same one at once corrupt it, so every thread makes and keeps its own."""
+    caches = getattr(_THREAD, "caches", None)
+    if caches is None:
+        caches = _THREAD.caches = weakref.WeakKeyDictionary()
+    cache = caches.get(model)
+    if cache is None:
+        cache = caches[model] = {"integrators": {}, "dae": {}}
+    return cache
 
 
 #: CVODES's smallest step, relative to the run's length: at a contact leaving its contour
@@ -113,10 +121,10 @@ def _step_floor(method: str, t_eval: np.ndarray) -> dict:
 
 def _rhs_for(model, method: str):
     """The function a SUNDIALS method integrates (``dae_for``), cached on the model."""
-    key = ("dae", method)
-    if key not in model._integrators_dae:
-        model._integrators_dae[key] = dae_for(model, method)
-    return model._integrators_dae[key]
+    dae = _thread_cache(model)["dae"]
+    if method not in dae:
+        dae[method] = dae_for(model, method)
+    return dae[method]
 
 
 def dae_for(model, method: str):
@@ -197,16 +205,17 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     import casadi as ca  # noqa: PLC0415 - only the SUNDIALS methods need CasADi at run time
 
     key = (method, float(rtol), float(atol), int(max_steps), t_eval.tobytes())
-    integ = model._integrators.pop(key, None)
+    cache = _thread_cache(model)["integrators"]
+    integ = cache.pop(key, None)
     if integ is None:
         opts = {**_tolerances(model, method, rtol, atol), "max_num_steps": max_steps,
                 "disable_internal_warnings": True, **_step_floor(method, t_eval)}
         grid = [float(t) for t in t_eval[1:]]
         integ = ca.integrator(f"{model.name}_{method}", method, _rhs_for(model, method),
                               float(t_eval[0]), grid, opts)
-    model._integrators[key] = integ  # most recently used last
-    while len(model._integrators) > INTEGRATOR_CACHE_SIZE:
-        model._integrators.pop(next(iter(model._integrators)))
+    cache[key] = integ  # most recently used last
+    while len(cache) > INTEGRATOR_CACHE_SIZE:
+        cache.pop(next(iter(cache)))
     xa = np.append(x0, 0.0) if augmented(model, method) else x0
     lib = model.library
     start = time.perf_counter()
@@ -219,8 +228,8 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
         else:
             failure = None
     if failure is not None:
-        if watch.sigint or lib.budget_hit() == 2 and lib._lib.gs_stop_cause() == 1:
-            raise KeyboardInterrupt(f"{method} stopped by Ctrl-C") from None
+        if interrupt.requested() or lib.budget_hit() == 2 and lib._lib.gs_stop_cause() == 1:
+            raise interrupt.interrupted(f"{method} stopped by Ctrl-C") from None
         if watch.timeout or lib.budget_hit() == 2:
             raise IntegratorError(lib.budget_last_t(), None, f"{method}: the wall-time limit "
                                   f"of {time_limit:g} s was reached (raise time_limit, or "

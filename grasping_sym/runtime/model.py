@@ -64,8 +64,6 @@ class Model:
                                        default_p=self.default_params if self.p_names else None)
         self._external = None
         self._guarded = None
-        self._integrators: dict = {}
-        self._integrators_dae: dict = {}  # runtime.integrators.dae_for, per SUNDIALS method
         self._public: dict = {}
         self._plans: dict = {}  # runtime.fastpath: settings the full path accepted
         self._checked: dict = {}  # runtime.fastpath: initial states whose checks passed

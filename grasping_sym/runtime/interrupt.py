@@ -1,0 +1,70 @@
+"""The one owner of SIGINT (Ctrl-C) for every compiled model library of the process.
+
+Each model library carries the driver's ``c/stop.c``: its C loops stop within a step when a
+flag is set, and a SIGINT handler sets the flag. With several libraries loaded, several
+handlers would chain into each other, and Python's ``signal.signal`` (a user's, or CasADi's
+run) silently replaces any of them. So this module binds every library, when it is loaded
+(:func:`bind`), to one flag held here and to one owner library's ``gs_sigint_ensure``; every
+loop's start calls that, and it puts the owner's handler back in front of SIGINT's
+disposition when something replaced it (chaining to what it found: Python's handler still
+runs, a user's handler too). A disposition of ``SIG_IGN`` (nohup, a background job) or
+``SIG_DFL`` is respected: nothing is installed, and an ignored Ctrl-C stops nothing.
+Binding and installing work from any thread.
+
+A run that SIGINT stopped raises :func:`interrupted`'s exception: ``KeyboardInterrupt`` while
+Python's own handler is in place, else ``RunInterruptedError`` (the user's handler was called
+and returned; the run does not pretend to have finished).
+"""
+from __future__ import annotations
+
+import ctypes
+import signal
+import threading
+
+from grasping_sym.errors import RunInterruptedError
+
+#: The flag every bound library's loops read and the owner's handler sets (1: Ctrl-C seen).
+_FLAG = ctypes.c_int(0)
+_LOCK = threading.Lock()
+_owner: ctypes.CDLL | None = None
+_ensure: int | None = None  # the owner's gs_sigint_ensure, as a C function address
+
+
+def bind(lib: ctypes.CDLL) -> None:
+    """Share the process's SIGINT flag and owner with the library ``lib`` just loaded, and
+    install the owner's handler (unless SIGINT is ignored or at its default)."""
+    global _owner, _ensure
+    lib.gs_stop_bind.argtypes = [ctypes.POINTER(ctypes.c_int), ctypes.c_void_p]
+    lib.gs_stop_bind.restype = None
+    with _LOCK:
+        if _owner is None:
+            lib.gs_sigint_ensure_status.restype = ctypes.c_int
+            _owner = lib
+            _ensure = ctypes.cast(lib.gs_sigint_ensure, ctypes.c_void_p).value
+        lib.gs_stop_bind(ctypes.byref(_FLAG), _ensure)
+    ensure()
+
+
+def ensure() -> int:
+    """Put the owner's handler in front of SIGINT's disposition now: 1 when it is in place,
+    0 when the disposition is ``SIG_IGN`` or ``SIG_DFL`` (left alone), -1 on failure; None
+    before any library was loaded. The C loops do this themselves at their start."""
+    return None if _owner is None else int(_owner.gs_sigint_ensure_status())
+
+
+def requested() -> bool:
+    """True when Ctrl-C was seen since the last C loop (or SUNDIALS run) started."""
+    return bool(_FLAG.value)
+
+
+def interrupted(message: str) -> BaseException:
+    """The exception for a run that SIGINT stopped (``message`` says which and where):
+    ``KeyboardInterrupt`` while Python's default SIGINT handler is in place, else
+    ``RunInterruptedError`` (the process's handler is someone else's: it has run, or runs as
+    soon as the main thread executes Python, and decides what Ctrl-C means)."""
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        return KeyboardInterrupt(message)
+    return RunInterruptedError(
+        f"{message}; the process's SIGINT handler is not Python's default one, so the run "
+        "stopped without raising KeyboardInterrupt (your handler was called; call the run "
+        "again to continue, or restore signal.default_int_handler for KeyboardInterrupt)")
