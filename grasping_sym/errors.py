@@ -153,6 +153,21 @@ class CacheWriteError(GraspingSymError, OSError):
                                     "or point GRASPING_SYM_CACHE at a writable directory of your own")
 
 
+class CacheContentsError(GraspingSymError, ValueError):
+    """``grasping-sym cache clear`` refused: the cache root holds files the package did not
+    make (it is not a cache of its own), or a name given is not one of its entries. Nothing
+    is removed."""
+
+
+class SweepStoreError(GraspingSymError, ValueError):
+    """A sweep's Zarr store cannot be used: the path is a file or a directory that is not a
+    Zarr store, a stored chunk is missing or unreadable, or it holds another sweep."""
+
+
+class SweepStoreBusyError(SweepStoreError):
+    """Another sweep is writing the same store (its lock file names the process)."""
+
+
 class UnsafeTemplateError(GraspingSymError, ValueError):
     """A stored template holds something that would load or compile code when deserialized."""
 
