@@ -159,36 +159,33 @@ def _params(texts) -> dict[str, float]:
 
 # ---------------------------------------------------------------------------- cache
 def cmd_cache(args: argparse.Namespace) -> int:
-    import shutil  # noqa: PLC0415
+    import os  # noqa: PLC0415
 
-    from grasping_sym.codegen.cache import cache_root  # noqa: PLC0415
+    from grasping_sym.codegen import cache  # noqa: PLC0415
     from grasping_sym.runtime import safety  # noqa: PLC0415
 
-    root = cache_root()
+    root = cache.cache_root()
+    if args.action == "clear":
+        removed = cache.clear(args.names)  # refuses a root holding what the package did not make
+        for p in removed:
+            print(f"removed {p}")
+        print(f"{len(removed)} entries removed from {root}")
+        return 0
     if not root.exists():
         print(f"{root}: empty (no cache yet)")
         return 0
     safety.check_dir(root)  # another user's, or writable by others: refused by name
-    entries = sorted(p for p in root.iterdir() if not p.name.startswith("."))
-    if args.action == "list":
-        total = 0
-        for p in entries:
-            size = sum(f.stat().st_size for f in p.rglob("*") if f.is_file()) if p.is_dir() else p.stat().st_size
-            total += size
-            print(f"{p.name:<40} {size / 1e6:9.2f} MB")
-        print(f"{len(entries)} entries, {total / 1e6:.2f} MB in {root}")
-        return 0
-    chosen = [p for p in entries if not args.names or p.name in args.names
-              or p.name.rsplit("-", 1)[0] in args.names]
-    unknown = [n for n in args.names if not any(p.name == n or p.name.rsplit("-", 1)[0] == n
-                                                 for p in entries)]
-    if unknown:
-        raise UsageError(f"no cache entries named {unknown} in {root} (see `{PROG} cache list`)")
-    for p in chosen:
-        safety.check_dir(p) if p.is_dir() else safety.check_file(p)
-        shutil.rmtree(p) if p.is_dir() else p.unlink()
-        print(f"removed {p}")
-    print(f"{len(chosen)} entries removed from {root}")
+    made, foreign = cache.entries(root)
+    total = 0
+    for p in made:
+        size = sum(os.lstat(f).st_size for f in p.rglob("*") if not f.is_symlink() and f.is_file())
+        total += size
+        print(f"{p.name:<40} {size / 1e6:9.2f} MB")
+    print(f"{len(made)} entries, {total / 1e6:.2f} MB in {root}")
+    if foreign:
+        print(f"{len(foreign)} other files or directories there that grasping_sym did not make "
+              f"({', '.join(p.name for p in foreign[:5])}{', ...' if len(foreign) > 5 else ''}): "
+              "`cache clear` refuses this root; point GRASPING_SYM_CACHE at a directory of its own")
     return 0
 
 

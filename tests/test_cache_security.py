@@ -22,7 +22,10 @@ import pytest
 import grasping_sym as gs
 from grasping_sym.codegen import templates
 from grasping_sym.codegen.compiler import compile_shared
+from grasping_sym.cli import main as cli_main
+from grasping_sym.codegen import cache as gs_cache
 from grasping_sym.errors import (
+    CacheContentsError,
     CacheWriteError,
     CorruptCacheError,
     InvalidCurveError,
@@ -305,3 +308,61 @@ def test_a_full_disk_during_a_build_is_named(cache, monkeypatch):
     monkeypatch.setattr(tf, "mkdtemp", full)
     with pytest.raises(CacheWriteError, match="disk is full"):
         gs.build(gs.scenes.paper2d(), force=True)
+
+
+# ------------------------------------------------------------------------------ cache clear
+
+
+def _tree(root: Path) -> list[str]:
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*"))
+
+
+def test_cache_clear_refuses_a_root_holding_the_users_files(cache, capsys):
+    """GRASPING_SYM_CACHE at a folder of one's own files: `cache clear` removes nothing, says
+    why in one line (exit 2); with the user's files gone it clears the package's entries."""
+    root, entry = cache
+    (root / "thesis.tex").write_text("\\chapter{One}")
+    (root / "photos").mkdir()
+    (root / "photos" / "cat.jpg").write_bytes(b"jpg")
+    before = _tree(root)
+    assert {"structures", "objects", entry.name} <= set(os.listdir(root))
+    assert cli_main(["cache", "clear"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "did not make (photos/, thesis.tex)" in err
+    assert "Nothing was removed" in err
+    assert _tree(root) == before
+    assert cli_main(["cache", "clear", entry.name]) == 2  # named entries too: not a cache of its own
+    assert _tree(root) == before
+    assert cli_main(["cache", "list"]) == 0
+    assert "2 other files or directories" in capsys.readouterr().out
+    shutil.rmtree(root / "photos")
+    (root / "thesis.tex").unlink()
+    assert cli_main(["cache", "clear"]) == 0
+    assert os.listdir(root) == []
+
+
+@pytest.mark.parametrize("name", ["../outside", "..", "/tmp", "paper2d/../../outside", ""])
+def test_cache_clear_takes_entry_names_never_paths(cache, tmp_path, name):
+    root, entry = cache
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "keep.txt").write_text("mine")
+    before = _tree(root)
+    with pytest.raises(CacheContentsError, match="never a path"):
+        gs_cache.clear([name])
+    assert _tree(root) == before and (outside / "keep.txt").is_file()
+
+
+def test_cache_clear_never_follows_a_link_named_like_an_entry(cache, tmp_path):
+    root, entry = cache
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "manifest.json").write_text('{"name": "paper2d", "hash": "0123456789abcdef"}')
+    (root / "paper2d-0123456789abcdef").symlink_to(outside, target_is_directory=True)
+    with pytest.raises(CacheContentsError, match="paper2d-0123456789abcdef"):
+        gs_cache.clear(["paper2d"])
+    assert (outside / "manifest.json").is_file() and entry.is_dir()
+    (root / "paper2d-0123456789abcdef").unlink()
+    (entry / "linked.json").symlink_to(outside / "manifest.json")  # a link inside an entry
+    assert [p.name for p in gs_cache.clear(["paper2d"])] == [entry.name]
+    assert not entry.exists() and (outside / "manifest.json").is_file()

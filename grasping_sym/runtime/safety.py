@@ -29,7 +29,7 @@ from pathlib import Path
 from grasping_sym.errors import CacheWriteError, CorruptCacheError, UnsafeCacheError
 
 __all__ = ["CacheWriteError", "CorruptCacheError", "UnsafeCacheError", "check_file",
-           "check_tree", "clean_stale", "ensure_dir", "library_problem", "sha256_file",
+           "check_tree", "clean_stale", "ensure_dir", "is_temporary", "library_problem", "sha256_file",
            "write_bytes", "write_text"]
 
 #: Temporary files and directories of an interrupted build older than this (s) are removed.
@@ -148,6 +148,12 @@ def library_problem(lib: Path, manifest: dict) -> str | None:
     if got != want:
         return f"{lib} is damaged: its SHA-256 is {got[:16]}..., the manifest recorded {want[:16]}..."
     return None
+
+
+def is_temporary(name: str) -> bool:
+    """Whether ``name`` is that of a temporary an (interrupted) build leaves in a cache
+    directory while it works (a dot, then one of the markers of ``_TEMP_MARKERS``)."""
+    return name.startswith(".") and any(m in name for m in _TEMP_MARKERS)
 
 
 def clean_stale(directory: Path, max_age: float = STALE_AFTER) -> list[str]:
