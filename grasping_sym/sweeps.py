@@ -26,19 +26,29 @@ dimension per grid name.
   the settings and the variables; only this process writes it, a chunk's values first and
   then its flag in ``done``. Rerunning the same sweep skips the chunks done (a sweep stopped
   by Ctrl-C, a crash or a lost worker resumes), and no point is run twice into the store.
-  ``open(store)`` reads a sweep back.
+  A chunk marked done whose files are missing or unreadable (deleted, damaged) is run again,
+  with a warning. One sweep at a time writes a store: ``<store>.lock`` beside it, locked
+  while it writes (``flock``: released when the process ends, however it ends), and a second
+  writer is refused by name (``SweepStoreBusyError``). ``open(store)`` reads a sweep back.
 """
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import math
 import numbers
+import os
+import socket
+import warnings
 from collections.abc import Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from grasping_sym.errors import SweepStoreBusyError, SweepStoreError
 
 #: Points per task by default: about ``TASKS_PER_THREAD`` tasks per worker thread, within
 #: ``CHUNK`` (Dask's per-task overhead is 0.2-1 ms, one run ~0.07 ms; each task's results are
@@ -299,6 +309,7 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
         from grasping_sym.pipeline import build  # noqa: PLC0415
 
         model = build(model)
+    store = check_store(store)
     g = grid_of(grid)
     if isinstance(chunk, bool) or not (chunk is None or isinstance(chunk, numbers.Integral) and chunk >= 1):
         raise ValueError(f"chunk = {chunk!r} must be a positive integer (points per task)")
@@ -315,13 +326,24 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
     chunk = int(chunk or default_chunk(g.size, client))
     variables = [*model.state_names, *(v for v, _, _ in task["measures"])]
     key = _key(model, task, variables, chunk)
-    group = _open_group(store, key, model, task, variables, chunk, g)
-    done = group["done"][:]
-    pending = [c for c in range(len(done)) if not done[c]]
-    if pending:
-        _run(model, task, group, pending, chunk, g.size, client, progress)
+    with store_lock(store):
+        group = _open_group(store, key, model, task, variables, chunk, g)
+        done = _read_done(group)
+        damaged = _damaged_chunks(store, group, [c for c in range(len(done)) if done[c]])
+        if damaged:
+            warnings.warn(f"{store}/{group.path}: {len(damaged)} chunks marked done are missing or "
+                          f"unreadable and are run again: " + "; ".join(
+                              f"chunk {c} ({', '.join(why)})" for c, why in list(damaged.items())[:5]),
+                          stacklevel=2)
+            for c in damaged:
+                _forget_chunk(store, group, c)
+                done[c] = False
+        pending = [c for c in range(len(done)) if not done[c]]
+        if pending:
+            _run(model, task, group, pending, chunk, g.size, client, progress)
     ds = open(store, key)
     ds.attrs["chunks_run"] = len(pending)
+    ds.attrs["chunks_damaged"] = sorted(damaged)
     return ds
 
 
@@ -348,16 +370,174 @@ def _key(model, task, variables, chunk) -> str:
     return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()
 
 
-def _open_group(store, key, model, task, variables, chunk, g: Grid):
+# ------------------------------------------------------------------ the store
+#: Chunks are written even when they equal the fill value (NaN, 0, ""), so that a missing
+#: chunk file always means a lost chunk (``_damaged_chunks``); new groups say so in this attribute.
+_ALL_WRITTEN = "chunks_always_written"
+_WRITE = {"write_empty_chunks": True}
+
+
+def check_store(store: str | Path) -> Path:
+    """``store`` as a path a sweep can write: missing (made), or a Zarr store; else
+    :class:`SweepStoreError` naming what it is, before any work."""
+    path = Path(store)
+    if path.exists() or path.is_symlink():
+        if not path.is_dir():
+            raise SweepStoreError(f"the sweep store {path} is a file, not a Zarr store (a directory): "
+                                  "give the path of a new directory or of an earlier sweep's store")
+        if not (path / "zarr.json").is_file() and any(path.iterdir()):
+            raise SweepStoreError(f"the sweep store {path} is a directory that is not a Zarr store (it "
+                                  "holds files but no zarr.json): give the path of a new directory or "
+                                  "of an earlier sweep's store")
+        return path
+    for parent in path.parents:
+        if parent.exists() or parent.is_symlink():
+            if not parent.is_dir():
+                raise SweepStoreError(f"the sweep store {path} cannot be made: {parent} is a file, not "
+                                      "a directory; give another path")
+            break
+    return path
+
+
+def _lock_holder(fd: int) -> str:
+    try:
+        os.lseek(fd, 0, os.SEEK_SET)
+        info = json.loads(os.read(fd, 4096).decode() or "{}")
+        return f"pid {int(info['pid'])} on {info['host']}"
+    except (OSError, ValueError, KeyError, TypeError):
+        return "a process that has not yet written its pid"
+
+
+@contextmanager
+def store_lock(store: str | Path):
+    """Hold ``<store>.lock`` (beside the store) while writing the sweep store ``store``:
+    another writer gets :class:`SweepStoreBusyError` naming the process that holds it. The
+    lock is ``flock``'s, which the system releases when the holder ends however it ends (a
+    lock file left by a killed sweep does not block); the file records the holder's pid and
+    host, and is removed on release."""
+    path = Path(store)
+    lock = path.parent / f"{path.name}.lock"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepStoreError(f"the sweep store {path} cannot be made in {path.parent}: "
+                              f"{exc.strerror or exc}; give another path") from exc
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        except OSError as exc:
+            raise SweepStoreError(f"cannot make the lock file {lock} of the sweep store {path}: "
+                                  f"{exc.strerror or exc}; give a store in a directory you may write") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _lock_holder(fd)
+            os.close(fd)
+            raise SweepStoreBusyError(
+                f"another sweep ({holder}) is writing the store {path}; wait for it to finish, or give "
+                f"another store (its lock: {lock})") from None
+        try:  # the holder before may have removed the file between our open and our lock
+            same = os.fstat(fd).st_ino == os.stat(lock, follow_symlinks=False).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname()}).encode())
+        yield lock
+    finally:
+        try:
+            os.unlink(lock)
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def _chunk_file(store: Path, array, c: int) -> Path:
+    return Path(store) / array.path / array.metadata.encode_chunk_key((c,))
+
+
+def _damaged_chunks(store: Path, group, chunks: Sequence[int]) -> dict[int, list[str]]:
+    """Of the chunks ``chunks`` (marked done), those whose stored values are missing or
+    unreadable: chunk -> what is wrong, per variable."""
+    if not chunks:
+        return {}
+    attrs = group.attrs
+    names = [*attrs["variables"], "status", "error"]
+    if not attrs.get(_ALL_WRITTEN):  # stores of earlier versions skipped chunks of fill values
+        names = list(attrs["variables"])
+    bad: dict[int, list[str]] = {}
+    for v in names:
+        try:
+            arr = group[v]
+        except KeyError:
+            raise SweepStoreError(f"the sweep store {store} has lost the array {group.path}/{v} (its "
+                                  f"zarr.json): remove {store}/{group.path} and run the sweep again") from None
+        for c in chunks:
+            if not _chunk_file(store, arr, c).is_file():
+                bad.setdefault(c, []).append(f"{v} missing")
+        try:
+            arr[:]
+        except Exception:  # noqa: BLE001 - whatever the codec raises: find the chunk
+            for c in chunks:
+                try:
+                    arr.get_block_selection((c,))
+                except Exception as exc:  # noqa: BLE001
+                    bad.setdefault(c, []).append(f"{v} unreadable: {exc}")
+    return dict(sorted(bad.items()))
+
+
+def _forget_chunk(store: Path, group, c: int) -> None:
+    """Mark chunk ``c`` not done and remove its files (only those: they are rewritten)."""
+    group["done"].with_config(_WRITE)[c] = False
+    for v in [*group.attrs["variables"], "status", "error"]:
+        f = _chunk_file(store, group[v], c)
+        if f.is_file() and not f.is_symlink():
+            f.unlink()
+
+
+def _read_done(group) -> np.ndarray:
+    """The ``done`` flags; a flag that cannot be read counts as not done (its file removed)."""
+    arr = group["done"]
+    try:
+        return np.asarray(arr[:], dtype=bool)
+    except Exception:  # noqa: BLE001 - a damaged flag chunk: read them one by one
+        done = np.zeros(arr.shape[0], dtype=bool)
+        for c in range(arr.shape[0]):
+            try:
+                done[c] = bool(arr[c])
+            except Exception:  # noqa: BLE001
+                arr.with_config(_WRITE)[c] = False
+        return done
+
+
+def _zarr_root(store: Path, mode: str):
     import zarr  # noqa: PLC0415
 
-    root = zarr.open_group(str(store), mode="a")
+    try:
+        return zarr.open_group(str(store), mode=mode)
+    except FileNotFoundError:
+        raise SweepStoreError(f"no sweep store at {store}: run gs.sweep(..., store={str(store)!r}) "
+                              "first") from None
+    except Exception as exc:  # noqa: BLE001 - zarr's errors for a damaged store's metadata vary
+        raise SweepStoreError(f"the sweep store {store} cannot be opened ({type(exc).__name__}: {exc}): "
+                              "its metadata (zarr.json) is damaged; remove the store and run the "
+                              "sweep again") from exc
+
+
+def _open_group(store, key, model, task, variables, chunk, g: Grid):
+    root = _zarr_root(store, "a")
     name = f"sweep-{key[:16]}"
     if name in root:
         group = root[name]
         if group.attrs.get("key") != key:
-            raise ValueError(f"{store}/{name} holds another sweep (key {group.attrs.get('key')!r:.20}...): "
-                             "remove it, or give another store")
+            raise SweepStoreError(
+                f"{store}/{name} holds another sweep (key {group.attrs.get('key')!r:.20}...): remove "
+                f"{store}/{name}, or give another store")
+        for k, ax in zip(g.names, g.axes):  # the grid's values, as they were (the key covers them)
+            group[f"axis_{k}"].with_config(_WRITE)[:] = ax
         return group
     group = root.create_group(name)
     n, n_chunks = g.size, math.ceil(g.size / chunk)
@@ -377,7 +557,8 @@ def _open_group(store, key, model, task, variables, chunk, g: Grid):
                         "grid": {"names": list(g.names), "product": g.product},
                         "variables": variables, "chunk": chunk, "t_final": task["t_final"],
                         "measures": [list(m) for m in task["measures"]],
-                        "settings": {k: v for k, v in task["settings"].items() if k != "threads"}})
+                        "settings": {k: v for k, v in task["settings"].items() if k != "threads"},
+                        _ALL_WRITTEN: True})
     return group
 
 
@@ -420,8 +601,8 @@ def _run(model, task, group, pending, chunk, n, client, progress) -> None:
                 c, a, b = futures.pop(fut)
                 result = fut.result()
                 for k, v in result.items():
-                    group[k][a:b] = v
-                group["done"][c] = True  # last: a chunk counts once its values are stored
+                    group[k].with_config(_WRITE)[a:b] = v
+                group["done"].with_config(_WRITE)[c] = True  # last: a chunk counts once its values are stored
                 bar.update(b - a)
         finally:
             bar.close()
@@ -441,19 +622,35 @@ def open(store: str | Path, key: str | None = None):  # noqa: A001 - the module'
     variable per final state, output and measure, ``status`` and ``error``; ``done`` says which
     chunks are in (a sweep stopped early has NaN and empty errors elsewhere)."""
     import xarray as xr  # noqa: PLC0415
-    import zarr  # noqa: PLC0415
 
-    root = zarr.open_group(str(store), mode="r")
+    store = check_store(store)
+    root = _zarr_root(store, "r")
     names = [k for k in root.group_keys() if k.startswith("sweep-")]
     if key is not None:
         names = [k for k in names if k == f"sweep-{key[:16]}"]
     if len(names) != 1:
-        raise ValueError(f"{store} holds {len(names)} sweeps{' with that key' if key else ''} "
+        raise SweepStoreError(f"{store} holds {len(names)} sweeps{' with that key' if key else ''} "
                          f"({names}): name one by its key")
     group = root[names[0]]
     attrs = dict(group.attrs)
+    done = _read_done(group)
+    damaged = _damaged_chunks(store, group, [c for c in range(len(done)) if done[c]])
+    if damaged:
+        c, why = next(iter(damaged.items()))
+        raise SweepStoreError(
+            f"the sweep store {store} ({names[0]}) has {len(damaged)} chunks marked done whose values are "
+            f"missing or unreadable, e.g. chunk {c} (points {c * attrs['chunk']} to "
+            f"{(c + 1) * attrs['chunk'] - 1}): {'; '.join(why)}. Run the same gs.sweep(...) (or "
+            f"`grasping-sym sweep`) again: it runs those chunks again")
     gnames = attrs["grid"]["names"]
-    axes = {k: group[f"axis_{k}"][:] for k in gnames}
+    try:
+        axes = {k: group[f"axis_{k}"][:] for k in gnames}
+    except Exception as exc:  # noqa: BLE001 - a damaged or lost axis
+        raise SweepStoreError(f"the sweep store {store} ({names[0]}): the grid's values cannot be read "
+                              f"({exc}): run the same sweep again (it writes them again)") from exc
+    if lost := [k for k, a in axes.items() if not np.all(np.isfinite(a))]:
+        raise SweepStoreError(f"the sweep store {store} ({names[0]}): the grid's values of {lost} are "
+                              "missing (a deleted file): run the same sweep again (it writes them again)")
     product = attrs["grid"]["product"]
     shape = tuple(len(a) for a in axes.values()) if product else (len(axes[gnames[0]]),)
     dims = tuple(gnames) if product else ("point",)
@@ -462,7 +659,6 @@ def open(store: str | Path, key: str | None = None):  # noqa: A001 - the module'
     coords = {k: (k, a) for k, a in axes.items()} if product else {k: ("point", a) for k, a in axes.items()}
     ds = xr.Dataset(data, coords=coords, attrs={k: attrs[k] for k in ("model", "model_hash", "key",
                                                                        "t_final", "chunk")})
-    done = group["done"][:]
     ds.attrs.update(chunks_done=int(done.sum()), chunks_total=len(done), store=str(store),
                     group=names[0])
     return ds

@@ -16,7 +16,8 @@ import zarr
 
 import grasping_sym as gs
 from grasping_sym.cli import main as cli_main
-from grasping_sym.sweeps import START, _settling_time, parse_range
+from grasping_sym.errors import SweepStoreBusyError, SweepStoreError
+from grasping_sym.sweeps import START, _settling_time, parse_range, store_lock
 
 FD = np.linspace(0.3, 1.0, 100)
 Q1 = np.linspace(0.55, 0.9, 100)
@@ -199,3 +200,78 @@ def test_the_command_line_sweep_writes_the_store_and_a_heat_map(tmp_path, capsys
                    "--t-final", "1", "--out", str(tmp_path), "--show", "failure", "--quiet"])
     assert rc == 0 and "run now          0 of 1 chunks" in capsys.readouterr().out
     assert (tmp_path / "failure.png").is_file()
+
+
+# ------------------------------------------------------------------ the store damaged or shared
+SMALL = dict(chunk=2, progress=False, **SETTINGS)
+SMALL_FD = np.linspace(0.3, 1.0, 6)
+
+
+def test_deleted_and_corrupted_chunks_are_named_then_run_again_bit_for_bit(model, tmp_path):
+    store = tmp_path / "d.zarr"
+    first = gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=store, **SMALL)
+    assert first.attrs["chunks_done"] == 3 and (first["status"].values == 0).all()
+    group = store / first.attrs["group"]
+    for v in (*model.state_names, "status", "error"):  # every file of chunk 1 deleted
+        (group / v / "c" / "1").unlink()
+    (group / "theta" / "c" / "0").write_bytes(b"not zstd at all")  # chunk 0 of theta damaged
+    with pytest.raises(SweepStoreError, match=r"2 chunks marked done .* chunk 0 \(points 0 to 1\): "
+                                              r"theta unreadable: .*Zstd.*Run the same gs.sweep"):
+        gs.sweep.open(store)
+    with pytest.warns(UserWarning, match=r"2 chunks marked done are missing or unreadable and are run "
+                                         r"again: chunk 0 \(theta unreadable.*chunk 1 \(theta missing, q1 missing"):
+        again = gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=store, **SMALL)
+    assert again.attrs["chunks_run"] == 2 and again.attrs["chunks_damaged"] == [0, 1]
+    for v in first.data_vars:
+        assert np.array_equal(again[v].values, first[v].values), v
+    assert gs.sweep.open(store).attrs["chunks_done"] == 3
+
+
+def test_a_store_that_is_a_file_or_a_foreign_directory_is_named(model, tmp_path):
+    path = tmp_path / "s.zarr"
+    path.write_text("my notes")
+    with pytest.raises(SweepStoreError, match="s.zarr is a file, not a Zarr store"):
+        gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=path, **SMALL)
+    with pytest.raises(SweepStoreError, match="is a file, not a Zarr store"):
+        gs.sweep.open(path)
+    with pytest.raises(SweepStoreError, match="s.zarr is a file, not a directory"):
+        gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=path / "inner.zarr", **SMALL)
+    assert path.read_text() == "my notes"
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("x")
+    with pytest.raises(SweepStoreError, match="not a Zarr store .*no zarr.json"):
+        gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=mine, **SMALL)
+    assert os.listdir(mine) == ["thesis.tex"]
+    with pytest.raises(SweepStoreError, match="no sweep store at"):
+        gs.sweep.open(tmp_path / "nothing.zarr")
+
+
+_HOLDER = """
+import sys
+from grasping_sym.sweeps import store_lock
+with store_lock(sys.argv[1]):
+    print("held", flush=True)
+    sys.stdin.read()
+"""
+
+
+def test_a_second_writer_is_refused_by_name_and_a_killed_ones_lock_does_not_block(model, tmp_path):
+    store = tmp_path / "w.zarr"
+    holder = subprocess.Popen([sys.executable, "-c", _HOLDER, str(store)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(SweepStoreBusyError, match=rf"another sweep \(pid {holder.pid} on .*\) is "
+                                                      r"writing the store .*w.zarr; wait for it"):
+            gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=store, **SMALL)
+        assert not store.exists()  # refused before anything was written
+    finally:
+        holder.kill()  # SIGKILL: its lock file stays, its lock goes with it
+        holder.wait(30)
+    assert (tmp_path / "w.zarr.lock").is_file()
+    ds = gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=store, **SMALL)
+    assert ds.attrs["chunks_done"] == 3 and not (tmp_path / "w.zarr.lock").exists()
+    with store_lock(store):  # in this process too: a second writer (another thread) is refused
+        with pytest.raises(SweepStoreBusyError, match=rf"pid {os.getpid()}"):
+            gs.sweep(model, {"fd": SMALL_FD}, 0.5, store=store, **SMALL)
