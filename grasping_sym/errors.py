@@ -124,6 +124,18 @@ class UnreachableStartError(GraspingSymError, ValueError):
         super().__init__(message)
 
 
+class StartBranchError(UnreachableStartError):
+    """A starting pose asked of ``model.initial_state(...)`` cannot be reached on the branch of
+    the model's stored start (continued in small steps from it, the solution family turns back
+    or ends first), while a consistent pose exists on another branch (another finger posture
+    and contact point): ``found`` holds that pose's state, ``reached`` the furthest point of
+    the start's branch. ``initial_state(..., branch="any")`` accepts the other branch."""
+
+    def __init__(self, message: str, found=None, reached=None):
+        self.found, self.reached = found, reached
+        super().__init__(message, 0.0)
+
+
 class UnsafeCacheError(GraspingSymError, PermissionError):
     """A cache path is a symbolic link, belongs to another user, or others may write it."""
 

@@ -14,6 +14,7 @@ from grasping_sym.errors import (
 )
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import fastpath, integrators, projection, safety, stored
+from grasping_sym.runtime import start as start_
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
 
@@ -141,31 +142,51 @@ class Model:
             p[self.param_names.index(k)] = value
         return p
 
-    def initial_state(self, **values: float) -> np.ndarray:
+    def initial_state(self, *, branch: str = "start", **values: float) -> np.ndarray:
         """A consistent initial state, ordered as ``state_names`` (a fresh array).
 
         Without arguments: the scene's start (stored with the model). With state components
         by name, e.g. ``initial_state(q1=0.6)`` or ``initial_state(theta=0.2)``:
         those values held, the other coordinates and speeds solved onto the contact
-        constraints nearest the scene's start, with no rebuild (``runtime.start``; in 2D the
-        pivot stays where the scene put it, so one coordinate fixes the others; in 3D see
-        ``with_start``, which also moves the spring's rest point). Raises
-        ``UnreachableStartError`` for a pose the bodies cannot take.
+        constraints, with no rebuild (``runtime.start``; in 2D the pivot stays where the
+        scene put it, so one coordinate fixes the others; in 3D see ``with_start``, which
+        also moves the spring's rest point).
+
+        The pose is the one on the branch of the scene's start: followed from the scene's
+        start to the given values in small steps, so that neighbouring values give
+        neighbouring poses (the same finger posture, a contact point that moves
+        continuously), never a jump to another solution of the same equations.
+        ``solve_start`` returns the same state with the branch and the contact point chosen.
+
+        Raises ``UnreachableStartError`` for a pose the bodies cannot take, and its subclass
+        ``StartBranchError`` for one that the scene's start's branch does not reach while
+        another branch does (another posture and contact point); ``branch="any"`` accepts
+        that other branch's pose instead.
         """
         if not values:
+            if branch not in start_.BRANCHES:
+                return start_.solve_start(self, values, branch).x  # refuses the bad branch
             return self._x0.copy()
-        from grasping_sym.runtime import start  # noqa: PLC0415
+        return start_.solve(self, values, branch)
 
-        return start.solve(self, values)
+    def solve_start(self, *, branch: str = "start", **values: float) -> start_.StartSolution:
+        """``initial_state(**values)`` with what was chosen: a ``runtime.start.StartSolution``
+        with the state ``x``, the coordinates ``solved``, the contact point chosen
+        (``contact``: the contact parameters, ``s`` in 2D), the branch's orientation
+        (``branch``, and ``start_branch`` at the scene's start: the sign of the start
+        conditions' Jacobian determinant in the solved coordinates) and
+        ``on_start_branch`` (False only for another branch's pose taken with
+        ``branch="any"``). Without values: the scene's start."""
+        return start_.solve_start(self, values, branch)
 
-    def with_start(self, **values: float) -> Model:
+    def with_start(self, *, branch: str = "start", **values: float) -> Model:
         """This model started elsewhere: ``initial_state(**values)`` as its start, with the
         start's run-time values that it implies (3D: the centre spring's rest point moves to
         the new mean fingertip centre; 2D: the pivot stays). Same compiled library, no
-        rebuild; stored beside the model, so ``grasping_sym.load(new.path)`` reloads it."""
-        from grasping_sym.runtime import start  # noqa: PLC0415
-
-        record = start.start_record(self, values)
+        rebuild; stored beside the model, so ``grasping_sym.load(new.path)`` reloads it.
+        The branch and contact point chosen (``solve_start``'s record) are in
+        ``new.start["info"]["branch"]``; ``branch`` as for ``initial_state``."""
+        record = start_.start_record(self, values, branch)
         starts = safety.ensure_dir(self.directory / stored.STARTS_DIR, root=self.directory)
         stored.write_json(starts / f"{record['key'][:16]}.json", record)
         model = Model(self.directory, self.manifest, self.library_path, record)
