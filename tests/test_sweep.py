@@ -20,7 +20,7 @@ from grasping_sym.errors import SweepStoreBusyError, SweepStoreError
 from grasping_sym.sweeps import START, _settling_time, parse_range, store_lock
 
 FD = np.linspace(0.3, 1.0, 100)
-Q1 = np.linspace(0.55, 0.9, 100)
+Q1 = np.linspace(0.55, 0.75, 100)  # on the scene's start's branch (it turns back at q1 = 0.783)
 SETTINGS = dict(method="radau", rtol=1e-3, atol=1e-7, project=True)
 
 
