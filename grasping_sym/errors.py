@@ -193,3 +193,20 @@ class RunInterruptedError(GraspingSymError, RuntimeError):
     """A run was stopped by SIGINT (Ctrl-C) while the process's Python SIGINT handler is not
     Python's default one (which raises ``KeyboardInterrupt`` instead): the handler was called,
     and returned, and the run does not pretend to have finished."""
+
+
+class InvalidResultError(GraspingSymError, ValueError):
+    """A ``SimulationResult``'s parts disagree: times, states, names and outputs must have one
+    row per time and one column per name (the message names the field and its shape)."""
+
+
+class ResultFileError(InvalidResultError):
+    """A file is not a ``SimulationResult`` that ``save`` wrote, or cannot be one: the path is
+    a directory, an entry is missing or of the wrong kind, or the arrays and the names in it
+    disagree (the message names the file and the field)."""
+
+
+class ViewOptionError(GraspingSymError, ValueError):
+    """``res.animate`` or ``res.view`` cannot honour an option or draw this run (file type,
+    ``fps``, ``seconds``, ``dpi``, ``frames``, the scene): the message names the option, its
+    value and its bounds."""

@@ -5,16 +5,31 @@ The file holds the surfaces' meshes once, in their own frames, and the motion as
 frame (the object's rotation and position, each fingertip's, the joints, the contact points),
 as JSON; a small script draws them on a canvas. Drag to turn the view, scroll to zoom, the
 slider or the play button to move in time. ``grasp.html#frame=-1`` opens at the last frame.
+
+Every string that reaches the page (the scene's name, the run's method, read from a shared
+``.npz`` perhaps) is escaped: HTML-escaped in the title, and in the JSON inside ``<script>``
+with ``<``, ``>``, ``&``, U+2028 and U+2029 as ``\\uXXXX`` escapes, so no text of a result
+can close the script or open another (``_page``).
 """
 from __future__ import annotations
 
+import html
 import json
+import math
+import numbers
+import re
 from pathlib import Path
 
 import numpy as np
 
+from grasping_sym.errors import ViewOptionError
+
 #: Frames written by default (evenly spaced in time).
 FRAMES = 150
+#: Bounds of ``frames`` (at most the result's samples are used) and of ``fps`` (frames per
+#: second of the play button).
+MIN_FRAMES, MAX_FRAMES = 2, 5000
+MAX_FPS = 240.0
 #: Mesh lines per direction of a surface.
 MESH = 24
 
@@ -93,20 +108,36 @@ size();
 
 
 def write_viewer(result, path: str | Path, scene=None, *, frames: int = FRAMES, fps: float = 25.0) -> Path:
-    """Write the viewer of ``result`` (a 3D scene's run) to ``path`` (``.html``)."""
-    from grasping_sym.plots3d import geometry_at, geometry_function, surface_mesh  # noqa: PLC0415
+    """Write the viewer of ``result`` (a 3D scene's run) to ``path`` (``.html``).
 
+    Parameters
+    ----------
+    frames
+        Poses written, evenly spaced over the run: an integer in ``[MIN_FRAMES, MAX_FRAMES]``
+        (2 ... 5000; at most the result's samples are used).
+    fps
+        Frames per second when playing: in ``(0, MAX_FPS]`` (240).
+
+    Raises
+    ------
+    ViewOptionError
+        An option out of its bounds, no 3D scene, another suffix than ``.html``, or a result of
+        one sample.
+    """
+    check_options(frames=frames, fps=fps)
     scene = scene if scene is not None else getattr(result, "scene", None)
     if scene is None:
-        raise ValueError("the viewer needs the run's scene: pass scene=..., or run a model made by "
-                         "gs.build(scene) (a model from gs.load, or a loaded result, has none)")
+        raise ViewOptionError("the viewer needs the run's scene: pass scene=..., or run a model made "
+                              "by gs.build(scene) (a model from gs.load, or a loaded result, has none)")
     if getattr(scene, "dimension", 2) != 3:
-        raise ValueError("the viewer draws 3D scenes: for a 2D run use res.animate('motion.gif')")
+        raise ViewOptionError("the viewer draws 3D scenes: for a 2D run use res.animate('motion.gif')")
     path = Path(path)
     if path.suffix != ".html":
-        raise ValueError(f"{path.name}: the viewer is an .html file")
+        raise ViewOptionError(f"{path.name}: the viewer is an .html file")
     if len(result.t) < 2:
-        raise ValueError("a result of one sample does not move: simulate with more output times")
+        raise ViewOptionError("a result of one sample does not move: simulate with more output times")
+    from grasping_sym.plots3d import geometry_at, geometry_function, surface_mesh  # noqa: PLC0415
+
     rows = np.unique(np.linspace(0, len(result.t) - 1, min(int(frames), len(result.t))).astype(int))
     geos = geometry_at(geometry_function(scene), scene, result, rows)
 
@@ -141,7 +172,39 @@ def write_viewer(result, path: str | Path, scene=None, *, frames: int = FRAMES, 
             "colours": ["rgba(31,119,180,0.8)", "rgba(44,160,44,0.8)", "rgba(148,103,189,0.8)"],
             "up": up, "centre": [float(v) for v in mid],
             "radius": float(0.5 * np.max(hi - lo)) or 0.05}
-    page = _PAGE.replace("__TITLE__", f"{scene.name}").replace("__DATA__", json.dumps(data))
+    page = _page(str(scene.name), data)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(page)
+    path.write_text(page, encoding="utf-8")
     return path
+
+
+def check_options(*, frames: int = FRAMES, fps: float = 25.0) -> None:
+    """Refuse, by name and with its bounds, a ``frames`` or ``fps`` the viewer cannot write."""
+    if not isinstance(frames, numbers.Integral) or isinstance(frames, bool) or \
+            not MIN_FRAMES <= frames <= MAX_FRAMES:
+        raise ViewOptionError(f"frames = {frames!r}: give a whole number of poses from {MIN_FRAMES} "
+                              f"to {MAX_FRAMES} (default {FRAMES})")
+    if not isinstance(fps, numbers.Real) or isinstance(fps, bool) or not math.isfinite(fps) or \
+            not 0 < fps <= MAX_FPS:
+        raise ViewOptionError(f"fps = {fps!r}: give frames per second in (0, {MAX_FPS:g}] "
+                              "(default 25)")
+
+
+#: What a JSON text inside ``<script>`` must not hold as such: ``</script>`` or ``<!--`` would
+#: end or change the script element, and U+2028/U+2029 end a line in older JavaScript.
+_SCRIPT_UNSAFE = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026",
+                                "\u2028": "\\u2028", "\u2029": "\\u2029"})
+
+
+def script_json(data) -> str:
+    """``data`` as JSON that is safe inside an HTML ``<script>`` element, and the same value
+    to JavaScript: the unsafe characters occur only inside JSON strings, where their
+    ``\\uXXXX`` escapes stand for them."""
+    return json.dumps(data).translate(_SCRIPT_UNSAFE)
+
+
+def _page(title: str, data: dict) -> str:
+    """The page: ``title`` HTML-escaped, ``data`` as script-safe JSON, both put in one pass
+    (a title that holds ``__DATA__`` stays text)."""
+    parts = {"TITLE": html.escape(title), "DATA": script_json(data)}
+    return re.sub(r"__(TITLE|DATA)__", lambda m: parts[m.group(1)], _PAGE)

@@ -7,6 +7,7 @@ from PIL import Image
 
 import grasping_sym as gs
 from grasping_sym.animation import frame_rows
+from grasping_sym.errors import ViewOptionError
 
 
 def _frames(path) -> list[np.ndarray]:
@@ -24,11 +25,28 @@ def test_a_2d_run_animates_and_its_frames_move(paper2d_model, tmp_path):
     frames = _frames(path)
     assert len(frames) == len(frame_rows(res.t, 5, 1.0)) == 6
     assert np.abs(frames[0] - frames[-1]).mean() > 0.1  # the finger and the object moved
-    with pytest.raises(ValueError, match=r"\.gif"):
+    with pytest.raises(ViewOptionError, match=r"\.gif"):
         res.animate(tmp_path / "motion.avi")
     loaded = gs.SimulationResult.load(res.save(tmp_path / "r"))
-    with pytest.raises(ValueError, match="scene"):
+    with pytest.raises(ViewOptionError, match="scene"):
         loaded.animate(tmp_path / "x.gif")
+
+
+@pytest.mark.parametrize("options, match", [
+    ({"fps": 1e12}, r"fps = 1000000000000.0: give frames per second in \(0, 100\]"),
+    ({"fps": -1}, r"fps = -1: .*\(0, 100\]"),
+    ({"fps": "20"}, "fps = '20'"),
+    ({"dpi": 1e5}, r"dpi = 100000.0: give dots per inch in \[10, 600\]"),
+    ({"dpi": 0}, r"dpi = 0: .*\[10, 600\]"),
+    ({"seconds": 1e9}, r"seconds = 1000000000.0: .*\(0, 600\] s"),
+    ({"seconds": float("nan")}, "seconds = nan"),
+    ({"fps": 100, "seconds": 600, "dpi": 600}, r"101 frames of 3840 x 3120 pixels .* lower fps, seconds or dpi"),
+])
+def test_options_are_bounded_before_anything_is_drawn(paper2d_model, tmp_path, options, match):
+    res = paper2d_model.simulate(0.1)
+    with pytest.raises(ViewOptionError, match=match):
+        res.animate(tmp_path / "motion.gif", **options)
+    assert not (tmp_path / "motion.gif").exists()
 
 
 def test_a_3d_run_animates(paper3d_model, tmp_path):

@@ -1,11 +1,14 @@
 """A result as a researcher looks at it: a short repr, a Jupyter table, pandas and xarray views,
-save and load; a model's one-screen repr."""
+save and load (an edited file refused by name); a model's one-screen repr."""
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
 
 import grasping_sym as gs
+from grasping_sym.errors import InvalidResultError, ResultFileError
 
 
 @pytest.fixture(scope="module")
@@ -42,12 +45,72 @@ def test_save_and_load_round_trip_and_refuse_other_files(result, tmp_path):
     assert back.stats["n_steps"] == result.stats["n_steps"]
     other = tmp_path / "other.npz"
     np.savez(other, t=result.t)
-    with pytest.raises(ValueError, match="not a saved SimulationResult"):
+    with pytest.raises(ResultFileError, match="not a saved SimulationResult"):
         gs.SimulationResult.load(other)
     pickled = tmp_path / "pickled.npz"
     np.savez(pickled, meta=np.array([{"format": "x"}], dtype=object))
-    with pytest.raises(ValueError, match="pickle"):
+    with pytest.raises(ResultFileError, match="pickle"):
         gs.SimulationResult.load(pickled)
+
+
+def _meta(change):
+    def edit(entries):
+        meta = json.loads(str(entries["meta"]))
+        change(meta)
+        entries["meta"] = np.array(json.dumps(meta))
+    return edit
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda e: e.update(x=e["x"][:, :3]), r"x has shape \(501, 3\), but there are 501 times and 7 "
+                                          r"state names"),
+    (lambda e: e.update(t=e["t"][:7]), r"x has shape \(501, 7\), but there are 7 times"),
+    (lambda e: e.update(output_1=e["output_1"][:-1]), r"output '\w+' has shape \(500,\), but there "
+                                                      "are 501 times"),
+    (lambda e: e["t"].__setitem__(3, np.nan), "'t' holds 1 non-finite times"),
+    (lambda e: e["t"].__setitem__(3, 0.0), "'t' is not strictly increasing"),
+    (lambda e: e.update(x=e["x"].astype(str)), "'x' holds <U32 values, not numbers"),
+    (lambda e: e.pop("output_2"), r"the entries \['output_2'\] are missing"),
+    (lambda e: e.update(output_99=e["t"]), r"the entries \['output_99'\] are not listed"),
+    (lambda e: e.update(meta=np.array(json.dumps([1, 2]))), "'meta' is a JSON list, not an object"),
+    (lambda e: e.update(meta=np.arange(3)), r"'meta' is an array of shape \(3,\)"),
+    (_meta(lambda m: m.pop("state_names")), r"'meta' lacks \['state_names'\]"),
+    (_meta(lambda m: m.update(state_names=m["state_names"][:3])), "x has shape .* 3 state names"),
+    (_meta(lambda m: m.update(outputs=["Q", "Q", "f"])), r"'outputs' names \['Q'\] more than once"),
+    (_meta(lambda m: m.update(method=["radau"])), "'method' = \\['radau'\\] is not a string"),
+    (_meta(lambda m: m.update(params={"fd": "x"})), r"'params' \['fd'\] are not numbers"),
+    (_meta(lambda m: m.update(stats=[])), "'stats' is a JSON list"),
+])
+def test_an_edited_file_is_refused_naming_the_file_and_the_entry(result, tmp_path, edit, match):
+    """A shared .npz changed by hand: every entry checked against the others before use."""
+    path = result.save(tmp_path / "bad.npz")
+    with np.load(path) as f:
+        entries = {k: f[k].copy() for k in f.files}
+    assert len(result.outputs) >= 3
+    edit(entries)
+    np.savez(path, **entries)
+    with pytest.raises(ResultFileError, match=match) as err:
+        gs.SimulationResult.load(path)
+    assert str(path) in str(err.value)
+
+
+def test_a_result_is_one_row_per_time_and_a_column_per_name(result, tmp_path):
+    with pytest.raises(InvalidResultError, match=r"x has shape \(501, 3\), but there are 501 times "
+                                                 "and 7 state names"):
+        gs.SimulationResult(result.t, result.x[:, :3], result.state_names, {}, "radau")
+    with pytest.raises(InvalidResultError, match=r"output 'f' has shape \(2,\), but there are 501"):
+        gs.SimulationResult(result.t, result.x, result.state_names, {"f": np.zeros(2)}, "radau")
+    with pytest.raises(InvalidResultError, match=r"state_names name \['q1'\] more than once"):
+        gs.SimulationResult(result.t, result.x, ("q1",) * 7, {}, "radau")
+    # save: a directory is not a file name (nothing written)
+    for where in (".", tmp_path, tmp_path / ".."):
+        with pytest.raises(ResultFileError, match="is a directory; pass a file name"):
+            result.save(where)
+    (tmp_path / "taken.npz").mkdir()
+    with pytest.raises(ResultFileError, match="taken.npz: it is a directory"):
+        result.save(tmp_path / "taken")
+    with pytest.raises(ResultFileError, match="is a directory: pass the .npz file"):
+        gs.SimulationResult.load(tmp_path / "taken.npz")
 
 
 def test_model_repr_fits_a_screen(paper2d_model):

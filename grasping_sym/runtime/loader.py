@@ -50,12 +50,20 @@ def load(path: Path | str) -> Model:
     if start_file.exists():
         safety.check_file(start_file)
     start, manifest = stored.read_json(start_file), stored.read_manifest(directory)
+    for file, data in ((directory / stored.MANIFEST, manifest), (start_file, start)):
+        if data is None and file.is_file():
+            raise safety.CorruptCacheError(f"{file} is not a JSON object (damaged or edited): rebuild "
+                                           "the model with gs.build(scene, force=True)")
     if manifest is None or start is None:
         raise FileNotFoundError(f"{directory} holds no built model (manifest.json and start.json): "
                                 "pass a model's directory (model.path) after gs.build(scene)")
     if problems := manifest_problems(manifest):
         raise safety.CorruptCacheError(
             f"{directory / stored.MANIFEST} is not a valid manifest ({'; '.join(problems)}): "
+            "rebuild the model with gs.build(scene, force=True)")
+    if problems := stored.start_problems(start, manifest):
+        raise safety.CorruptCacheError(
+            f"{start_file} is not a valid start of {manifest['name']} ({'; '.join(problems)}): "
             "rebuild the model with gs.build(scene, force=True)")
     lib = directory / library_name(manifest["name"])
     if not lib.exists():

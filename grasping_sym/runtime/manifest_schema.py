@@ -56,11 +56,21 @@ def manifest_problems(m: object) -> list[str]:
     values = m.get("param_values")
     if not isinstance(values, list) or len(values) != len(params) or not all(map(_is_num, values)):
         out.append("param_values must be one finite number per param_names entry")
+    bounds = {}
     for key in ("lower", "upper"):
         b = m.get(key)
-        if not isinstance(b, list) or len(b) != len(states) or \
-                not all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)) for v in b):
-            out.append(f"{key} must be one bound (a number or null) per state")
+        if not isinstance(b, list) or len(b) != len(states):
+            out.append(f"{key} must be one bound (a finite number or null) per state")
+        elif wrong := [f"{key}[{i}] = {v!r} (state {name!r})" for i, (name, v) in enumerate(zip(states, b))
+                       if not (v is None or _is_num(v))]:
+            out.append(f"{', '.join(wrong[:5])}: each bound must be a finite number or null")
+        else:
+            bounds[key] = b
+    if len(bounds) == 2:  # a NaN or an empty interval would turn the domain check off
+        for name, lo, hi in zip(states, bounds["lower"], bounds["upper"]):
+            if lo is not None and hi is not None and not lo < hi:
+                out.append(f"the bounds of state {name!r} are inverted or empty: lower = {lo!r}, "
+                           f"upper = {hi!r}")
     files = m.get("files")
     if not isinstance(files, list) or not files or \
             not all(isinstance(f, str) and _FILE.match(f) for f in files):

@@ -4,13 +4,18 @@ from __future__ import annotations
 import csv
 import html
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from grasping_sym.errors import InvalidResultError, ResultFileError
+
 #: What ``SimulationResult.save`` writes (an ``.npz`` of arrays and JSON text, no pickles).
 FORMAT = "grasping_sym.SimulationResult/1"
+#: State-name tuples already found valid (strings, each once): a model's own, checked once.
+_NAMES_OK: set[tuple[str, ...]] = set()
 
 
 @dataclass
@@ -42,6 +47,18 @@ class SimulationResult:
     method: str
     stats: dict = field(default_factory=dict)
     params: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        # shapes only, every run makes one: one row per time, one column per state name, one
+        # value per time in each output (0.5 us for a model's own names, checked once)
+        t, x, names = self.t, self.x, self.state_names
+        if type(t) is np.ndarray and type(x) is np.ndarray and t.ndim == 1 and \
+                x.shape == (t.shape[0], len(names)) and not self.outputs and _known(names):
+            return
+        if problem := _shape_problem(t, x, names, self.outputs):
+            raise InvalidResultError(f"SimulationResult: {problem}")
+        if isinstance(names, tuple) and len(_NAMES_OK) < 64:
+            _NAMES_OK.add(names)
 
     def __getitem__(self, name: str) -> np.ndarray:
         """A state or output by name."""
@@ -128,33 +145,169 @@ class SimulationResult:
     def save(self, path: Path | str) -> Path:
         """Write the result to ``path`` (``.npz``: the arrays, and the names, method, parameters
         and counters as JSON text; nothing that runs as code). ``SimulationResult.load`` reads
-        it back."""
-        path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_suffix(path.suffix + ".npz")
-        path.parent.mkdir(parents=True, exist_ok=True)
+        it back. ``.npz`` is appended to another suffix.
+
+        Raises
+        ------
+        ResultFileError
+            ``path`` is a directory, or the file cannot be written there.
+        """
+        given = Path(path)
+        if given.name in ("", ".", "..") or given.is_dir():
+            raise ResultFileError(f"cannot save a result as {str(path)!r}: it is a directory; pass a "
+                                  "file name, e.g. 'runs/grasp.npz'")
+        path = given if given.suffix == ".npz" else given.with_suffix(given.suffix + ".npz")
+        if path.is_dir():
+            raise ResultFileError(f"cannot save a result as {path}: it is a directory; pass "
+                                  "another file name")
         meta = {"format": FORMAT, "state_names": list(self.state_names), "method": self.method,
                 "outputs": list(self.outputs), "stats": _plain(self.stats),
                 "params": _plain(self.params)}
         arrays = {f"output_{i}": np.asarray(v, dtype=float) for i, v in enumerate(self.outputs.values())}
-        np.savez(path, t=self.t, x=self.x, meta=np.array(json.dumps(meta)), **arrays)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            np.savez(path, t=self.t, x=self.x, meta=np.array(json.dumps(meta)), **arrays)
+        except OSError as exc:
+            raise ResultFileError(f"cannot write the result to {path}: {exc.strerror or exc}; "
+                                  "pass a path in a writable directory") from exc
         return path
 
     @classmethod
     def load(cls, path: Path | str) -> SimulationResult:
-        """A result written by ``save`` (pickled objects are refused: ``allow_pickle=False``)."""
-        with np.load(Path(path), allow_pickle=False) as f:
-            try:
-                meta = json.loads(str(f["meta"]))
-            except KeyError:
-                raise ValueError(f"{path} is not a saved SimulationResult (no 'meta' entry)") from None
-            if meta.get("format") != FORMAT:
-                raise ValueError(f"{path} is a {meta.get('format')!r} file, not {FORMAT!r}")
-            outputs = {k: f[f"output_{i}"].copy() for i, k in enumerate(meta["outputs"])}
-            return cls(t=f["t"].copy(), x=f["x"].copy(), state_names=tuple(meta["state_names"]),
-                       outputs=outputs, method=meta["method"], stats=meta["stats"],
-                       params=meta["params"])
+        """A result written by ``save`` (pickled objects are refused: ``allow_pickle=False``).
 
+        Every entry is checked before the result is made: the format, the names (strings, each
+        once), one row of ``x`` per time and one column per state name, one value per time in
+        each output, finite increasing times, numbers as parameters.
+
+        Raises
+        ------
+        ResultFileError
+            The file is not such a result, or its entries disagree (the file and the entry are
+            named). ``FileNotFoundError`` when there is no file.
+        """
+        path = Path(path)
+        if path.is_dir():
+            raise ResultFileError(f"{path} is a directory: pass the .npz file SimulationResult.save "
+                                  "wrote")
+        try:
+            f = np.load(path, allow_pickle=False)
+        except FileNotFoundError:
+            raise
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ResultFileError(f"{path} is not an .npz file that SimulationResult.save wrote "
+                                  f"({exc}); pickled objects are never loaded") from None
+        if not isinstance(f, np.lib.npyio.NpzFile):
+            raise ResultFileError(f"{path} holds one array, not a saved SimulationResult (an .npz "
+                                  "that SimulationResult.save wrote)")
+        with f:
+            try:
+                return _from_npz(cls, f, path)
+            except (ValueError, KeyError, EOFError, OSError, zipfile.BadZipFile) as exc:
+                if isinstance(exc, ResultFileError):
+                    raise
+                raise ResultFileError(f"{path}: an entry cannot be read ({type(exc).__name__}: "
+                                      f"{exc}); pickled objects are never loaded") from None
+
+
+def _known(names) -> bool:
+    try:
+        return names in _NAMES_OK
+    except TypeError:  # unhashable: not a tuple of strings
+        return False
+
+
+def _shape_problem(t, x, state_names, outputs) -> str | None:
+    """What disagrees between the times, the states, their names and the outputs (None: nothing)."""
+    if not isinstance(state_names, (tuple, list)) or not all(isinstance(n, str) for n in state_names):
+        return f"state_names = {state_names!r} must be a tuple of strings"
+    if len(set(state_names)) != len(state_names):
+        twice = sorted({n for n in state_names if state_names.count(n) > 1})
+        return f"state_names name {twice} more than once: each state once"
+    if not isinstance(outputs, dict) or not all(isinstance(k, str) for k in outputs):
+        return "outputs must map output names (strings) to arrays"
+    nt = np.shape(t)
+    if len(nt) != 1:
+        return f"t has shape {nt}: give one time per row, shape (n,)"
+    if np.shape(x) != (nt[0], len(state_names)):
+        return (f"x has shape {np.shape(x)}, but there are {nt[0]} times and {len(state_names)} "
+                f"state names {_names(tuple(state_names))}: x must be ({nt[0]}, {len(state_names)}), "
+                "a row per time and a column per state name")
+    for k, v in outputs.items():
+        if np.shape(v) != nt:
+            return (f"output {k!r} has shape {np.shape(v)}, but there are {nt[0]} times: "
+                    f"each output is one value per time, shape {nt}")
+    return None
+
+
+def _from_npz(cls, f, path: Path) -> SimulationResult:
+    """``load``'s result from the open ``.npz`` ``f``: every entry checked first."""
+    def bad(what: str) -> ResultFileError:
+        return ResultFileError(f"{path} is not a valid saved SimulationResult: {what}; save the "
+                               "result again with SimulationResult.save (do not edit the file)")
+
+    if "meta" not in f.files:
+        raise ResultFileError(f"{path} is not a saved SimulationResult (no 'meta' entry)")
+    raw = f["meta"]
+    if raw.ndim != 0 or raw.dtype.kind != "U":
+        raise bad(f"'meta' is an array of shape {raw.shape} and type {raw.dtype}, not JSON text")
+    try:
+        meta = json.loads(str(raw))
+    except ValueError as exc:
+        raise bad(f"'meta' is not JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise bad(f"'meta' is a JSON {type(meta).__name__}, not an object")
+    if meta.get("format") != FORMAT:
+        raise ResultFileError(f"{path} is a {meta.get('format')!r} file, not {FORMAT!r}")
+    missing = [k for k in ("state_names", "method", "outputs", "stats", "params") if k not in meta]
+    if missing:
+        raise bad(f"'meta' lacks {missing}")
+    for key in ("state_names", "outputs"):
+        names = meta[key]
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise bad(f"meta {key!r} = {_short(names)} is not a list of names")
+        if len(set(names)) != len(names):
+            raise bad(f"meta {key!r} names {sorted({n for n in names if names.count(n) > 1})} "
+                      "more than once")
+    if not isinstance(meta["method"], str):
+        raise bad(f"meta 'method' = {_short(meta['method'])} is not a string")
+    for key in ("stats", "params"):
+        if not isinstance(meta[key], dict):
+            raise bad(f"meta {key!r} is a JSON {type(meta[key]).__name__}, not an object")
+    if wrong := [k for k, v in meta["params"].items()
+                 if not isinstance(v, (int, float)) or isinstance(v, bool)]:
+        raise bad(f"meta 'params' {wrong} are not numbers")
+    if wrong := [k for k, v in meta["stats"].items()
+                 if not (v is None or isinstance(v, (int, float, str, bool)))]:
+        raise bad(f"meta 'stats' {wrong} are not plain numbers or text")
+    n_out = len(meta["outputs"])
+    expected = {"meta", "t", "x", *(f"output_{i}" for i in range(n_out))}
+    if absent := sorted(expected - set(f.files)):
+        raise bad(f"the entries {absent} are missing (meta lists {len(meta['state_names'])} states "
+                  f"and {n_out} outputs)")
+    if extra := sorted(set(f.files) - expected):
+        raise bad(f"the entries {extra} are not listed in 'meta' ({n_out} outputs)")
+    arrays = {}
+    for key in sorted(expected - {"meta"}):
+        a = f[key]
+        if a.dtype.kind not in "fiu":
+            raise bad(f"{key!r} holds {a.dtype} values, not numbers")
+        arrays[key] = a.astype(float)
+    t, x = arrays.pop("t"), arrays.pop("x")
+    if t.ndim == 1 and not np.all(np.isfinite(t)):
+        raise bad(f"'t' holds {int(np.sum(~np.isfinite(t)))} non-finite times")
+    if t.ndim == 1 and np.any(np.diff(t) <= 0):
+        raise bad("'t' is not strictly increasing")
+    outputs = {k: arrays[f"output_{i}"] for i, k in enumerate(meta["outputs"])}
+    if problem := _shape_problem(t, x, tuple(meta["state_names"]), outputs):
+        raise bad(problem)
+    return cls(t=t, x=x, state_names=tuple(meta["state_names"]), outputs=outputs,
+               method=meta["method"], stats=meta["stats"], params=meta["params"])
+
+
+def _short(v, most: int = 80) -> str:
+    text = repr(v)
+    return text if len(text) <= most else text[:most] + "..."
 
 def _names(names: tuple[str, ...], most: int = 6) -> str:
     if len(names) <= most:

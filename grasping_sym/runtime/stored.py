@@ -58,6 +58,42 @@ def start_record(x0, values: dict[str, float], key: str, info: dict | None = Non
             "start_params": {k: float(v) for k, v in values.items()}, "info": dict(info or {})}
 
 
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def start_problems(start: dict, manifest: dict) -> list[str]:
+    """Every way the start record ``start`` does not fit the model of ``manifest`` (empty
+    when it fits): a ``key`` string, one finite ``initial_state`` entry per state, and a
+    finite number in ``start_params`` for each of the manifest's ``start_param_names``."""
+    out = []
+    if not isinstance(start.get("key"), str) or not start["key"]:
+        out.append(f"key = {start.get('key')!r} is not the scene definition's hash (a string)")
+    states = manifest.get("state_names", [])
+    x0 = start.get("initial_state")
+    if not isinstance(x0, list) or len(x0) != len(states):
+        got = f"{len(x0)} entries" if isinstance(x0, list) else f"a {type(x0).__name__}"
+        out.append(f"initial_state is {got}: expected a list of {len(states)} numbers, one per state")
+    elif wrong := [f"initial_state[{i}] = {v!r} (state {name!r})"
+                   for i, (name, v) in enumerate(zip(states, x0)) if not _finite(v)]:
+        out.append(f"{', '.join(wrong[:5])}{' ...' if len(wrong) > 5 else ''}: each entry must be a "
+                   "finite number")
+    values = start.get("start_params")
+    names = manifest.get("start_param_names", [])
+    if not isinstance(values, dict):
+        out.append(f"start_params is a {type(values).__name__}, not an object mapping "
+                   f"{names} to numbers")
+    else:
+        if missing := [k for k in names if k not in values]:
+            out.append(f"start_params lacks {missing}")
+        if wrong := [f"start_params[{k!r}] = {values[k]!r}" for k in names
+                     if k in values and not _finite(values[k])]:
+            out.append(f"{', '.join(wrong)}: each value must be a finite number")
+    if not isinstance(start.get("info", {}), dict):
+        out.append("info must be an object")
+    return out
+
+
 def starts_agree(a: dict, b: dict) -> list[str]:
     """Where two start records differ beyond ``START_RTOL`` (empty when they agree)."""
     problems = []
