@@ -182,11 +182,12 @@ def compile_library(directory: Path, manifest: dict) -> Path:
 def _start(scene, directory: Path, say: Progress) -> tuple[dict, str]:
     """The scene's start record: from the cache, from the committed files, or solved."""
     key = start_key(scene)
+    shape = {"state_names": list(scene.state_names), "start_param_names": list(scene.start_param_names)}
     cached = stored.read_json(directory / stored.STARTS_DIR / f"{key[:16]}.json")
-    if cached is not None and cached.get("key") == key:
+    if cached is not None and cached.get("key") == key and not stored.start_problems(cached, shape):
         return cached, "cache"
     committed = stored.read_json(cache.committed_dir(scene.name) / stored.START)
-    if committed is not None and committed.get("key") == key:
+    if committed is not None and committed.get("key") == key and not stored.start_problems(committed, shape):
         return committed, "committed"
     say(f"solving a consistent start for {scene.name}")
     return solve_start(scene), "solved"

@@ -64,3 +64,17 @@ def test_a_start_file_that_is_not_json_is_named(copy):
     with pytest.raises(CorruptCacheError, match=r"start\.json is not a JSON object \(damaged or edited\)"):
         gs.load(copy)
     assert gs.load(copy / "starts" / next((copy / "starts").iterdir()).name).name == "paper2d"
+
+
+def test_a_build_never_uses_a_damaged_cached_start(paper2d_model, tmp_path, monkeypatch):
+    """gs.build finds the start of its scene definition in the cache, edited: it is not used
+    (a NaN start would be blamed on an x0 never passed); the start is taken afresh."""
+    root = tmp_path / "cache"
+    entry = root / paper2d_model.directory.name
+    shutil.copytree(paper2d_model.directory, entry, symlinks=True)
+    monkeypatch.setenv("GRASPING_SYM_CACHE", str(root))
+    for start in (entry / "starts").iterdir():
+        _edit(start, lambda s: s["initial_state"].__setitem__(2, math.nan))
+    model = gs.build(gs.scenes.paper2d())
+    assert model.build_info["start_source"] != "cache"
+    assert model.initial_state()[2] == paper2d_model.initial_state()[2]
