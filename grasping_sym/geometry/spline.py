@@ -59,7 +59,7 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym.errors import InvalidCurveError
-from grasping_sym.geometry.curves import PlanarCurve, T
+from grasping_sym.geometry.curves import PlanarCurve, T, first_crossing
 
 #: Fewest points a quintic spline needs (degree + 1).
 MIN_POINTS = 6
@@ -231,66 +231,16 @@ def _fitted_problems(data: SplineData) -> list[str]:
                         f"{med:.3g}) at t = {t[k]:.6g}, between points {i} and {i + 1}: a cusp; remove or "
                         "move the points there")
     xy = np.column_stack([dx[0], dy[0]])
-    crossing = _first_crossing(xy, closed=data.closed)
+    crossing = first_crossing(xy, closed=data.closed)
     if crossing is not None:
-        i, j = (min(c // q, len(a) - 1) for c in crossing)
-        problems.append(f"the spline crosses itself: near t = {t[crossing[0]]:.6g} (between points {i} and "
-                        f"{i + 1}) and t = {t[crossing[1]]:.6g} (between points {j} and {j + 1}); reorder "
+        ta, tb = (t[k] if f == 0 else t[k + 1] if f == 1 else t[k] + f * (t[k + 1] - t[k])
+                  for k, f in crossing)
+        i, j = (min(max(int(np.searchsorted(data.params, tc, side="right")) - 1, 0), len(a) - 1)
+                for tc in (ta, tb))
+        problems.append(f"the spline crosses itself: near t = {ta:.6g} (between points {i} and "
+                        f"{i + 1}) and t = {tb:.6g} (between points {j} and {j + 1}); reorder "
                         "the points along the contour or remove the loop")
     return problems
-
-
-def _first_crossing(xy: np.ndarray, *, closed: bool) -> tuple[int, int] | None:
-    """First pair of non-adjacent segments of the polyline ``xy`` that cross, else None.
-
-    Grid broad phase (cell = longest segment, so crossing segments have their midpoints in
-    neighbouring cells), then an exact orientation test: O(number of segments).
-    """
-    p, q = xy[:-1], xy[1:]
-    ns = len(p)
-    seg_len = np.hypot(*(q - p).T)
-    cell = float(seg_len.max()) or 1.0
-    mid = (p + q) / 2
-    ij = np.floor((mid - mid.min(axis=0)) / cell).astype(np.int64)
-    width = int(ij[:, 1].max()) + 3
-    key = (ij[:, 0] + 1) * width + (ij[:, 1] + 1)
-    order = np.argsort(key, kind="stable")
-    skey = key[order]
-    pairs_a, pairs_b = [], []
-    for dx_ in (-1, 0, 1):
-        for dy_ in (-1, 0, 1):
-            target = key + dx_ * width + dy_
-            lo = np.searchsorted(skey, target, side="left")
-            hi = np.searchsorted(skey, target, side="right")
-            cnt = hi - lo
-            if not cnt.any():
-                continue
-            a = np.repeat(np.arange(ns), cnt)
-            start = np.repeat(lo - np.cumsum(cnt) + cnt, cnt)
-            b = order[np.arange(cnt.sum()) + start]
-            sel = b > a + 1
-            pairs_a.append(a[sel])
-            pairs_b.append(b[sel])
-    if not pairs_a:
-        return None
-    a = np.concatenate(pairs_a)
-    b = np.concatenate(pairs_b)
-    if closed:
-        keep = ~((a == 0) & (b == ns - 1))
-        a, b = a[keep], b[keep]
-
-    def orient(o, u, v):
-        return (u[:, 0] - o[:, 0]) * (v[:, 1] - o[:, 1]) - (u[:, 1] - o[:, 1]) * (v[:, 0] - o[:, 0])
-
-    d1 = orient(p[a], q[a], p[b])
-    d2 = orient(p[a], q[a], q[b])
-    d3 = orient(p[b], q[b], p[a])
-    d4 = orient(p[b], q[b], q[a])
-    hit = np.nonzero((d1 * d2 < 0) & (d3 * d4 < 0))[0]
-    if not hit.size:
-        return None
-    k = hit[np.argmin(a[hit])]
-    return int(a[k]), int(b[k])
 
 
 # ---------------------------------------------------------------------- SymPy form
@@ -584,6 +534,14 @@ class SplineCurve(PlanarCurve):
     def unit_speed(self) -> bool:
         ts = np.linspace(*self.domain, 201)
         return bool(np.all(np.abs(self.evaluate(ts)["speed"] - 1) < 1e-12))
+
+    @cached_property
+    def period(self) -> float | None:
+        """``L`` for a closed spline (its domain ``[-L, 2L]`` runs round three times), else None."""
+        return self.spline_data.length if self.spline_data.closed else None
+
+    def _crossing_problems(self) -> list[str]:
+        return []  # checked on the fit's own samples when it was made (``_fitted_problems``)
 
     @cached_property
     def _numeric(self):

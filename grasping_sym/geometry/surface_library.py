@@ -15,12 +15,14 @@ equator (e.g. for a fingertip pointing along local x, keep the shape's z axis si
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 import sympy as sp
 
 from grasping_sym.errors import InvalidSurfaceError
 from grasping_sym.geometry.curves import PlanarCurve, T
+from grasping_sym.geometry.values import as_real
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 
 Vec3 = tuple[float, float, float]
@@ -28,32 +30,53 @@ _PI = math.pi
 
 
 def _finite_positive(**values: float) -> list[str]:
+    """Each value must be one finite positive real number (NumPy scalars and 0-d arrays too)."""
     return [f"{k} = {v!r} must be a finite positive number" for k, v in values.items()
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < math.inf)]
+            if not ((x := as_real(v)) is not None and 0 < x < math.inf)]
+
+
+def _num(value):
+    """A checked number as the library uses it: Python ``int``/``float`` unchanged (the same
+    expressions and content hash as before), any other real number (``np.float32``, ...) as
+    a ``float``."""
+    return as_real(value, keep_python=True)
 
 
 def _interval(label: str, span, lo: float = -math.inf, hi: float = math.inf) -> list[str]:
     try:
-        a, b = (float(s) for s in span)
-    except (TypeError, ValueError):
+        pair = tuple(span) if not isinstance(span, str) else ()
+    except TypeError:
+        pair = ()
+    values = [as_real(x) for x in pair]
+    if len(values) != 2 or None in values:
         return [f"{label} = {span!r} must be a pair of numbers (min, max)"]
+    a, b = values
     if not (math.isfinite(a) and math.isfinite(b) and lo < a < b < hi):
         return [f"{label} = ({a:.6g}, {b:.6g}) must satisfy {lo:.6g} < min < max < {hi:.6g}"]
     return []
+
+
+def _real_array(value, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float array of ``shape``; ``ValueError`` unless it holds real numbers
+    only (strings, booleans and complex numbers are refused, not converted)."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"dtype {arr.dtype}")
+    return arr.astype(float).reshape(shape)
 
 
 def _placement(center, rotation) -> tuple[list[str], np.ndarray, np.ndarray]:
     problems: list[str] = []
     c, R = np.zeros(3), np.eye(3)
     try:
-        c = np.asarray(center, dtype=float).reshape(3)
+        c = _real_array(center, (3,))
         if not np.isfinite(c).all():
             problems.append(f"center = {center!r} must be three finite numbers (m)")
     except (TypeError, ValueError):
         problems.append(f"center = {center!r} must be three finite numbers (m)")
     if rotation is not None:
         try:
-            R = np.asarray(rotation, dtype=float).reshape(3, 3)
+            R = _real_array(rotation, (3, 3))
             if not (np.isfinite(R).all() and np.allclose(R.T @ R, np.eye(3), atol=1e-9)
                     and np.linalg.det(R) > 0):
                 problems.append(f"rotation = {rotation!r} must be a proper rotation matrix "
@@ -72,7 +95,8 @@ def _make(name: str, xyz, center, rotation, domain, problems: list[str]) -> Para
     for i in range(3):  # skip zero entries so the identity placement leaves S unchanged
         e = sum((xyz[j] if R[i, j] == 1.0 else sp.Float(R[i, j]) * xyz[j]) for j in range(3) if R[i, j] != 0.0)
         out.append(e + sp.Float(c[i]) if c[i] != 0.0 else e)
-    return ParametricSurface(out, (U, V), (tuple(domain[0]), tuple(domain[1])), name)
+    dom = tuple(tuple(_num(x) for x in pair) for pair in domain)
+    return ParametricSurface(out, (U, V), dom, name)
 
 
 def _latlon_problems(lon, lat) -> list[str]:
@@ -88,7 +112,7 @@ def sphere(radius: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
     chart). Orthogonal chart: ``E = r^2 cos^2 v``, ``F = 0``, ``G = r^2``.
     """
     problems = _finite_positive(radius=radius) + _latlon_problems(lon, lat)
-    r = sp.Float(radius) if not problems else sp.Integer(1)
+    r = sp.Float(as_real(radius)) if not problems else sp.Integer(1)
     xyz = (r * sp.cos(V) * sp.cos(U), r * sp.cos(V) * sp.sin(U), r * sp.sin(V))
     return _make(name, xyz, center, rotation, (lon, lat), problems)
 
@@ -102,7 +126,7 @@ def ellipsoid(a: float, b: float, c: float, center: Vec3 = (0.0, 0.0, 0.0), rota
     not orthogonal unless ``a == b``.
     """
     problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat)
-    ka, kb, kc = (sp.Float(s) for s in (a, b, c)) if not problems else (1, 1, 1)
+    ka, kb, kc = (sp.Float(as_real(s)) for s in (a, b, c)) if not problems else (1, 1, 1)
     xyz = (ka * sp.cos(V) * sp.cos(U), kb * sp.cos(V) * sp.sin(U), kc * sp.sin(V))
     return _make(name, xyz, center, rotation, (lon, lat), problems)
 
@@ -121,12 +145,13 @@ def superquadric(a: float, b: float, c: float, n: int = 4, center: Vec3 = (0.0, 
     ``sign(cos)|cos|^(2/n)`` form is neither smooth nor regular at the flat faces' centres.
     """
     problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat)
-    if not (isinstance(n, int) and not isinstance(n, bool) and n >= 2 and n % 2 == 0):
+    if not (isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 2 and n % 2 == 0):
         problems.append(f"n = {n!r} must be an even integer >= 2 for a smooth surface")
     if problems:
         raise InvalidSurfaceError(name, problems)
+    n = int(n)
     d = (sp.cos(V) * sp.cos(U), sp.cos(V) * sp.sin(U), sp.sin(V))
-    rho = sum(di**n / sp.Float(s) ** n for di, s in zip(d, (a, b, c))) ** sp.Rational(-1, n)
+    rho = sum(di**n / sp.Float(as_real(s)) ** n for di, s in zip(d, (a, b, c))) ** sp.Rational(-1, n)
     return _make(name, tuple(rho * di for di in d), center, rotation, (lon, lat), [])
 
 
@@ -134,6 +159,8 @@ def plane(size_x: float, size_y: float, center: Vec3 = (0.0, 0.0, 0.0), rotation
           name: str = "plane") -> ParametricSurface:
     """Rectangle ``(u, v, 0)``, ``|u| <= size_x/2``, ``|v| <= size_y/2`` (m); normal ``+z``."""
     problems = _finite_positive(size_x=size_x, size_y=size_y)
+    if not problems:
+        size_x, size_y = _num(size_x), _num(size_y)
     dom = ((-size_x / 2, size_x / 2), (-size_y / 2, size_y / 2)) if not problems else ((-1, 1), (-1, 1))
     return _make(name, (U, V, sp.Integer(0)), center, rotation, dom, problems)
 
@@ -147,9 +174,9 @@ def torus(R: float, r: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
     ``(cos v cos u, cos v sin u, sin v)``; Gaussian curvature ``cos v / (r (R + r cos v))``.
     """
     problems = _finite_positive(R=R, r=r) + _interval("u", u) + _interval("v", v)
-    if not problems and not R > r:
+    if not problems and not as_real(R) > as_real(r):
         problems.append(f"R = {R!r} must exceed r = {r!r}: a spindle torus is not regular")
-    kR, kr = (sp.Float(R), sp.Float(r)) if not problems else (2, 1)
+    kR, kr = (sp.Float(as_real(R)), sp.Float(as_real(r))) if not problems else (2, 1)
     w = kR + kr * sp.cos(V)
     return _make(name, (w * sp.cos(U), w * sp.sin(U), kr * sp.sin(V)), center, rotation, (u, v), problems)
 

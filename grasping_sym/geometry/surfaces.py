@@ -29,10 +29,26 @@ import sympy as sp
 
 from grasping_sym.errors import ExpressionError, InvalidSurfaceError
 from grasping_sym.geometry.expressions import to_expression
+from grasping_sym.geometry.values import as_component, as_real
 
 #: The parameter symbols every surface is written in (surfaces are re-expressed in them).
 U = sp.Symbol("u", real=True)
 V = sp.Symbol("v", real=True)
+
+def _read_domain(domain) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """``((u_min, u_max), (v_min, v_max))`` as floats, or None if it is not two pairs of real
+    numbers (any real type: NumPy scalars and 0-d arrays too; not strings or booleans)."""
+    try:
+        pairs = [tuple(p) for p in domain] if not isinstance(domain, str) else []
+    except TypeError:
+        return None
+    if len(pairs) != 2 or any(len(p) != 2 or isinstance(p, str) for p in pairs):
+        return None
+    values = [as_real(x) for p in pairs for x in p]
+    if None in values:
+        return None
+    return (values[0], values[1]), (values[2], values[3])
+
 
 _NON_SMOOTH = (sp.Abs, sp.sign, sp.Heaviside, sp.Min, sp.Max, sp.floor, sp.ceiling, sp.frac)
 Matrix = sp.ImmutableMatrix
@@ -67,24 +83,30 @@ class ParametricSurface:
         if isinstance(self.S, str):
             raise InvalidSurfaceError(self.name, ["S is one string: give three expressions (or "
                                                   "formulas as text), one per component"])
+        dom, bad_domain = _read_domain(self.domain), []
+        if dom is None:  # named with the other problems; a placeholder lets those checks run
+            dom = ((-1.0, 1.0), (-1.0, 1.0))
+            bad_domain = [f"domain = {self.domain!r} is not two pairs of real numbers: give "
+                          "((u_min, u_max), (v_min, v_max)), finite numbers with min < max (e.g. "
+                          "((-3.1416, 3.1416), (-1.3, 1.3))); a formula such as pi must be "
+                          "evaluated first"]
         try:
-            comps = [to_expression(c, names, f"surface '{self.name}': S[{i}]")
+            comps = [to_expression(as_component(c), names, f"surface '{self.name}': S[{i}]")
                      for i, c in enumerate(self.S)]
-            (u0, u1), (v0, v1) = self.domain
-            dom = ((float(u0), float(u1)), (float(v0), float(v1)))
         except ExpressionError as exc:
-            raise InvalidSurfaceError(self.name, [str(exc)]) from None
+            raise InvalidSurfaceError(self.name, [*bad_domain, str(exc)]) from None
         except (TypeError, ValueError, sp.SympifyError) as exc:
-            raise InvalidSurfaceError(self.name, [f"cannot read S or domain ({exc}): give three "
-                                                  "expressions and ((u_min, u_max), (v_min, v_max))"]) from exc
+            raise InvalidSurfaceError(self.name, [*bad_domain, f"cannot read S ({exc}): give three "
+                                                  "expressions, one per component"]) from exc
         if len(comps) != 3:
-            raise InvalidSurfaceError(self.name, [f"S has {len(comps)} components: give exactly three"])
+            raise InvalidSurfaceError(self.name, [*bad_domain, f"S has {len(comps)} components: "
+                                                  "give exactly three"])
         p_u, p_v = self.params
         comps = [c.xreplace({p_u: U, p_v: V}) for c in comps]  # simultaneous: (v, u) works too
         object.__setattr__(self, "S", Matrix(comps))
         object.__setattr__(self, "params", (U, V))
         object.__setattr__(self, "domain", dom)
-        problems = self._static_problems()
+        problems = bad_domain + self._static_problems()
         if problems:
             raise InvalidSurfaceError(self.name, problems)
 
