@@ -245,15 +245,22 @@ class PlanarFingerScene:
             raise InvalidSceneError(problems)
 
     def _geometry_problems(self, known: list[str]) -> list[str]:
-        """Contour regularity, and (when all else is valid) the relative curvature."""
+        """Contour regularity, the direction each contour runs, and (when all else is valid)
+        the relative curvature at the initial contact."""
         problems: list[str] = []
-        curves = [("fingertip", self.fingertip), ("object", self.object)]
-        curves += [(f"finger {i}'s fingertip", f.fingertip) for i, f in enumerate(self.extra_fingers, start=2)]
-        for label, curve in curves:
+        directions: list[str] = []
+        curves = [("fingertip", self.fingertip, 1), ("object", self.object, -1)]
+        curves += [(f"finger {i}'s fingertip", f.fingertip, 1)
+                   for i, f in enumerate(self.extra_fingers, start=2)]
+        for label, curve, sense in curves:
             try:
                 curve.check()
             except InvalidCurveError as exc:
                 problems.append(f"{label} contour: {exc}")
+                continue
+            wrong = _direction_problem(label, curve, sense)
+            if wrong:
+                directions.append(wrong)
         if not (known or problems) and all(_finite(u) for u in (self.u0_0, self.u1_0)):
             k0 = float(self.fingertip.evaluate(self.u0_0)["curvature"])
             k1 = -float(self.object.evaluate(self.u1_0)["curvature"])
@@ -264,7 +271,7 @@ class PlanarFingerScene:
                     "contour must run counterclockwise and the object contour clockwise about "
                     "their bodies (e.g. clockwise=True for a library object contour)"
                 )
-        return problems
+        return directions + problems
 
     def _type_problems(self) -> list[str]:
         """The types the other checks rely on (each named with the fix)."""
@@ -479,6 +486,50 @@ class PlanarFingerScene:
         x = [self.theta_0, self.q1_0, self.q2_0, 0.0, 0.0, 0.0]
         x += [self.u0_0] if self.shared_parameter else [self.u0_0, self.u1_0]
         return np.array(x, dtype=float)
+
+
+#: rad: a contour whose tangent turns the wrong way by more than this over one traversal
+#: (and that sweeps the wrong way about its frame's origin) runs the wrong way about its body.
+DIRECTION_TURNING_TOL = 1e-6
+
+
+def _direction_problem(label: str, curve: PlanarCurve, sense: int) -> str | None:
+    """The contour runs the wrong way about its body, by name with the fix, else None.
+
+    The fingertip contour must run counterclockwise about the fingertip (``sense = +1``:
+    outward normal on the right of the direction of travel, material on the left), the object
+    contour clockwise about the object (``sense = -1``: outward normal on the left), as the
+    paper's contours and ``clockwise=True`` library object contours do (docs/guide.md,
+    "Direction of travel"). Listed the other way, the package reads the body's material on the
+    contour's other side: the fingertip is put inside the object and the run fails later.
+
+    Refused when both measures of :attr:`PlanarCurve.orientation` say so: the tangent turns
+    the wrong way over one traversal (beyond ``DIRECTION_TURNING_TOL``) and the contour sweeps
+    the wrong way about its frame's origin (the fingertip centre O01, the object's pivot Om).
+    For a closed contour both are the sign of the area it encloses. An open contour bent the
+    other way on purpose (a concave hollow) passes when its frame's origin is on the body's
+    side of it; a straight one always passes.
+    """
+    o = curve.orientation
+    if not (sense * o.turning < -DIRECTION_TURNING_TOL and sense * o.area < -1e-9 * o.length * o.reach):
+        return None
+    body, origin = (("fingertip", "the fingertip centre O01") if sense > 0
+                    else ("object", "the object's pivot Om"))
+    runs, should = ("clockwise", "counterclockwise") if sense > 0 else ("counterclockwise", "clockwise")
+    material, normal = ("left", "right") if sense > 0 else ("right", "left")
+    if o.closed:
+        measured = f"the area it encloses is {o.area:+.4g} m^2 (positive counterclockwise)"
+    else:
+        measured = (f"its tangent turns by {o.turning:+.4g} rad and it sweeps {o.area:+.4g} m^2 "
+                    f"about its frame's origin, {origin} (positive counterclockwise)")
+    fix = ("list its points the other way round (gs.curves.spline(points[::-1], ...)) or use "
+           f"clockwise={sense < 0} for a library contour (e.g. gs.curves.ellipse(a, b, ..., "
+           f"clockwise={sense < 0}))")
+    return (f"{label} contour '{curve.name}' runs {runs} about the {body}: {measured}. {'An' if sense < 0 else 'A'} {body} "
+            f"contour must run {should} about its body (the {body}'s material on the {material} of "
+            f"the direction of travel, the outward normal on the {normal}); as given, the "
+            f"{'object would be put inside the fingertip' if sense > 0 else 'fingertip would be put inside the object'} "
+            f"and the run would fail on the relative curvature. Fix: {fix}")
 
 
 def _finite(v) -> bool:
