@@ -210,3 +210,10 @@ class ViewOptionError(GraspingSymError, ValueError):
     """``res.animate`` or ``res.view`` cannot honour an option or draw this run (file type,
     ``fps``, ``seconds``, ``dpi``, ``frames``, the scene): the message names the option, its
     value and its bounds."""
+
+
+class RunArgumentError(GraspingSymError, ValueError, TypeError):
+    """An argument of a run (``simulate``, ``simulate_many``) is of the wrong kind or out of its
+    range (``max_steps`` beyond a C ``long``, a non-finite time, ``outputs`` not a bool ...);
+    the message names it, its value and the range. Both a ValueError and a TypeError, as the
+    plain errors these checks raised before."""
