@@ -29,6 +29,7 @@ committed C, else derive and write C, then compile; then the start, from the cac
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import logging
 import shutil
@@ -91,6 +92,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     """
     say = progress or (lambda msg: None)
     digest = code_hash(scene)
+    scene, hidden = with_check_outputs(scene)
     fns = scene.casadi_functions(say)
     cm, timings = fns.model, dict(fns.timings)
     lower, upper = scene.bounds()
@@ -144,11 +146,26 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "op_counts": ops,
         **({"structure": fns.structure} if fns.structure else {}),
         **({"rhs_guarded": guarded[0].name()} if guarded else {}),
+        # compiled outputs the user did not ask for: only the run-time checks read them
+        **({"check_outputs": list(hidden)} if hidden else {}),
         **scene.manifest_extra(),
     }
     stored.write_manifest(directory, manifest)
     manifest["timings"] = timings
     return manifest
+
+
+def with_check_outputs(scene) -> tuple[object, tuple[str, ...]]:
+    """The scene whose code is generated, and the outputs it adds: ``scene`` with, after its
+    own outputs, every output the run-time checks read (``scene.check_outputs()``,
+    ``runtime.checks``) that it does not list. A model checks every contact and every
+    constraint whatever outputs it shows; the manifest's ``check_outputs`` names the added
+    ones, which the model does not show (``Model.output_names``). The code hash is the
+    scene's own: the added outputs are a function of it."""
+    hidden = tuple(k for k in scene.check_outputs() if k not in scene.outputs)
+    if not hidden:
+        return scene, ()
+    return dataclasses.replace(scene, outputs=(*scene.outputs, *hidden)), hidden
 
 
 def write_start(directory: Path, record: dict) -> None:

@@ -235,3 +235,39 @@ def test_t_eval_with_nan_is_refused_not_hung(paper2d_model):
 def test_wrong_types_and_non_finite_values_are_named(make, match):
     with pytest.raises(InvalidSceneError, match=match):
         make()
+
+
+# ------------------------------------------------------------------ output selections
+def test_a_huge_or_repeated_output_selection_is_refused_at_once_in_a_short_message():
+    """10**6 names (known or not) are refused by count, before any work, in a message of a few
+    hundred characters; a repeated name is refused (a result holds one column per name)."""
+    for outputs in (("Q",) * 10**6, tuple(f"bogus{i}" for i in range(10**6))):
+        with pytest.raises(InvalidSceneError, match="lists 1000000 names, but the scene has only 13") as info:
+            gs.scenes.paper2d(outputs=outputs)
+        assert len(str(info.value)) < 1000
+    with pytest.raises(InvalidSceneError, match="outputs names 'Q' more than once"):
+        gs.scenes.paper2d(outputs=("Q", "Q", "f"))
+    with pytest.raises(InvalidSceneError, match="outputs names 'f1' more than once"):
+        gs.scenes.paper3d(outputs=("f1", "lam1", "f1"))
+    with pytest.raises(InvalidSceneError, match=r"unknown outputs 'x0', .*'x9', \.\.\. and 2 more: choose"):
+        gs.scenes.paper2d(outputs=tuple(f"x{i}" for i in range(12)))
+    with pytest.raises(InvalidSceneError, match=r"outputs = 'Qf' is a string: give a tuple"):
+        gs.scenes.paper2d(outputs="Qf")
+
+
+def test_simulate_takes_outputs_as_a_switch_not_as_names(paper2d_model):
+    from grasping_sym.errors import RunArgumentError
+
+    with pytest.raises(RunArgumentError, match=r"outputs = \('Q',\) is tuple: give True or False: "
+                                               r"the outputs themselves are chosen when the scene"):
+        paper2d_model.simulate(0.01, outputs=("Q",))
+    with pytest.raises(RunArgumentError, match="checks = 'yes' is str"):
+        paper2d_model.simulate_many(0.01, checks="yes")
+
+
+def test_a_domain_exit_names_the_state(short_model):
+    """The C loops name the state that left its contour's domain, not only its index."""
+    for method in ("radau", "rk4"):
+        with pytest.raises(ContactLeftContourError, match=r"state component 6 left \[-0.006, 0.006\] "
+                                                          r"\(s = -0\.006"):
+            short_model.simulate(1.0, method=method)

@@ -206,7 +206,104 @@ def test_an_excursion_out_of_the_domain_between_outputs_is_found_under_sundials(
         dataclasses.replace(base.fingers[0], tip=tip), *base.fingers[1:])))
     with pytest.raises(ContactLeftContourError) as ref:
         model.simulate(1.0, method="radau", rtol=1e-6, atol=1e-9)
+    assert "(u_f1 = " in str(ref.value)  # the state by name, not only its index
     for method in ("cvodes", "idas"):
         with pytest.raises(ContactLeftContourError, match="u_f1 left the contour's domain") as info:
             model.simulate(1.0, method=method, rtol=1e-6, atol=1e-9, t_eval=[0.0, 0.5, 1.0])
         assert abs(info.value.t - ref.value.t) < 1e-3, method
+
+
+# ------------------------------------------------------------------ checks whatever is shown
+def _showing(model, shown=()):
+    """``model`` loaded again as if its scene had asked to show only ``shown``: the other
+    compiled outputs are the checks' own (the manifest's ``check_outputs``)."""
+    from grasping_sym.runtime.model import Model
+
+    m = model.manifest
+    hidden = [k for k in m["output_names"] if k not in shown]
+    return Model(model.directory, {**m, "check_outputs": hidden}, model.library_path, model.start)
+
+
+def test_the_checks_run_whatever_outputs_the_model_shows(runtime_model):
+    """A model that shows no outputs still refuses a start off the constraints and names a
+    contact that opens (the checks read the compiled outputs it does not show); its results
+    hold only what it shows."""
+    from grasping_sym.errors import ContactOpenedError
+    from tests.test_hard_cases import rolling_velocity
+
+    hidden = _showing(runtime_model)
+    assert hidden.output_names == () and "f" in hidden._columns
+    x0 = hidden.initial_state()
+    x0[1] += 0.01
+    with pytest.raises(InconsistentInitialStateError, match="off the contact constraints"):
+        hidden.simulate(0.01, x0=x0)
+    x0 = hidden.initial_state()
+    x0[3:6] = -60.0 * rolling_velocity(runtime_model, x0)  # test_hard_cases: f crosses 0 at 0.028 s
+    with pytest.raises(ContactOpenedError, match="normal force f crosses 0"):
+        hidden.simulate(0.5, x0=x0, rtol=1e-8, atol=1e-12, params={"fd": 0.3})
+    assert hidden.simulate(0.01).outputs == {}
+    some = _showing(runtime_model, ("f", "lam"))
+    assert some.output_names == ("f", "lam") and set(some.simulate(0.01).outputs) == {"f", "lam"}
+    batch = some.simulate_many(0.01, x0=np.array([runtime_model.initial_state(), x0]), outputs=True,
+                               params={"fd": 0.3})
+    assert set(batch.outputs) == {"f", "lam"}
+
+
+def test_every_contact_is_compiled_for_the_checks_whatever_the_scene_shows():
+    """The outputs the checks read are compiled whatever a scene asks to show
+    (``pipeline.with_check_outputs``): every contact of a 2D or a three-finger 3D scene."""
+    import dataclasses
+
+    from grasping_sym.model import chains
+    from grasping_sym.pipeline import with_check_outputs
+
+    scene, added = with_check_outputs(gs.scenes.paper2d(outputs=()))
+    assert added == ("Q", "R", "f", "kappa_sum") and scene.outputs == added
+    assert with_check_outputs(gs.scenes.paper2d())[1] == ()  # the default shows them all
+    base = gs.scenes.paper3d()
+    third = dataclasses.replace(base.fingers[0], chain=dataclasses.replace(chains.finger1(), name="3"))
+    three = gs.scenes.paper3d(name="three3d", fingers=(*base.fingers, third), dq0=None,
+                              outputs=("kinetic_energy",))
+    scene, added = with_check_outputs(three)
+    assert {"f3", "krel_min3", "constraint_residual"} <= set(added)
+    assert scene.outputs == ("kinetic_energy", *added)
+    paper = with_check_outputs(gs.scenes.paper3d(formulation="paper", outputs=()))[1]
+    assert {"frame_denominator1", "frame_denominator2"} <= set(paper)
+
+
+def test_a_third_contact_that_opens_is_named(paper3d_model):
+    """The trajectory check of a model with three contacts names contact 3 when its normal
+    force crosses 0 (the samples as the compiled outputs give them)."""
+    from grasping_sym.errors import ContactOpenedError
+    from grasping_sym.runtime import checks
+
+    t = np.linspace(0.0, 0.1, 11)
+    X = np.zeros((11, len(paper3d_model.state_names)))
+    outs = {"f1": np.full(11, 0.5), "f2": np.full(11, 0.5), "f3": 0.5 - 10.0 * t}
+    err = checks.trajectory_event(paper3d_model, t, X, outs, {})
+    assert isinstance(err, ContactOpenedError)
+    assert "normal force f3 of contact 3 crosses 0 at about t = 0.05 s" in str(err)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"max_steps": 10**30}, r"max_steps = 1000000000000000000000000000000 must be an integer from 1 "
+                            r"to 9223372036854775807"),
+    ({"max_steps": 2.5}, "max_steps = 2.5 must be an integer"),
+    ({"time_limit": 1e300}, r"time_limit = 1e\+300 s is more than 1e\+09 s"),
+    ({"method": "rk4", "h": 1e-300}, r"h = 1e-300 s over t_final = 0.01 s means 1e\+298 RK4 steps"),
+    ({"t_eval": np.full(10**6, np.nan)}, r"non-finite entries at indices \[0, 1, .*9, \.\.\. \(1000000 in all\)\]"),
+])
+def test_run_limits_are_named_before_any_work(runtime_model, kwargs, match):
+    from grasping_sym.errors import RunArgumentError
+
+    with pytest.raises(RunArgumentError, match=match) as info:
+        runtime_model.simulate(0.01, **kwargs)
+    assert len(str(info.value)) < 400
+    with pytest.raises(RunArgumentError, match="threads = 10000000000 must be an integer from 1 to 1024"):
+        runtime_model.simulate_many(0.01, threads=10**10)
+
+
+def test_the_largest_max_steps_runs(runtime_model):
+    for method in ("radau", "cvodes"):
+        r = runtime_model.simulate(0.01, method=method, max_steps=2**63 - 1)
+        assert r.t[-1] == 0.01

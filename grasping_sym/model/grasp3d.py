@@ -39,7 +39,7 @@ from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
 from grasping_sym.model.control import input_names as _input_names
-from grasping_sym.model.names import name_problems
+from grasping_sym.model.names import name_problems, names_tuple, output_problems
 
 FORMULATIONS = ("regular", "paper")
 SUPPORTS = ("free", "pivot")
@@ -145,7 +145,7 @@ class GraspScene3D:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "fingers", tuple(self.fingers))
-        object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "outputs", names_tuple(self.outputs))
         object.__setattr__(self, "runtime", tuple(self.runtime))
         object.__setattr__(self, "inertia", _matrix(self.inertia))
         object.__setattr__(self, "rotation", _matrix(self.rotation))
@@ -211,10 +211,7 @@ class GraspScene3D:
         for k in self.runtime:
             if k not in RUNTIME_ALLOWED:
                 p.append(f"runtime parameter {k!r} not allowed: choose from {RUNTIME_ALLOWED}")
-        known = set(self.output_catalogue())
-        for k in self.outputs:
-            if k not in known:
-                p.append(f"output {k!r} unknown: choose from {sorted(known)}")
+        p += output_problems(self.outputs, self.output_catalogue())
         return p
 
     # ------------------------------------------------------------------ names
@@ -235,6 +232,17 @@ class GraspScene3D:
             else:
                 out.append(k)
         return tuple(out)
+
+    def check_outputs(self) -> tuple[str, ...]:
+        """The outputs ``runtime.checks`` reads, compiled whatever ``outputs`` asks for (the
+        model does not show those the user did not ask for): the constraints
+        (``constraint_residual``), every contact's normal force and relative curvature
+        (``f{i}``, ``krel_min{i}``) and, in the paper formulation, its frame denominator
+        (``frame_denominator{i}``)."""
+        n = range(1, self.n_contacts + 1)
+        paper = [f"frame_denominator{i}" for i in n] if self.formulation == "paper" else []
+        return ("constraint_residual", *[f"f{i}" for i in n], *[f"krel_min{i}" for i in n],
+                *paper)
 
     @property
     def free(self) -> bool:

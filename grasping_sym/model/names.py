@@ -43,3 +43,56 @@ def name_problems(name: object) -> list[str]:
             problems.append(f"name {name!r} uses the prefix {prefix!r} of the package's own C "
                             "symbols: choose another")
     return problems
+
+
+#: Unknown or repeated output names listed in a message before "... and N more".
+LISTED_NAMES = 10
+
+
+def _listed(names: list) -> str:
+    shown = ", ".join(repr(n) for n in names[:LISTED_NAMES])
+    more = len(names) - LISTED_NAMES
+    return shown + (f", ... and {more} more" if more > 0 else "")
+
+
+def names_tuple(values):
+    """``values`` as a tuple when it is a collection of names; a string or anything else is
+    kept as it is, for ``output_problems`` to refuse by name."""
+    if isinstance(values, (str, bytes)):
+        return values
+    try:
+        return tuple(values)
+    except TypeError:
+        return values
+
+
+def output_problems(outputs: object, known: tuple[str, ...]) -> list[str]:
+    """Every reason ``outputs`` cannot be a scene's output selection from ``known`` (empty when
+    it can): a tuple of distinct names of ``known``, so at most ``len(known)`` of them. The
+    problems are bounded in size whatever was given: at most ``LISTED_NAMES`` names each."""
+    if isinstance(outputs, (str, bytes)):
+        return [f"outputs = {outputs[:80]!r} is a string: give a tuple of output names, e.g. "
+                f"({outputs[:80]!r},)"]
+    if not isinstance(outputs, tuple):
+        return [f"outputs is {type(outputs).__name__}: give a tuple of output names, e.g. "
+                f"{tuple(known[:2])}"]
+    n = len(outputs)
+    if n > len(known):
+        return [f"outputs lists {n} names, but the scene has only {len(known)} distinct "
+                f"outputs: name each at most once, from {list(known)}"]
+    problems = []
+    bad = [k for k in outputs if not isinstance(k, str)]
+    if bad:
+        problems.append(f"outputs holds {len(bad)} entries that are not names ({_listed(bad)}): "
+                        "give each output by its name, a string")
+    names = [k for k in outputs if isinstance(k, str)]
+    unknown = [k for k in names if k not in known]
+    if unknown:
+        problems.append(f"unknown output{'s' if len(unknown) > 1 else ''} {_listed(unknown)}: "
+                        f"choose from {list(known)}")
+    seen: set[str] = set()
+    repeated = [k for k in names if k in seen or seen.add(k)]
+    if repeated:
+        problems.append(f"outputs names {_listed(sorted(set(repeated)))} more than once: name each "
+                        "output once (a result holds one column per name)")
+    return problems

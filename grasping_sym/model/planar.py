@@ -27,7 +27,7 @@ from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
 from grasping_sym.model.control import input_names as _input_names
-from grasping_sym.model.names import name_problems
+from grasping_sym.model.names import name_problems, names_tuple, output_problems
 
 #: Parameters of the 2D scene, with their units.
 PARAMETERS: dict[str, str] = {
@@ -154,7 +154,7 @@ class PlanarFingerScene:
     def __post_init__(self) -> None:
         object.__setattr__(self, "extra_fingers", tuple(self.extra_fingers))
         object.__setattr__(self, "runtime", tuple(self.runtime))
-        object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "outputs", names_tuple(self.outputs))
         if self.extra_fingers and self.outputs == DEFAULT_OUTPUTS:
             object.__setattr__(self, "outputs", self.default_outputs())
         problems = self._parameter_problems()
@@ -190,6 +190,17 @@ class PlanarFingerScene:
         names = [f"{k}{i}" for i in range(1, self.n_fingers + 1) for k in per]
         names += [f"N1_{i}" for i in range(1, self.n_fingers + 1)]
         return (*names, "constraint_residual", "kinetic_energy", "potential_energy", "power")
+
+    def check_outputs(self) -> tuple[str, ...]:
+        """The outputs ``runtime.checks`` reads, compiled whatever ``outputs`` asks for (the
+        model does not show those the user did not ask for): the constraints at the start
+        (``Q``, ``R``; with several fingers ``constraint_residual``), every contact's normal
+        force and relative curvature (``f``, ``kappa_sum``; with several fingers ``f1``,
+        ``kappa_sum1``, ...)."""
+        if self.n_fingers == 1:
+            return ("Q", "R", "f", "kappa_sum")
+        n = range(1, self.n_fingers + 1)
+        return ("constraint_residual", *[f"f{i}" for i in n], *[f"kappa_sum{i}" for i in n])
 
     def default_outputs(self) -> tuple[str, ...]:
         """``DEFAULT_OUTPUTS`` for this scene: with several fingers, each per-contact output once
@@ -315,10 +326,7 @@ class PlanarFingerScene:
                     f"runtime parameter {k!r} cannot vary at run time: allowed are "
                     f"{list(RUNTIME_ALLOWED)} (geometry fixes the initial configuration)"
                 )
-        known = self.output_names()
-        for k in self.outputs:
-            if k not in known:
-                problems.append(f"unknown output {k!r}: choose from {list(known)}")
+        problems += output_problems(self.outputs, self.output_names())
         for i, f in enumerate(self.extra_fingers, start=2):
             if not isinstance(f, ExtraFinger):
                 problems.append(f"extra finger {i} is {type(f).__name__}: give an ExtraFinger")

@@ -20,12 +20,14 @@ from time import perf_counter
 
 import numpy as np
 
-from grasping_sym.errors import GraspingSymError
+from grasping_sym.errors import GraspingSymError, RunArgumentError
 from grasping_sym.runtime import c_loops, projection
 from grasping_sym.runtime import checks as checks_
 
 #: The methods ``simulate_many`` runs (the loops in C).
 METHODS = ("radau", "dopri5", "dop853", "rk4")
+#: Most threads a batch may run on.
+MAX_THREADS = 1024
 #: ``BatchResult.status`` values besides 0 (success) and the C loops' codes (-1 ... -9).
 REFUSED, EVENT = -10, -11
 STATUS = {0: "ok", -1: "non-finite state", -2: "contact left its contour", -3: "evaluation error",
@@ -119,22 +121,25 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
-    from grasping_sym.runtime.model import _output_times, _states, run_settings  # noqa: PLC0415
+    from grasping_sym.runtime.model import _output_times, _states, flags, run_settings  # noqa: PLC0415
 
     start = perf_counter()
     if method not in METHODS:
-        raise ValueError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
-                         "(cvodes and idas run through CasADi one at a time: loop over simulate)")
+        raise RunArgumentError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
+                               "(cvodes and idas run through CasADi one at a time: loop over simulate)")
     t_final, rtol, atol, max_steps, time_limit = run_settings(method, t_final, rtol, atol, h,
                                                               max_steps, time_limit)
+    flags(outputs=outputs, checks=checks)
     threads = default_threads() if threads is None else threads
-    if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
-        raise ValueError(f"threads = {threads!r} must be a positive integer (None: every core)")
+    if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral) \
+            or not 1 <= threads <= MAX_THREADS:
+        raise RunArgumentError(f"threads = {threads!r:.40} must be an integer from 1 to {MAX_THREADS} "
+                               f"(None: every core this process may use, {default_threads()} here)")
     dense = t_eval is not None
     grid, drop_first = _output_times([0.0, t_final] if t_eval is None else t_eval, t_final)
     if outputs and not model.output_names:
-        raise ValueError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
-                         "the scene with outputs=(...) naming the ones you need")
+        raise RunArgumentError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
+                               "the scene with outputs=(...) naming the ones you need")
 
     n_runs = _count(model, x0, params, u)
     X0 = _initial_states(model, x0, n_runs, _states)
@@ -179,7 +184,7 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
     outs = {}
     if outputs and Y is not None:
         Y[bad] = np.nan
-        outs = _output_dict(model, Y)
+        outs = _output_dict(model, Y, shown=True)
     t_out = grid
     x_all = X if dense else None
     if dense and drop_first:
@@ -202,14 +207,14 @@ def _count(model, x0, params, u) -> int:
         if np.ndim(v) == 1:
             sizes[f"params[{k!r}]"] = len(v)
         elif np.ndim(v) > 1:
-            raise ValueError(f"params[{k!r}] has shape {np.shape(v)}: give one number, or one per "
-                             "run (shape (N,))")
+            raise RunArgumentError(f"params[{k!r}] has shape {np.shape(v)}: give one number, or one per "
+                                   "run (shape (N,))")
     if u is not None and not hasattr(u, "segments") and np.ndim(u) == 2:
         sizes["u"] = np.shape(u)[0]
     if len(set(sizes.values())) > 1:
-        raise ValueError("simulate_many: the number of runs differs between "
-                         + ", ".join(f"{k} ({v} rows)" for k, v in sizes.items())
-                         + ": give every per-run array the same length N")
+        raise RunArgumentError("simulate_many: the number of runs differs between "
+                               + ", ".join(f"{k} ({v} rows)" for k, v in sizes.items())
+                               + ": give every per-run array the same length N")
     return next(iter(sizes.values()), 1)
 
 
@@ -221,12 +226,12 @@ def _initial_states(model, x0, n: int, as_numbers) -> np.ndarray:
     if X0.ndim == 1:
         X0 = np.tile(X0, (n, 1))
     if X0.shape != (n, nx):
-        raise ValueError(f"x0 has shape {np.shape(x0)}; give ({nx},) for every run or (N, {nx}), "
-                         f"columns ordered as {model.state_names}")
+        raise RunArgumentError(f"x0 has shape {np.shape(x0)}; give ({nx},) for every run or (N, {nx}), "
+                               f"columns ordered as {model.state_names}")
     bad = np.flatnonzero(~np.all(np.isfinite(X0), axis=1))
     if bad.size:
-        raise ValueError(f"x0 has non-finite entries in {bad.size} row(s), the first row {int(bad[0])}: "
-                         "give finite initial states")
+        raise RunArgumentError(f"x0 has non-finite entries in {bad.size} row(s), the first row {int(bad[0])}: "
+                               "give finite initial states")
     return np.ascontiguousarray(X0)
 
 
@@ -235,18 +240,18 @@ def _parameters(model, params, n: int) -> tuple[np.ndarray, dict[str, np.ndarray
     may name the run-time parameters and the start's run-time values (``model.start_params``:
     e.g. the 3D spring's rest point of a start set with ``with_start``)."""
     if params is not None and not isinstance(params, Mapping):
-        raise TypeError(f"params is {type(params).__name__}: give a dict name -> number or array (N,)")
+        raise RunArgumentError(f"params is {type(params).__name__}: give a dict name -> number or array (N,)")
     P = np.tile(model.default_params, (n, 1)) if model.p_names else np.zeros((n, 0))
     allowed = (*model.param_names, *model.start_params)
     rules = model.manifest.get("param_rules", {})
     for k, v in (params or {}).items():
         if k not in allowed:
             folded = "" if model.param_names else " (this model has none: build the scene with runtime=(...))"
-            raise ValueError(f"{k!r} is not a run-time parameter of this model{folded}; run-time: "
-                             f"{model.param_names}, start values: {tuple(model.start_params)}")
+            raise RunArgumentError(f"{k!r} is not a run-time parameter of this model{folded}; run-time: "
+                                   f"{model.param_names}, start values: {tuple(model.start_params)}")
         arr = np.asarray(v)
         if arr.dtype.kind not in "fiu":
-            raise TypeError(f"params[{k!r}] must be numbers, got {arr.dtype} ({v!r:.60})")
+            raise RunArgumentError(f"params[{k!r}] must be numbers, got {arr.dtype} ({v!r:.60})")
         arr = np.broadcast_to(arr.astype(float), (n,))
         rule = rules.get(k, "finite")
         bad = ~np.isfinite(arr) | ((arr <= 0) if rule == "positive" else (arr < 0) if rule == "nonnegative"
@@ -254,8 +259,8 @@ def _parameters(model, params, n: int) -> tuple[np.ndarray, dict[str, np.ndarray
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             need = {"positive": "finite and > 0", "nonnegative": "finite and >= 0"}.get(rule, "finite")
-            raise ValueError(f"params[{k!r}] must be {need} (as the scene requires of {k}); run {i} "
-                             f"has {arr[i]!r} ({int(bad.sum())} run(s) bad)")
+            raise RunArgumentError(f"params[{k!r}] must be {need} (as the scene requires of {k}); run {i} "
+                                   f"has {arr[i]!r} ({int(bad.sum())} run(s) bad)")
         P[:, model.p_names.index(k)] = arr
     pdict = {k: P[:, model.p_names.index(k)].copy() for k in model.param_names}
     return P, pdict
@@ -266,8 +271,8 @@ def _inputs(model, u, n: int, method: str, grid: np.ndarray):
     at its knots, as ``simulate``'s), or constant inputs ``U`` of shape ``(N, n_inputs)``."""
     if not model.input_names:
         if u is not None:
-            raise ValueError("u given, but this model has no inputs: build the scene with "
-                             "inputs='torques'")
+            raise RunArgumentError("u given, but this model has no inputs: build the scene with "
+                                   "inputs='torques'")
         return None, None
     k = len(model.input_names)
     if u is not None and hasattr(u, "segments"):
@@ -277,15 +282,15 @@ def _inputs(model, u, n: int, method: str, grid: np.ndarray):
         return sched, None
     arr = np.zeros(k) if u is None else np.asarray(u)
     if arr.dtype.kind not in "fiu":
-        raise TypeError(f"u must be numbers (one per input {model.input_names}, or (N, {k})) or a "
-                        "table of grasping_sym.inputs")
+        raise RunArgumentError(f"u must be numbers (one per input {model.input_names}, or (N, {k})) or a "
+                               "table of grasping_sym.inputs")
     arr = arr.astype(float)
     if arr.shape not in ((k,), (n, k)) and not (arr.ndim == 0 and k == 1):
-        raise ValueError(f"u has shape {arr.shape}; give ({k},) for every run or (N, {k}), "
-                         f"ordered as {model.input_names}")
+        raise RunArgumentError(f"u has shape {arr.shape}; give ({k},) for every run or (N, {k}), "
+                               f"ordered as {model.input_names}")
     U = np.broadcast_to(arr.reshape(-1, k) if arr.ndim else arr.reshape(1, 1), (n, k)).copy()
     if not np.all(np.isfinite(U)):
-        raise ValueError("u has non-finite entries: give finite torques (N m)")
+        raise RunArgumentError("u has non-finite entries: give finite torques (N m)")
     return None, U
 
 
@@ -305,17 +310,17 @@ def _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, s) ->
     else:
         res = _segments(model, method, grid, X0, P, sched, dense, checks, not timed, kw)
     res["ok_code"] = len(grid)
-    if checks and timed and model.output_names:  # a law that reads the time: at t = 0
+    if checks and timed and model._columns:  # a law that reads the time: at t = 0
         first = P if sched is None else np.array(
             [model.with_inputs(row, *sched.segments(0.0, float(grid[-1]))[0][2:]) for row in P])
         res["Y0"] = np.array([model._output_row(x, p, 0.0) for x, p in zip(X0, first)])
     if outputs and not in_c:  # outputs that read the time or a table's ramps: run by run
         rows = res["X"] if dense else res["X"][:, None, :]
         tt = grid if dense else grid[-1:]
-        Y = np.full((*rows.shape[:2], len(model.output_names)), np.nan)
+        Y = np.full((*rows.shape[:2], len(model._columns)), np.nan)
         for i in np.flatnonzero(res["status"] == res["ok_code"]):
             outs = model._outputs_along(tt, rows[i], P[i], sched)
-            Y[i] = np.column_stack([outs[k] for k in model.output_names])
+            Y[i] = np.column_stack([outs[k] for k in model._columns])
         res["Y"] = Y if dense else Y[:, 0, :]
     return res
 
@@ -362,16 +367,20 @@ def _rk4_grid(grid: np.ndarray, h: float) -> tuple[float, int, int]:
     n_out = len(grid) - 1
     dt_out = (t1 - t0) / n_out
     if not np.allclose(np.diff(grid), dt_out, rtol=1e-9, atol=1e-15):
-        raise ValueError("rk4 reports on a uniform grid: give a uniformly spaced t_eval")
+        raise RunArgumentError("rk4 reports on a uniform grid: give a uniformly spaced t_eval")
     stride = max(1, math.ceil(dt_out / h - 1e-9))
     h_eff, nsteps = c_loops.rk4_steps(t0, t1, dt_out / stride, stride)
     return h_eff, nsteps, stride
 
 
-def _output_dict(model, Y: np.ndarray | None) -> dict[str, np.ndarray]:
+def _output_dict(model, Y: np.ndarray | None, shown: bool = False) -> dict[str, np.ndarray]:
+    """The columns of ``Y`` (every compiled output, ``model._columns``) by name; ``shown``:
+    only those the model shows (``model.output_names``), not those only the checks read."""
     if Y is None:
         return {}
-    return {k: np.ascontiguousarray(Y[..., i]) for i, k in enumerate(model.output_names)}
+    keep = set(model.output_names) if shown else None
+    return {k: np.ascontiguousarray(Y[..., i]) for i, k in enumerate(model._columns)
+            if keep is None or k in keep}
 
 
 def _message(model, i, grid, drop_first, x0, own_start, p, U, sched, outputs, checks, s,

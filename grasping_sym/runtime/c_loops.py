@@ -101,7 +101,7 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
         raise ValueError(f"stride must be >= 1, got {stride}")
     mask = lib._mask(proj_mask, float(proj_tol))
 
-    bad = violation(x0a, lo_a, hi_a)
+    bad = violation(x0a, lo_a, hi_a, lib.state_names)
     if bad:
         raise IntegratorError(t0, x0a, f"initial state: {bad}", lib.state_names)
 
@@ -135,10 +135,10 @@ def rk4(lib, x0: Any, t0: float, t_final: float, h: float, stride: int = 1, p: A
     x_good = out[r].copy()
     x_bad = out[r + 1].copy()
     if rc == _ERR_NONFINITE:
-        idx = np.flatnonzero(~np.isfinite(x_bad)).tolist()
-        reason = f"state component(s) {idx} became non-finite in the step to t = {tf + h_eff:.6g} s"
+        reason = (f"{nonfinite(x_bad, lib.state_names)} became non-finite in the step to "
+                  f"t = {tf + h_eff:.6g} s")
     elif rc == _ERR_BOUNDS:
-        reason = violation(x_bad, lo_a, hi_a) + f" in the step to t = {tf + h_eff:.6g} s"
+        reason = violation(x_bad, lo_a, hi_a, lib.state_names) + f" in the step to t = {tf + h_eff:.6g} s"
     elif rc == _ERR_EVAL:
         reason = f"the CasADi function reported an evaluation error in the step to t = {tf + h_eff:.6g} s"
     elif rc == _ERR_PROJECT:
@@ -203,7 +203,7 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
             raise ValueError(_T_OUT)
         raise ValueError(f"{c_name} rejected its arguments (rtol = {rtol}, atol = {atol}, "
                          f"h0 = {h0}, max_steps = {max_steps}, proj_tol = {proj_tol})")
-    bad = violation(x0a, lo_a, hi_a) if stats_a[0] == 0 else ""
+    bad = violation(x0a, lo_a, hi_a, lib.state_names) if stats_a[0] == 0 else ""
     if bad:  # the C code refused the initial state itself
         raise IntegratorError(float(t_arr[0]), x0a, f"initial state: {bad}", lib.state_names)
     if rc == _ERR_INTERRUPT:
@@ -245,10 +245,9 @@ def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarra
             reason = (f"{method}: the right-hand side became non-finite at the end of the "
                       f"step {after} (state {x_bad.tolist()})")
         else:
-            idx = np.flatnonzero(~np.isfinite(x_bad)).tolist()
-            reason = f"{method}: state component(s) {idx} became non-finite in the step {after}"
+            reason = f"{method}: {nonfinite(x_bad, lib.state_names)} became non-finite in the step {after}"
     elif rc == _ERR_BOUNDS:
-        reason = f"{method}: " + violation(x_bad, lo_a, hi_a) + f" in the step {after}"
+        reason = f"{method}: " + violation(x_bad, lo_a, hi_a, lib.state_names) + f" in the step {after}"
     elif rc == _ERR_EVAL:
         reason = f"{method}: the CasADi function reported an evaluation error in the step {after}"
     elif rc == _ERR_STEP:
@@ -279,18 +278,31 @@ def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarra
     return err
 
 
-def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None) -> str:
-    """Empty string if ``x`` is finite and in bounds (``None``: unbounded), else the reason."""
+def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None,
+              names=None) -> str:
+    """Empty string if ``x`` is finite and in bounds (``None``: unbounded), else the reason,
+    naming the state (``names``, the state names) and its index."""
     if (np.isfinite(x).all() and (lo is None or (x >= lo).all())
             and (hi is None or (x <= hi).all())):
         return ""
-    nonfinite = np.flatnonzero(~np.isfinite(x))
-    if nonfinite.size:
-        return f"state component(s) {nonfinite.tolist()} are non-finite"
+    if not np.isfinite(x).all():
+        return f"{nonfinite(x, names)} are non-finite"
     lo = np.full(x.shape, -np.inf) if lo is None else lo
     hi = np.full(x.shape, np.inf) if hi is None else hi
     i = int(np.flatnonzero((x < lo) | (x > hi))[0])
-    return f"state component {i} left [{lo[i]:g}, {hi[i]:g}] (value {x[i]:.6g})"
+    name = names[i] if names is not None and i < len(names) else "value"
+    return f"state component {i} left [{lo[i]:g}, {hi[i]:g}] ({name} = {x[i]:.6g})"
+
+
+def nonfinite(x: np.ndarray, names=None) -> str:
+    """``state component(s) [i, ...] (name, ...)``: the non-finite entries of ``x``, by index
+    and, given the state names, by name (at most ten listed)."""
+    idx = np.flatnonzero(~np.isfinite(x)).tolist()
+    more = f", ... {len(idx)} in all" if len(idx) > 10 else ""
+    text = f"state component(s) {idx[:10]}"[:-1] + more + "]"
+    if names is not None and len(names) == len(x):
+        text += " (" + ", ".join(names[i] for i in idx[:10]) + (", ..." if more else "") + ")"
+    return text
 
 
 def projection_stats(stats_a) -> dict:

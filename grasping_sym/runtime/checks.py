@@ -1,11 +1,16 @@
 """The named checks of ``Model.simulate``: silent failure modes turned into errors.
 
-Each check reads the model's outputs, so it runs only when the model was built with them:
+Each check reads the model's compiled outputs, every column of them (``model._columns``):
+those the scene asked to show and those the checks need that it did not ask for, compiled
+all the same (``scene.check_outputs()``, ``pipeline.with_check_outputs``), so every contact
+and every constraint is checked whatever outputs a model shows:
 
 - ``constraint_residual`` (or the 2D ``Q``, ``R``) at ``x0``: ``InconsistentInitialStateError``;
-- normal multipliers ``f`` (2D) or ``f1, f2, ...`` (3D) must stay > 0: ``ContactOpenedError``;
-- relative curvature, ``kappa_sum`` (2D) or the smaller eigenvalue ``krel_min{i}`` of
-  ``K_f + K~_o`` (3D), must stay above ``KAPPA_SUM_RELATIVE`` of its initial value:
+- normal multipliers ``f`` (2D) or ``f1, f2, ...`` (several fingers, 3D) must stay > 0:
+  ``ContactOpenedError``;
+- relative curvature, ``kappa_sum`` (2D; ``kappa_sum1, kappa_sum2, ...`` with several fingers)
+  or the smaller eigenvalue ``krel_min{i}`` of ``K_f + K~_o`` (3D), must stay above
+  ``KAPPA_SUM_RELATIVE`` of its initial value:
   ``RelativeCurvatureError`` (the contact update laws divide by it);
 - the paper formulation's ``frame_denominator{i} = omega0.e0 + omega1.e1`` must stay above
   ``FRAME_DENOMINATOR_RELATIVE`` of its magnitude at the scene's start (the manifest's
@@ -53,7 +58,7 @@ def _matching_cached(names: tuple[str, ...], pattern: str) -> tuple[str, ...]:
 
 
 def curvature_outputs(names) -> list[str]:
-    return _matching(names, r"kappa_sum|krel_min\d+")
+    return _matching(names, r"kappa_sum\d*|krel_min\d+")
 
 
 def force_outputs(names) -> list[str]:
@@ -62,6 +67,11 @@ def force_outputs(names) -> list[str]:
 
 def denominator_outputs(names) -> list[str]:
     return _matching(names, r"frame_denominator\d+")
+
+
+def _finger(name: str) -> str:
+    """`` of finger i`` for a per-finger output ``kappa_sum{i}`` (empty for ``kappa_sum``)."""
+    return f" of finger {name[9:]}" if name[9:] else ""
 
 
 def _scene_size(model) -> float:
@@ -77,8 +87,8 @@ def _denominator_thresholds(model) -> dict[str, float]:
     at the model's own start (evaluated once per model by the compiled outputs)."""
     cached = getattr(model, "_denominator_thresholds", None)
     if cached is None:
-        names = denominator_outputs(model.output_names)
-        y = model.outputs(model.initial_state()) if names else {}
+        names = denominator_outputs(model._columns)
+        y = model._all_outputs(model.initial_state()) if names else {}
         cached = {k: FRAME_DENOMINATOR_RELATIVE * abs(y[k]) for k in names}
         model._denominator_thresholds = cached
     return cached
@@ -124,13 +134,13 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
     """Refuse an ``x0`` off the constraints, at a vanishing relative curvature or, in the paper
     formulation, with a (nearly) stopped contact. Returns the initial value of every
     curvature output (the reference of their thresholds along the run)."""
-    names = set(model.output_names)
+    names = set(model._columns)
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if not names & watched:
         if rates:
             _check_initial_rates(model, x0, p)
         return {}
-    y = model.outputs(x0, p)
+    y = model._all_outputs(x0, p)
     if "Q" in y and "R" in y:
         residual = max(abs(y["Q"]), abs(y["R"]))
         what = f"max(|Q|, |R|) = max({abs(y['Q']):.3g}, {abs(y['R']):.3g})"
@@ -153,10 +163,11 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
     start = {}
     for name in curvature_outputs(y):
         k0 = y[name]
-        if name == "kappa_sum":
+        if name.startswith("kappa_sum"):
             size = _scene_size(model)
             threshold = KAPPA_SUM_INITIAL / size if size > 0 else 0.0
-            why = (f"relative curvature kappa0 + kappa1 = {k0:.6g} 1/m at the initial contact is at "
+            why = (f"relative curvature kappa0 + kappa1 = {k0:.6g} 1/m at the initial contact"
+                   f"{_finger(name)} is at "
                    f"or below {threshold:.6g} 1/m (= {KAPPA_SUM_INITIAL:g} / |Om|, |Om| = "
                    f"{size:.6g} m): the contours nearly osculate there, the update law (29) divides "
                    "by it and the contact point would race along the contours; start from a "
@@ -210,8 +221,8 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
             continue
         i, tc = hit
         xs = X[i - 1] if i else X[0]
-        if name == "kappa_sum":
-            what = ("relative curvature kappa0 + kappa1", "the contours nearly osculate or cross "
+        if name.startswith("kappa_sum"):
+            what = (f"relative curvature kappa0 + kappa1{_finger(name)}", "the contours nearly osculate or cross "
                     "(curvatures of opposite convexity), the update law (29) divides by it",
                     "choose a fingertip more curved than the object's hollows along the path")
         else:
@@ -250,7 +261,7 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
                  f"is {f[0]:.6g} N <= 0 at t = {t[0]:.6g} s, the start")
         err = ContactOpenedError(
             tc, xs,
-            f"normal force {name} {where}: "
+            f"normal force {name}{' of contact ' + name[1:] if name[1:] else ''} {where}: "
             "a unilateral contact cannot pull, the contact would open and the model "
             "(rolling contact kept by a constraint) no longer holds; raise fd or lower "
             "the speeds that pull the finger away (state at the last sample before)" + note,
@@ -267,7 +278,7 @@ def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
     """On a failed run: raise the curvature or moving-frame event instead when it came before
     ``exc.t`` (the cause of the blow-up). The sign of ``f`` is not checked here: near a
     numerical blow-up ``f`` swings wildly and "contact opens" would name a symptom."""
-    names = model.output_names
+    names = model._columns
     if not (curvature_outputs(names) or denominator_outputs(names)):
         return
     rows_t, rows_x = [], []
@@ -293,7 +304,7 @@ def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
     t, X = t[keep], X[keep]
     if len(t) == 0:
         return
-    outs = model.outputs_batch(X, p)
+    outs = model._all_outputs_batch(X, p)
     note = f"; the integrator then failed at t = {exc.t:.6g} s: {exc.reason}"
     event = trajectory_event(model, t, X, outs, start, force=False, note=note)
     if event is not None and event.t <= exc.t:
@@ -322,7 +333,7 @@ def initial_ok(model, Y0: np.ndarray | None, CD0: np.ndarray | None, rates: bool
     ok = np.ones(n, dtype=bool)
     if rates and CD0 is not None:
         ok &= CD0 <= INITIAL_RATE
-    names = model.output_names
+    names = model._columns
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if Y0 is None or not set(names) & watched:
         return ok
@@ -332,7 +343,7 @@ def initial_ok(model, Y0: np.ndarray | None, CD0: np.ndarray | None, rates: bool
     elif "constraint_residual" in y:
         ok &= np.abs(y["constraint_residual"]) <= INITIAL_RESIDUAL
     for name in curvature_outputs(names):
-        if name == "kappa_sum":
+        if name.startswith("kappa_sum"):
             size = _scene_size(model)
             threshold = KAPPA_SUM_INITIAL / size if size > 0 else 0.0
         else:

@@ -47,7 +47,11 @@ def manifest_problems(m: object) -> list[str]:
     states = _strings(m, "state_names", out, ident=True)
     if not states:
         out.append("state_names must not be empty")
-    _strings(m, "output_names", out, ident=True)
+    outputs = _strings(m, "output_names", out, ident=True)
+    hidden = m.get("check_outputs", [])
+    if not isinstance(hidden, list) or not all(isinstance(k, str) for k in hidden) \
+            or not set(hidden) <= set(outputs):
+        out.append("check_outputs must list output_names the checks read")
     params = _strings(m, "param_names", out, ident=True)
     starts = _strings(m, "start_param_names", out, ident=True)
     _strings(m, "input_names", out, ident=True)

@@ -11,6 +11,7 @@ import numpy as np
 from grasping_sym.errors import (
     ContactLeftContourError,
     IntegratorError,
+    RunArgumentError,
 )
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import fastpath, integrators, projection, safety, stored
@@ -25,9 +26,10 @@ class Model:
     Attributes
     ----------
     name, state_names, output_names, param_names
-        As recorded at build time. ``param_names`` are the run-time parameters the user
-        chose (inputs of the compiled functions); all other parameters are folded into the
-        code.
+        As recorded at build time. ``output_names`` are the outputs the scene asked for (the
+        compiled outputs also hold those the run-time checks read, ``runtime.checks``, shown
+        only when asked for). ``param_names`` are the run-time parameters the user chose
+        (inputs of the compiled functions); all other parameters are folded into the code.
     start_params
         The run-time values the start fixes (2D: the pivot ``xm, ym``; 3D: the centre
         spring's rest point ``r_bar0_*``), by name: inputs of the compiled functions after
@@ -45,7 +47,11 @@ class Model:
         self.start = start
         self.name: str = manifest["name"]
         self.state_names: tuple[str, ...] = tuple(manifest["state_names"])
-        self.output_names: tuple[str, ...] = tuple(manifest["output_names"])
+        #: every column of the compiled outputs: the scene's outputs, then those only the
+        #: checks read (the manifest's ``check_outputs``, ``pipeline.with_check_outputs``)
+        self._columns: tuple[str, ...] = tuple(manifest["output_names"])
+        hidden = set(manifest.get("check_outputs", ()))
+        self.output_names: tuple[str, ...] = tuple(k for k in self._columns if k not in hidden)
         self.param_names: tuple[str, ...] = tuple(manifest["param_names"])
         start_names = tuple(manifest.get("start_param_names", ()))
         self.start_params: dict[str, float] = {k: float(start["start_params"][k]) for k in start_names}
@@ -117,28 +123,28 @@ class Model:
         run-time parameters, overridden by ``params``, then the start's values, then the
         inputs' coefficients (zero)."""
         if params and not self.param_names:
-            raise ValueError(
+            raise RunArgumentError(
                 f"parameters {sorted(params)} are folded into this model's code; build the "
                 "scene with runtime=(...) naming them to vary them without a rebuild"
             )
         if params is not None and not isinstance(params, Mapping):
-            raise TypeError(f"params is {type(params).__name__}: give a dict of run-time "
-                            f"parameter values by name, e.g. {{{self.param_names[0]!r}: 0.5}}"
-                            if self.param_names else "params must be a dict")
+            raise RunArgumentError(f"params is {type(params).__name__}: give a dict of run-time "
+                                   f"parameter values by name, e.g. {{{self.param_names[0]!r}: 0.5}}"
+                                   if self.param_names else "params must be a dict")
         if not self.p_names:
             return None
         p = self.default_params.copy()
         rules = self.manifest.get("param_rules", {})
         for k, v in (params or {}).items():
             if k not in self.param_names:
-                raise ValueError(f"{k!r} is not a run-time parameter of this model "
-                                 f"(run-time: {self.param_names})")
+                raise RunArgumentError(f"{k!r} is not a run-time parameter of this model "
+                                       f"(run-time: {self.param_names})")
             value = real(f"params[{k!r}]", v)
             rule = rules.get(k, "finite")
             if rule == "positive" and not value > 0 or rule == "nonnegative" and not value >= 0:
-                raise ValueError(f"params[{k!r}] = {value!r} must be "
-                                 f"{'> 0' if rule == 'positive' else '>= 0'} (as the scene requires "
-                                 f"of {k}); give a physical value")
+                raise RunArgumentError(f"params[{k!r}] = {value!r} must be "
+                                       f"{'> 0' if rule == 'positive' else '>= 0'} (as the scene requires "
+                                       f"of {k}); give a physical value")
             p[self.param_names.index(k)] = value
         return p
 
@@ -212,8 +218,8 @@ class Model:
         if u is not None:
             uu = np.asarray(u, dtype=float).ravel()
             if uu.shape != (len(self.input_names),):
-                raise ValueError(f"u has shape {np.shape(u)}; give one value per input "
-                                 f"{self.input_names}")
+                raise RunArgumentError(f"u has shape {np.shape(u)}; give one value per input "
+                                       f"{self.input_names}")
             full = self.with_inputs(full, uu)
         return self.library.rhs(x, full)
 
@@ -225,18 +231,33 @@ class Model:
     def outputs(self, x, p=None) -> dict[str, float]:
         """The requested outputs at one state."""
         self._need_outputs()
-        timed = bool(self.manifest.get("outputs_time"))
-        y = self._output_row(x, self._p(p), 0.0 if timed else None)
-        return dict(zip(self.output_names, map(float, y)))
+        y = self._all_outputs(x, p)
+        return {k: y[k] for k in self.output_names}
 
     def outputs_batch(self, X, p=None) -> dict[str, np.ndarray]:
         """The requested outputs at every row of ``X``."""
         self._need_outputs()
+        Y = self._all_outputs_batch(X, p)
+        return {k: Y[k] for k in self.output_names}
+
+    def _all_outputs(self, x, p=None) -> dict[str, float]:
+        """Every compiled output at one state, those only the checks read included (empty
+        for a model compiled without outputs)."""
+        if not self._columns:
+            return {}
+        timed = bool(self.manifest.get("outputs_time"))
+        y = self._output_row(x, self._p(p), 0.0 if timed else None)
+        return dict(zip(self._columns, map(float, y)))
+
+    def _all_outputs_batch(self, X, p=None) -> dict[str, np.ndarray]:
+        """Every compiled output at every row of ``X`` (``_all_outputs``)."""
+        if not self._columns:
+            return {}
         if self.manifest.get("outputs_time"):  # a law that reads the time: at t = 0
             Y = np.array([self._output_row(x, self._p(p), 0.0) for x in np.atleast_2d(X)])
         else:
             Y = self.library.outputs_batch(X, self._p(p))
-        return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
+        return {k: Y[:, i].copy() for i, k in enumerate(self._columns)}
 
     def _p(self, p):
         """``p`` completed with the start's values (and zero inputs) when it holds only
@@ -338,11 +359,14 @@ class Model:
             (``piecewise_linear``, ``zero_order_hold``); default 0. The integration restarts at
             every knot of a table inside the run ('rk4' needs a constant input).
         outputs
-            Evaluate the model's outputs along the trajectory.
+            Evaluate the model's outputs along the trajectory (True or False; the outputs
+            themselves are chosen when the scene is made, e.g. ``paper2d(outputs=(...))``).
         checks
-            Turn silent failure modes into named errors (default True). Each check uses the
-            model's outputs and is skipped when the model was built without the output it
-            needs (``model.output_names``):
+            Turn silent failure modes into named errors (default True). The checks read
+            compiled outputs that every model has, whichever outputs the scene asked to show
+            (``pipeline.with_check_outputs``: every contact's normal force and relative
+            curvature, the constraints; a model built before they were added checks what
+            its outputs hold):
 
             - at ``x0``: ``max(|Q|, |R|) <= 1e-8`` m (outputs ``Q`` and ``R``, or
               ``constraint_residual``), else ``InconsistentInitialStateError``; and
@@ -350,11 +374,13 @@ class Model:
               object's pivot from the finger base), else ``RelativeCurvatureError``;
             - along the returned trajectory, on the output samples (only when
               ``outputs=True``: with ``outputs=False`` nothing is evaluated along the run,
-              as benchmarks want): the normal multiplier ``f`` must stay > 0
-              (``ContactOpenedError``) and ``kappa_sum`` above 1e-3 of its initial value
-              (``RelativeCurvatureError``); the first event in time is raised, its time
-              interpolated linearly between the samples around it. Events between two
-              samples that do not show on either are not seen: use a denser ``t_eval``.
+              as benchmarks want): every contact's normal multiplier (``f``; ``f1``, ``f2``,
+              ... with several) must stay > 0 (``ContactOpenedError``) and its relative
+              curvature (``kappa_sum``, ``kappa_sum{i}``, 3D ``krel_min{i}``) above 1e-3 of
+              its initial value (``RelativeCurvatureError``); the first event in time is
+              raised, its time interpolated linearly between the samples around it. Events
+              between two samples that do not show on either are not seen: use a denser
+              ``t_eval``.
             - when the integrator fails, the stored part of the trajectory is checked the
               same way, so a blow-up caused by a vanishing ``kappa_sum`` or an opening
               contact is reported as such.
@@ -390,7 +416,7 @@ class Model:
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
         short = (t_eval is not None and params is None and u is None and time_limit is None
-                 and (not outputs or not self.output_names))
+                 and (not outputs or not self._columns))
         plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks) if short else None
         if plan_key is not None:  # runtime.fastpath: settings a previous call accepted, straight to C
             plan = self._plans.get(plan_key)
@@ -399,16 +425,17 @@ class Model:
                 if res is not None:
                     return res
         if method not in integrators.METHODS:
-            raise ValueError(f"method {method!r} unknown: choose one of {integrators.METHODS}")
+            raise RunArgumentError(f"method {method!r} unknown: choose one of {integrators.METHODS}")
         t_final, rtol, atol, max_steps, time_limit = run_settings(method, t_final, rtol, atol, h,
                                                                   max_steps, time_limit)
+        flags(outputs=outputs, checks=checks)
         own_start = x0 is None  # the stored start: its speeds are consistent by construction
         x0 = self.initial_state() if own_start else _states("x0", x0)
         if x0.shape != (len(self.state_names),):
-            raise ValueError(f"x0 has shape {x0.shape}; expected ({len(self.state_names)},) "
-                             f"ordered as {self.state_names}")
+            raise RunArgumentError(f"x0 has shape {x0.shape}; expected ({len(self.state_names)},) "
+                                   f"ordered as {self.state_names}")
         if not np.all(np.isfinite(x0)):
-            raise ValueError(f"x0 = {x0} has non-finite entries")
+            raise RunArgumentError(f"x0 = {x0} has non-finite entries")
         self._check_bounds(0.0, x0)
         p = self.params(params)
         proj = projection.settings(self, project, method)
@@ -493,11 +520,12 @@ class Model:
             keep = np.isin(t, t_eval)
             t, X = t[keep], X[keep]
             stats["segments"] = len(segments)
-        outs = self._outputs_along(t, X, p, sched) if outputs and self.output_names else {}
+        outs = self._outputs_along(t, X, p, sched) if outputs and self._columns else {}
         if checks and outs:
             event = checks_.trajectory_event(self, t, X, outs, start)
             if event is not None:
                 raise event
+        outs = {k: outs[k] for k in self.output_names} if outputs and outs else {}
         if drop_first:
             t, X = t[1:], X[1:]
             outs = {k: v[1:].copy() for k, v in outs.items()}
@@ -591,22 +619,22 @@ class Model:
         """The inputs' schedule (``grasping_sym.inputs``), None for a model without inputs."""
         if not self.input_names:
             if u is not None:
-                raise ValueError("u given, but this model has no inputs: build the scene with "
-                                 "inputs='torques' (e.g. gs.scenes.paper2d(inputs='torques'))")
+                raise RunArgumentError("u given, but this model has no inputs: build the scene with "
+                                       "inputs='torques' (e.g. gs.scenes.paper2d(inputs='torques'))")
             return None
         from grasping_sym.inputs import as_schedule  # noqa: PLC0415
 
         sched = as_schedule(u, len(self.input_names))
         if method == "rk4" and any(0 < k < t_eval[-1] for k in sched.knots):
-            raise ValueError("rk4 reports on one uniform grid and cannot restart at the table's "
-                             "knots: use method='radau', 'dopri5' or 'cvodes' with a table input")
+            raise RunArgumentError("rk4 reports on one uniform grid and cannot restart at the table's "
+                                   "knots: use method='radau', 'dopri5' or 'cvodes' with a table input")
         return sched
 
     def with_inputs(self, p, a, b=None) -> np.ndarray:
         """``p`` (all of ``p_names``) with the inputs ``u(t) = a + b t`` (``b``: default 0)."""
         n = len(self.input_names)
         if not n:
-            raise ValueError("this model has no inputs: build the scene with inputs='torques'")
+            raise RunArgumentError("this model has no inputs: build the scene with inputs='torques'")
         out = np.array(self.default_params if p is None else p, dtype=float)
         k = self.p_names.index(self.input_names[0])
         out[k:k + n] = np.asarray(a, dtype=float).ravel()
@@ -614,14 +642,15 @@ class Model:
         return out
 
     def _outputs_along(self, t, X, p, sched) -> dict[str, np.ndarray]:
-        """The outputs at the rows of ``X`` (times ``t``): the inputs' value at each time
-        (``a + b t`` as ``a``), and the time itself for a law that reads it. Rows where the
-        inputs are constant go to the compiled batch call, segment by segment."""
+        """Every compiled output (``_all_outputs``) at the rows of ``X`` (times ``t``): the
+        inputs' value at each time (``a + b t`` as ``a``), and the time itself for a law that
+        reads it. Rows where the inputs are constant go to the compiled batch call, segment by
+        segment."""
         timed = bool(self.manifest.get("outputs_time"))
         if sched is None and not timed:
-            return self.outputs_batch(X, p)
+            return self._all_outputs_batch(X, p)
         p = self._p(p)
-        Y = np.empty((len(t), len(self.output_names)))
+        Y = np.empty((len(t), len(self._columns)))
         segment = np.searchsorted(sched.knots, t, side="right") if sched is not None else \
             np.zeros(len(t), dtype=int)
         for k in np.unique(segment):
@@ -632,7 +661,7 @@ class Model:
             for i in rows:
                 pi = p if sched is None else self.with_inputs(p, sched(float(t[i])))
                 Y[i] = self._output_row(X[i], pi, t[i] if timed else None)
-        return {k: Y[:, i].copy() for i, k in enumerate(self.output_names)}
+        return {k: Y[:, i].copy() for i, k in enumerate(self._columns)}
 
     def _output_row(self, x, p, t=None) -> np.ndarray:
         if t is None:
@@ -739,22 +768,51 @@ def run_settings(method: str, t_final, rtol, atol, h, max_steps, time_limit) -> 
     rtol, atol = tolerances(method, rtol, atol)
     t_final = real("t_final", t_final, "seconds")
     if not t_final > 0:
-        raise ValueError(f"t_final = {t_final!r} must be > 0 (seconds)")
+        raise RunArgumentError(f"t_final = {t_final!r} must be > 0 (seconds)")
     if t_final < SUNDIALS_MIN_T and method in ("cvodes", "idas"):
-        raise ValueError(f"t_final = {t_final:g} s is shorter than {SUNDIALS_MIN_T:g} s, below "
-                         f"what {method}'s step control starts on (IDAS fails, CVODES returns "
-                         "x0): use method='radau', 'dopri5' or 'rk4' for so short a run")
+        raise RunArgumentError(f"t_final = {t_final:g} s is shorter than {SUNDIALS_MIN_T:g} s, below "
+                               f"what {method}'s step control starts on (IDAS fails, CVODES returns "
+                               "x0): use method='radau', 'dopri5' or 'rk4' for so short a run")
     if time_limit is not None:
         time_limit = real("time_limit", time_limit, "seconds of wall time")
         if not time_limit > 0:
-            raise ValueError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
+            raise RunArgumentError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
     _positive("rtol", rtol)
     _positive("atol", atol)
     if method == "rk4":
         _positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps <= 0:
-        raise ValueError(f"max_steps = {max_steps!r} must be a positive integer")
+    if isinstance(max_steps, (bool, np.bool_)) or not isinstance(max_steps, numbers.Integral) \
+            or not 0 < max_steps <= MAX_STEPS:
+        raise RunArgumentError(f"max_steps = {max_steps!r:.40} must be an integer from 1 to "
+                               f"{MAX_STEPS} (2**63 - 1, the C loops' step counter)")
+    if time_limit is not None and time_limit > MAX_TIME_LIMIT:
+        raise RunArgumentError(f"time_limit = {time_limit:g} s is more than {MAX_TIME_LIMIT:g} s "
+                               "(about 30 years): give None for no limit")
+    if method == "rk4" and t_final / h > MAX_RK4_STEPS:
+        raise RunArgumentError(f"h = {h:g} s over t_final = {t_final:g} s means {t_final / h:.3g} "
+                               f"RK4 steps, more than {MAX_RK4_STEPS:.0e}: give a larger h (or an "
+                               "adaptive method, e.g. 'radau')")
     return t_final, rtol, atol, int(max_steps), time_limit
+
+
+#: Largest ``max_steps``: the C loops count steps in a 64-bit ``long``.
+MAX_STEPS = 2**63 - 1
+#: Largest ``time_limit`` (s); beyond it, give None (no limit).
+MAX_TIME_LIMIT = 1e9
+#: Most steps an RK4 run may take (``t_final / h``): far beyond any run that finishes, well
+#: inside the C loop's step counter.
+MAX_RK4_STEPS = 10**12
+
+
+def flags(**values) -> None:
+    """Refuse a switch of ``simulate`` / ``simulate_many`` (``outputs``, ``checks``) that is not
+    True or False: a tuple of names given as ``outputs`` would read as True."""
+    for name, value in values.items():
+        if not isinstance(value, (bool, np.bool_)):
+            hint = (": the outputs themselves are chosen when the scene is made, e.g. "
+                    "gs.scenes.paper2d(outputs=('Q', 'f'))" if name == "outputs" else "")
+            raise RunArgumentError(f"{name} = {value!r:.60} is {type(value).__name__}: give True "
+                                   f"or False{hint}")
 
 
 def real(name: str, value, what: str = "") -> float:
@@ -765,10 +823,10 @@ def real(name: str, value, what: str = "") -> float:
     if isinstance(value, (bool, np.bool_, str, bytes)) or not (
             isinstance(value, numbers.Real) or getattr(value, "is_Number", False)
             and getattr(value, "is_real", False)):
-        raise TypeError(f"{name} = {value!r} is {type(value).__name__}: give a number{extra}")
+        raise RunArgumentError(f"{name} = {value!r} is {type(value).__name__}: give a number{extra}")
     v = float(value)
     if not math.isfinite(v):
-        raise ValueError(f"{name} = {value!r} must be a finite number{extra}")
+        raise RunArgumentError(f"{name} = {value!r} must be a finite number{extra}")
     return v
 
 
@@ -776,7 +834,7 @@ def _states(name: str, value) -> np.ndarray:
     """An array of numbers (a TypeError for strings, booleans or objects)."""
     arr = np.asarray(value)
     if arr.dtype.kind not in "fiu":
-        raise TypeError(f"{name} must be numbers, got an array of {arr.dtype} ({value!r:.80})")
+        raise RunArgumentError(f"{name} must be numbers, got an array of {arr.dtype} ({value!r:.80})")
     return arr.astype(float)
 
 
@@ -784,7 +842,7 @@ def _positive(name: str, value, what: str = "") -> None:
     v = real(name, value, what)
     if not v > 0:
         extra = f" ({what})" if what else ""
-        raise ValueError(f"{name} = {value!r} must be a finite number > 0{extra}")
+        raise RunArgumentError(f"{name} = {value!r} must be a finite number > 0{extra}")
 
 
 #: Shortest run (s) handed to SUNDIALS: below it IDAS's initial-condition step fails with
@@ -799,27 +857,29 @@ def _output_times(t_eval, t_final: float) -> tuple[np.ndarray, bool]:
     if t_eval is None:
         n = max(2, math.ceil(t_final * 1000 - 1e-9) + 1)
         if n > MAX_DEFAULT_OUTPUTS:
-            raise ValueError(f"t_final = {t_final:g} s with the default output every ms means {n} "
-                             f"output rows (more than {MAX_DEFAULT_OUTPUTS}): pass t_eval with the "
-                             "times you need, e.g. np.linspace(0, t_final, 1001)")
+            raise RunArgumentError(f"t_final = {t_final:g} s with the default output every ms means {n} "
+                                   f"output rows (more than {MAX_DEFAULT_OUTPUTS}): pass t_eval with the "
+                                   "times you need, e.g. np.linspace(0, t_final, 1001)")
         return np.linspace(0.0, t_final, n), False
     t_eval = _states("t_eval", t_eval)
     if t_eval.ndim != 1 or len(t_eval) < 1:
-        raise ValueError(f"t_eval must be a 1-D array of output times, got shape {t_eval.shape}")
+        raise RunArgumentError(f"t_eval must be a 1-D array of output times, got shape {t_eval.shape}")
     if not np.all(np.isfinite(t_eval)):
-        raise ValueError(f"t_eval has non-finite entries at indices "
-                         f"{np.flatnonzero(~np.isfinite(t_eval)).tolist()}: give finite times")
+        bad = np.flatnonzero(~np.isfinite(t_eval))
+        listed = ", ".join(map(str, bad[:10])) + (f", ... ({len(bad)} in all)" if len(bad) > 10 else "")
+        raise RunArgumentError(f"t_eval has non-finite entries at indices [{listed}]: give "
+                               "finite times")
     if np.any(np.diff(t_eval) <= 0):
-        raise ValueError("t_eval must be strictly increasing")
+        raise RunArgumentError("t_eval must be strictly increasing")
     if t_eval[0] < 0:
-        raise ValueError(f"t_eval starts at {t_eval[0]} < 0: the initial state is at t = 0")
+        raise RunArgumentError(f"t_eval starts at {t_eval[0]} < 0: the initial state is at t = 0")
     if abs(t_eval[-1] - t_final) > 1e-12 * max(1.0, t_final):
-        raise ValueError(f"t_eval ends at {t_eval[-1]!r} but t_final = {t_final!r}: make the "
-                         "last output time equal to t_final")
+        raise RunArgumentError(f"t_eval ends at {t_eval[-1]!r} but t_final = {t_final!r}: make the "
+                               "last output time equal to t_final")
     if t_eval[0] > 0:
         return np.concatenate([[0.0], t_eval]), True
     if len(t_eval) < 2:
-        raise ValueError("t_eval needs a time after 0")
+        raise RunArgumentError("t_eval needs a time after 0")
     return t_eval, False
 
 
