@@ -1,27 +1,46 @@
 """Command line: ``grasping-sym list | simulate | sweep | cache | generate | bench``.
 
-Errors raised on purpose by the package (``GraspingSymError``) are printed as one message
-on stderr with exit code 2, without a traceback. Progress of slow stages (deriving,
-compiling, simulating, plotting) goes to stderr, results to stdout.
+Errors raised on purpose by the package (``GraspingSymError``), a bad argument and a value
+the package refuses (``ValueError``) are printed as one message on stderr with exit code 2,
+without a traceback. Every argument is checked before any work (building, simulating,
+sweeping): the output directory, the parameters' values against the scene's rules, the
+simulated time (at most ``MAX_T_FINAL``), the integrator's settings, what a sweep's figure
+shows. Progress of slow stages (deriving, compiling, simulating, plotting) goes to stderr,
+results to stdout.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from grasping_sym.errors import GraspingSymError
+import numpy as np
+
+from grasping_sym.errors import CompileError, GraspingSymError
 from grasping_sym.runtime.integrators import METHODS
+from grasping_sym.runtime.model import run_settings
+from grasping_sym.sweeps import check_store, parse_range
 
 PROG = "grasping-sym"
 EXIT_USER_ERROR = 2
+#: The longest simulated time the command line runs (s): ``simulate`` writes an output every
+#: millisecond (10^6 rows at this bound), a sweep integrates every point that long.
+MAX_T_FINAL = 1000.0
 
 
 class UsageError(GraspingSymError):
     """A bad command-line value (unknown scene name, non-positive time, ...)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors as ``UsageError`` (one line, exit code 2, from ``main``)."""
+
+    def error(self, message: str):
+        raise UsageError(f"{message} (see `{self.prog} --help`)")
 
 
 def _say(msg: str) -> None:
@@ -79,6 +98,71 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be an integer >= 1")
+    return v
+
+
+# ---------------------------------------------------------------------------- checks
+# Everything a command is given is checked here, before it builds, simulates or sweeps.
+def _check_out(text: str) -> Path:
+    """``--out`` that is not a file (checked before anything is made)."""
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out}: it is a file; give a directory (created if missing)")
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise UsageError(f"--out {out}: {parent} is a file, not a directory; give another directory")
+            break
+    return out
+
+
+def _make_out(out: Path) -> Path:
+    """``--out`` made and writable (the last check before the work)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise UsageError(f"--out {out}: cannot write there ({exc.strerror or exc}); give a directory "
+                         "you may write") from None
+    return out
+
+
+def _check_run(method: str, t_final: float, rtol, atol, h: float = 1e-4) -> None:
+    """The simulated time (at most ``MAX_T_FINAL``) and the integrator's settings, as the
+    model will check them (``runtime.model.run_settings``)."""
+    if t_final > MAX_T_FINAL:
+        raise UsageError(f"--t-final {t_final:g}: at most {MAX_T_FINAL:g} s from the command line "
+                         "(use the Python API, with its own t_eval, for longer runs)")
+    try:
+        run_settings(method, t_final, rtol, atol, h, 1_000_000, None)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"the run's settings (--method {method}): {exc}") from None
+
+
+def _check_param_values(scene, values: dict) -> None:
+    """Each ``--param`` value against the rule the scene sets for that parameter (> 0 for a
+    mass, a length or ``fd``; >= 0 for a gain), as the built model would check it."""
+    extra = scene.manifest_extra() if hasattr(scene, "manifest_extra") else {}
+    rules = extra.get("param_rules", {}) if isinstance(extra, dict) else {}
+    for k, v in values.items():
+        arr = np.atleast_1d(np.asarray(v, dtype=float))
+        rule = rules.get(k, "finite")
+        bad = ~np.isfinite(arr) | ((arr <= 0) if rule == "positive" else (arr < 0) if rule == "nonnegative"
+                                   else np.zeros(arr.shape, dtype=bool))
+        if bad.any():
+            need = {"positive": "> 0", "nonnegative": ">= 0"}.get(rule, "finite")
+            raise UsageError(f"--param {k}: the value {arr[bad][0]:g} is not allowed: {k} must be {need} "
+                             f"(as the scene {scene.name!r} requires); give a physical value")
+
+
 # ---------------------------------------------------------------------------- commands
 def cmd_list(args: argparse.Namespace) -> int:
     scenes = _builtin()
@@ -92,6 +176,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from grasping_sym.pipeline import build
 
     params = _params(args.param)
+    out = _check_out(args.out)
     _say(f"defining scene {args.name}")
     if args.name.endswith(".toml"):  # a scene file (grasping_sym.scene_files)
         from grasping_sym.scene_files import load_scene
@@ -105,6 +190,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         factory = _scene_factory(args.name)
         scene = factory(runtime=tuple(params)) if params else factory()
     t_final, method, rtol, atol = simulate_settings(args, scene)
+    _check_run(method, t_final, rtol, atol, args.h)
+    _check_param_values(scene, params)
+    _make_out(out)
     model = build(scene, progress=_say)
     info = model.build_info
     _say(f"simulating {scene.name} for {t_final:g} s with {method}")
@@ -112,8 +200,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     result = model.simulate(t_final, method=method, rtol=rtol, atol=atol, h=args.h,
                             params=params or None)
     sim_wall = time.perf_counter() - t0
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     csv_path = result.write_csv(out / "trajectory.csv")
     _say(f"writing figures into {out}")
     figures = scene.write_figures(result, out)
@@ -190,34 +276,59 @@ def cmd_cache(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------- sweep
-def cmd_sweep(args: argparse.Namespace) -> int:
-    import numpy as np
+def _check_show(show: str, scene) -> None:
+    """``--show``: a final state, ``settle_<state or output>``, ``min_``/``max_<...>``, or
+    ``failure`` (what the sweep's store will hold)."""
+    from grasping_sym.sweep_plots import FAILURE  # noqa: PLC0415
 
+    quantities = (*scene.state_names, *getattr(scene, "outputs", ()))
+    known = [*scene.state_names, FAILURE] + [f"{kind}_{q}" for kind in ("settle", "min", "max")
+                                             for q in quantities]
+    if show not in known:
+        outputs = quantities[len(scene.state_names):]
+        example = "f" if "f" in outputs else (outputs or scene.state_names)[0]
+        raise UsageError(f"--show {show!r}: show a final state ({', '.join(scene.state_names[:8])}"
+                         f"{', ...' if len(scene.state_names) > 8 else ''}), settle_<state>, "
+                         f"min_<output> or max_<output> (e.g. settle_{scene.state_names[0]}, min_{example}; "
+                         f"outputs: {', '.join(outputs)}), or {FAILURE}")
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
     from grasping_sym.pipeline import build
     from grasping_sym.sweep_plots import FAILURE, sweep_figure
-    from grasping_sym.sweeps import parse_range, sweep
+    from grasping_sym.sweeps import sweep
 
     try:
-        grid = dict(parse_range(text) for text in args.param)
+        axes = [parse_range(text) for text in args.param]
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+    grid = dict(axes)
+    if len(grid) < len(axes):
+        raise UsageError(f"--param: each name once, got {[k for k, _ in axes]}")
     if not grid:
         raise UsageError("give at least one --param NAME=START:STOP:NUM")
+    if len(grid) > 2:
+        raise UsageError(f"--param: {len(grid)} axes ({', '.join(grid)}), the figure shows one or two; "
+                         "sweep more with gs.sweep in Python")
+    out = _check_out(args.out)
     factory = _scene_factory(args.name)
     probe = factory()
     runtime = tuple(k for k in grid if not (k.endswith("_0") and k[:-2] in probe.state_names)
                     and k not in getattr(probe, "input_names", ()))
     scene = factory(runtime=runtime) if runtime else probe
+    show = args.show or ("theta" if "theta" in scene.state_names else scene.state_names[0])
+    _check_show(show, scene)
+    _check_run(args.method, args.t_final, args.rtol, args.atol)
+    _check_param_values(scene, {k: v for k, v in grid.items() if k in runtime})
+    check_store(out / "sweep.zarr")
+    _make_out(out)
     model = build(scene, progress=_say)
-    show = args.show or ("theta" if "theta" in model.state_names else model.state_names[0])
     kind, _, quantity = show.partition("_")
     # the same measures whatever is shown, so that another --show reads the same store
     measures = ["settle:theta"] if "theta" in model.state_names else []
     measures += [f"min:{f}" for f in model.output_names if f == "f" or f[:1] == "f" and f[1:].isdigit()]
     if kind in ("min", "max", "settle") and quantity and f"{kind}:{quantity}" not in measures:
         measures.append(f"{kind}:{quantity}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     n = int(np.prod([len(v) for v in grid.values()]))
     _say(f"sweeping {scene.name} over {' x '.join(f'{k} ({len(v)})' for k, v in grid.items())} = "
          f"{n} runs of {args.t_final:g} s")
@@ -287,7 +398,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- parser
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog=PROG,
         description="Rolling contact between smooth shapes: build, simulate and plot scenes.",
     )
@@ -303,7 +414,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("name", metavar="NAME", help="built-in scene (see `list`), or a scene file "
                                                 "(.toml: grasping_sym.scene_files)")
     p.add_argument("--t-final", type=_positive_float, default=None,
-                   help="simulated time in s (default 3 for 2D scenes, 5 for 3D scenes)")
+                   help=f"simulated time in s (default 3 for 2D scenes, 5 for 3D scenes; at most "
+                        f"{MAX_T_FINAL:g})")
     p.add_argument("--out", required=True, help="output directory (created if missing)")
     p.add_argument("--method", choices=METHODS, default=None,
                    help="integrator (default cvodes for 2D scenes, radau for 3D scenes)")
@@ -330,7 +442,8 @@ def make_parser() -> argparse.ArgumentParser:
                    help="a grid axis: a run-time parameter (e.g. fd), a starting pose value "
                         "(e.g. q1_0) or an input; NUM values from START to STOP, or V1,V2,...; "
                         "repeat for more axes")
-    p.add_argument("--t-final", type=_positive_float, default=3.0, help="simulated time in s (default 3)")
+    p.add_argument("--t-final", type=_positive_float, default=3.0,
+                   help=f"simulated time in s (default 3; at most {MAX_T_FINAL:g})")
     p.add_argument("--out", required=True, help="output directory (created if missing)")
     p.add_argument("--show", default=None,
                    help="what the figure shows: a final state (e.g. theta, the default), "
@@ -342,7 +455,7 @@ def make_parser() -> argparse.ArgumentParser:
                    help="relative tolerance (default: the method's, radau 1e-6)")
     p.add_argument("--atol", type=_positive_float, default=None,
                    help="absolute tolerance (default: the method's, radau 1e-9)")
-    p.add_argument("--chunk", type=int, default=None,
+    p.add_argument("--chunk", type=_positive_int, default=None,
                    help="runs per Dask task (default: about 8 tasks per thread, 1000 to 20000 runs)")
     p.add_argument("--processes", action="store_true",
                    help="run on a local cluster of worker processes (default: threads here)")
@@ -382,12 +495,21 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``grasping-sym``; returns the exit code."""
     parser = make_parser()
-    args = parser.parse_args(argv)
     try:
+        args = parser.parse_args(argv)
         return args.func(args)
-    except GraspingSymError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
+    except (GraspingSymError, ValueError) as exc:  # refused by name: the message, no traceback
+        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USER_ERROR
+
+
+def _one_line(exc: Exception) -> str:
+    """The message of ``exc`` on one line (a list of problems joined), except a compiler's
+    output, which keeps its lines."""
+    text = str(exc)
+    if isinstance(exc, CompileError):
+        return text
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
 
 
 if __name__ == "__main__":

@@ -63,6 +63,8 @@ SAMPLES = 301
 #: What ``settle:`` measures against, by default (the quantity's unit: rad, m, N).
 SETTLE_TOL = 1e-3
 _FORMAT = "grasping_sym.sweep/1"
+#: The most values ``parse_range`` makes of one ``START:STOP:NUM`` (the command line's axes).
+MAX_AXIS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -136,13 +138,18 @@ def parse_range(text: str) -> tuple[str, np.ndarray]:
         if ":" in rest:
             start, stop, num = rest.split(":")
             n = int(num)
-            if n < 1:
+            if not 1 <= n <= MAX_AXIS:
                 raise ValueError
-            return name, np.linspace(float(start), float(stop), n)
-        return name, np.array([float(v) for v in rest.split(",")])
+            values = np.linspace(float(start), float(stop), n)
+        else:
+            values = np.array([float(v) for v in rest.split(",")])
     except ValueError:
-        raise ValueError(f"--param {text!r}: write NAME=START:STOP:NUM (NUM a positive integer) or "
+        raise ValueError(f"--param {text!r}: write NAME=START:STOP:NUM (NUM an integer from 1 to "
+                         f"{MAX_AXIS:,}) or "
                          "NAME=V1,V2,... with numbers") from None
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"--param {text!r}: the values must be finite numbers (no nan or inf)")
+    return name, values
 
 
 # ------------------------------------------------------------------ what a point is
@@ -166,6 +173,19 @@ def _roles(model, names) -> dict[str, tuple[str, str]]:
             f"{[s + '_0' for s in model.state_names[:len(model.state_names) // 2]]}..."
             + (f", inputs {list(model.input_names)}" if model.input_names else ""))
     return roles
+
+
+def _check_values(model, g: Grid, roles) -> None:
+    """The run-time parameters' values against the rule the scene sets for each (as
+    ``simulate_many`` checks them, but before any task is sent)."""
+    rules = model.manifest.get("param_rules", {})
+    for k, ax in zip(g.names, g.axes):
+        rule = rules.get(k, "finite") if roles[k][0] == "param" else "finite"
+        bad = (ax <= 0) if rule == "positive" else (ax < 0) if rule == "nonnegative" else np.zeros(len(ax), bool)
+        if bad.any():
+            raise ValueError(f"grid[{k!r}] has {float(ax[bad][0])!r}: {k} must be "
+                             f"{'> 0' if rule == 'positive' else '>= 0'} (as the scene requires); "
+                             "give physical values")
 
 
 def _measures(model, outputs, measures) -> list[tuple[str, str, str]]:
@@ -317,7 +337,9 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
         raise ValueError(f"samples = {samples!r} must be an integer >= 2 (output times per run)")
     if not (isinstance(settle_tol, numbers.Real) and math.isfinite(settle_tol) and settle_tol > 0):
         raise ValueError(f"settle_tol = {settle_tol!r} must be a number > 0")
-    task = {"grid": g, "roles": _roles(model, g.names), "t_final": float(t_final),
+    roles = _roles(model, g.names)
+    _check_values(model, g, roles)
+    task = {"grid": g, "roles": roles, "t_final": float(t_final),
             "measures": _measures(model, tuple(outputs), tuple(measures)), "samples": int(samples),
             "settle_tol": float(settle_tol),
             "settings": dict(method=method, rtol=rtol, atol=atol, project=project,

@@ -175,6 +175,9 @@ def test_bad_grids_and_ranges_are_named(model, tmp_path):
         gs.sweep(model, {"mass": [1.0]}, 1.0, store=tmp_path / "x.zarr", progress=False)
     with pytest.raises(ValueError, match="non-finite"):
         gs.sweep(model, {"fd": [0.5, np.nan]}, 1.0, store=tmp_path / "x.zarr", progress=False)
+    with pytest.raises(ValueError, match=r"grid\['fd'\] has -1.0: fd must be > 0"):
+        gs.sweep(model, {"fd": [0.5, -1.0]}, 1.0, store=tmp_path / "x.zarr", progress=False)
+    assert not (tmp_path / "x.zarr").exists()  # refused before anything was written
     with pytest.raises(ValueError, match="not outputs"):
         gs.sweep(model, {"fd": [0.5]}, 1.0, store=tmp_path / "x.zarr", measures=("mean:f",),
                  progress=False)
@@ -182,7 +185,8 @@ def test_bad_grids_and_ranges_are_named(model, tmp_path):
         gs.sweep(model, {"fd": [0.5]}, 1.0, store=tmp_path / "x.zarr", method="cvodes", progress=False)
     assert np.array_equal(parse_range("fd=0.2:1.0:5")[1], np.linspace(0.2, 1.0, 5))
     assert parse_range("q1_0=0.5,0.6")[1].tolist() == [0.5, 0.6]
-    for bad in ("fd", "fd=1:2", "fd=1:2:0", "fd=__import__('os')"):
+    for bad in ("fd", "fd=1:2", "fd=1:2:0", "fd=__import__('os')", "fd=nan:1:2", "fd=0.5,inf",
+                "fd=0:1:10000000000"):
         with pytest.raises(ValueError, match="--param"):
             parse_range(bad)
 

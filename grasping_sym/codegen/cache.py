@@ -135,7 +135,7 @@ _MODEL_DIR = re.compile(r"(?P<scene>[^/\\]+)-(?P<hash>[0-9a-f]{16})")
 #: Shared directories at the root, and the names of what the package keeps in each.
 SHARED_DIRS = {
     "structures": re.compile(r"gs_structure_[0-9a-f]{12}"),  # codegen.structure_cache
-    "templates": re.compile(r"[\w.+-]+\.json"),  # codegen.templates
+    "templates": re.compile(r"(planar|finger)-[\w.+-]+\.json"),  # codegen.templates
     "objects": re.compile(r"driver-[0-9a-f]{16}"),  # codegen.objects
 }
 #: The files an unfinished build (no manifest yet) may have left in a model's directory.
