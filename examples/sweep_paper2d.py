@@ -8,6 +8,12 @@ time of theta (from which on it stays within 1 mrad of its final value) and the 
 normal force along the run. A run has settled when it is still 0.5 s before the end and the
 object has stopped (|dtheta| < 1e-3 rad/s).
 
+Every start is on the branch of the scene's start (``Model.solve_start``): the joints and the
+contact point move continuously with theta_0, with no switch to the finger's other posture; a
+start that branch does not reach would be a failed point (status ``START``), drawn as a cross.
+The dark row near theta_0 = 0.41 rad is the equilibrium where the object stops: a start near
+it settles at once.
+
 Run: ``python examples/sweep_paper2d.py [out.png]`` (a 40 x 40 grid, about a second).
 """
 from __future__ import annotations
@@ -19,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 import grasping_sym as gs
+from grasping_sym.sweeps import START
 
 T_FINAL = 3.0
 MARGIN = 0.5  # s before the end by which a settled run has settled
@@ -53,11 +60,19 @@ def figure(ds, settled, path: str | Path) -> Path:
     for ax in axes:
         ax.set_xlabel("desired grip force fd (N)")
         ax.set_ylabel("starting object angle theta_0 (rad)")
-    failed = ds["status"].values != 0
-    if failed.any():
-        F, T = np.meshgrid(fd, th)
-        axes[0].plot(F[failed], T[failed], "x", color="0.4", ms=3, label="failed")
-        axes[0].legend(loc="lower right", fontsize=8)
+    if settled.any():  # where the object stops: starts near it settle at once
+        stop = float(np.nanmedian(ds["theta"].where(settled).values))
+        for ax in axes:
+            ax.axhline(stop, color="w", ls=":", lw=1)
+        axes[0].annotate(f"equilibrium {stop:.3f} rad", (fd[-1], stop), xytext=(-4, 4),
+                         textcoords="offset points", ha="right", fontsize=8, color="w")
+    status = ds["status"].values
+    F, T = np.meshgrid(fd, th)
+    for which, marker, label in ((status == START, "x", "start refused"),
+                                 ((status != 0) & (status != START), "+", "run failed")):
+        if which.any():
+            axes[0].plot(F[which], T[which], marker, color="0.4", ms=3, label=label)
+            axes[0].legend(loc="lower right", fontsize=8)
     fig.suptitle("paper2d: where the paper's controller settles the object", fontsize=11)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
