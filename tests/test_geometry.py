@@ -6,6 +6,7 @@ Every expected value here is an analytic formula written independently of
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -244,3 +245,212 @@ def test_library_refuses_unknown_parameterisation():
     with pytest.raises(InvalidCurveError) as info:
         library.circle(0.01, by="degrees")
     assert "'degrees'" in str(info.value)
+
+
+# ------------------------------------------------------------------ number types (issue 25)
+@pytest.mark.parametrize("kind", [np.float32, np.float16, np.float64, np.int64, np.array],
+                         ids=["float32", "float16", "float64", "int64", "0-d array"])
+def test_library_accepts_any_real_number_type(kind):
+    """A radius from a float32 array, an int64, a 0-d array: the same contour as the float."""
+    def val(x):
+        return kind(x)
+
+    r = float(val(0.01)) if kind is not np.int64 else 1.0
+    c = library.circle(val(0.01) if kind is not np.int64 else val(1), (val(0), val(0)),
+                       start=val(0), span=val(1), clockwise=np.bool_(False))
+    assert float(c.evaluate(0.0)["curvature"]) == pytest.approx(1 / r, rel=1e-12)
+    e = library.ellipse(val(2), val(1), start=val(0), span=val(1), clockwise=True)
+    assert float(e.evaluate(0.0)["x"]) == pytest.approx(2.0, rel=1e-12)
+    s = library.superellipse(val(2), val(1), np.int64(4), span=val(1))
+    assert float(s.evaluate(0.0)["x"]) == pytest.approx(2.0, rel=1e-12)
+    k = library.catenary(val(20), val(0), sign=np.int64(-1), domain=(val(-0), val(1)))
+    assert float(k.evaluate(0.0)["curvature"]) == pytest.approx(40.0, rel=1e-6)
+    g = library.polynomial_graph([val(0), val(1)], (val(-1), val(1)), offset=val(1))
+    assert float(g.evaluate(0.5)["x"]) == pytest.approx(1.5, rel=1e-6)
+    p = PlanarCurve(val(1), "t", T, (val(0), val(1)), "numpy numbers")
+    assert p.domain == (0.0, 1.0) and type(p.domain[0]) is float
+    assert float(p.evaluate(0.5)["x"]) == pytest.approx(1.0, rel=1e-6)
+
+
+def test_float32_radius_keeps_its_float_value_and_python_floats_keep_their_key():
+    c = library.circle(np.float32(0.01))
+    assert float(c.evaluate(0.0)["x"]) == pytest.approx(float(np.float32(0.01)), rel=1e-15, abs=0)
+    assert library.circle(0.01).key() == library.circle(np.float64(0.01)).key()
+
+
+@pytest.mark.parametrize("bad, shown", [(True, "True"), (1 + 2j, "(1+2j)"), ("0.01", "'0.01'"),
+                                        (np.float32("nan"), "np.float32(nan)"), (np.inf, "inf"),
+                                        (np.array([0.01]), "array([0.01])"), (None, "None")])
+def test_library_names_what_is_not_a_real_number(bad, shown):
+    with pytest.raises(InvalidCurveError) as info:
+        library.circle(bad)
+    assert f"radius = {shown}" in str(info.value) and "finite positive number" in str(info.value)
+
+
+def test_library_names_every_bad_argument_at_once():
+    with pytest.raises(InvalidCurveError) as info:
+        library.ellipse(0.02, 0.01, center=("0", 0), start=1j, clockwise="false")
+    problems = info.value.problems
+    assert len(problems) == 3, problems
+    text = "\n".join(problems)
+    for w in ("center = ('0', 0) must be two finite real numbers", "start = 1j must be a finite real",
+              "clockwise = 'false' must be True or False"):
+        assert w in text, text
+    with pytest.raises(InvalidCurveError, match=r"n = 3\.0 must be an even integer"):
+        library.superellipse(0.02, 0.01, 3.0)
+    with pytest.raises(InvalidCurveError, match=r"sign = True must be \+1 or -1"):
+        library.catenary(20.0, 0.0, sign=True)
+
+
+@pytest.mark.parametrize("domain", [("a", 1), (0.0,), "ab", 5, (0, 1, 2), (True, 1.0), (0, 1j)])
+def test_domain_that_is_not_two_numbers_is_named(domain):
+    """A string, a short tuple, a bool: InvalidCurveError naming the domain and the fix
+    (never a raw ValueError or IndexError)."""
+    with pytest.raises(InvalidCurveError) as info:
+        PlanarCurve("t", "t**2", T, domain, "bad domain")
+    msg = str(info.value)
+    assert f"domain = {domain!r} is not two real numbers" in msg
+    assert "give (t_min, t_max)" in msg and "'bad domain'" in msg
+
+
+def test_domain_problem_is_listed_with_the_others():
+    with pytest.raises(InvalidCurveError) as info:
+        PlanarCurve(T, sp.Symbol("a_len") * T, T, ("0", "1"), "two problems")
+    assert len(info.value.problems) == 2
+    assert "free symbols a_len" in str(info.value) and "not two real numbers" in str(info.value)
+
+
+# ------------------------------------------------------------------ self-crossing (issue 25)
+LEMNISCATE = ("0.02*cos(t)/(1 + sin(t)**2)", "0.02*sin(t)*cos(t)/(1 + sin(t)**2)")
+
+
+@pytest.mark.parametrize("domain", [(0.0, 2 * math.pi), (0.3, 0.3 + 2 * math.pi), (0.0, 4 * math.pi),
+                                    (1.0, 5.0)], ids=["one period", "shifted", "twice", "part"])
+def test_lemniscate_is_refused_where_it_crosses(domain):
+    """The lemniscate of Bernoulli passes through its centre at t = pi/2 and t = 3 pi/2: the
+    check names both parameter values (a sample falls exactly on the crossing in the first
+    case, between samples in the others)."""
+    c = PlanarCurve(*LEMNISCATE, T, domain, "lemniscate")
+    with pytest.raises(InvalidCurveError) as info:
+        c.check()
+    msg = str(info.value)
+    assert "crosses itself" in msg and "'lemniscate'" in msg
+    assert "t = 1.5708 and at t = 4.71239" in msg, msg
+    assert "shrink the domain" in msg
+
+
+def test_one_lobe_of_the_lemniscate_is_accepted():
+    PlanarCurve(*LEMNISCATE, T, (-1.5, 1.5), "lobe").check()
+
+
+def test_a_loop_between_the_ends_is_refused():
+    """A prolate cycloid's loop, (t - 2 sin t, 1 - 2 cos t): it crosses itself on the axis
+    x = 0 at t = -+t_c with t_c = 2 sin t_c (1.895494...), between samples."""
+    c = PlanarCurve(T - 2 * sp.sin(T), 1 - 2 * sp.cos(T), T, (-4.0, 4.0), "prolate cycloid")
+    with pytest.raises(InvalidCurveError, match="crosses itself") as info:
+        c.check()
+    ta, tb = (float(v) for v in re.findall(r"t = (-?[\d.]+)", str(info.value))[:2])
+    t_c = 1.895494267033981  # the root of t = 2 sin t
+    assert ta == pytest.approx(-t_c, abs=1e-4) and tb == pytest.approx(t_c, abs=1e-4)
+
+
+@pytest.mark.parametrize("make, period", [
+    (lambda: library.ellipse(0.02, 0.015, start=math.pi, span=math.pi, clockwise=True), 2 * math.pi),
+    (lambda: library.ellipse(0.025, 0.018, span=6.2, clockwise=True), 2 * math.pi),
+    (lambda: library.circle(0.01, by="angle", span=20.0), 2 * math.pi),
+    (lambda: library.circle(0.01, span=4.0), 2 * math.pi * 0.01),
+    (lambda: library.circle(0.01, span=3.0), None),
+    (lambda: library.paper_object(), None),
+], ids=["ellipse once", "ellipse twice", "circle 3 turns", "circle by arclength", "arc", "catenary"])
+def test_closed_contours_going_round_more_than_once_are_not_crossings(make, period):
+    """A closed contour may be declared over more than one turn (the contact can go round):
+    that is a repetition, found as ``period``, not a self-crossing; the end meeting the start
+    is fine."""
+    c = make()
+    c.check()
+    if period is None:
+        assert c.period is None and not c.orientation.closed
+    else:
+        assert c.period == pytest.approx(period, rel=1e-9) and c.orientation.closed
+
+
+def test_orientation_turning_and_area():
+    """Closed: +-2 pi and the enclosed area pi a b with the sign of the direction; an open
+    arc: its angle and the fan area from the origin."""
+    a, b = 0.02, 0.015
+    for clockwise, sgn in ((False, 1), (True, -1)):
+        o = library.ellipse(a, b, start=math.pi, span=math.pi, clockwise=clockwise).orientation
+        assert o.closed and o.turning == pytest.approx(sgn * 2 * math.pi, rel=1e-9)
+        assert o.area == pytest.approx(sgn * math.pi * a * b, rel=1e-4)   # 401-gon
+    o = library.circle(0.01, by="angle", span=1.0, clockwise=True).orientation
+    assert not o.closed and o.turning == pytest.approx(-2.0, rel=1e-9)
+    assert o.area == pytest.approx(-0.5 * 0.01**2 * 2.0, rel=1e-4)
+
+
+# ------------------------------------------------------------------ direction of travel (issue 25)
+OBJECT_CONTOURS = {  # every library object contour, built as the guide says (clockwise)
+    "circle": lambda cw: library.circle(0.02, start=math.pi, span=1.5, clockwise=cw),
+    "circle by angle": lambda cw: library.circle(0.02, by="angle", start=math.pi, span=math.pi, clockwise=cw),
+    "ellipse": lambda cw: library.ellipse(0.020, 0.015, start=math.pi, span=math.pi, clockwise=cw),
+    "ellipse twice round": lambda cw: library.ellipse(0.025, 0.018, span=6.2, clockwise=cw),
+    "superellipse": lambda cw: library.superellipse(0.02, 0.015, 4, start=math.pi, span=1.0, clockwise=cw),
+    "off-centre circle": lambda cw: library.circle(0.1, center=(0.0, 0.02), clockwise=cw),
+}
+
+
+def _validate(fingertip, obj, **kw):
+    import grasping_sym as gs
+
+    gs.scenes.planar_finger(fingertip, obj, name="direction", **kw).validate()
+
+
+@pytest.mark.parametrize("shape", sorted(OBJECT_CONTOURS))
+def test_every_library_object_contour_is_accepted_clockwise_and_named_counterclockwise(shape):
+    from grasping_sym.errors import InvalidSceneError
+
+    make = OBJECT_CONTOURS[shape]
+    u1 = make(True).domain[0] * 0.5 + make(True).domain[1] * 0.5
+    _validate(library.paper_fingertip(), make(True), u1_0=u1)
+    with pytest.raises(InvalidSceneError) as info:
+        _validate(library.paper_fingertip(), make(False), u1_0=u1)
+    msg = str(info.value)
+    assert "object contour" in msg and "runs counterclockwise about the object" in msg, msg
+    assert "clockwise=True" in msg and "points[::-1]" in msg
+
+
+def test_paper_contours_and_the_hard_cases_keep_their_direction():
+    """The paper's catenaries, an object with an inflection, the exact-case disks (the object
+    circle's centre off its pivot, the pivot outside it), and a concave hollow whose frame's
+    origin is on the material's side (an open arc bent the other way on purpose) pass."""
+    _validate(library.paper_fingertip(), library.paper_object())
+    _validate(library.paper_fingertip(),
+              library.polynomial_graph([-0.02, 0.0, 50.0, -5000.0], (-0.012, 0.012)), u1_0=0.001)
+    _validate(library.circle(0.015, (-0.005, 0.0), span=3.0),
+              library.circle(0.010, (-0.010, 0.004), start=math.pi, span=3.0, clockwise=True))
+    _validate(library.circle(0.015), library.circle(1.01 * 0.015, center=(-0.05, 0.003)))
+
+
+def test_object_listed_counterclockwise_is_refused_before_the_run():
+    """The reviewer's case: an object less curved than the fingertip, listed counterclockwise.
+    The relative curvature at the start is positive (40 - 31.25 1/m), so nothing but the
+    direction tells that the fingertip is placed inside the object."""
+    from grasping_sym.errors import InvalidSceneError
+
+    obj = library.ellipse(0.05, 0.04, span=math.pi, name="big ellipse")   # counterclockwise
+    with pytest.raises(InvalidSceneError) as info:
+        _validate(library.paper_fingertip(), obj, u1_0=0.0)
+    msg = str(info.value)
+    assert "object contour 'big ellipse' runs counterclockwise about the object" in msg
+    assert "the area it encloses is +0.006283 m^2" in msg          # pi a b, counterclockwise
+    assert "fingertip would be put inside the object" in msg and "relative curvature kappa0" not in msg
+    _validate(library.paper_fingertip(), library.ellipse(0.05, 0.04, span=math.pi, clockwise=True), u1_0=0.0)
+
+
+def test_fingertip_listed_clockwise_is_refused():
+    from grasping_sym.errors import InvalidSceneError
+
+    with pytest.raises(InvalidSceneError) as info:
+        _validate(library.circle(0.01, span=2.0, clockwise=True, name="tip"), library.paper_object())
+    msg = str(info.value)
+    assert "fingertip contour 'tip' runs clockwise about the fingertip" in msg
+    assert "its tangent turns by -4 rad" in msg and "clockwise=False" in msg

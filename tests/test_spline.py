@@ -198,10 +198,37 @@ def test_every_problem_is_listed_at_once():
 
 
 def test_scene_validation_sees_a_spline_like_any_contour():
-    """A counterclockwise object contour is refused by the scene (relative curvature), as for
-    the library's contours: the spline is an ordinary PlanarCurve to the rest of the package."""
+    """A counterclockwise object contour is refused by the scene (its direction, and here the
+    relative curvature too), as for the library's contours: the spline is an ordinary
+    PlanarCurve to the rest of the package."""
     obj = spline(ellipse_points(40)[::-1], closed=True)
     scene = gs.scenes.planar_finger(gs.curves.paper_fingertip(), obj, name="ccw", u1_0=0.0)
     with pytest.raises(InvalidSceneError) as err:
         scene.validate()
+    assert "runs counterclockwise about the object" in str(err.value)
     assert "relative curvature" in str(err.value)
+
+
+@pytest.mark.parametrize("closed", [True, False], ids=["closed", "open"])
+def test_spline_object_listed_counterclockwise_is_named(closed):
+    """Issue 25: points of an ellipse less curved than the fingertip (31 1/m < 40 1/m),
+    listed counterclockwise. The relative curvature at the start is positive, so the scene
+    used to be accepted with the fingertip inside the object, failing later with advice
+    about the fingertip's curvature. Now the direction is named with the fix, and the same
+    points reversed are accepted."""
+    a, b = 0.05, 0.04
+    th = np.linspace(0.0, 2 * math.pi, 48, endpoint=False)
+    pts = np.c_[a * np.cos(th), b * np.sin(th)]               # counterclockwise from (a, 0)
+    if not closed:
+        pts = pts[:36]                                        # three quarters of it
+    obj = spline(pts, closed=closed, name="sampled")
+    scene = gs.scenes.planar_finger(gs.curves.paper_fingertip(), obj, name="ccw_spline", u1_0=0.0)
+    with pytest.raises(InvalidSceneError) as err:
+        scene.validate()
+    msg = str(err.value)
+    assert "object contour 'sampled' runs counterclockwise about the object" in msg
+    assert ("the area it encloses is +" if closed else "its tangent turns by +") in msg
+    assert "gs.curves.spline(points[::-1], ...)" in msg
+    assert "relative curvature kappa0 + kappa1 =" not in msg  # kappa0 + kappa1 > 0 here
+    gs.scenes.planar_finger(gs.curves.paper_fingertip(), spline(pts[::-1], closed=closed),
+                            name="cw_spline", u1_0=0.0).validate()

@@ -276,3 +276,65 @@ def test_parameters_are_renamed_and_key_is_content_based():
     assert sl.ellipsoid(0.03, 0.02, 0.01).key() != sl.ellipsoid(0.03, 0.02, 0.011).key()
     val = s2.evaluate(np.zeros((4, 3)), 0.5)
     assert val["point"].shape == (4, 3, 3) and val["K_p"].shape == (4, 3, 2, 2) and val["K"].shape == (4, 3)
+
+
+# ------------------------------------------------------------------ number types (issue 25)
+@pytest.mark.parametrize("kind", [np.float32, np.float16, np.int64, np.array],
+                         ids=["float32", "float16", "int64", "0-d array"])
+def test_library_surfaces_accept_any_real_number_type(kind):
+    """Sizes, placements and chart ranges from NumPy arrays: the same surfaces as floats."""
+    def val(x):
+        return kind(x)
+
+    s = sl.sphere(val(2), center=(val(0), val(1), val(0)), lon=(val(-1), val(1)), lat=(val(-1), val(1)))
+    assert s.domain == ((-1.0, 1.0), (-1.0, 1.0))
+    def point(surface, u, v):  # the chart's point only (no lambdify of the curvature forms)
+        return np.array([float(c.subs({U: u, V: v})) for c in surface.S])
+
+    np.testing.assert_allclose(point(s, 0.0, 0.0), [2.0, 1.0, 0.0], rtol=1e-12)
+    e = sl.ellipsoid(val(3), val(2), val(1))
+    np.testing.assert_allclose(point(e, math.pi / 2, 0.0), [0.0, 2.0, 0.0], atol=1e-12)
+    q = sl.superquadric(val(2), val(2), val(1), n=np.int64(4))
+    np.testing.assert_allclose(point(q, 0.0, 0.0), [2.0, 0.0, 0.0], atol=1e-12)
+    t = sl.torus(val(3), val(1))
+    np.testing.assert_allclose(point(t, 0.0, 0.0), [4.0, 0.0, 0.0], atol=1e-12)
+    p = sl.plane(val(2), val(4), rotation=np.eye(3, dtype=np.float32))
+    assert p.domain == ((-1.0, 1.0), (-2.0, 2.0))
+    f = ParametricSurface([U, V, val(1)], (U, V), ((val(0), val(1)), (val(0), val(1))))
+    assert f.domain == ((0.0, 1.0), (0.0, 1.0)) and point(f, 0.5, 0.5)[2] == 1.0
+
+
+def test_float32_radius_is_its_float_value():
+    s = sl.sphere(np.float32(0.01))
+    r = float(sp.sqrt(sum(c**2 for c in s.S)).subs({U: 0.3, V: 0.2}))
+    assert r == pytest.approx(float(np.float32(0.01)), rel=1e-15) and r != pytest.approx(0.01, rel=1e-12)
+
+
+def test_library_surfaces_name_what_is_not_a_real_number():
+    with pytest.raises(InvalidSurfaceError) as err:
+        sl.sphere(True, center=("0", "0", "0"), lon=("a", 1))
+    problems = "\n".join(err.value.problems)
+    assert len(err.value.problems) == 3, problems
+    for w in ("radius = True must be a finite positive number", "lon = ('a', 1) must be a pair of numbers",
+              "center = ('0', '0', '0') must be three finite numbers"):
+        assert w in problems, problems
+    with pytest.raises(InvalidSurfaceError) as err:
+        sl.torus(1j, "0.01")
+    assert "R = 1j must be" in str(err.value) and "r = '0.01' must be" in str(err.value)
+    with pytest.raises(InvalidSurfaceError, match=r"n = 4\.0 must be an even integer"):
+        sl.superquadric(0.1, 0.1, 0.1, n=4.0)
+    with pytest.raises(InvalidSurfaceError, match="must be a finite positive number"):
+        sl.ellipsoid(np.float32("nan"), 0.1, 0.1)
+
+
+@pytest.mark.parametrize("domain", [(("a", 1), (0, 1)), ("ab", (0, 1)), ((0, 1),), ((0, 1), (0, True)),
+                                    5], ids=["string", "string pair", "one pair", "bool", "number"])
+def test_surface_domain_that_is_not_numbers_is_named(domain):
+    with pytest.raises(InvalidSurfaceError) as err:
+        ParametricSurface([U, V, U * V], (U, V), domain, "bad domain")
+    msg = str(err.value)
+    assert f"domain = {domain!r} is not two pairs of real numbers" in msg
+    assert "((u_min, u_max), (v_min, v_max))" in msg and "'bad domain'" in msg
+    with pytest.raises(InvalidSurfaceError) as err:  # listed with the other problems
+        ParametricSurface([U, V, sp.Symbol("w") * U], (U, V), domain, "bad domain")
+    assert len(err.value.problems) == 2 and "free symbols w" in str(err.value)
