@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.codegen import templates
-from grasping_sym.codegen.compiler import compile_shared
 from grasping_sym.cli import main as cli_main
 from grasping_sym.codegen import cache as gs_cache
+from grasping_sym.codegen import templates
+from grasping_sym.codegen.compiler import compile_shared
 from grasping_sym.errors import (
     CacheContentsError,
     CacheWriteError,
