@@ -62,9 +62,9 @@ BRANCHES = ("start", "any")
 #: the largest predicted change of any coordinate in one step (rad or m), the corrector's
 #: move allowed per predicted move, the contraction each Newton step must achieve, the
 #: Newton steps per continuation step and the continuation steps in all.
-FIRST_STEP = 0.125
+FIRST_STEP = 0.25
 MIN_STEP = 2.0 ** -24
-MAX_MOVE = 0.15
+MAX_MOVE = 0.25
 JUMP = 0.3
 CONTRACTION = 0.5
 STEP_ITERATIONS = 8
