@@ -19,8 +19,8 @@ import sympy as sp
 
 from grasping_sym.errors import InvalidCurveError
 from grasping_sym.geometry.curves import PlanarCurve, T
-from grasping_sym.geometry.values import as_real
 from grasping_sym.geometry.spline import SplineCurve, spline
+from grasping_sym.geometry.values import as_real
 
 __all__ = ["circle", "ellipse", "superellipse", "polynomial_graph", "catenary", "paper_fingertip",
            "paper_object", "spline", "SplineCurve"]

@@ -22,8 +22,8 @@ import sympy as sp
 
 from grasping_sym.errors import InvalidSurfaceError
 from grasping_sym.geometry.curves import PlanarCurve, T
-from grasping_sym.geometry.values import as_real
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from grasping_sym.geometry.values import as_real
 
 Vec3 = tuple[float, float, float]
 _PI = math.pi

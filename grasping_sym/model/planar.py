@@ -533,10 +533,12 @@ def _direction_problem(label: str, curve: PlanarCurve, sense: int) -> str | None
     fix = ("list its points the other way round (gs.curves.spline(points[::-1], ...)) or use "
            f"clockwise={sense < 0} for a library contour (e.g. gs.curves.ellipse(a, b, ..., "
            f"clockwise={sense < 0}))")
-    return (f"{label} contour '{curve.name}' runs {runs} about the {body}: {measured}. {'An' if sense < 0 else 'A'} {body} "
+    article = "An" if sense < 0 else "A"
+    inside = ("object would be put inside the fingertip" if sense > 0
+              else "fingertip would be put inside the object")
+    return (f"{label} contour '{curve.name}' runs {runs} about the {body}: {measured}. {article} {body} "
             f"contour must run {should} about its body (the {body}'s material on the {material} of "
-            f"the direction of travel, the outward normal on the {normal}); as given, the "
-            f"{'object would be put inside the fingertip' if sense > 0 else 'fingertip would be put inside the object'} "
+            f"the direction of travel, the outward normal on the {normal}); as given, the {inside} "
             f"and the run would fail on the relative curvature. Fix: {fix}")
 
 
