@@ -249,6 +249,37 @@ def test_the_checks_run_whatever_outputs_the_model_shows(runtime_model):
     assert set(batch.outputs) == {"f", "lam"}
 
 
+def test_the_checks_run_whatever_outputs_the_run_returns(runtime_model):
+    """``outputs=False`` returns no outputs but still checks the events along the run: a
+    contact that opens is named by simulate (the full way, and the short way of a second call
+    with the same settings) and by simulate_many, not returned as a success."""
+    from grasping_sym.errors import ContactOpenedError
+    from tests.test_hard_cases import rolling_velocity
+
+    weak = gs.build(gs.scenes.paper2d(runtime=("fd", "m11", "gf"), fd=0.3))  # the same library
+    x0 = weak.initial_state()
+    x0[3:6] = -60.0 * rolling_velocity(weak, x0)  # test_hard_cases (d): f crosses 0 at 0.028 s
+    grid = np.linspace(0.0, 0.06, 61)
+    kw = dict(rtol=1e-8, atol=1e-12, outputs=False, t_eval=grid)
+    assert weak.simulate(0.06, **kw).outputs == {}
+    # x0's start checks pass (a run that ends before the contact opens), so later calls with
+    # these settings take the short way (runtime.fastpath), which checks the events too
+    weak.simulate(0.01, x0=x0, **{**kw, "t_eval": grid[:11]})
+    from grasping_sym.runtime import fastpath
+    plan = next(iter(weak._plans.values()))
+    assert fastpath.run(weak, plan, 0.06, grid, None) is not None
+    assert fastpath.run(weak, plan, 0.06, grid, x0) is None  # an event: the full way names it
+    with pytest.raises(ContactOpenedError, match="normal force f crosses 0"):
+        weak.simulate(0.06, x0=x0, **kw)
+    batch = weak.simulate_many(0.06, x0=np.array([weak.initial_state(), x0]), rtol=1e-8,
+                               atol=1e-12, t_eval=grid)
+    assert batch.outputs == {}
+    assert batch.status.tolist()[0] == 0 and batch.status.tolist()[1] != 0
+    assert "normal force f crosses 0" in batch.errors[1]
+    unchecked = weak.simulate(0.06, x0=x0, checks=False, **kw)  # asked for: not checked
+    assert np.all(np.isfinite(unchecked.x))
+
+
 def test_every_contact_is_compiled_for_the_checks_whatever_the_scene_shows():
     """The outputs the checks read are compiled whatever a scene asks to show
     (``pipeline.with_check_outputs``): every contact of a 2D or a three-finger 3D scene."""

@@ -4,8 +4,8 @@ The runs go to ``gs_batch`` (``c/batch.c``): one C call integrates all of them o
 threads with the GIL released, each by the loop a single ``simulate`` calls, with the same
 arguments, so that every run's numbers are bit for bit the single run's. What ``simulate``
 checks in Python is checked here on arrays: the initial state (from the outputs and the
-constraint rates the C call evaluates at every ``x0``) and, with ``outputs=True``, the events
-along the output samples. A run that fails, in C or at a check, is run once more on its own
+constraint rates the C call evaluates at every ``x0``) and the events along the output samples
+(with ``checks``, whether or not ``outputs`` asks to return the outputs). A run that fails, in C or at a check, is run once more on its own
 through ``simulate``'s code, so its message is the single run's named error; it loses nothing
 of the other runs.
 """
@@ -152,7 +152,9 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
     settings = dict(method=method, rtol=float(rtol), atol=float(atol), h=float(h),
                     max_steps=max_steps, proj=proj, time_limit=time_limit)
 
-    res = _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, settings)
+    # the checks read the compiled outputs whether or not the result shows them
+    evaluate = (outputs or checks) and bool(model._columns)
+    res = _integrate(model, grid, X0, P, sched, dense, evaluate, checks, threads, settings)
     status = np.where(res["status"] == res["ok_code"], 0, res["status"]).astype(np.int64)
     X, Y = res["X"], res.get("Y")
     if checks and n_runs:
@@ -160,7 +162,7 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
         refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own)
         started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
         status[refused & started] = REFUSED  # simulate refuses before it integrates
-        if outputs and Y is not None:
+        if Y is not None:
             Y0 = res.get("Y0")
             ys = _output_dict(model, Y if dense else np.stack([Y0, Y], axis=1))
             hit = ~checks_.trajectory_clean(model, grid, ys, initial=_output_dict(model, Y0))

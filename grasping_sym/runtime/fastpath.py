@@ -5,7 +5,8 @@ limit, whose settings (method, tolerances, ``max_steps``, ``project``, ``checks`
 call of the full path accepted, goes straight to the C loop (``gs_radau5`` / ``gs_dopri5`` / ``gs_dop853``
 through the library's CPython extension): the settings were validated then and are kept here as
 a *plan*; the initial checks of an ``x0`` (a pure function of ``x0`` and ``p``) are
-remembered for the last few states. The C loop validates the output times and ``x0`` itself; a
+remembered for the last few states; the events along the run are checked on the output
+samples as the full way checks them (a run with an event goes the full way, which names it). The C loop validates the output times and ``x0`` itself; a
 run that fails, or arguments this path does not take, go the full way, which names the
 problem. The numbers are the full path's, bit for bit (the same call with the same arrays).
 """
@@ -15,6 +16,7 @@ from time import perf_counter
 
 import numpy as np
 
+from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import interrupt
 from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
@@ -92,6 +94,10 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
             raise interrupt.interrupted(f"{plan.method} stopped by Ctrl-C")
         return None
+    if plan.checks and model._columns:  # the events along the run, as the full way checks them
+        outs = model._outputs_along(t, out[:m], model.default_params if model.p_names else None, None)
+        if checks_.trajectory_event(model, t, out[:m], outs, {}) is not None:
+            return None  # the full way raises it, named
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     res = SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))
     res.scene = getattr(model, "scene", None)

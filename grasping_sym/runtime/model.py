@@ -372,9 +372,9 @@ class Model:
               ``constraint_residual``), else ``InconsistentInitialStateError``; and
               ``kappa_sum * |Om| > 1e-3`` (output ``kappa_sum``; ``|Om|`` the distance of the
               object's pivot from the finger base), else ``RelativeCurvatureError``;
-            - along the returned trajectory, on the output samples (only when
-              ``outputs=True``: with ``outputs=False`` nothing is evaluated along the run,
-              as benchmarks want): every contact's normal multiplier (``f``; ``f1``, ``f2``,
+            - along the returned trajectory, on the output samples (whether or not
+              ``outputs`` asks to return them; the outputs are evaluated at every output time
+              for the checks, and only ``checks=False`` saves that): every contact's normal multiplier (``f``; ``f1``, ``f2``,
               ... with several) must stay > 0 (``ContactOpenedError``) and its relative
               curvature (``kappa_sum``, ``kappa_sum{i}``, 3D ``krel_min{i}``) above 1e-3 of
               its initial value (``RelativeCurvatureError``); the first event in time is
@@ -480,8 +480,8 @@ class Model:
             Output times common to every run: ``x`` (``(N, m, n_states)``) and the outputs are
             kept there; without, only the final states are.
         outputs
-            Evaluate the outputs (at the final states, or at ``t_eval``) and, with ``checks``,
-            check the events along them as ``simulate`` does.
+            Return the outputs (at the final states, or at ``t_eval``). With ``checks`` they are
+            evaluated and the events along them checked as ``simulate`` does either way.
         threads
             Threads to run on (default: every core this process may use).
         """
@@ -520,7 +520,8 @@ class Model:
             keep = np.isin(t, t_eval)
             t, X = t[keep], X[keep]
             stats["segments"] = len(segments)
-        outs = self._outputs_along(t, X, p, sched) if outputs and self._columns else {}
+        # the checks read the compiled outputs whether or not the result shows them
+        outs = self._outputs_along(t, X, p, sched) if (outputs or checks) and self._columns else {}
         if checks and outs:
             event = checks_.trajectory_event(self, t, X, outs, start)
             if event is not None:
