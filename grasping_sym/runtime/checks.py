@@ -82,7 +82,7 @@ def _scene_size(model) -> float:
     return float(np.hypot(start["xm"], start["ym"]))
 
 
-def _denominator_thresholds(model) -> dict[str, float]:
+def denominator_thresholds(model) -> dict[str, float]:
     """Thresholds of the paper formulation's frame denominators: a fraction of their values
     at the model's own start (evaluated once per model by the compiled outputs)."""
     cached = getattr(model, "_denominator_thresholds", None)
@@ -184,7 +184,7 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
             err.kappa_sum, err.threshold = k0, threshold
             raise err
         start[name] = k0
-    for name, thr in _denominator_thresholds(model).items():
+    for name, thr in denominator_thresholds(model).items():
         if name in y and not abs(y[name]) > thr:
             raise _frame_error(model, name, 0.0, x0, y[name], thr,
                                "; the paper formulation cannot start at rest: give the scene "
@@ -239,7 +239,7 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
         )
         err.kappa_sum, err.threshold, err.t_sample = float(k[i]), threshold, float(t[i])
         events.append((tc, 0, err))
-    for name, thr in _denominator_thresholds(model).items():
+    for name, thr in denominator_thresholds(model).items():
         if name not in outs:
             continue
         hit = first_crossing(t, np.abs(outs[name]), thr)
@@ -349,7 +349,7 @@ def initial_ok(model, Y0: np.ndarray | None, CD0: np.ndarray | None, rates: bool
         else:
             threshold = 0.0
         ok &= y[name] > threshold
-    for name, thr in _denominator_thresholds(model).items():
+    for name, thr in denominator_thresholds(model).items():
         if name in y:
             ok &= np.abs(y[name]) > thr
     return ok
@@ -364,7 +364,7 @@ def trajectory_clean(model, t: np.ndarray, outs: dict, initial: dict) -> np.ndar
     for name in curvature_outputs(outs):
         k_ref = initial.get(name, outs[name][:, 0])
         clean &= np.all(outs[name] > (KAPPA_SUM_RELATIVE * k_ref)[:, None], axis=1)
-    for name, thr in _denominator_thresholds(model).items():
+    for name, thr in denominator_thresholds(model).items():
         if name in outs:
             clean &= np.all(np.abs(outs[name]) > thr, axis=1)
     for name in force_outputs(outs):
