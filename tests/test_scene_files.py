@@ -92,3 +92,54 @@ def test_the_command_line_simulates_a_scene_file(tmp_path, capsys):
     assert main(["simulate", str(path), "--param", "c=0.01", "--t-final", "0.05", "--out",
                  str(tmp_path / "out")]) == 2
     assert "runtime = [...]" in capsys.readouterr().err
+
+
+def test_a_file_gives_the_scene_inputs_and_its_controller(tmp_path):
+    """inputs = "torques" is a word, not a formula; controller = "none": the torques are the inputs."""
+    scene = load_scene(_file(tmp_path, '[scene]\nbase = "paper2d"\ninputs = "torques"\n'
+                                       'controller = "none"\nname = "pi"\n'))
+    assert scene.inputs == "torques" and scene.input_names == ("u1", "u2")
+    assert scene.controller is None and scene.name == "pi"
+    assert load_scene(_file(tmp_path, '[scene]\nbase = "pivot3d"\ninputs = "torques"\n',
+                            "s3.toml")).input_names == ("u1", "u2")
+
+
+@pytest.mark.parametrize("text, found", [
+    ('[scene]\nbase = "paper2d"\nq1_0 = "10**10**10"\n', "q1_0 = '10**10**10'"),
+    ('[scene]\nbase = "paper2d"\nq1_0 = "' + "-" * 5000 + '1"\nfd = "' + "+".join(["0.1"] * 2000)
+     + '"\nc = "' + "sin(" * 200 + "1" + ")" * 200 + '"\n', "nested more than 100 deep"),
+    ('[scene]\nbase = "planar_finger"\n[fingertip]\nshape = ["ellipse"]\n[object]\nshape = "circle"\n'
+     'radius = 0.02\n', "shape = ['ellipse']: choose one of"),
+    ('[scene]\nbase = "paper2d"\ninputs = "forces"\n', "inputs = 'forces'"),
+    ('[scene]\nbase = "paper2d"\ncontroller = "pid"\n', "controller = 'pid': choose one of"),
+    ('[scene]\nbase = "paper2d"\nfd = nan\n', "fd = nan: give a finite number"),
+    ('[scene]\nbase = "paper2d"\nfd = "sqrt(-1)"\n', "not a real number"),
+    ('[scene]\nbase = "paper2d"\nfd = ' + "[" * 3000 + "]" * 3000 + "\n", "nested too deeply"),
+])
+def test_bad_values_are_refused_by_name_at_once(tmp_path, text, found):
+    with pytest.raises(SceneFileError) as exc:
+        load_scene(_file(tmp_path, text))
+    assert found in str(exc.value)
+
+
+def test_files_that_are_not_scene_files_are_refused_by_name(tmp_path):
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(b'[scene]\nbase = "paper2d"\nname = "caf\xe9"\n')
+    with pytest.raises(SceneFileError, match=r"not UTF-8 text: byte 36 \(0xe9\)"):
+        load_scene(bad)
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"# " + b"x" * (1 << 20) + b"\n")
+    with pytest.raises(SceneFileError, match="a scene file has at most 1048576"):
+        load_scene(big)
+    for path in ("/dev/zero", tmp_path):
+        with pytest.raises(SceneFileError, match="not a regular file"):
+            load_scene(path)
+
+
+def test_the_command_line_refuses_a_huge_formula_at_once(tmp_path, capsys):
+    path = _file(tmp_path, '[scene]\nbase = "paper2d"\nq1_0 = "10**10**10"\n')
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert len(errors) == 1 and "q1_0 = '10**10**10': the power" in errors[0]
+    assert "beyond a double's range" in errors[0]
+    assert not (tmp_path / "out").exists()
