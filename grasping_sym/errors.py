@@ -217,3 +217,16 @@ class RunArgumentError(GraspingSymError, ValueError, TypeError):
     range (``max_steps`` beyond a C ``long``, a non-finite time, ``outputs`` not a bool ...);
     the message names it, its value and the range. Both a ValueError and a TypeError, as the
     plain errors these checks raised before."""
+
+
+class ControllerError(GraspingSymError, ValueError):
+    """A control law (``gs.controllers``) cannot give the model's joint torques: a bad argument
+    of a preset, a law for the other dimension, or a law that raised, returned something that
+    is not torques, or used a symbol that is not one of the model's quantities (the message
+    names the law and the fix)."""
+
+
+class InputScheduleError(GraspingSymError, ValueError):
+    """A ``gs.inputs.Schedule`` (or the table it is made from) is not one: knot times not finite
+    and strictly increasing, a number of rows that is not one per segment, non-finite values,
+    or a number of inputs that is not the model's (the message names the field and its shape)."""
