@@ -17,9 +17,13 @@ Presets: :func:`paper2d` (the 2D paper's law (32)), :func:`paper3d` (the 3D gras
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 
+import casadi as ca
 import numpy as np
+
+from grasping_sym.errors import ControllerError, GraspingSymError
 
 __all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "paper2d", "paper3d",
            "turn3d"]
@@ -27,22 +31,46 @@ __all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "pape
 
 class Controller:
     """A control law (see the module's docstring). ``name`` labels it in reprs and
-    manifests; what a model's code depends on is the law's expressions, not its name."""
+    manifests; what a model's code depends on is the law's expressions, not its name.
+    ``dimension``: 2 or 3 for a law written for the scenes of one dimension (its quantities),
+    None for any scene."""
 
-    def __init__(self, fn: Callable, name: str = "law", terms: tuple[Controller, ...] = ()):
+    def __init__(self, fn: Callable, name: str = "law", terms: tuple[Controller, ...] = (),
+                 dimension: int | None = None):
         if not callable(fn):
             raise TypeError(f"a controller's law must be a function of the model's quantities, "
                             f"got {type(fn).__name__}")
         self._fn = fn
         self.name = name
+        self.dimension = dimension
         self.terms = terms or (self,)
 
     def torques(self, m) -> list:
-        """The law's joint torques at the quantities ``m``: one SX column per finger."""
+        """The law's joint torques at the quantities ``m``: one SX column per finger. Raises
+        :class:`ControllerError` naming the law for a law of the other dimension, a law that
+        raises, or one that returns anything but torques."""
+        dimension = m.tip[0].numel() if m.tip else None
+        wrong = [t.name for t in self.terms if t.dimension not in (None, dimension)]
+        if wrong and dimension is not None:
+            other = "paper2d, orientation2d" if dimension == 2 else "paper3d, turn3d"
+            raise ControllerError(
+                f"controller {self.name!r}: {', '.join(wrong)} "
+                f"{'is a law' if len(wrong) == 1 else 'are laws'} of {5 - dimension}D scenes, "
+                f"written for their quantities; this scene is {dimension}D: use one of its "
+                f"laws ({other}), or damping, feedforward or a law of your own (gs.controllers.law)")
         if len(self.terms) > 1:
             parts = [t.torques(m) for t in self.terms]
             return [sum(cols[1:], cols[0]) for cols in zip(*parts)]
-        return m.split(self._fn(m), self.name)
+        try:
+            out = self._fn(m)
+        except GraspingSymError:
+            raise
+        except Exception as exc:  # the user's code: named, with what it raised
+            raise ControllerError(_failure(self.name, exc)) from exc
+        try:
+            return m.split(_torques(out, m.n_joints, self.name), self.name)
+        except ValueError as exc:  # a shape that is not the model's joints
+            raise ControllerError(str(exc)) from None
 
     def __add__(self, other: Controller) -> Controller:
         if not isinstance(other, Controller):
@@ -54,14 +82,97 @@ class Controller:
         return f"Controller({self.name})"
 
 
+_RETURN = ("return the joint torques (N m): a list with one column per finger, or one column "
+           "(or a list) of every joint, as CasADi SX built from the quantities, or numbers")
+
+
+def _failure(name: str, exc: Exception) -> str:
+    """The message of a law that raised ``exc`` when run on the model's quantities."""
+    text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+    if isinstance(exc, RuntimeError) and "truth value" in text:
+        return (f"controller {name!r} decides with Python (if, and, or, not, min, max, a "
+                "comparison) on a symbolic quantity: the law runs once, on CasADi SX symbols, to "
+                "make the torques' expressions, so its branches must be expressions too: write "
+                "ca.if_else(condition, a, b), ca.fmin, ca.fmax or ca.fabs")
+    if isinstance(exc, (KeyError, AttributeError)) and "a control law asked for" in text:
+        return f"controller {name!r}: {text}"
+    return (f"controller {name!r} raised {type(exc).__name__}: {text}; a law runs once, when the "
+            "model is built, on the model's quantities (CasADi SX symbols): check it on them "
+            "(gs.controllers docstring)")
+
+
+def _torques(out, n_joints: int, name: str):
+    """What a law returned as SX: one SX, or a list of SX columns (a list of one scalar per
+    joint becomes the column of every joint)."""
+    if isinstance(out, (list, tuple)):
+        items = [_sx(v, name, f"item {i}") for i, v in enumerate(out)]
+        if len(items) == n_joints and all(v.numel() == 1 for v in items):
+            return ca.vertcat(*items)
+        return items
+    return _sx(out, name, "its result")
+
+
+def _sx(value, name: str, where: str) -> ca.SX:
+    """One value of a law's result as SX, or a named error."""
+    if isinstance(value, ca.SX):
+        return value
+    kind = type(value).__name__
+    if isinstance(value, ca.MX):
+        raise ControllerError(f"controller {name!r} returned an MX expression ({where}): the "
+                              f"quantities are SX, and so must the torques be; {_RETURN}")
+    if type(value).__module__.split(".")[0] == "sympy":
+        raise ControllerError(f"controller {name!r} returned a SymPy expression ({where}: {value}): "
+                              f"{_RETURN}; SymPy expressions of time go through "
+                              "gs.controllers.feedforward")
+    if isinstance(value, (list, tuple)) and value:
+        return ca.vertcat(*[_sx(v, name, f"{where}[{k}]") for k, v in enumerate(value)])
+    if isinstance(value, ca.DM):
+        numbers = np.asarray(value)
+    elif isinstance(value, (int, float, np.integer, np.floating, np.ndarray)) \
+            and not isinstance(value, (bool, np.bool_)):
+        numbers = np.asarray(value)
+        if numbers.dtype.kind not in "iuf":
+            raise ControllerError(f"controller {name!r} returned an array of {numbers.dtype} "
+                                  f"({where}): {_RETURN}")
+    else:
+        raise ControllerError(f"controller {name!r} returned {kind} ({where}: {value!r:.60}): "
+                              f"{_RETURN}")
+    if not np.all(np.isfinite(numbers)):
+        raise ControllerError(f"controller {name!r} returned a non-finite torque ({where}: "
+                              f"{numbers.tolist()}): give finite torques (N m)")
+    return ca.SX(ca.DM(numbers.astype(float)))
+
+
+def _number(what: str, value, unit: str, *, minimum: float | None = None,
+            positive: bool = False) -> float:
+    """``value`` as a finite float (``minimum``: its least value; ``positive``: > 0), or a
+    :class:`ControllerError` naming ``what``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ControllerError(f"{what} = {value!r}: give a number ({unit})") from None
+    if not math.isfinite(number):
+        raise ControllerError(f"{what} = {value!r}: give a finite number ({unit})")
+    if positive and not number > 0:
+        raise ControllerError(f"{what} = {value!r} must be > 0 ({unit})")
+    if minimum is not None and number < minimum:
+        raise ControllerError(f"{what} = {value!r} must be >= {minimum:g} ({unit}): a negative "
+                              "gain feeds energy in instead of taking it out")
+    return number
+
+
 def _sum(m):  # never called: a sum's torques add its terms' (Controller.torques)
     raise AssertionError("a sum of controllers has no law of its own")
 
 
 def law(fn: Callable | None = None, *, name: str | None = None):
     """A controller of ``fn(m)`` (usable as a decorator): ``m`` holds the model's quantities
-    (``derive.quantities.Quantities``); return the joint torques (N m), one column per finger
-    or one of every joint, as CasADi SX or numbers."""
+    (``derive.quantities.Quantities``); return the joint torques (N m): a list with one column
+    per finger, or the column of every joint (one SX, or a list with one value per joint), as
+    CasADi SX built from ``m``'s quantities, or numbers. The law runs once, when the model is
+    built, on SX symbols: a choice between branches is an expression (``ca.if_else``), not a
+    Python ``if``; a gain is a number or a scene parameter (``m.param(name)``), not a symbol of
+    its own. Anything else is refused by name (:class:`grasping_sym.errors.ControllerError`)."""
     if fn is None:
         return lambda f: law(f, name=name)
     return Controller(fn, name or getattr(fn, "__name__", "law"))
@@ -76,7 +187,7 @@ def paper2d() -> Controller:
         fd, r, c = m.param("fd"), m.param("r"), m.param("c")
         return [-c * dq - J.T @ ((fd / r) * (tip - m.pivot)) + g
                 for dq, J, tip, g in zip(m.dq, m.J, m.tip, m.gravity_torque)]
-    return Controller(paper, "paper2d")
+    return Controller(paper, "paper2d", dimension=2)
 
 
 def paper3d() -> Controller:
@@ -99,12 +210,13 @@ def paper3d() -> Controller:
                 pull = pull + (m.param("k_center") / N) * (r_bar - m.param("r_bar0"))
             out.append(-c * dq - J.T @ pull + g)
         return out
-    return Controller(paper, "paper3d")
+    return Controller(paper, "paper3d", dimension=3)
 
 
 def damping(c: float) -> Controller:
-    """Joint damping ``-c q'`` on every joint (``c`` in N m s)."""
-    return Controller(lambda m: [-float(c) * dq for dq in m.dq], f"damping({float(c):g})")
+    """Joint damping ``-c q'`` on every joint (``c`` in N m s, finite, >= 0)."""
+    c = _number("damping c", c, "N m s", minimum=0.0)
+    return Controller(lambda m: [-c * dq for dq in m.dq], f"damping({c:g})")
 
 
 def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
@@ -124,7 +236,7 @@ def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
         e = e.xreplace({s: tsym for s in e.free_symbols if str(s) == str(tsym)})
         extra = e.free_symbols - {tsym}
         if extra:
-            raise ValueError(f"feedforward torque {e} has symbols {sorted(map(str, extra))} "
+            raise ControllerError(f"feedforward torque {e} has symbols {sorted(map(str, extra))} "
                              f"besides the time {tsym}: give expressions of time only")
         return e
 
@@ -140,12 +252,12 @@ def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
         if fixed is not None:
             unknown = [k for k in fixed if k not in m.input_style_names]
             if unknown:
-                raise ValueError(f"feedforward names {unknown} are not joints of this model: use "
+                raise ControllerError(f"feedforward names {unknown} are not joints of this model: use "
                                  f"{list(m.input_style_names)}")
             vals = [tr(fixed.get(k, sp.Integer(0))) for k in m.input_style_names]
         else:
             if len(exprs) != n:
-                raise ValueError(f"feedforward has {len(exprs)} torques; the model has {n} joints")
+                raise ControllerError(f"feedforward has {len(exprs)} torques; the model has {n} joints")
             vals = [tr(e) for e in exprs]
         return m.column(vals)
     return Controller(ff, "feedforward")
@@ -162,20 +274,19 @@ def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0,
     push gentle far from the target, so that the contact stays closed; near it the law is a
     spring-damper of stiffness ``gain`` against the torque of (32), which leaves an offset
     that shrinks as ``1/gain``. Uses object information (``theta``, ``theta'``)."""
-    k, kd, fmax = float(gain), float(damping_gain), float(max_force)
-    if not fmax > 0:
-        raise ValueError(f"max_force = {max_force!r} must be > 0 (N)")
+    theta_d = _number("orientation2d theta_d", theta_d, "rad")
+    k = _number("orientation2d gain", gain, "N/rad", minimum=0.0)
+    kd = _number("orientation2d damping_gain", damping_gain, "N s/rad", minimum=0.0)
+    fmax = _number("orientation2d max_force", max_force, "N", positive=True)
 
     def orient(m):
-        import casadi as ca  # noqa: PLC0415
-
         d = m.tip[0] - m.pivot
         e = ca.vertcat(d[1], -d[0]) / ca.norm_2(d)  # clockwise about the pivot: theta grows
-        force = -fmax * ca.tanh((k * (m.theta - float(theta_d)) + kd * m.dtheta) / fmax)
+        force = -fmax * ca.tanh((k * (m.theta - theta_d) + kd * m.dtheta) / fmax)
         cols = [0 * dq for dq in m.dq]
         cols[0] = m.J[0].T @ (force * e)
         return cols
-    return paper2d() + Controller(orient, f"orientation2d({float(theta_d):g})")
+    return paper2d() + Controller(orient, f"orientation2d({theta_d:g})", dimension=2)
 
 
 def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: float = 2e-3,
@@ -194,12 +305,16 @@ def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: flo
     The axis must be across the grasp: a turn about the line through the two contacts is the
     grasp's free spin, which rolling fingertips cannot drive (only a torsional friction
     couples it)."""
-    k, kd, mmax = float(gain), float(damping_gain), float(max_torque)
-    if not mmax > 0:
-        raise ValueError(f"max_torque = {max_torque!r} must be > 0 (N m)")
-    a = np.asarray(axis, dtype=float)
+    angle = _number("turn3d angle", angle, "rad")
+    k = _number("turn3d gain", gain, "N m/rad", minimum=0.0)
+    kd = _number("turn3d damping_gain", damping_gain, "N m s/rad", minimum=0.0)
+    mmax = _number("turn3d max_torque", max_torque, "N m", positive=True)
+    try:
+        a = np.asarray(axis, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
     if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
-        raise ValueError(f"axis = {axis!r}: give three finite numbers, not all 0")
+        raise ControllerError(f"turn3d axis = {axis!r}: give three finite numbers, not all 0")
     a = a / np.linalg.norm(a)
     # two unit vectors spanning the plane normal to the axis
     e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -207,19 +322,22 @@ def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: flo
     e2 = np.cross(a, e1)
     ref = None
     if reference is not None:
-        ref = np.asarray(reference, dtype=float)
-        if ref.shape != (3, 3) or not np.allclose(ref @ ref.T, np.eye(3), atol=1e-9):
-            raise ValueError("reference must be a 3 x 3 rotation matrix (orthonormal to 1e-9)")
+        try:
+            ref = np.asarray(reference, dtype=float)
+        except (TypeError, ValueError):
+            ref = np.zeros(0)
+        if ref.shape != (3, 3) or not np.all(np.isfinite(ref)) \
+                or not np.allclose(ref @ ref.T, np.eye(3), atol=1e-9):
+            raise ControllerError("turn3d reference must be a 3 x 3 rotation matrix (orthonormal "
+                                  "to 1e-9)")
 
     def turn(m):
-        import casadi as ca  # noqa: PLC0415
-
         A, E1, E2 = ca.DM(a), ca.DM(e1), ca.DM(e2)
         R0 = m.param("rotation0") if ref is None else ca.DM(ref)
         turned = m.rotation @ R0.T @ E1   # e1 carried by the object's turn
         phi = ca.atan2(ca.dot(turned, E2), ca.dot(turned, E1))
         rate = ca.dot(m.rotation @ m.omega, A)
-        couple = -mmax * ca.tanh((k * (phi - float(angle)) + kd * rate) / mmax)
+        couple = -mmax * ca.tanh((k * (phi - angle) + kd * rate) / mmax)
         N = len(m.tip)
         centre = sum(m.tip[1:], m.tip[0]) / N
         cols = []
@@ -227,4 +345,4 @@ def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: flo
             d = tip - centre
             cols.append(J.T @ ((couple / N) * ca.cross(A, d) / ca.dot(d, d)))
         return cols
-    return paper3d() + Controller(turn, f"turn3d({float(angle):g})")
+    return paper3d() + Controller(turn, f"turn3d({angle:g})", dimension=3)

@@ -13,24 +13,63 @@ table's kinks and jumps are met exactly and never smoothed over by a step.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from grasping_sym.errors import InputScheduleError
 
 __all__ = ["Schedule", "constant", "piecewise_linear", "zero_order_hold"]
 
 
 @dataclass(frozen=True)
 class Schedule:
-    """``u(t) = a[k] + b[k] t`` for ``knots[k-1] <= t < knots[k]`` (``knots`` strictly
-    increasing; segment 0 from ``-inf``, the last to ``+inf``); ``a``, ``b`` of shape
-    ``(len(knots) + 1, n)``."""
+    """``u(t) = a[k] + b[k] t`` for ``knots[k-1] <= t < knots[k]`` (``knots`` finite and strictly
+    increasing, s; segment 0 from ``-inf``, the last to ``+inf``); ``a`` (N m) and ``b``
+    (N m/s) finite, of shape ``(len(knots) + 1, n)``: one row per segment, one column per input.
+    Checked when made: :class:`grasping_sym.errors.InputScheduleError` names what is wrong."""
 
     knots: np.ndarray
     a: np.ndarray
     b: np.ndarray
     kind: str = "schedule"
+
+    def __post_init__(self):
+        knots = _array("knots", self.knots)
+        if knots.ndim != 1:
+            raise InputScheduleError(f"Schedule knots have shape {knots.shape}: give a 1-D array of "
+                                     "knot times (s)")
+        if not np.all(np.isfinite(knots)):
+            raise InputScheduleError(f"Schedule knots {knots.tolist()} are not all finite: give finite "
+                                     "knot times (s)")
+        if np.any(np.diff(knots) <= 0):
+            k = int(np.argmax(np.diff(knots) <= 0))
+            raise InputScheduleError(
+                f"Schedule knots must be strictly increasing: knot {k + 1} ({knots[k + 1]:g} s) "
+                f"follows knot {k} ({knots[k]:g} s); sort them and merge repeated times")
+        rows = len(knots) + 1
+        arrays = {}
+        for name in ("a", "b"):
+            arr = _array(name, getattr(self, name))
+            if arr.ndim != 2 or arr.shape[0] != rows:
+                raise InputScheduleError(
+                    f"Schedule {name} has shape {arr.shape}: give one row per segment ({rows} for "
+                    f"{len(knots)} knots: before the first, between knots, after the last) and "
+                    "one column per input")
+            if not np.all(np.isfinite(arr)):
+                raise InputScheduleError(f"Schedule {name} has non-finite entries: give finite "
+                                         "input values (N m) and rates (N m/s)")
+            arrays[name] = arr
+        if arrays["a"].shape != arrays["b"].shape:
+            raise InputScheduleError(f"Schedule a has shape {arrays['a'].shape} and b has shape "
+                                     f"{arrays['b'].shape}: give both one row per segment and "
+                                     "one column per input")
+        if arrays["a"].shape[1] < 1:
+            raise InputScheduleError("Schedule a and b have no columns: give one column per input")
+        object.__setattr__(self, "knots", knots)
+        object.__setattr__(self, "a", arrays["a"])
+        object.__setattr__(self, "b", arrays["b"])
+        object.__setattr__(self, "kind", str(self.kind))
 
     @property
     def n(self) -> int:
@@ -57,35 +96,49 @@ class Schedule:
         return f"Schedule({self.kind}, {self.n} inputs, {len(self.knots)} knots)"
 
 
+def _array(name: str, values) -> np.ndarray:
+    """``values`` as an array of floats, or an :class:`InputScheduleError` naming ``name``."""
+    try:
+        arr = np.asarray(values)
+    except (TypeError, ValueError) as exc:  # ragged rows
+        raise InputScheduleError(f"{name} is not a table of numbers ({exc}): give one row per "
+                                 "time, each with one value per input") from None
+    if arr.dtype.kind not in "fiu" or arr.dtype == bool:
+        raise InputScheduleError(f"{name} must be numbers, got {arr.dtype} ({_show(values)})")
+    return arr.astype(float)
+
+
+def _show(values) -> str:
+    text = repr(values)
+    return text if len(text) <= 80 else f"{text[:80]}..."
+
+
 def _values(name: str, values, n_rows: int | None = None) -> np.ndarray:
-    arr = np.asarray(values)
-    if arr.dtype.kind not in "fiu":
-        raise TypeError(f"{name} must be numbers, got {arr.dtype} ({values!r:.80})")
-    arr = arr.astype(float)
+    arr = _array(name, values)
     if arr.ndim == 1 and n_rows is not None:
         arr = arr[:, None]
     if n_rows is not None and (arr.ndim != 2 or arr.shape[0] != n_rows):
-        raise ValueError(f"{name} has shape {arr.shape}: give one row of input values per time "
-                         f"({n_rows} rows)")
+        raise InputScheduleError(f"{name} has shape {arr.shape}: give one row of input values per "
+                                 f"time ({n_rows} rows)")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} has non-finite entries: give finite input values (N m)")
+        raise InputScheduleError(f"{name} has non-finite entries: give finite input values (N m)")
     return arr
 
 
 def _times(times) -> np.ndarray:
     t = _values("times", times)
     if t.ndim != 1 or len(t) < 1:
-        raise ValueError(f"times must be a 1-D array of knot times, got shape {t.shape}")
+        raise InputScheduleError(f"times must be a 1-D array of knot times, got shape {t.shape}")
     if np.any(np.diff(t) <= 0):
-        raise ValueError("times must be strictly increasing")
+        raise InputScheduleError("times must be strictly increasing")
     return t
 
 
 def constant(values) -> Schedule:
     """The same inputs at every time (one value per input, N m)."""
     v = _values("u", values)
-    if v.ndim != 1:
-        raise ValueError(f"a constant input has one value per input, got shape {v.shape}")
+    if v.ndim != 1 or v.size < 1:
+        raise InputScheduleError(f"a constant input has one value per input, got shape {v.shape}")
     return Schedule(np.zeros(0), v[None, :], np.zeros((1, v.size)), "constant")
 
 
@@ -130,11 +183,9 @@ def as_schedule(u, n: int) -> Schedule:
     else:
         sched = constant(u)
     if sched.n != n:
-        raise ValueError(f"u has {sched.n} inputs; the model has {n} (one joint torque per joint)")
-    if not (np.all(np.isfinite(sched.a)) and np.all(np.isfinite(sched.b))
-            and all(math.isfinite(k) for k in sched.knots)):
-        raise ValueError("u has non-finite values")
-    return sched
+        raise InputScheduleError(f"u has {sched.n} inputs; the model has {n} (one joint torque per "
+                                 "joint)")
+    return sched  # finite and well shaped: checked when it was made
 
 
 def _symbolic(u) -> bool:

@@ -7,7 +7,8 @@ import pytest
 import sympy as sp
 
 import grasping_sym as gs
-from grasping_sym.errors import InvalidSceneError
+from grasping_sym.codegen.controller import controller_function
+from grasping_sym.errors import ControllerError, InputScheduleError, InvalidSceneError
 
 RADAU = {"method": "radau", "rtol": 1e-9, "atol": 1e-12}
 
@@ -250,5 +251,86 @@ def test_bad_controller_arguments_are_refused_by_name():
         gs.controllers.feedforward([sp.Symbol("t") * sp.Symbol("k"), 0])
     with pytest.raises(TypeError, match="function of the model's quantities"):
         gs.controllers.law(0.5)
-    with pytest.raises(KeyError, match="parameter 'nope'"):
+    with pytest.raises(ControllerError, match="parameter 'nope'"):
         gs.build(gs.scenes.paper2d(controller=gs.controllers.law(lambda m: [m.param("nope") * m.dq[0]])))
+    for bad, why in ((np.nan, "finite"), (np.inf, "finite"), (-0.1, ">= 0"), ("a", "give a number")):
+        with pytest.raises(ControllerError, match=f"damping c = .*{why}"):
+            gs.controllers.damping(bad)
+    with pytest.raises(ControllerError, match="orientation2d gain = nan"):
+        gs.controllers.orientation2d(0.3, np.nan)
+    with pytest.raises(ControllerError, match="turn3d angle = inf"):
+        gs.controllers.turn3d(np.inf, 1.0)
+
+
+def _layer(controller, scene=gs.scenes.paper2d):
+    """The controller layer of a scene with ``controller`` (what a build makes first)."""
+    return controller_function(scene(controller=controller), "t")
+
+
+def _law_error(fn, scene=gs.scenes.paper2d) -> str:
+    with pytest.raises(ControllerError) as exc:
+        _layer(gs.controllers.law(fn), scene)
+    return str(exc.value)
+
+
+def test_laws_that_do_not_give_torques_are_refused_by_name():
+    assert "returned NoneType" in _law_error(lambda m: None)
+    assert "returned str" in _law_error(lambda m: "torques")
+    assert "returned an MX expression" in _law_error(lambda m: [ca.MX.sym("a", 2)])
+    assert "returned a SymPy expression" in _law_error(lambda m: [sp.Symbol("k"), 0])
+    assert "non-finite torque" in _law_error(lambda m: [np.nan, 0.0])
+    assert "gave 3 torques; this model has 2 joints" in _law_error(lambda m: ca.SX.zeros(3))
+    assert "raised ZeroDivisionError" in _law_error(lambda m: 1 / 0)
+
+    def branching(m):
+        if m.dq[0][0] > 0:  # a Python if on SX
+            return [m.dq[0]]
+        return [-m.dq[0]]
+    assert "ca.if_else" in _law_error(branching)
+    k = ca.SX.sym("k")
+    assert "uses symbols ['k'] that are not the model's quantities" in _law_error(lambda m: [k * m.dq[0]])
+    # before any derivation: the build hashes the law's expressions first
+    with pytest.raises(ControllerError, match="returned NoneType"):
+        gs.build(gs.scenes.paper2d(controller=gs.controllers.law(lambda m: None)))
+
+
+def test_a_list_of_one_torque_per_joint_is_the_column_of_every_joint():
+    as_list = _layer(gs.controllers.law(lambda m: [-0.01 * m.dq[0][0], 2e-3 + m.q[0][1]]))
+    as_column = _layer(gs.controllers.law(lambda m: ca.vertcat(-0.01 * m.dq[0][0], 2e-3 + m.q[0][1])))
+    x = np.linspace(0.1, 0.7, 7)
+    tau = as_list.function(0.0, x, [0.0, 0.0]).full().ravel()
+    np.testing.assert_array_equal(tau, as_column.function(0.0, x, [0.0, 0.0]).full().ravel())
+    assert tau[0] != 0.0
+
+
+def test_a_law_of_the_other_dimension_is_refused_by_name():
+    with pytest.raises(ControllerError, match="orientation2d.* laws of 2D scenes, .*; this scene is 3D") as exc:
+        _layer(gs.controllers.orientation2d(0.3, 50.0), gs.scenes.pivot3d)
+    assert "paper3d, turn3d" in str(exc.value)
+    with pytest.raises(ControllerError, match="paper3d is a law of 3D scenes, .*; this scene is 2D"):
+        _layer(gs.controllers.paper3d())
+    with pytest.raises(ControllerError, match="turn3d"):
+        _layer(gs.controllers.turn3d(0.2, 1.0) + gs.controllers.damping(0.01))
+
+
+@pytest.mark.parametrize("knots, a, b, why", [
+    ([1.0, 0.5], np.zeros((3, 2)), np.zeros((3, 2)), r"strictly increasing: knot 1 \(0.5 s\) follows knot 0"),
+    ([0.5, 0.5], np.zeros((3, 2)), np.zeros((3, 2)), "strictly increasing"),
+    ([0.5], np.zeros((1, 2)), np.zeros((1, 2)), r"a has shape \(1, 2\): give one row per segment \(2 for 1 knots"),
+    ([0.5, np.nan], np.zeros((3, 2)), np.zeros((3, 2)), "not all finite"),
+    ([0.5], [[0, 0], [np.inf, 0]], np.zeros((2, 2)), "a has non-finite entries"),
+    ([0.5], np.zeros((2, 2)), np.zeros((2, 3)), r"b has shape \(2, 3\)"),
+    ([0.5], [[0, 0], [1]], np.zeros((2, 2)), "a is not a table of numbers"),
+    (["0.5"], np.zeros((2, 2)), np.zeros((2, 2)), "knots must be numbers"),
+])
+def test_a_schedule_is_checked_when_made(knots, a, b, why):
+    with pytest.raises(InputScheduleError, match=why):
+        gs.inputs.Schedule(knots, a, b)
+
+
+def test_a_checked_schedule_runs_and_a_wrong_width_is_named(torque_model):
+    sched = gs.inputs.Schedule([0.05], [[0.0, 0.0], [1e-3, 0.0]], np.zeros((2, 2)))
+    np.testing.assert_array_equal(sched([0.0, 0.1]), [[0.0, 0.0], [1e-3, 0.0]])
+    assert torque_model.simulate(0.1, u=sched, **RADAU).stats["segments"] == 2
+    with pytest.raises(InputScheduleError, match="u has 3 inputs; the model has 2"):
+        torque_model.simulate(0.1, u=gs.inputs.Schedule([], [[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]]))

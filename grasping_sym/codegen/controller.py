@@ -13,6 +13,7 @@ import hashlib
 import casadi as ca
 
 from grasping_sym.codegen.functions import FUNCTION_OPTIONS
+from grasping_sym.errors import ControllerError
 
 __all__ = ["ControllerFunction", "controller_function", "controller_key", "controller_torques",
            "outputs_p"]
@@ -30,6 +31,13 @@ def controller_torques(scene, t, x, p) -> tuple[ca.SX, bool, bool]:
         law = paper2d() if scene.dimension == 2 else paper3d()
     cols = law.torques(m) if law is not None else [ca.SX.zeros(dq.numel(), 1) for dq in m.dq]
     tau = ca.vertcat(*cols)
+    known = {s.element_hash() for s in ca.symvar(ca.vertcat(t, x, p))}
+    free = [s for s in ca.symvar(tau) if s.element_hash() not in known]
+    if free:
+        raise ControllerError(
+            f"controller {law.name!r} uses symbols {sorted(str(s) for s in free)} that are not the "
+            "model's quantities: a law may read only m's quantities (m.q, m.dq, m.tip, m.J, "
+            "m.param(name), ...); a gain is a number, or a scene parameter read with m.param")
     timed = bool(ca.depends_on(tau, t))
     if scene.input_names:
         n = len(scene.input_names)
