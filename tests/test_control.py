@@ -8,7 +8,7 @@ import sympy as sp
 
 import grasping_sym as gs
 from grasping_sym.codegen.controller import controller_function
-from grasping_sym.errors import ControllerError, InputScheduleError, InvalidSceneError
+from grasping_sym.errors import ControllerError, ExpressionError, InputScheduleError, InvalidSceneError
 
 RADAU = {"method": "radau", "rtol": 1e-9, "atol": 1e-12}
 
@@ -260,6 +260,8 @@ def test_bad_controller_arguments_are_refused_by_name():
         gs.controllers.orientation2d(0.3, np.nan)
     with pytest.raises(ControllerError, match="turn3d angle = inf"):
         gs.controllers.turn3d(np.inf, 1.0)
+    with pytest.raises(ExpressionError, match="beyond a double's range"):  # at once, not computed
+        gs.controllers.feedforward(["9**9**9**9", "0"])
 
 
 def _layer(controller, scene=gs.scenes.paper2d):

@@ -128,32 +128,32 @@ TEXT = st.text(alphabet=st.sampled_from(list("0123456789.e+-*/()^,_ tpiEsncoqrxl
 
 
 # ------------------------------------------------------------------ properties
-@settings(BOUNDED, max_examples=150)
+@settings(BOUNDED, max_examples=100)
 @given(TEXT)
 def test_any_text_gives_an_expression_or_a_named_error(memory_bound, text):
     _check_both(text)
 
 
-@settings(BOUNDED, max_examples=250)
+@settings(BOUNDED, max_examples=200)
 @given(TREES)
 def test_any_expression_tree_gives_an_expression_or_a_named_error(memory_bound, text):
     _check_both(text)
 
 
-@settings(BOUNDED, max_examples=30)
+@settings(BOUNDED, max_examples=20)
 @given(deep())
 def test_deep_nesting_is_bounded(memory_bound, text):
     _check_both(text)
 
 
-@settings(BOUNDED, max_examples=40)
+@settings(BOUNDED, max_examples=25)
 @given(CHAINS)
 def test_long_sums_and_products_are_bounded(memory_bound, text):
     _check_both(text)
 
 
 # ------------------------------------------------------------------ the cases of issue 25
-@pytest.mark.parametrize("text", ["10**10**10", "9**9**9**9", "2**(10**10)", "(2*t)**(10**10)",
+@pytest.mark.parametrize("text", ["10**10**10", "9**9**9**9", "2**(10**10)", "(2*t)**(10**10)", "2**1024",
                                   "sqrt(2)**(10**9)", "pi**(10**300)", "exp(exp(700))",
                                   "10**400", "2.0**(10**10)"])
 def test_huge_powers_are_refused_at_once(text):

@@ -491,11 +491,11 @@ class _Symbolic(_Backend):
             checked.add(node)
             if node.is_Rational:
                 bits = max(abs(node.p).bit_length(), node.q.bit_length())
-                if bits > MAX_BITS or abs(node.p).bit_length() - node.q.bit_length() > _DOUBLE_BITS:
-                    raise self.fail(f"the exact number {_short(node)} is beyond the limits: "
-                                    f"integers, numerators and denominators of at most {MAX_BITS} "
-                                    "bits, values within a double's range (1.8e308); write a "
-                                    "smaller number")
+                large = abs(node.p).bit_length() - node.q.bit_length() >= _DOUBLE_BITS - 1
+                if bits > MAX_BITS or (large and not math.isfinite(float(node))):
+                    raise self.fail(f"the exact number {_short(node)} is beyond a double's range "
+                                    f"(1.8e308) or the limit of {MAX_BITS} bits on integers, "
+                                    "numerators and denominators: write a smaller number")
             elif node.is_Float:
                 _sign, man, exp, bc = node._mpf_
                 if man and exp + bc > _DOUBLE_BITS:
