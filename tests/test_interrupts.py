@@ -33,7 +33,7 @@ _SCRIPT = textwrap.dedent("""
             library.paper_fingertip(), library.paper_object(), name="slow2d", outputs=(),
             gf=0.0, gl=0.0, wf=0.0, wl=0.0))
 
-    LONG = dict(rtol=1e-12, atol=1e-14, max_steps=10**9, checks=False, outputs=())
+    LONG = dict(rtol=1e-12, atol=1e-14, max_steps=10**9, checks=False, outputs=False)
     sent = {}
 
     def fire(delay=0.3):
@@ -126,18 +126,22 @@ _SCRIPT = textwrap.dedent("""
         report.append({"outcome": "no exception"})
     elif scenario == "thread":
         # the model first loaded, and run, in a thread other than the main one
-        box = {}
+        box, done = {}, threading.Event()
         def work():
-            m = build()
-            box["ready"] = time.perf_counter()
-            fire(0.3)
-            box["report"] = outcome(m, "radau")
-        worker = threading.Thread(target=work)
-        worker.start()
-        main_interrupted = False
-        while worker.is_alive():
             try:
-                worker.join(0.05)
+                m = build()
+                fire(0.3)
+                box["report"] = outcome(m, "radau")
+            except BaseException as exc:  # reported, not lost with the thread
+                box["report"] = {"outcome": "worker: " + repr(exc)}
+            finally:
+                done.set()
+        threading.Thread(target=work).start()
+        main_interrupted = False
+        while True:  # (not Thread.join: a KeyboardInterrupt inside it can spoil is_alive)
+            try:
+                if done.wait(0.05):
+                    break
             except KeyboardInterrupt:
                 main_interrupted = True
         report.append({**box["report"], "main_interrupted": main_interrupted})

@@ -19,6 +19,7 @@ import pytest
 import grasping_sym as gs
 from grasping_sym.codegen import structure_cache
 from grasping_sym.codegen.scene_functions import planar_structure
+from grasping_sym.pipeline import with_check_outputs
 
 
 def _ellipse_scene(**kw):
@@ -28,8 +29,9 @@ def _ellipse_scene(**kw):
 
 
 def _single_piece(scene):
-    """The scene's functions composed in one piece from its template (no layers)."""
-    return scene.casadi_functions(layers=False).model
+    """The scene's functions composed in one piece from its template (no layers), with the
+    outputs a build compiles: the scene's and those the run-time checks read."""
+    return with_check_outputs(scene)[0].casadi_functions(layers=False).model
 
 
 def _dense(v) -> np.ndarray:
