@@ -29,7 +29,7 @@ class Plan:
     """What the full path decided for one set of settings."""
 
     __slots__ = ("method", "code", "rtol", "atol", "max_steps", "nstiff", "mask", "proj_tol",
-                 "checks", "projected", "watched")
+                 "checks", "projected")
 
     def __init__(self, method: str, rtol: float, atol: float, max_steps: int, proj, checks: bool):
         self.method, self.code = method, ADAPTIVE_CODES[method]
@@ -55,9 +55,7 @@ def remember(model, k, method, rtol, atol, max_steps, proj, checks) -> None:
     the fast extension only)."""
     if k is None or method not in ADAPTIVE_CODES or not model.library.fast:
         return
-    plan = Plan(method, rtol, atol, max_steps, proj, checks)
-    plan.watched = _watched(model) if checks else None
-    model._plans[k] = plan
+    model._plans[k] = Plan(method, rtol, atol, max_steps, proj, checks)
 
 
 def checked(model, x0: np.ndarray | None) -> None:
@@ -67,57 +65,6 @@ def checked(model, x0: np.ndarray | None) -> None:
     memo[b"" if x0 is None else x0.tobytes()] = True
     if len(memo) > CHECKED_STATES:
         del memo[next(iter(memo))]
-
-
-def _watched(model) -> tuple:
-    """What :func:`_clean` reads, once per plan: the model's full ``p``, the compiled outputs'
-    columns the checks read (``runtime.checks``: forces, curvatures, frame denominators), the
-    share of its first value each of the first two kinds must stay above (0 and
-    ``KAPPA_SUM_RELATIVE``), and the denominators' thresholds."""
-    cols = {k: i for i, k in enumerate(model._columns)}
-    force = [cols[k] for k in checks_.force_outputs(cols)]
-    curvature = [cols[k] for k in checks_.curvature_outputs(cols)]
-    denominators = {cols[k]: thr for k, thr in checks_.denominator_thresholds(model).items()
-                    if k in cols}
-    columns = np.array(force + curvature + list(denominators), dtype=np.intp)
-    share = [0.0] * len(force) + [checks_.KAPPA_SUM_RELATIVE] * len(curvature)
-    return (model._p(model.default_params if model.p_names else None), columns, share,
-            list(denominators.values()))
-
-
-#: Up to this many output samples the events are tested in Python on lists (a few tenths of
-#: a microsecond), beyond it on arrays.
-_LIST_ROWS = 16
-
-
-def _clean(model, plan: Plan, t, X) -> bool:
-    """No event along the output samples ``X``: ``checks.trajectory_event``'s tests (every force
-    > 0, every relative curvature above its share of its first value, every frame denominator
-    above its threshold in magnitude; a NaN fails) on the watched columns only, about a
-    microsecond for a few samples. Where it says False the full way runs and names the
-    event."""
-    p, columns, share, thresholds = plan.watched
-    if model.manifest.get("outputs_time"):
-        outs = model._outputs_along(t, X, model.default_params if model.p_names else None, None)
-        return checks_.trajectory_event(model, t, X, outs, {}) is None
-    if not columns.size:
-        return True
-    V = model.library.outputs_batch(X, p).take(columns, axis=1)
-    k = len(share)
-    if len(V) <= _LIST_ROWS:
-        rows = V.tolist()
-        lows = [v * f for v, f in zip(rows[0], share)]
-        for row in rows:
-            for v, lo in zip(row, lows):
-                if not v > lo:
-                    return False
-            for d, thr in zip(row[k:], thresholds):
-                if not abs(d) > thr:
-                    return False
-        return True
-    lows = np.concatenate([V[0, :k] * share, thresholds])
-    V[:, k:] = np.abs(V[:, k:])
-    return bool((V > lows).all())
 
 
 def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
@@ -147,7 +94,8 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
             raise interrupt.interrupted(f"{plan.method} stopped by Ctrl-C")
         return None
-    if plan.checks and model._columns and not _clean(model, plan, t, out[:m]):
+    if plan.checks and model._columns and not checks_.clean(
+            model, t, out[:m], model.default_params if model.p_names else None):
         return None  # an event along the run: the full way raises it, named
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     res = SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))

@@ -520,8 +520,11 @@ class Model:
             keep = np.isin(t, t_eval)
             t, X = t[keep], X[keep]
             stats["segments"] = len(segments)
-        # the checks read the compiled outputs whether or not the result shows them
-        outs = self._outputs_along(t, X, p, sched) if (outputs or checks) and self._columns else {}
+        # the checks read the compiled outputs whether or not the result shows them; a run
+        # that returns none and has no event (checks.clean, on the watched columns) needs no more
+        quiet = checks and not outputs and sched is None and checks_.clean(self, t, X, p)
+        outs = self._outputs_along(t, X, p, sched) if (outputs or checks and not quiet) \
+            and self._columns else {}
         if checks and outs:
             event = checks_.trajectory_event(self, t, X, outs, start)
             if event is not None:
