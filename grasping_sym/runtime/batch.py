@@ -5,9 +5,9 @@ threads with the GIL released, each by the loop a single ``simulate`` calls, wit
 arguments, so that every run's numbers are bit for bit the single run's. What ``simulate``
 checks in Python is checked here on arrays: the initial state (from the outputs and the
 constraint rates the C call evaluates at every ``x0``) and the events along the output samples
-(with ``checks``, whether or not ``outputs`` asks to return the outputs). A run that fails, in C or at a check, is run once more on its own
-through ``simulate``'s code, so its message is the single run's named error; it loses nothing
-of the other runs.
+(with ``checks``, whether or not ``outputs`` asks to return the outputs). A run that fails, in
+C or at a check, is run once more on its own through ``simulate``'s code, so its message is the
+single run's named error; it loses nothing of the other runs.
 """
 from __future__ import annotations
 

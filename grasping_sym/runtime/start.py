@@ -184,7 +184,6 @@ def solve_start(model, values: dict[str, float], branch: str = "start") -> Start
     free = _free(model, info, values, len(conditions))
     speeds = [names.index(k) for k in info["velocity_states"] if k not in values]
     fn = _conditions_function(model)
-    given = [f"{k} = {float(v):.6g}" for k, v in values.items()]
     J0 = fn(x0)[1][:, free]
     if len(free) < len(conditions) or np.linalg.matrix_rank(J0) < len(conditions):
         raise UnreachableStartError(
