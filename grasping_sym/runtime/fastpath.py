@@ -8,7 +8,8 @@ a *plan*; the initial checks of an ``x0`` (a pure function of ``x0`` and ``p``) 
 remembered for the last few states; the events along the run are checked on the output
 samples as the full way checks them (a run with an event goes the full way, which names it).
 The C loop validates the output times and ``x0`` itself; a run that fails, or arguments this
-path does not take, go the full way, which names the problem. The numbers are the full path's, bit for bit (the same call with the same arrays).
+path does not take, go the full way, which names the problem. The numbers are the full
+path's, bit for bit (the same call with the same arrays).
 """
 from __future__ import annotations
 

@@ -376,8 +376,8 @@ class Model:
               ``outputs`` asks to return them; the outputs are evaluated at every output time
               for the checks, and only ``checks=False`` saves that): every contact's
               normal multiplier (``f``; ``f1``, ``f2``, ... with several) must stay > 0
-              (``ContactOpenedError``) and its relative curvature (``kappa_sum``, ``kappa_sum{i}``, 3D ``krel_min{i}``) above 1e-3 of
-              its initial value (``RelativeCurvatureError``); the first event in time is
+              (``ContactOpenedError``) and its relative curvature (``kappa_sum``,
+              ``kappa_sum{i}``, 3D ``krel_min{i}``) above 1e-3 of its initial value (``RelativeCurvatureError``); the first event in time is
               raised, its time interpolated linearly between the samples around it. Events
               between two samples that do not show on either are not seen: use a denser
               ``t_eval``.
