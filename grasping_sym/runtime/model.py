@@ -377,10 +377,10 @@ class Model:
               for the checks, and only ``checks=False`` saves that): every contact's
               normal multiplier (``f``; ``f1``, ``f2``, ... with several) must stay > 0
               (``ContactOpenedError``) and its relative curvature (``kappa_sum``,
-              ``kappa_sum{i}``, 3D ``krel_min{i}``) above 1e-3 of its initial value (``RelativeCurvatureError``); the first event in time is
-              raised, its time interpolated linearly between the samples around it. Events
-              between two samples that do not show on either are not seen: use a denser
-              ``t_eval``.
+              ``kappa_sum{i}``, 3D ``krel_min{i}``) above 1e-3 of its initial value
+              (``RelativeCurvatureError``); the first event in time is raised, its time
+              interpolated linearly between the samples around it. Events between two
+              samples that do not show on either are not seen: use a denser ``t_eval``.
             - when the integrator fails, the stored part of the trajectory is checked the
               same way, so a blow-up caused by a vanishing ``kappa_sum`` or an opening
               contact is reported as such.
