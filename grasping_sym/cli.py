@@ -112,6 +112,9 @@ def _positive_int(text: str) -> int:
 # Everything a command is given is checked here, before it builds, simulates or sweeps.
 def _check_out(text: str) -> Path:
     """``--out`` that is not a file (checked before anything is made)."""
+    if not text.strip():
+        raise UsageError("--out is empty: give a directory for the results (created if missing), "
+                         "e.g. --out out/run1; '.' writes into this directory")
     out = Path(text)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out}: it is a file; give a directory (created if missing)")
@@ -262,6 +265,7 @@ def cmd_cache(args: argparse.Namespace) -> int:
         return 0
     safety.check_dir(root)  # another user's, or writable by others: refused by name
     made, foreign = cache.entries(root)
+    made = cache.select(made, args.names, root)  # only the entries named (unknown ones refused)
     total = 0
     for p in made:
         size = sum(os.lstat(f).st_size for f in p.rglob("*") if not f.is_symlink() and f.is_file())

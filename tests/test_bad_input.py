@@ -265,6 +265,20 @@ def test_simulate_takes_outputs_as_a_switch_not_as_names(paper2d_model):
         paper2d_model.simulate_many(0.01, checks="yes")
 
 
+def test_tolerances_that_accept_any_step_and_empty_batches_are_refused(paper2d_model):
+    """rtol or atol of 1 or more accepts any step: refused before the run, not blamed on the
+    physics afterwards; simulate_many of no runs is named."""
+    from grasping_sym.errors import RunArgumentError
+
+    for kw in ({"rtol": 2.0}, {"rtol": 1.0, "method": "cvodes"}, {"atol": 1e300}):
+        with pytest.raises(RunArgumentError, match=r"must be below 1 .* accepts any step"):
+            paper2d_model.simulate(0.05, **kw)
+    with pytest.raises(RunArgumentError, match=r"rtol = 5\.0 must be below 1"):
+        paper2d_model.simulate_many(0.05, rtol=5.0)
+    with pytest.raises(RunArgumentError, match=r"simulate_many: no runs \(x0 empty\)"):
+        paper2d_model.simulate_many(0.05, x0=np.empty((0, len(paper2d_model.state_names))))
+
+
 def test_a_domain_exit_names_the_state(short_model):
     """The C loops name the state that left its contour's domain, not only its index."""
     for method in ("radau", "rk4"):

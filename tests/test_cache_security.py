@@ -341,6 +341,15 @@ def test_cache_clear_refuses_a_root_holding_the_users_files(cache, capsys):
     assert os.listdir(root) == []
 
 
+def test_cache_list_shows_the_entries_named_and_refuses_unknown_names(cache, capsys):
+    root, entry = cache
+    scene = entry.name.rsplit("-", 1)[0]
+    assert cli_main(["cache", "list", scene]) == 0
+    assert entry.name in capsys.readouterr().out
+    assert cli_main(["cache", "list", "bogus"]) == 2
+    assert "no cache entries named ['bogus']" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("name", ["../outside", "..", "/tmp", "paper2d/../../outside", ""])
 def test_cache_clear_takes_entry_names_never_paths(cache, tmp_path, name):
     root, entry = cache

@@ -59,11 +59,18 @@ def test_simulate_refuses_an_unwritable_out_before_running(tmp_path, capsys, no_
     (["--t-final", "inf"], ["--t-final", "finite number > 0"]),
     (["--t-final", "1e-13", "--method", "cvodes"], ["cvodes", "shorter than"]),
     (["--method", "bogus"], ["--method", "invalid choice"]),
+    (["--rtol", "5"], ["rtol = 5.0 must be below 1"]),
 ])
 def test_simulate_refuses_bad_values_before_running(tmp_path, capsys, no_work, argv, needles):
     out = tmp_path / "out"
     _refused(capsys, ["simulate", "paper2d", "--out", str(out), *argv], *needles)
     assert not out.exists()
+
+
+def test_simulate_refuses_an_empty_out(tmp_path, capsys, no_work, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _refused(capsys, ["simulate", "paper2d", "--out", ""], "--out is empty")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_missing_argument_is_one_line_too(capsys):

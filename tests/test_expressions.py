@@ -164,6 +164,14 @@ def test_huge_powers_are_refused_at_once(text):
         evaluate_number(text.replace("(2*t)", "(2*2)"))
 
 
+def test_values_that_are_not_real_are_refused_when_parsed():
+    t = sp.Symbol("t")
+    for text in ("sqrt(-1)", "acosh(0)", "acosh(" * 30 + "2" + ")" * 30, "log(-1)"):
+        with pytest.raises(ExpressionError, match="not a real number"):
+            parse_expression(text, {"t": t})
+    assert parse_expression("sqrt(t) + acosh(2)", {"t": t}).is_real is None  # real where t is
+
+
 def test_long_sums_and_sign_runs_work_without_recursion():
     assert parse_expression("+".join(["t"] * 3000), VARS) == 3000 * T
     assert parse_expression("-" * 5000 + "t", VARS) == T

@@ -2,7 +2,9 @@
 save and load (an edited file refused by name); a model's one-screen repr."""
 from __future__ import annotations
 
+import io
 import json
+import zipfile
 
 import numpy as np
 import pytest
@@ -92,6 +94,40 @@ def test_an_edited_file_is_refused_naming_the_file_and_the_entry(result, tmp_pat
     with pytest.raises(ResultFileError, match=match) as err:
         gs.SimulationResult.load(path)
     assert str(path) in str(err.value)
+
+
+def test_a_file_built_to_exhaust_the_reader_is_refused(result, tmp_path):
+    """meta nested 100 000 deep (json's recursion) and an entry whose header declares 50 TiB
+    over 64 bytes of data (numpy would allocate before reading): named, nothing allocated."""
+    path = result.save(tmp_path / "deep.npz")
+    with np.load(path) as f:
+        entries = {k: f[k].copy() for k in f.files}
+    np.savez(path, **{**entries, "meta": np.array("[" * 100_000 + "]" * 100_000)})
+    with pytest.raises(ResultFileError, match="deep.npz"):
+        gs.SimulationResult.load(path)
+    huge = tmp_path / "huge.npz"
+    np.savez(huge, **entries)
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False,
+                                                  "shape": (10**12, 7)})
+    with zipfile.ZipFile(huge, "a") as z:
+        z.writestr("x_big.npy", header.getvalue() + bytes(64))
+    with pytest.raises(ResultFileError, match=r"'x_big' declares shape \(1000000000000, 7\)"):
+        gs.SimulationResult.load(huge)
+
+
+def test_drawing_options_and_the_scene_are_checked_first(result, tmp_path):
+    """A misspelt option, or a scene whose states are not the result's: named before any
+    drawing (nothing written)."""
+    from grasping_sym.errors import ViewOptionError
+
+    with pytest.raises(ViewOptionError, match=r"animate: unknown option\(s\) \['fsp'\]; the options are"):
+        result.animate(tmp_path / "a.gif", fsp=3)
+    with pytest.raises(ViewOptionError, match=r"view: unknown option\(s\) \['title'\]"):
+        result.view(tmp_path / "v.html", gs.scenes.paper3d(), title="x")
+    with pytest.raises(ViewOptionError, match=r"view: the scene 'paper3d' has the states .* the result"):
+        result.view(tmp_path / "v.html", gs.scenes.paper3d())
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_result_is_one_row_per_time_and_a_column_per_name(result, tmp_path):

@@ -197,6 +197,21 @@ def _entry_names(given: Sequence[str]) -> list[str]:
     return list(given)
 
 
+def select(made: list[Path], names: Sequence[str], root: Path) -> list[Path]:
+    """The entries of ``made`` that ``names`` name (a directory's name, or a scene's name for
+    all its entries; none: all of them); a name that names no entry is refused."""
+    wanted = _entry_names(names)
+
+    def scene(p: Path) -> str | None:
+        m = _MODEL_DIR.fullmatch(p.name)
+        return m["scene"] if m else None
+
+    unknown = [n for n in wanted if not any(p.name == n or scene(p) == n for p in made)]
+    if unknown:
+        raise CacheContentsError(f"no cache entries named {unknown} in {root} (see `grasping-sym cache list`)")
+    return [p for p in made if not wanted or p.name in wanted or scene(p) in wanted]
+
+
 def clear(names: Sequence[str] = (), root: Path | None = None) -> list[Path]:
     """Remove the cache entries ``names`` (a directory's name, or a scene's name for all its
     models; default every entry) and return what was removed.
@@ -226,14 +241,7 @@ def clear(names: Sequence[str] = (), root: Path | None = None) -> list[Path]:
             "directory used only by grasping_sym (unset, it is ~/.cache/grasping_sym), or remove "
             "the package's entries by hand")
 
-    def scene(p: Path) -> str | None:
-        m = _MODEL_DIR.fullmatch(p.name)
-        return m["scene"] if m else None
-
-    chosen = [p for p in made if not wanted or p.name in wanted or scene(p) in wanted]
-    unknown = [n for n in wanted if not any(p.name == n or scene(p) == n for p in made)]
-    if unknown:
-        raise CacheContentsError(f"no cache entries named {unknown} in {root} (see `grasping-sym cache list`)")
+    chosen = select(made, names, root)
     for p in chosen:
         safety.check_dir(p)
     removed = []

@@ -504,6 +504,10 @@ class _Symbolic(_Backend):
             elif node is sp.zoo or node is sp.nan or node is sp.oo or node is sp.S.NegativeInfinity:
                 raise self.fail(f"a part of the formula is {node} (a division by zero, log(0), "
                                 "...): write a formula with a finite value")
+            elif node is sp.I:
+                raise self.fail("a part of the formula is not a real number (the square root of a "
+                                "negative number, acosh below 1, ...): write a formula with a "
+                                "real value")
             else:
                 todo.extend(node.args)
         return expr

@@ -217,7 +217,11 @@ def _count(model, x0, params, u) -> int:
         raise RunArgumentError("simulate_many: the number of runs differs between "
                                + ", ".join(f"{k} ({v} rows)" for k, v in sizes.items())
                                + ": give every per-run array the same length N")
-    return next(iter(sizes.values()), 1)
+    n = next(iter(sizes.values()), 1)
+    if n == 0:
+        raise RunArgumentError("simulate_many: no runs (" + ", ".join(sizes) + " empty): give at "
+                               "least one row, or call nothing")
+    return n
 
 
 def _initial_states(model, x0, n: int, as_numbers) -> np.ndarray:

@@ -783,6 +783,12 @@ def run_settings(method: str, t_final, rtol, atol, h, max_steps, time_limit) -> 
             raise RunArgumentError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
     _positive("rtol", rtol)
     _positive("atol", atol)
+    for name, value, unit in (("rtol", rtol, "a relative error of 100 %"),
+                              ("atol", atol, "an error of 1 m or 1 rad in every state")):
+        if not value < 1:
+            raise RunArgumentError(f"{name} = {value!r} must be below 1 ({unit} or more accepts "
+                                   "any step, and the run's failure would be blamed on the "
+                                   "physics): give e.g. rtol=1e-6, atol=1e-9")
     if method == "rk4":
         _positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
     if isinstance(max_steps, (bool, np.bool_)) or not isinstance(max_steps, numbers.Integral) \

@@ -3,14 +3,16 @@ from __future__ import annotations
 
 import csv
 import html
+import inspect
 import json
+import math
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from grasping_sym.errors import InvalidResultError, ResultFileError
+from grasping_sym.errors import InvalidResultError, ResultFileError, ViewOptionError
 
 #: What ``SimulationResult.save`` writes (an ``.npz`` of arrays and JSON text, no pickles).
 FORMAT = "grasping_sym.SimulationResult/1"
@@ -132,6 +134,7 @@ class SimulationResult:
         ``scene`` defaults to the run's (a model made by ``gs.build`` sets it)."""
         from grasping_sym.animation import animate  # noqa: PLC0415
 
+        _drawable(self, animate, "animate", scene, options)
         return animate(self, path, scene, **options)
 
     def view(self, path: Path | str, scene=None, **options) -> Path:
@@ -139,6 +142,7 @@ class SimulationResult:
         no network, nothing to install; ``grasping_sym.viewer``)."""
         from grasping_sym.viewer import write_viewer  # noqa: PLC0415
 
+        _drawable(self, write_viewer, "view", scene, options)
         return write_viewer(self, path, scene, **options)
 
     # ------------------------------------------------------------ files
@@ -202,12 +206,50 @@ class SimulationResult:
                                   "that SimulationResult.save wrote)")
         with f:
             try:
+                _check_sizes(path)
                 return _from_npz(cls, f, path)
-            except (ValueError, KeyError, EOFError, OSError, zipfile.BadZipFile) as exc:
+            except (ValueError, KeyError, EOFError, OSError, zipfile.BadZipFile, RecursionError,
+                    MemoryError) as exc:
                 if isinstance(exc, ResultFileError):
                     raise
                 raise ResultFileError(f"{path}: an entry cannot be read ({type(exc).__name__}: "
                                       f"{exc}); pickled objects are never loaded") from None
+
+
+def _drawable(result, draw, what: str, scene, options: dict) -> None:
+    """Before ``draw`` (``animate`` or ``write_viewer``) starts: its options by name, and a
+    scene whose states are the result's."""
+    known = [n for n, p in inspect.signature(draw).parameters.items() if p.kind is p.KEYWORD_ONLY]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise ViewOptionError(f"{what}: unknown option(s) {unknown}; the options are {known}")
+    scene = scene if scene is not None else getattr(result, "scene", None)
+    names = getattr(scene, "state_names", None)
+    if names is not None and tuple(names) != tuple(result.state_names):
+        raise ViewOptionError(
+            f"{what}: the scene {getattr(scene, 'name', '?')!r} has the states "
+            f"{_names(tuple(names))}, the result {_names(tuple(result.state_names))}: pass the "
+            "scene the result was run on")
+
+
+def _check_sizes(path: Path) -> None:
+    """Refuse an entry whose header declares more data than the file holds for it (a
+    tampered header would make numpy allocate that much before reading)."""
+    with zipfile.ZipFile(path) as z:
+        for info in z.infolist():
+            if not info.filename.endswith(".npy"):
+                continue
+            with z.open(info) as fh:
+                version = np.lib.format.read_magic(fh)
+                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0)
+                shape, _, dtype = read(fh)
+                need = math.prod(shape) * dtype.itemsize + fh.tell()
+            if need > info.file_size:
+                raise ResultFileError(
+                    f"{path}: the entry {info.filename[:-4]!r} declares shape {shape} of {dtype} "
+                    f"({need} bytes) but holds {info.file_size} bytes: the file was edited or "
+                    "cut; save the result again with SimulationResult.save")
 
 
 def _known(names) -> bool:
