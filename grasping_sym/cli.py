@@ -242,6 +242,9 @@ def _params(texts) -> dict[str, float]:
             v = math.nan
         if not sep or not name.strip() or not math.isfinite(v):
             raise UsageError(f"--param {text!r}: write NAME=VALUE with a finite number, e.g. fd=0.8")
+        if name.strip() in out:
+            raise UsageError(f"--param {name.strip()}: given twice ({out[name.strip()]:g} and {v:g}); "
+                             "give each parameter once")
         out[name.strip()] = v
     return out
 

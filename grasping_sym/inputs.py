@@ -121,7 +121,8 @@ def _values(name: str, values, n_rows: int | None = None) -> np.ndarray:
         raise InputScheduleError(f"{name} has shape {arr.shape}: give one row of input values per "
                                  f"time ({n_rows} rows)")
     if not np.all(np.isfinite(arr)):
-        raise InputScheduleError(f"{name} has non-finite entries: give finite input values (N m)")
+        what = "knot times (s)" if name == "times" else "input values (N m)"
+        raise InputScheduleError(f"{name} has non-finite entries: give finite {what}")
     return arr
 
 

@@ -60,6 +60,7 @@ def test_simulate_refuses_an_unwritable_out_before_running(tmp_path, capsys, no_
     (["--t-final", "1e-13", "--method", "cvodes"], ["cvodes", "shorter than"]),
     (["--method", "bogus"], ["--method", "invalid choice"]),
     (["--rtol", "5"], ["rtol = 5.0 must be below 1"]),
+    (["--param", "fd=1", "--param", "fd=2"], ["--param fd: given twice (1 and 2)"]),
 ])
 def test_simulate_refuses_bad_values_before_running(tmp_path, capsys, no_work, argv, needles):
     out = tmp_path / "out"

@@ -330,6 +330,13 @@ def test_a_schedule_is_checked_when_made(knots, a, b, why):
         gs.inputs.Schedule(knots, a, b)
 
 
+def test_a_table_with_a_non_finite_time_names_the_times():
+    with pytest.raises(InputScheduleError, match=r"times has non-finite entries: give finite knot times \(s\)"):
+        gs.inputs.piecewise_linear([0.0, np.nan], [[0.0, 0.0], [1.0, 0.0]])
+    with pytest.raises(InputScheduleError, match=r"values has non-finite entries: give finite input values"):
+        gs.inputs.zero_order_hold([0.0, 1.0], [[0.0, 0.0], [np.inf, 0.0]])
+
+
 def test_a_checked_schedule_runs_and_a_wrong_width_is_named(torque_model):
     sched = gs.inputs.Schedule([0.05], [[0.0, 0.0], [1e-3, 0.0]], np.zeros((2, 2)))
     np.testing.assert_array_equal(sched([0.0, 0.1]), [[0.0, 0.0], [1e-3, 0.0]])

@@ -80,7 +80,8 @@ def _meta(change):
     (_meta(lambda m: m.update(state_names=m["state_names"][:3])), "x has shape .* 3 state names"),
     (_meta(lambda m: m.update(outputs=["Q", "Q", "f"])), r"'outputs' names \['Q'\] more than once"),
     (_meta(lambda m: m.update(method=["radau"])), "'method' = \\['radau'\\] is not a string"),
-    (_meta(lambda m: m.update(params={"fd": "x"})), r"'params' \['fd'\] are not numbers"),
+    (_meta(lambda m: m.update(params={"fd": "x"})), r"'params' \['fd'\] are not finite numbers"),
+    (_meta(lambda m: m.update(params={"fd": float("nan")})), r"'params' \['fd'\] are not finite"),
     (_meta(lambda m: m.update(stats=[])), "'stats' is a JSON list"),
 ])
 def test_an_edited_file_is_refused_naming_the_file_and_the_entry(result, tmp_path, edit, match):

@@ -317,8 +317,8 @@ def _from_npz(cls, f, path: Path) -> SimulationResult:
         if not isinstance(meta[key], dict):
             raise bad(f"meta {key!r} is a JSON {type(meta[key]).__name__}, not an object")
     if wrong := [k for k, v in meta["params"].items()
-                 if not isinstance(v, (int, float)) or isinstance(v, bool)]:
-        raise bad(f"meta 'params' {wrong} are not numbers")
+                 if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v)]:
+        raise bad(f"meta 'params' {wrong} are not finite numbers")
     if wrong := [k for k, v in meta["stats"].items()
                  if not (v is None or isinstance(v, (int, float, str, bool)))]:
         raise bad(f"meta 'stats' {wrong} are not plain numbers or text")
