@@ -13,13 +13,14 @@ a GIF are held in memory until it is written).
 from __future__ import annotations
 
 import math
-import numbers
 import shutil
 from pathlib import Path
 
 import numpy as np
 
 from grasping_sym.errors import ViewOptionError
+from grasping_sym.geometry.values import as_real
+from grasping_sym.runtime.result import check_scene
 
 #: Frames per second of the animation, by default.
 FPS = 20
@@ -53,7 +54,7 @@ def check_options(n_samples: int, *, fps: float = FPS, seconds: float | None = N
     ``SECONDS_RANGE`` (0, 600] (or None), ``dpi`` in ``DPI_RANGE`` [10, 600], and the frames
     (at most one per sample) times their pixels at most ``MAX_PIXELS``."""
     def real(v) -> bool:
-        return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+        return (x := as_real(v)) is not None and math.isfinite(x)
 
     if not real(fps) or not FPS_RANGE[0] < fps <= FPS_RANGE[1]:
         raise ViewOptionError(f"fps = {fps!r}: give frames per second in ({FPS_RANGE[0]:g}, "
@@ -103,6 +104,7 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
     if scene is None:
         raise ViewOptionError("animate needs the run's scene: pass scene=..., or run a model made by "
                               "gs.build(scene) (a model from gs.load, or a loaded result, has none)")
+    check_scene(result, scene, "animate")
     check_options(len(result.t), fps=fps, seconds=seconds, dpi=dpi,
                   dimension=getattr(scene, "dimension", 2))
     path = Path(path)

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym.errors import ViewOptionError
+from grasping_sym.runtime.result import check_scene
 
 #: Frames written by default (evenly spaced in time).
 FRAMES = 150
@@ -131,6 +132,7 @@ def write_viewer(result, path: str | Path, scene=None, *, frames: int = FRAMES, 
                               "by gs.build(scene) (a model from gs.load, or a loaded result, has none)")
     if getattr(scene, "dimension", 2) != 3:
         raise ViewOptionError("the viewer draws 3D scenes: for a 2D run use res.animate('motion.gif')")
+    check_scene(result, scene, "view")
     path = Path(path)
     if path.suffix != ".html":
         raise ViewOptionError(f"{path.name}: the viewer is an .html file")

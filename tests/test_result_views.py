@@ -128,6 +128,10 @@ def test_drawing_options_and_the_scene_are_checked_first(result, tmp_path):
         result.view(tmp_path / "v.html", gs.scenes.paper3d(), title="x")
     with pytest.raises(ViewOptionError, match=r"view: the scene 'paper3d' has the states .* the result"):
         result.view(tmp_path / "v.html", gs.scenes.paper3d())
+    from grasping_sym.animation import animate  # the drawing functions check it themselves
+
+    with pytest.raises(ViewOptionError, match=r"animate: the scene 'paper3d' has the states"):
+        animate(result, tmp_path / "a.gif", gs.scenes.paper3d())
     assert list(tmp_path.iterdir()) == []
 
 

@@ -134,7 +134,7 @@ class SimulationResult:
         ``scene`` defaults to the run's (a model made by ``gs.build`` sets it)."""
         from grasping_sym.animation import animate  # noqa: PLC0415
 
-        _drawable(self, animate, "animate", scene, options)
+        _known_options(animate, "animate", options)
         return animate(self, path, scene, **options)
 
     def view(self, path: Path | str, scene=None, **options) -> Path:
@@ -142,7 +142,7 @@ class SimulationResult:
         no network, nothing to install; ``grasping_sym.viewer``)."""
         from grasping_sym.viewer import write_viewer  # noqa: PLC0415
 
-        _drawable(self, write_viewer, "view", scene, options)
+        _known_options(write_viewer, "view", options)
         return write_viewer(self, path, scene, **options)
 
     # ------------------------------------------------------------ files
@@ -216,14 +216,17 @@ class SimulationResult:
                                       f"{exc}); pickled objects are never loaded") from None
 
 
-def _drawable(result, draw, what: str, scene, options: dict) -> None:
-    """Before ``draw`` (``animate`` or ``write_viewer``) starts: its options by name, and a
-    scene whose states are the result's."""
+def _known_options(draw, what: str, options: dict) -> None:
+    """``options`` are keyword options of ``draw`` (``animate`` or ``write_viewer``)."""
     known = [n for n, p in inspect.signature(draw).parameters.items() if p.kind is p.KEYWORD_ONLY]
     unknown = sorted(set(options) - set(known))
     if unknown:
         raise ViewOptionError(f"{what}: unknown option(s) {unknown}; the options are {known}")
-    scene = scene if scene is not None else getattr(result, "scene", None)
+
+
+def check_scene(result, scene, what: str) -> None:
+    """Before a drawing of ``result`` starts: ``scene`` has the result's states (a result drawn
+    with another scene's geometry would fail inside it, or draw something else)."""
     names = getattr(scene, "state_names", None)
     if names is not None and tuple(names) != tuple(result.state_names):
         raise ViewOptionError(
