@@ -21,7 +21,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 _DERIVE = """
 import json, time
-from grasping_sym.codegen.templates import derive_and_build
+from grasping_sym.assemble.templates import derive_and_build
 from grasping_sym.derive.planar import derive_template
 t0 = time.perf_counter()
 system = derive_template(False, False, {n})

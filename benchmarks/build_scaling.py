@@ -16,7 +16,7 @@ Alternatives for the spline (what ``geometry.spline``'s design was chosen from):
   compiled by gcc -O2 and timed in a C loop, for each way of picking (if_else chain = what a
   Piecewise becomes, balanced if_else tree, atan2 steps, sign steps = shipped, comparison
   steps, a CasADi B-spline call node);
-- whole model with B-spline call nodes: the change to ``codegen/translate.py`` the report
+- whole model with B-spline call nodes: the change to ``symbolic/translate.py`` the report
   proposes, emulated here by registering the call nodes in its translation table in a
   throw-away interpreter (not something the package does).
 
@@ -95,9 +95,9 @@ def model_metrics(scene, model) -> dict:
     """Everything measured in the process that built ``model`` (after the build)."""
     import casadi as ca
 
-    from grasping_sym.codegen.translate import SympyToCasadi
-    from grasping_sym.derive.contour_functions import OBJECT, leaf_expressions
     from grasping_sym.geometry.curves import T
+    from grasping_sym.symbolic.contour_functions import OBJECT, leaf_expressions
+    from grasping_sym.symbolic.translate import SympyToCasadi
 
     t0 = time.perf_counter()
     leaves = leaf_expressions(OBJECT, scene.object)
@@ -270,7 +270,7 @@ def selection_function(variant: str, m: int):
 def selection_benchmark(variant: str, m: int, workdir: Path) -> dict:
     import casadi as ca
 
-    from grasping_sym.codegen.compiler import compiler_command
+    from grasping_sym.toolchain.compiler import compiler_command
 
     d = workdir / f"{variant}_{m}"
     d.mkdir(parents=True, exist_ok=True)
@@ -317,7 +317,7 @@ import json, math, time, hashlib
 import numpy as np, sympy as sp, casadi as ca
 from scipy.interpolate import make_interp_spline
 import grasping_sym as gs
-from grasping_sym.codegen import translate
+from grasping_sym.symbolic import translate
 from grasping_sym.geometry.curves import PlanarCurve, T
 from benchmarks.build_scaling import shape_scene, model_metrics
 

@@ -85,7 +85,7 @@ def in_process_stages(scene_obj) -> dict:
     Returns the timings, SymPy op counts before/after CSE, CasADi SX instruction counts,
     and the objects (``system``, ``casadi_model``) for later use (not serialised).
     """
-    from grasping_sym.codegen.functions import build_casadi, sympy_op_counts
+    from grasping_sym.assemble.functions import build_casadi, sympy_op_counts
     from grasping_sym.derive.planar import derive_planar
 
     t0 = time.perf_counter()

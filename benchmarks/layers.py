@@ -195,8 +195,8 @@ _REFERENCE_DEFINES = {"GS_RHS": "r", "GS_NX": 14, "GS_NP": 2, "GS_HAS_OUT": 0, "
 
 def _reference_compile_s() -> float:
     """The best of 5 wall times of gcc compiling ``c/lu.c`` with ``_REFERENCE_DEFINES``."""
-    from grasping_sym.codegen.compiler import compile_objects
-    from grasping_sym.codegen.library import DRIVER_SOURCES
+    from grasping_sym.toolchain.compiler import compile_objects
+    from grasping_sym.toolchain.library import DRIVER_SOURCES
 
     lu = next(s for s in DRIVER_SOURCES if s.name == "lu.c")
     times = []

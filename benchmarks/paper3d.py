@@ -106,7 +106,7 @@ import numpy as np
 import sympy as sp
 import grasping_sym as gs
 from grasping_sym import pipeline
-from grasping_sym.codegen.functions import sx_model
+from grasping_sym.assemble.functions import sx_model
 from grasping_sym.derive import grasp3d as g3
 
 T = {{}}

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from grasping_sym.codegen.compiler import compile_shared
+from grasping_sym.toolchain.compiler import compile_shared
 
 SOURCE = Path(__file__).resolve().parent / "c" / "rhs_loop.c"
 _dp = ctypes.c_void_p

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
-from grasping_sym import scenes
 from grasping_sym.geometry import library
+from grasping_sym.model import scenes
 from grasping_sym.model.planar import PlanarFingerScene
 
 

@@ -3,6 +3,7 @@
 >>> import grasping_sym as gs
 >>> model = gs.build(gs.scenes.paper2d())
 >>> res = model.simulate(t_final=3.0)
+>>> gs.viz.animate(res, "motion.gif")
 
 The package's names are imported on first use (module ``__getattr__``): ``import
 grasping_sym as gs; gs.load(path)`` runs a built model without importing SymPy.
@@ -17,18 +18,19 @@ __version__ = "0.1.0"
 _LAZY = {
     "build": ("grasping_sym.pipeline", "build"),
     "load": ("grasping_sym.runtime.loader", "load"),
-    "scenes": ("grasping_sym.scenes", None),
+    "scenes": ("grasping_sym.model.scenes", None),
     "curves": ("grasping_sym.geometry.library", None),
     "PlanarCurve": ("grasping_sym.geometry.curves", "PlanarCurve"),
     "SimulationResult": ("grasping_sym.runtime.result", "SimulationResult"),
     "Model": ("grasping_sym.runtime.model", "Model"),
-    "controllers": ("grasping_sym.controllers", None),
-    "inputs": ("grasping_sym.inputs", None),
+    "controllers": ("grasping_sym.model.controllers", None),
+    "inputs": ("grasping_sym.runtime.inputs", None),
     "sweep": ("grasping_sym.sweeps", "sweep"),
+    "viz": ("grasping_sym.viz", None),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "controllers", "inputs", "sweep", "__version__"]
+           "controllers", "inputs", "sweep", "viz", "__version__"]
 
 
 def __getattr__(name: str):

@@ -48,7 +48,7 @@ def _say(msg: str) -> None:
 
 
 def _builtin() -> dict:
-    from grasping_sym.scenes import BUILTIN  # lazy: keeps `--help` fast
+    from grasping_sym.model.scenes import BUILTIN  # lazy: keeps `--help` fast
 
     return BUILTIN
 
@@ -181,8 +181,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     params = _params(args.param)
     out = _check_out(args.out)
     _say(f"defining scene {args.name}")
-    if args.name.endswith(".toml"):  # a scene file (grasping_sym.scene_files)
-        from grasping_sym.scene_files import load_scene
+    if args.name.endswith(".toml"):  # a scene file (grasping_sym.model.scene_files)
+        from grasping_sym.model.scene_files import load_scene
 
         scene = load_scene(args.name)
         missing = [k for k in params if k not in scene.runtime]
@@ -253,8 +253,8 @@ def _params(texts) -> dict[str, float]:
 def cmd_cache(args: argparse.Namespace) -> int:
     import os  # noqa: PLC0415
 
-    from grasping_sym.codegen import cache  # noqa: PLC0415
-    from grasping_sym.runtime import safety  # noqa: PLC0415
+    from grasping_sym.store import paths as cache  # noqa: PLC0415
+    from grasping_sym.store import safety  # noqa: PLC0415
 
     root = cache.cache_root()
     if args.action == "clear":
@@ -286,7 +286,7 @@ def cmd_cache(args: argparse.Namespace) -> int:
 def _check_show(show: str, scene) -> None:
     """``--show``: a final state, ``settle_<state or output>``, ``min_``/``max_<...>``, or
     ``failure`` (what the sweep's store will hold)."""
-    from grasping_sym.sweep_plots import FAILURE  # noqa: PLC0415
+    from grasping_sym.viz.sweep_plots import FAILURE  # noqa: PLC0415
 
     quantities = (*scene.state_names, *getattr(scene, "outputs", ()))
     known = [*scene.state_names, FAILURE] + [f"{kind}_{q}" for kind in ("settle", "min", "max")
@@ -302,8 +302,8 @@ def _check_show(show: str, scene) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from grasping_sym.pipeline import build
-    from grasping_sym.sweep_plots import FAILURE, sweep_figure
     from grasping_sym.sweeps import sweep
+    from grasping_sym.viz.sweep_plots import FAILURE, sweep_figure
 
     try:
         axes = [parse_range(text) for text in args.param]
@@ -419,7 +419,7 @@ def make_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="build a scene, simulate it, write CSV and figures")
     p.add_argument("name", metavar="NAME", help="built-in scene (see `list`), or a scene file "
-                                                "(.toml: grasping_sym.scene_files)")
+                                                "(.toml: grasping_sym.model.scene_files)")
     p.add_argument("--t-final", type=_positive_float, default=None,
                    help=f"simulated time in s (default 3 for 2D scenes, 5 for 3D scenes; at most "
                         f"{MAX_T_FINAL:g})")

@@ -6,8 +6,8 @@ import pytest
 from PIL import Image
 
 import grasping_sym as gs
-from grasping_sym.animation import frame_rows
 from grasping_sym.errors import ViewOptionError
+from grasping_sym.viz.animation import frame_rows
 
 
 def _frames(path) -> list[np.ndarray]:
@@ -21,15 +21,15 @@ def _frames(path) -> list[np.ndarray]:
 
 def test_a_2d_run_animates_and_its_frames_move(paper2d_model, tmp_path):
     res = paper2d_model.simulate(1.0, method="radau", rtol=1e-6, atol=1e-8)
-    path = res.animate(tmp_path / "motion.gif", fps=5, seconds=1.0)
+    path = gs.viz.animate(res, tmp_path / "motion.gif", fps=5, seconds=1.0)
     frames = _frames(path)
     assert len(frames) == len(frame_rows(res.t, 5, 1.0)) == 6
     assert np.abs(frames[0] - frames[-1]).mean() > 0.1  # the finger and the object moved
     with pytest.raises(ViewOptionError, match=r"\.gif"):
-        res.animate(tmp_path / "motion.avi")
+        gs.viz.animate(res, tmp_path / "motion.avi")
     loaded = gs.SimulationResult.load(res.save(tmp_path / "r"))
     with pytest.raises(ViewOptionError, match="scene"):
-        loaded.animate(tmp_path / "x.gif")
+        gs.viz.animate(loaded, tmp_path / "x.gif")
 
 
 @pytest.mark.parametrize("options, match", [
@@ -45,13 +45,13 @@ def test_a_2d_run_animates_and_its_frames_move(paper2d_model, tmp_path):
 def test_options_are_bounded_before_anything_is_drawn(paper2d_model, tmp_path, options, match):
     res = paper2d_model.simulate(0.1)
     with pytest.raises(ViewOptionError, match=match):
-        res.animate(tmp_path / "motion.gif", **options)
+        gs.viz.animate(res, tmp_path / "motion.gif", **options)
     assert not (tmp_path / "motion.gif").exists()
 
 
 def test_a_3d_run_animates(paper3d_model, tmp_path):
     res = paper3d_model.simulate(0.5, method="radau", rtol=1e-6, atol=1e-9,
                                  t_eval=np.linspace(0, 0.5, 51))
-    frames = _frames(res.animate(tmp_path / "grasp.gif", fps=4, seconds=0.5))
+    frames = _frames(gs.viz.animate(res, tmp_path / "grasp.gif", fps=4, seconds=0.5))
     assert len(frames) == 3 and frames[0].shape[2] == 3
     assert np.abs(frames[0] - frames[-1]).mean() > 0.01

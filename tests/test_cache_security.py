@@ -20,10 +20,8 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
+from grasping_sym.assemble import templates
 from grasping_sym.cli import main as cli_main
-from grasping_sym.codegen import cache as gs_cache
-from grasping_sym.codegen import templates
-from grasping_sym.codegen.compiler import compile_shared
 from grasping_sym.errors import (
     CacheContentsError,
     CacheWriteError,
@@ -34,7 +32,9 @@ from grasping_sym.errors import (
     UnsafeTemplateError,
 )
 from grasping_sym.geometry.surfaces import ParametricSurface
-from grasping_sym.runtime import safety
+from grasping_sym.store import paths as gs_cache
+from grasping_sym.store import safety
+from grasping_sym.toolchain.compiler import compile_shared
 
 ROOT_ONLY = pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
                                reason="planting files of another user needs root (chown)")

@@ -7,9 +7,10 @@ import logging
 import numpy as np
 import pytest
 
-from grasping_sym import cli, plots
+from grasping_sym import cli
+from grasping_sym.model.scenes import BUILTIN, paper2d
 from grasping_sym.runtime.result import SimulationResult
-from grasping_sym.scenes import BUILTIN, paper2d
+from grasping_sym.viz import plots
 
 PAPER2D_HEADER = [
     "t", "theta", "q1", "q2", "dtheta", "dq1", "dq2", "s",
@@ -80,7 +81,7 @@ def test_missing_outputs_are_skipped_with_a_log_message(tmp_path, caplog):
     t = np.linspace(0.0, 0.01, 11)
     res = SimulationResult(t=t, x=np.tile(x0, (len(t), 1)), state_names=scene.state_names,
                            outputs={}, method="rk4")
-    with caplog.at_level(logging.WARNING, logger="grasping_sym.plots"):
+    with caplog.at_level(logging.WARNING, logger="grasping_sym.viz.plots"):
         paths = plots.time_figures(scene, res, tmp_path)
     names = sorted(p.name for p in paths)
     assert names == sorted(["fig09_s.png", "fig10_dq1.png", "fig11_dq2.png",

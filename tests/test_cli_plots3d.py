@@ -1,4 +1,4 @@
-"""The command line on 3D scenes and the 3D figures (``grasping_sym.plots3d``).
+"""The command line on 3D scenes and the 3D figures (``grasping_sym.viz.plots3d``).
 
 Everything is written under tmp_path (builds go to the session's private cache, conftest).
 """
@@ -11,10 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from grasping_sym import cli, plots3d
+from grasping_sym import cli
 from grasping_sym.geometry import surface_library
+from grasping_sym.model.scenes import paper2d, paper3d, pivot3d
 from grasping_sym.runtime.result import SimulationResult
-from grasping_sym.scenes import paper2d, paper3d, pivot3d
+from grasping_sym.viz import plots3d
 
 FIGURES_3D = ["snapshots.png", "contact_traces.png", "multipliers.png", "arclengths_residuals.png",
               "pose_joints.png"]
@@ -104,7 +105,7 @@ def test_figures_without_outputs_skip_the_multipliers(caplog):
     t = np.linspace(0.0, 0.01, 11)
     x = np.zeros((len(t), len(scene.state_names)))
     res = SimulationResult(t=t, x=x, state_names=scene.state_names, outputs={}, method="rk4")
-    with caplog.at_level(logging.WARNING, logger="grasping_sym.plots3d"):
+    with caplog.at_level(logging.WARNING, logger="grasping_sym.viz.plots3d"):
         assert plots3d.multipliers_figure(scene, res) is None
     assert "skipping" in caplog.text
     fig = plots3d.arclength_figure(scene, res, plots3d.contact_traces(scene, res))

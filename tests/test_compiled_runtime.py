@@ -1,4 +1,4 @@
-"""Tests of the compiled runtime: driver.c + codegen/library.py + runtime/compiled.py and c_loops.py."""
+"""Tests of the compiled runtime: driver.c + toolchain/library.py + runtime/compiled.py and c_loops.py."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from grasping_sym.codegen import compiler
-from grasping_sym.codegen.compiler import COMPILER_FLAGS, compile_shared
-from grasping_sym.codegen.library import build_library, driver_defines
 from grasping_sym.errors import CompileError, IntegratorError
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.toolchain import compiler
+from grasping_sym.toolchain.compiler import COMPILER_FLAGS, compile_shared
+from grasping_sym.toolchain.library import build_library, driver_defines
 
 
 def _dae_rhs(name: str, x: ca.SX, p: ca.SX, ode: ca.SX) -> ca.Function:

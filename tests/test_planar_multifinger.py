@@ -63,7 +63,7 @@ def test_mirror_symmetric_pair_holds_what_one_finger_turns():
 def test_two_finger_scenes_have_default_outputs_and_plot(tmp_path):
     """Default outputs: each per-contact output once per finger; the figures draw both fingers
     and plot each finger's curves."""
-    from grasping_sym import plots
+    from grasping_sym.viz import plots
 
     xm, _ = _pivot()
     pair = ExtraFinger(_tip("tip2"), base=(2 * xm, 0.0), u1_0=U1 - math.pi + 0.2)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.codegen.library import build_library, driver_defines
 from grasping_sym.errors import ContactLeftContourError, IntegratorError
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.toolchain.library import build_library, driver_defines
 
 T_FINAL = 3.0
 

@@ -1,4 +1,4 @@
-"""Shared reciprocals (codegen/reciprocals.py): the rewritten program computes what CasADi's
+"""Shared reciprocals (emit/reciprocals.py): the rewritten program computes what CasADi's
 does, to within a rounding per division, with one division per shared denominator; the C
 written from it (vecmath's bodies) agrees."""
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from grasping_sym.codegen import algorithm
-from grasping_sym.codegen.reciprocals import share_reciprocals
+from grasping_sym.emit import algorithm
+from grasping_sym.emit.reciprocals import share_reciprocals
 from tests.oracles.program import run
 
 

@@ -123,12 +123,12 @@ def test_drawing_options_and_the_scene_are_checked_first(result, tmp_path):
     from grasping_sym.errors import ViewOptionError
 
     with pytest.raises(ViewOptionError, match=r"animate: unknown option\(s\) \['fsp'\]; the options are"):
-        result.animate(tmp_path / "a.gif", fsp=3)
+        gs.viz.animate(result, tmp_path / "a.gif", fsp=3)
     with pytest.raises(ViewOptionError, match=r"view: unknown option\(s\) \['title'\]"):
-        result.view(tmp_path / "v.html", gs.scenes.paper3d(), title="x")
+        gs.viz.view(result, tmp_path / "v.html", gs.scenes.paper3d(), title="x")
     with pytest.raises(ViewOptionError, match=r"view: the scene 'paper3d' has the states .* the result"):
-        result.view(tmp_path / "v.html", gs.scenes.paper3d())
-    from grasping_sym.animation import animate  # the drawing functions check it themselves
+        gs.viz.view(result, tmp_path / "v.html", gs.scenes.paper3d())
+    from grasping_sym.viz.animation import animate  # the drawing functions check it themselves
 
     with pytest.raises(ViewOptionError, match=r"animate: the scene 'paper3d' has the states"):
         animate(result, tmp_path / "a.gif", gs.scenes.paper3d())

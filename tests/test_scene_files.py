@@ -1,4 +1,4 @@
-"""Scenes from TOML files (grasping_sym.scene_files): the same scene as in Python, formulas
+"""Scenes from TOML files (grasping_sym.model.scene_files): the same scene as in Python, formulas
 parsed and never run, every problem named."""
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 
 import grasping_sym as gs
 from grasping_sym.cli import main
+from grasping_sym.model.scene_files import SceneFileError, load_scene
 from grasping_sym.pipeline import code_hash
-from grasping_sym.scene_files import SceneFileError, load_scene
 
 ELLIPSE = """
 [scene]

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.codegen.translate import SympyToCasadi
-from grasping_sym.derive.contour_functions import OBJECT, leaf_expressions
 from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import T
 from grasping_sym.geometry.spline import SplineCurve, spline
+from grasping_sym.symbolic.contour_functions import OBJECT, leaf_expressions
+from grasping_sym.symbolic.translate import SympyToCasadi
 
 R = 0.02
 

@@ -6,9 +6,9 @@ import math
 import numpy as np
 
 import grasping_sym as gs
-from grasping_sym.codegen import templates
-from grasping_sym.codegen.controller import controller_function
-from grasping_sym.codegen.functions import Template, build_casadi, compose
+from grasping_sym.assemble import templates
+from grasping_sym.assemble.controller import controller_function
+from grasping_sym.assemble.functions import Template, build_casadi, compose
 from grasping_sym.derive.planar import derive_planar, parameter_values
 
 

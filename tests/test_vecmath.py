@@ -1,4 +1,4 @@
-"""Grouped libm calls (codegen/vecmath.py): the same bits as CasADi's code without
+"""Grouped libm calls (emit/vecmath.py): the same bits as CasADi's code without
 GS_VECMATH; within libmvec's stated 4 ulp with it."""
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from grasping_sym.codegen import compiler, vecmath
-from grasping_sym.codegen.library import build_library
+from grasping_sym.emit import vecmath
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.toolchain import compiler
+from grasping_sym.toolchain.library import build_library
 
 needs_libmvec = pytest.mark.skipif(not compiler.vector_libm(),
                                    reason="no x86-64-v3 CPU with glibc's libmvec here")

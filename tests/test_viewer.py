@@ -14,7 +14,7 @@ from PIL import Image
 
 import grasping_sym as gs
 from grasping_sym.errors import ViewOptionError
-from grasping_sym.viewer import _page
+from grasping_sym.viz.viewer import _page
 
 
 def _chromium() -> str:
@@ -40,7 +40,7 @@ def run3d(paper3d_model):
 
 
 def test_the_viewer_is_one_file_that_a_browser_draws(run3d, tmp_path):
-    page = run3d.view(tmp_path / "grasp.html")
+    page = gs.viz.view(run3d, tmp_path / "grasp.html")
     text = page.read_text()
     assert "http://" not in text and "https://" not in text and "<script src" not in text
     img = _shot(page, tmp_path / "first.png")
@@ -59,10 +59,10 @@ def test_the_viewer_is_one_file_that_a_browser_draws(run3d, tmp_path):
 def test_the_viewer_refuses_what_it_cannot_draw(paper2d_model, tmp_path):
     res = paper2d_model.simulate(0.1)
     with pytest.raises(ViewOptionError, match="animate"):
-        res.view(tmp_path / "x.html")
+        gs.viz.view(res, tmp_path / "x.html")
     loaded = gs.SimulationResult.load(res.save(tmp_path / "r"))
     with pytest.raises(ViewOptionError, match="scene"):
-        loaded.view(tmp_path / "x.html")
+        gs.viz.view(loaded, tmp_path / "x.html")
     # the options, bounded before any work (named with their bounds)
     for options, match in [({"frames": 0}, r"frames = 0: .* from 2 to 5000"),
                            ({"frames": 10**9}, "frames = 1000000000"),
@@ -70,7 +70,7 @@ def test_the_viewer_refuses_what_it_cannot_draw(paper2d_model, tmp_path):
                            ({"fps": 0}, r"fps = 0: .*\(0, 240\]"),
                            ({"fps": float("nan")}, "fps = nan")]:
         with pytest.raises(ViewOptionError, match=match):
-            res.view(tmp_path / "x.html", **options)
+            gs.viz.view(res, tmp_path / "x.html", **options)
     assert not (tmp_path / "x.html").exists()
 
 
@@ -92,7 +92,7 @@ def test_no_text_of_a_result_runs_in_the_page(run3d, paper3d_model, tmp_path):
     np.savez(saved, **entries)
     loaded = gs.SimulationResult.load(saved)
     assert loaded.method == PAYLOAD
-    page = loaded.view(tmp_path / "shared.html", scene=paper3d_model.scene)
+    page = gs.viz.view(loaded, tmp_path / "shared.html", scene=paper3d_model.scene)
     text = page.read_text()
     assert text.count("<script") == 1 and text.count("</script>") == 1
     dom = subprocess.run([_chromium(), "--headless", "--disable-gpu", "--no-sandbox", "--dump-dom",

@@ -40,7 +40,7 @@ def _rod_inertia(mass: float, vector) -> list[float]:
 def mjcf(scene, x0: np.ndarray, state_names, timestep: float = 1e-3, noslip: int = 0) -> str:
     """The MJCF of ``scene`` (paper3d's shapes: spherical tips, an ellipsoid) started at the
     grasp model's state ``x0``."""
-    from grasping_sym.scenes import PAPER3D_SEMI_AXES, PAPER3D_TIP_RADIUS
+    from grasping_sym.model.scenes import PAPER3D_SEMI_AXES, PAPER3D_TIP_RADIUS
 
     tip_radius = PAPER3D_TIP_RADIUS
     idx = {k: i for i, k in enumerate(state_names)}

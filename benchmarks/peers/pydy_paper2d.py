@@ -1,6 +1,6 @@
 """The paper2d scene written as a multibody user would: ``sympy.physics.mechanics`` + PyDy (Cython).
 
-A peer for the benchmarks: the same scene as ``grasping_sym.scenes.paper2d()`` (docs/conventions.md section 1,
+A peer for the benchmarks: the same scene as ``grasping_sym.model.scenes.paper2d()`` (docs/conventions.md section 1,
 Yoshida-Arimoto-Tahara 2009), derived with ``KanesMethod`` and compiled with PyDy's
 ``generate_ode_function(..., generator='cython')``, the way ``pydy.system.System`` does it.
 
@@ -362,7 +362,7 @@ class SimResult:
 
 def _scene_numbers():
     """Parameters (PyDy order) and the initial state of ``grasping_sym``'s paper2d."""
-    from grasping_sym import scenes  # noqa: PLC0415
+    from grasping_sym.model import scenes  # noqa: PLC0415
 
     scene = scenes.paper2d()
     values = dict(scene.params)

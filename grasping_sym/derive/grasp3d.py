@@ -42,7 +42,6 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from grasping_sym.codegen.translate import SympyToCasadi
 from grasping_sym.derive import contact3d as c3
 from grasping_sym.derive.spatial import (
     finger_dynamics,
@@ -54,6 +53,7 @@ from grasping_sym.derive.spatial import (
 from grasping_sym.derive.system import assemble
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 from grasping_sym.model.grasp3d import GraspScene3D
+from grasping_sym.symbolic.translate import SympyToCasadi
 
 #: 1/s, damping of the paper formulation's frames' orthonormality drift (zero on SO(3)).
 FRAME_GAIN = 50.0
@@ -115,7 +115,7 @@ def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
     """The finger's kinematics and dynamics as SX in ``q, dq``: its template (derived with
     SymPy once per chain and gravity, and stored, ``codegen.templates.finger_template``)
     evaluated on ``q, dq``."""
-    from grasping_sym.codegen.templates import finger_template  # noqa: PLC0415
+    from grasping_sym.assemble.templates import finger_template  # noqa: PLC0415
 
     g = None if gravity is None else tuple(float(v) for v in gravity)
     fn, _ = finger_template(chain, g, lambda: finger_function(chain, g))
@@ -207,7 +207,7 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = F
     ``p`` instead, which then holds no inputs' coefficients (a structure's, whose model
     computes the torques).
     """
-    from grasping_sym.codegen.controller import controller_torques  # noqa: PLC0415
+    from grasping_sym.assemble.controller import controller_torques  # noqa: PLC0415
 
     paper = scene.formulation == "paper"
     N = scene.n_contacts

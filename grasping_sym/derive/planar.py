@@ -21,7 +21,7 @@ at the contact. The equations of motion are
     G(q) q'' + (G'/2 + S) q' + f dQ/dq + lam dR/dq = tau                 (paper 27-28)
 
 The joint torques ``tau`` are symbols of the template (``tau_q1, tau_q2``; with several
-fingers ``tau_q11, ...``): the controller is a layer of its own (``grasping_sym.controllers``),
+fingers ``tau_q11, ...``): the controller is a layer of its own (``grasping_sym.model.controllers``),
 so the contact dynamics are derived once for every controller. The paper's law (32),
 
     tau = -c q' - J01^T (fd/r)(O01 - Om)                                 (paper 32)
@@ -38,9 +38,9 @@ from functools import lru_cache
 
 import sympy as sp
 
-from grasping_sym.derive.contour_functions import OBJECT, fingertip_functions
 from grasping_sym.derive.system import ConstrainedSystem
 from grasping_sym.model.planar import PARAMETERS, PlanarFingerScene
+from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions
 
 
 def _rot(a: sp.Expr, v: sp.Matrix) -> sp.Matrix:

@@ -1,10 +1,10 @@
 """What a scene says about its control: its controller and its inputs (both kinds of scene).
 
 ``controller``: ``"paper"`` (the scene's paper law, the default), ``None`` (no law: the
-torques are the inputs alone), or a :class:`grasping_sym.controllers.Controller`.
+torques are the inputs alone), or a :class:`grasping_sym.model.controllers.Controller`.
 ``inputs``: ``None`` (none) or ``"torques"``: one joint torque ``u1, u2, ...`` (N m) per finger
 joint, in the order of the joints, added to the controller's. On a model an input is
-``u(t) = a + b t`` between the knots of its schedule (``grasping_sym.inputs``): its run-time
+``u(t) = a + b t`` between the knots of its schedule (``grasping_sym.runtime.inputs``): its run-time
 coefficients ``u1, ..., u1_rate, ...`` follow the start's values in the compiled ``p``.
 """
 from __future__ import annotations
@@ -27,7 +27,7 @@ def coefficient_names(names: tuple[str, ...]) -> tuple[str, ...]:
 
 def control_problems(controller, inputs) -> list[str]:
     """Named problems of a scene's ``controller`` and ``inputs`` values."""
-    from grasping_sym.controllers import Controller  # noqa: PLC0415
+    from grasping_sym.model.controllers import Controller  # noqa: PLC0415
 
     problems = []
     if not (controller is None or controller == PAPER or isinstance(controller, Controller)):

@@ -39,7 +39,7 @@ from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
 from grasping_sym.model.control import input_names as _input_names
-from grasping_sym.model.names import name_problems, names_tuple, output_problems
+from grasping_sym.names import name_problems, names_tuple, output_problems
 
 FORMULATIONS = ("regular", "paper")
 SUPPORTS = ("free", "pivot")
@@ -288,7 +288,7 @@ class GraspScene3D:
 
     @cached_property
     def _controller_key(self) -> str:
-        from grasping_sym.codegen.controller import controller_key  # noqa: PLC0415
+        from grasping_sym.assemble.controller import controller_key  # noqa: PLC0415
 
         return controller_key(self)
 
@@ -336,12 +336,6 @@ class GraspScene3D:
 
 
     # ------------------------------------------------------------------ scene protocol
-    #: Package sources (relative to the package) whose text enters the code's hash, on top
-    #: of the ones every scene's does (``codegen.cache.HASHED_SOURCES``).
-    hashed_sources: ClassVar[tuple[str, ...]] = (
-        "model/grasp3d.py", "model/chains.py", "geometry/surfaces.py", "derive/grasp3d.py",
-        "derive/spatial.py", "derive/contact3d.py", "codegen/structure3d.py",
-    )
     #: 3D scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA
     #: at moderate tolerances is the fast choice (a 5 s paper3d run in ~0.1 s).
     simulate_defaults: ClassVar[dict] = {"t_final": 5.0, "method": "radau",
@@ -351,7 +345,7 @@ class GraspScene3D:
         """The scene's CasADi functions: in layers (``codegen.scene_functions.grasp3d_layered``:
         what is compiled, for the regular formulation), or in one piece of SX
         (``grasp3d_functions``: with ``layers=False``, and for the paper formulation)."""
-        from grasping_sym.codegen import scene_functions  # noqa: PLC0415
+        from grasping_sym.assemble import scene_functions  # noqa: PLC0415
 
         if layers and self.formulation == "regular":
             return scene_functions.grasp3d_layered(self, progress)
@@ -360,7 +354,7 @@ class GraspScene3D:
     def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
         """``(x0, start values, info)``: the consistent start nearest the guesses
         (``derive.initial3d``, Gauss-Newton) and the centre spring's rest point."""
-        from grasping_sym.derive import initial3d  # noqa: PLC0415
+        from grasping_sym.derive import start3d as initial3d  # noqa: PLC0415
 
         x0, info = initial3d.initial_state(self)
         values = dict(zip(self.start_param_names, map(float, info["r_bar0"])))
@@ -368,13 +362,13 @@ class GraspScene3D:
 
     def write_figures(self, result, out_dir) -> list:
         """The figures of a run (``plots3d.write_figures3d``; derives the geometry, 1-3 s)."""
-        from grasping_sym.plots3d import write_figures3d  # noqa: PLC0415
+        from grasping_sym.viz.plots3d import write_figures3d  # noqa: PLC0415
 
         return write_figures3d(self, result, out_dir)
 
     def summary_lines(self, result) -> list[str]:
         """Lines ``grasping-sym simulate`` prints of a 3D run (``plots3d.summary_lines``)."""
-        from grasping_sym.plots3d import summary_lines  # noqa: PLC0415
+        from grasping_sym.viz.plots3d import summary_lines  # noqa: PLC0415
 
         return summary_lines(self, result)
 
@@ -385,9 +379,6 @@ class GraspScene3D:
                 "param_rules": {k: "positive" if k in ("fd", "c") else "nonnegative"
                                 for k in self.runtime}}
 
-    #: Package sources that the start's solution depends on beyond ``hashed_sources``.
-    start_sources: ClassVar[tuple[str, ...]] = ("derive/initial3d.py",)
-
     def sympy_op_counts(self) -> dict[str, int]:
         """Operation counts of SymPy pieces: none (the 3D pieces go to CasADi's AD)."""
         return {}
@@ -395,7 +386,7 @@ class GraspScene3D:
     def structure_templates(self) -> list[tuple[str, str, object]]:
         """``(file name, key, build)`` of each template this scene's structure uses: one per
         finger chain (``codegen.templates.finger_template``), committed for built-in scenes."""
-        from grasping_sym.codegen import templates  # noqa: PLC0415
+        from grasping_sym.assemble import templates  # noqa: PLC0415
         from grasping_sym.derive.grasp3d import finger_function  # noqa: PLC0415
 
         g = None if self.gravity is None else tuple(float(v) for v in self.gravity)

@@ -27,7 +27,7 @@ from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
 from grasping_sym.model.control import input_names as _input_names
-from grasping_sym.model.names import name_problems, names_tuple, output_problems
+from grasping_sym.names import name_problems, names_tuple, output_problems
 
 #: Parameters of the 2D scene, with their units.
 PARAMETERS: dict[str, str] = {
@@ -128,7 +128,7 @@ class PlanarFingerScene:
         finger's number (``q21``, ``u0_2``, ``f2``, ...).
     controller
         ``"paper"`` (the law (32), ``controllers.paper2d``), ``None`` (no law) or a
-        ``grasping_sym.controllers.Controller`` (``model.control``).
+        ``grasping_sym.model.controllers.Controller`` (``model.control``).
     inputs
         ``None`` or ``"torques"``: joint torques ``u1, u2, ...`` added to the controller's.
     """
@@ -377,7 +377,7 @@ class PlanarFingerScene:
 
     @cached_property
     def _controller_key(self) -> str:
-        from grasping_sym.codegen.controller import controller_key  # noqa: PLC0415
+        from grasping_sym.assemble.controller import controller_key  # noqa: PLC0415
 
         return controller_key(self)
 
@@ -413,8 +413,6 @@ class PlanarFingerScene:
         return {"xm": float(xm), "ym": float(ym)}
 
     # ------------------------------------------------------------------ scene protocol
-    #: Package sources (relative to the package) whose text enters the code's hash.
-    hashed_sources: ClassVar[tuple[str, ...]] = ()
     #: What ``grasping-sym simulate`` does by default: simulated time (s), integrator and
     #: its tolerances (none given: the integrator's own defaults).
     simulate_defaults: ClassVar[dict] = {"t_final": 3.0, "method": "cvodes", "tolerances": {}}
@@ -423,7 +421,7 @@ class PlanarFingerScene:
         """The scene's CasADi functions: in layers (``codegen.scene_functions.planar_functions``:
         what is compiled), or with ``layers=False`` in one piece, pure SX with no compiled
         part (``planar_single_piece``: for CasADi's virtual machine and as a reference)."""
-        from grasping_sym.codegen import scene_functions  # noqa: PLC0415
+        from grasping_sym.assemble import scene_functions  # noqa: PLC0415
 
         if not layers:
             return scene_functions.planar_single_piece(self)
@@ -436,7 +434,7 @@ class PlanarFingerScene:
 
     def write_figures(self, result, out_dir) -> list:
         """The figures of a run (``plots.write_figures``)."""
-        from grasping_sym.plots import write_figures  # noqa: PLC0415
+        from grasping_sym.viz.plots import write_figures  # noqa: PLC0415
 
         return write_figures(self, result, out_dir)
 
@@ -454,13 +452,10 @@ class PlanarFingerScene:
 
     def sympy_op_counts(self) -> dict[str, int]:
         """Operation counts of the SymPy pieces before and after SymPy's CSE."""
-        from grasping_sym.codegen.functions import sympy_op_counts  # noqa: PLC0415
+        from grasping_sym.assemble.functions import sympy_op_counts  # noqa: PLC0415
         from grasping_sym.derive.planar import derive_planar  # noqa: PLC0415
 
         return sympy_op_counts(derive_planar(self))
-
-    #: Package sources that the start's solution depends on beyond ``hashed_sources``.
-    start_sources: ClassVar[tuple[str, ...]] = ()
 
     def structure_templates(self) -> list:
         """Templates beyond the planar ones (``codegen.templates.PLANAR_STRUCTURES``): none."""

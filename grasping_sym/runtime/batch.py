@@ -273,7 +273,7 @@ def _parameters(model, params, n: int) -> tuple[np.ndarray, dict[str, np.ndarray
 
 
 def _inputs(model, u, n: int, method: str, grid: np.ndarray):
-    """``(schedule, U)``: a table shared by every run (``grasping_sym.inputs``, the runs restart
+    """``(schedule, U)``: a table shared by every run (``grasping_sym.runtime.inputs``, the runs restart
     at its knots, as ``simulate``'s), or constant inputs ``U`` of shape ``(N, n_inputs)``."""
     if not model.input_names:
         if u is not None:
@@ -289,7 +289,7 @@ def _inputs(model, u, n: int, method: str, grid: np.ndarray):
     arr = np.zeros(k) if u is None else np.asarray(u)
     if arr.dtype.kind not in "fiu":
         raise RunArgumentError(f"u must be numbers (one per input {model.input_names}, or (N, {k})) or a "
-                               "table of grasping_sym.inputs")
+                               "table of grasping_sym.runtime.inputs")
     arr = arr.astype(float)
     if arr.shape not in ((k,), (n, k)) and not (arr.ndim == 0 and k == 1):
         raise RunArgumentError(f"u has shape {arr.shape}; give ({k},) for every run or (N, {k}), "

@@ -1,5 +1,5 @@
 """Load a compiled model library (CasADi code + the C driver in ``c/``, built by
-``codegen/library.py``) and call it fast.
+``toolchain/library.py``) and call it fast.
 
 Two call paths exist:
 
@@ -71,7 +71,7 @@ class CompiledLibrary:
     ----------
     path : Path
         Shared library built from a CasADi file and the C driver (e.g. by
-        :func:`grasping_sym.codegen.library.build_library`).
+        :func:`grasping_sym.toolchain.library.build_library`).
     state_names : sequence of str, optional
         Names used in integrator error messages.
     use_fast : bool

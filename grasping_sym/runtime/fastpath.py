@@ -99,6 +99,5 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
             model, t, out[:m], model.default_params if model.p_names else None):
         return None  # an event along the run: the full way raises it, named
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
-    res = SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict))
-    res.scene = getattr(model, "scene", None)
-    return res
+    return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict),
+                            model.scene)

@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from grasping_sym.codegen.compiler import isa_level, vector_libm
-from grasping_sym.runtime import safety, stored
-from grasping_sym.runtime.manifest_schema import manifest_problems
 from grasping_sym.runtime.model import Model
+from grasping_sym.store import files as stored
+from grasping_sym.store import safety
+from grasping_sym.store.manifest_schema import manifest_problems
+from grasping_sym.toolchain.compiler import isa_level, vector_libm
 
 
 def library_tag() -> str:

@@ -14,10 +14,12 @@ from grasping_sym.errors import (
     RunArgumentError,
 )
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import fastpath, integrators, projection, safety, stored
+from grasping_sym.runtime import fastpath, integrators, portable, projection
 from grasping_sym.runtime import start as start_
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.runtime.result import SimulationResult
+from grasping_sym.store import files as stored
+from grasping_sym.store import safety
 
 
 class Model:
@@ -41,8 +43,12 @@ class Model:
         (``grasping_sym.load(directory)`` loads it again, in any process).
     """
 
-    def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict):
+    def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict,
+                 scene=None):
         self.directory = Path(directory)
+        #: the scene the model was built from (``gs.build``), or None (``gs.load``): kept
+        #: for what draws a run, never read by the runtime
+        self.scene = scene
         self.manifest = manifest
         self.start = start
         self.name: str = manifest["name"]
@@ -84,10 +90,9 @@ class Model:
 
     def __reduce__(self):
         """Pickled as its manifest, start, C and library bytes (``runtime.portable``): another
-        process or machine makes the same model from its cache, the bytes, or the C."""
-        from grasping_sym.runtime import portable  # noqa: PLC0415
-
-        return portable.restore, (portable.payload(self),)
+        process makes the same model from its cache or the bytes (a model from ``gs.build``
+        also from its C, ``pipeline.built``)."""
+        return portable.restore, (portable.payload(self), None, Model)
 
     def __repr__(self) -> str:
         """One screen: what the model integrates, what can vary at run time, where it lives."""
@@ -355,7 +360,7 @@ class Model:
             Values of run-time parameters (see ``param_names``).
         u
             The control inputs (``input_names``; a model built with ``inputs="torques"``): one
-            number per input (N m, held constant), or a table of ``grasping_sym.inputs``
+            number per input (N m, held constant), or a table of ``grasping_sym.runtime.inputs``
             (``piecewise_linear``, ``zero_order_hold``); default 0. The integration restarts at
             every knot of a table inside the run ('rk4' needs a constant input).
         outputs
@@ -472,7 +477,7 @@ class Model:
             ``start_params``) by name: one number, or an array ``(N,)``.
         u
             Constant inputs, ``(n_inputs,)`` or ``(N, n_inputs)``, or one table of
-            ``grasping_sym.inputs`` for every run.
+            ``grasping_sym.runtime.inputs`` for every run.
         method, rtol, atol, h, max_steps, project, checks, time_limit
             As for ``simulate`` (the loops in C: 'radau', 'dopri5', 'dop853', 'rk4'); ``time_limit`` is
             for the whole batch (runs not finished by then get status -9).
@@ -535,8 +540,7 @@ class Model:
             outs = {k: v[1:].copy() for k, v in outs.items()}
         pdict = dict(zip(self.param_names, [] if p is None else map(float, p)))
         res = SimulationResult(t=t, x=X, state_names=self.state_names, outputs=outs,
-                               method=method, stats=stats, params=pdict)
-        res.scene = getattr(self, "scene", None)  # for res.animate (a model from gs.build has it)
+                               method=method, stats=stats, params=pdict, scene=self.scene)
         return res
 
     def _integrate(self, method, x0, t_eval, p, start, checks, *, rtol, atol, max_steps, h, proj,
@@ -586,47 +590,15 @@ class Model:
         return t, X, stats
 
     # ------------------------------------------------------------------ CasADi
-    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
-        """The closed loop as a CasADi Function with exact derivatives of any order
-        (``codegen.casadi_api``): ``"ode"`` ``(x, u, p) -> xdot`` (default),
-        ``"constraints"`` ``(x, p) -> C`` or ``"outputs"`` ``(x, u, p) -> y``; ``u`` the inputs
-        (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
-        start's values the model's. With ``time`` the ode and outputs take the time first.
-
-        ``compiled=True``: the same functions evaluated by C compiled from them, with their
-        Jacobian, forward, reverse and forward-over-reverse derivatives
-        (``codegen.casadi_api.compiled_functions``: what ``Opti``/IPOPT with exact Hessians
-        and the integrators' sensitivities call), compiled once and kept beside the model
-        (use them in ``Opti`` without ``expand``, which would inline the SX again).
-        Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
-        scene = getattr(self, "scene", None)
-        if scene is None:
-            raise ValueError("casadi_function needs the model's scene: make the model with "
-                             "gs.build(scene) (a model from gs.load has no scene)")
-        key = (which, time, bool(compiled))
-        if key not in self._public:
-            from grasping_sym.codegen import casadi_api  # noqa: PLC0415
-
-            fns = casadi_api.public_functions(scene, self.start_params, time=time)
-            if compiled:
-                where = safety.ensure_dir(self.directory / "casadi_api", root=self.directory)
-                fns = casadi_api.compiled_functions(fns, where)
-            for k, f in fns.items():
-                self._public[(k, time, bool(compiled))] = f
-        if key not in self._public:
-            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints' or 'outputs' "
-                             "(the latter only for a model with outputs)")
-        return self._public[key]
-
     # ------------------------------------------------------------------ inputs
     def _schedule(self, u, method: str, t_eval: np.ndarray):
-        """The inputs' schedule (``grasping_sym.inputs``), None for a model without inputs."""
+        """The inputs' schedule (``grasping_sym.runtime.inputs``), None for a model without inputs."""
         if not self.input_names:
             if u is not None:
                 raise RunArgumentError("u given, but this model has no inputs: build the scene with "
                                        "inputs='torques' (e.g. gs.scenes.paper2d(inputs='torques'))")
             return None
-        from grasping_sym.inputs import as_schedule  # noqa: PLC0415
+        from grasping_sym.runtime.inputs import as_schedule  # noqa: PLC0415
 
         sched = as_schedule(u, len(self.input_names))
         if method == "rk4" and any(0 < k < t_eval[-1] for k in sched.knots):

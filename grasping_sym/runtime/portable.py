@@ -5,9 +5,11 @@ The bytes hold the manifest, the start and the model's generated C, and the comp
 with the tag of the platform it was compiled for (``loader.library_tag``: interpreter, NumPy,
 instruction-set level). The receiver looks in its own cache first (the model's directory, by
 the manifest's hash); else it installs the library where its platform is the sender's
-(checked against the manifest's SHA-256 before it is loaded), or compiles the C there once,
-as ``gs.build`` would, and keeps it for later. Either way the receiver's cache holds the model
-afterwards and each process loads it once (``restore`` keeps what it made).
+(checked against the manifest's SHA-256 before it is loaded). This module never compiles: a
+receiver on another platform needs ``compile`` (a model from ``gs.build`` is pickled with the
+build's, ``pipeline.built``, which compiles the C there once as ``gs.build`` would); without
+it the receiver refuses by name. Either way the receiver's cache holds the model afterwards
+and each process loads it once (``restore`` keeps what it made).
 
 A pickle runs what its sender packed, as every pickle does: unpickle models only from
 processes you trust (your own Dask workers and client).
@@ -15,53 +17,49 @@ processes you trust (your own Dask workers and client).
 from __future__ import annotations
 
 import fcntl
+import hashlib
+from collections.abc import Callable
 from pathlib import Path
+
+from grasping_sym.errors import CorruptCacheError
+from grasping_sym.runtime.loader import library_name
+from grasping_sym.store import files as stored
+from grasping_sym.store import paths as cache
+from grasping_sym.store import safety
+from grasping_sym.store.manifest_schema import manifest_problems
+
+#: ``compile(directory, manifest, data)``: the model's library compiled from its C in
+#: ``directory`` (the build's, ``pipeline.built``), returning the manifest with the new
+#: library's record; None: this process cannot compile.
+Compile = Callable[[Path, dict, dict], dict]
 
 #: Models restored in this process, by (manifest hash, start key).
 _RESTORED: dict = {}
 
 
-def payload(model) -> dict:
-    """What ``restore`` needs to make ``model`` again elsewhere."""
+def payload(model, **extra) -> dict:
+    """What ``restore`` needs to make ``model`` again elsewhere (``extra``: what a builder
+    adds, e.g. a layered model's structure files)."""
     files = {f: (model.directory / f).read_bytes() for f in model.manifest["files"]}
     return {"manifest": model.manifest, "start": model.start, "files": files,
-            "library": (model.library_path.name, model.library_path.read_bytes()),
-            "structure": _structure_files(model.manifest)}
+            "library": (model.library_path.name, model.library_path.read_bytes()), **extra}
 
 
-def _structure_files(manifest: dict) -> dict | None:
-    """A model in layers links its structure's objects: the structure's C and record, so that
-    a receiver without it can compile them."""
-    entry = manifest.get("structure")
-    if not entry:
-        return None
-    from grasping_sym.codegen import structure_cache  # noqa: PLC0415
-
-    meta, directory = structure_cache.locate(entry)
-    names = [*meta["files"], structure_cache.META]
-    return {"entry": entry, "files": {f: (directory / f).read_bytes() for f in names}}
-
-
-def restore(data: dict):
+def restore(data: dict, compile: Compile | None, make: Callable):
     """The model ``data`` (``payload``) describes, from this process's memory, this machine's
-    cache, the library bytes, or the C compiled here."""
+    cache, the library bytes, or (with ``compile``) the C compiled here. ``make(directory,
+    manifest, library, start)`` makes the model object (the pickled model's class)."""
     key = (data["manifest"]["hash"], data["start"]["key"])
     model = _RESTORED.get(key)
     if model is None:
-        model = _RESTORED[key] = _materialise(data)
+        model = _RESTORED[key] = _materialise(data, compile, make)
     return model
 
 
-def _materialise(data: dict):
-    from grasping_sym.codegen import cache  # noqa: PLC0415
-    from grasping_sym.runtime import safety, stored  # noqa: PLC0415
-    from grasping_sym.runtime.loader import library_name  # noqa: PLC0415
-    from grasping_sym.runtime.manifest_schema import manifest_problems  # noqa: PLC0415
-    from grasping_sym.runtime.model import Model  # noqa: PLC0415
-
+def _materialise(data: dict, compile: Compile | None, make):
     manifest, start = data["manifest"], data["start"]
     if problems := manifest_problems(manifest):
-        raise safety.CorruptCacheError(f"the model sent has an invalid manifest ({'; '.join(problems)})")
+        raise CorruptCacheError(f"the model sent has an invalid manifest ({'; '.join(problems)})")
     name = manifest["name"]
     root = cache.cache_root()
     directory = safety.ensure_dir(cache.cache_dir(name, manifest["hash"]), root=root)
@@ -73,43 +71,37 @@ def _materialise(data: dict):
                 and safety.library_problem(lib, here) is None:
             manifest = here
         else:
-            manifest = _install(directory, lib, manifest, data)
-    return Model(directory, manifest, lib, start)
+            manifest = _install(directory, lib, manifest, data, compile)
+    return make(directory, manifest, lib, start)
 
 
-def _install(directory: Path, lib: Path, manifest: dict, data: dict) -> dict:
+def _install(directory: Path, lib: Path, manifest: dict, data: dict, compile: Compile | None) -> dict:
     """Write the model's files into ``directory`` and its library: the bytes sent where this
     platform is the sender's, else compiled here. Returns the manifest with this library's
     checksum."""
-    from grasping_sym.runtime import safety, stored  # noqa: PLC0415
-
     for f, content in data["files"].items():
         if Path(f).name != f:
-            raise safety.CorruptCacheError(f"the model sent names a file {f!r} outside its directory")
+            raise CorruptCacheError(f"the model sent names a file {f!r} outside its directory")
         safety.write_bytes(directory / f, content)
     sent_name, sent = data["library"]
     want = manifest.get("libraries", {}).get(sent_name)
     if sent_name == lib.name and want == _sha256(sent):
         safety.write_bytes(lib, sent)
+    elif compile is None:
+        raise CorruptCacheError(
+            f"the model {manifest['name']!r} was sent with a library for another platform "
+            f"({sent_name}, this one loads {lib.name}) and this process was given no compiler: "
+            "pickle the model made by gs.build (it compiles its C on arrival), or build the "
+            "scene on this machine")
     else:  # another platform (or a library that does not match its manifest): compile here
-        if data.get("structure"):
-            from grasping_sym.codegen import structure_cache  # noqa: PLC0415
-
-            structure_cache.install_files(data["structure"]["entry"], data["structure"]["files"])
-        from grasping_sym.pipeline import compile_library  # noqa: PLC0415
-
-        compile_library(directory, manifest)
-        manifest = {**manifest, "libraries": {**manifest.get("libraries", {}),
-                                              lib.name: safety.sha256_file(lib)}}
+        manifest = compile(directory, manifest, data)
     stored.write_manifest(directory, manifest)
     if safety.library_problem(lib, manifest):
-        raise safety.CorruptCacheError(f"{lib}: {safety.library_problem(lib, manifest)}")
+        raise CorruptCacheError(f"{lib}: {safety.library_problem(lib, manifest)}")
     return manifest
 
 
 def _sha256(data: bytes) -> str:
-    import hashlib  # noqa: PLC0415
-
     return hashlib.sha256(data).hexdigest()
 
 

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import csv
 import html
-import inspect
 import json
 import math
 import zipfile
@@ -12,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from grasping_sym.errors import InvalidResultError, ResultFileError, ViewOptionError
+from grasping_sym.errors import InvalidResultError, ResultFileError
 
 #: What ``SimulationResult.save`` writes (an ``.npz`` of arrays and JSON text, no pickles).
 FORMAT = "grasping_sym.SimulationResult/1"
@@ -40,6 +39,9 @@ class SimulationResult:
         Integrator counters (steps, function evaluations) and ``wall_time`` (s).
     params
         Values of the run-time parameters used.
+    scene
+        The scene of the model that ran it when that model was made by ``gs.build`` (what
+        ``gs.viz.animate`` and ``gs.viz.view`` draw by default), else None.
     """
 
     t: np.ndarray
@@ -49,6 +51,7 @@ class SimulationResult:
     method: str
     stats: dict = field(default_factory=dict)
     params: dict[str, float] = field(default_factory=dict)
+    scene: object = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # shapes only, every run makes one: one row per time, one column per state name, one
@@ -128,24 +131,6 @@ class SimulationResult:
                  "stats": json.dumps(_plain(self.stats))}
         return xr.Dataset(data, coords={"t": self.t}, attrs=attrs)
 
-    def animate(self, path: Path | str, scene=None, **options) -> Path:
-        """Write the motion to ``path`` (``.gif``, or ``.mp4`` with ffmpeg): the scene drawn at
-        evenly spaced times (``grasping_sym.animation``; ``fps``, ``seconds``, ``dpi``).
-        ``scene`` defaults to the run's (a model made by ``gs.build`` sets it)."""
-        from grasping_sym.animation import animate  # noqa: PLC0415
-
-        _known_options(animate, "animate", options)
-        return animate(self, path, scene, **options)
-
-    def view(self, path: Path | str, scene=None, **options) -> Path:
-        """Write an interactive 3D viewer of the run to ``path`` (one self-contained ``.html``:
-        no network, nothing to install; ``grasping_sym.viewer``)."""
-        from grasping_sym.viewer import write_viewer  # noqa: PLC0415
-
-        _known_options(write_viewer, "view", options)
-        return write_viewer(self, path, scene, **options)
-
-    # ------------------------------------------------------------ files
     def save(self, path: Path | str) -> Path:
         """Write the result to ``path`` (``.npz``: the arrays, and the names, method, parameters
         and counters as JSON text; nothing that runs as code). ``SimulationResult.load`` reads
@@ -214,25 +199,6 @@ class SimulationResult:
                     raise
                 raise ResultFileError(f"{path}: an entry cannot be read ({type(exc).__name__}: "
                                       f"{exc}); pickled objects are never loaded") from None
-
-
-def _known_options(draw, what: str, options: dict) -> None:
-    """``options`` are keyword options of ``draw`` (``animate`` or ``write_viewer``)."""
-    known = [n for n, p in inspect.signature(draw).parameters.items() if p.kind is p.KEYWORD_ONLY]
-    unknown = sorted(set(options) - set(known))
-    if unknown:
-        raise ViewOptionError(f"{what}: unknown option(s) {unknown}; the options are {known}")
-
-
-def check_scene(result, scene, what: str) -> None:
-    """Before a drawing of ``result`` starts: ``scene`` has the result's states (a result drawn
-    with another scene's geometry would fail inside it, or draw something else)."""
-    names = getattr(scene, "state_names", None)
-    if names is not None and tuple(names) != tuple(result.state_names):
-        raise ViewOptionError(
-            f"{what}: the scene {getattr(scene, 'name', '?')!r} has the states "
-            f"{_names(tuple(names))}, the result {_names(tuple(result.state_names))}: pass the "
-            "scene the result was run on")
 
 
 def _check_sizes(path: Path) -> None:

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from grasping_sym.errors import ProblemsError, StartBranchError, UnreachableStartError
-from grasping_sym.runtime import stored
+from grasping_sym.store import files as stored
 
 #: max|C| (m) and max|Cdot| (m/s) of an accepted start.
 START_TOL = 1e-13

@@ -15,11 +15,11 @@ import numpy as np
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
-from grasping_sym.derive.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.derive.system import ConstrainedSystem, assemble
 from grasping_sym.geometry.curves import T
 from grasping_sym.model.planar import PlanarFingerScene
+from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 
 _NUMPY = dict(
     solve=np.linalg.solve,

@@ -45,7 +45,6 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from grasping_sym.codegen.translate import SympyToCasadi
 from grasping_sym.derive import contact3d as c3
 from grasping_sym.derive.spatial import (
     finger_dynamics,
@@ -59,6 +58,7 @@ from grasping_sym.geometry import surface_library as sl
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 from grasping_sym.model.chains import FINGER1_Q_OPPOSED, finger1
 from grasping_sym.model.inertia import solid_ellipsoid_inertia
+from grasping_sym.symbolic.translate import SympyToCasadi
 from tests.oracles import contact3d_numeric as c3n
 
 STATE_NAMES = ("q11", "q12", "qw", "qx", "qy", "qz", "dq11", "dq12", "omegaX", "omegaY", "omegaZ",

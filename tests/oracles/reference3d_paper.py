@@ -50,9 +50,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from grasping_sym.codegen.translate import SympyToCasadi
 from grasping_sym.errors import MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from grasping_sym.symbolic.translate import SympyToCasadi
 from tests.oracles.reference3d import SL_DQ, SL_OM, SL_QUAT, Reference3D, Scene3D
 
 N_STATE = 34

@@ -1,0 +1,98 @@
+"""A model's closed loop as CasADi Functions for optimal control and sensitivity analysis.
+
+The scene's functions in one piece of SX (``scene.casadi_functions(layers=False)``: the
+same closed loop as the compiled layers, tests check it) restated with the control inputs
+as an argument of their own:
+
+- ``ode (x, u, p) -> xdot``: the right-hand side at the inputs' values ``u``;
+- ``constraints (x, p) -> C``: the contact constraints (zero on the motion);
+- ``outputs (x, u, p) -> y``: the scene's outputs.
+
+``p`` is the model's run-time parameters (``param_names``); the start's values (2D: the pivot)
+are those of the model's start. Being SX, every derivative of any order is exact (CasADi's
+AD): ``jacobian()``, ``forward``, ``reverse``, Hessians, ``Opti``/``nlpsol`` with IPOPT and
+the integrators' sensitivities. CasADi's virtual machine evaluates them; ``jit=True`` in the
+options of the NLP or integrator made from them compiles the whole problem to C.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+__all__ = ["public_functions"]
+
+
+def public_functions(scene, start_values: dict[str, float], *, time: bool = False) -> dict:
+    """``{"ode", "constraints", "outputs"}`` of ``scene`` (module docstring); with ``time`` the
+    ode and the outputs take the time first: ``(t, x, u, p)`` (for a law that reads it)."""
+    cm = scene.casadi_functions(layers=False).model
+    names = scene.p_names
+    nx = len(scene.state_names)
+    n_u = len(scene.input_names)
+    t = ca.SX.sym("t")
+    x = ca.SX.sym("x", nx)
+    u = ca.SX.sym("u", n_u)
+    p = ca.SX.sym("p", len(scene.runtime))
+    full = ca.vertcat(p, *[ca.SX(float(start_values[k])) for k in scene.start_param_names],
+                      u, ca.SX.zeros(n_u))
+    if full.numel() != len(names):
+        raise AssertionError(f"p of {full.numel()} entries for {names}")
+    reads_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(names) + 1
+    xdot = cm.rhs(t, x, ca.SX(0, 1), full, ca.SX(0, 1))[0]
+    if not time and ca.depends_on(xdot, t):
+        raise ValueError(f"the controller of {scene.name} reads the time: ask for "
+                         "model.casadi_function(time=True), a function of (t, x, u, p)")
+    tt = t if time else ca.SX(0)
+    head = [t] if time else []
+    hnames = ["t"] if time else []
+    out = {"ode": ca.Function(f"{scene.name}_ode", [*head, x, u, p], [xdot],
+                              [*hnames, "x", "u", "p"], ["xdot"])}
+    C = cm.constraints(x, full)[0]
+    out["constraints"] = ca.Function(f"{scene.name}_contact_constraints", [x, p], [C],
+                                     ["x", "p"], ["C"])
+    if cm.outputs is not None:
+        y = cm.outputs(x, ca.vertcat(full, tt) if reads_time else full)
+        out["outputs"] = ca.Function(f"{scene.name}_outputs_of", [*head, x, u, p], [y],
+                                     [*hnames, "x", "u", "p"], ["y"])
+    return out
+
+
+def derivative_functions(g: ca.Function) -> list[ca.Function]:
+    """What is compiled of ``g``, under the names ``casadi.external`` looks up for derivatives:
+    ``g``, ``jac_g``, ``fwd1_g``, ``adj1_g`` and ``fwd1_adj1_g`` (the forward derivative of the
+    reverse one: the Hessian-vector products IPOPT's exact Hessian takes). Other derivatives
+    are not in the library, and CasADi refuses them by name."""
+    adj = g.reverse(1)
+    return [g, g.jacobian(), g.forward(1), adj, adj.forward(1)]
+
+
+def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: None) -> dict:
+    """``fns`` evaluated by compiled C: their C and their derivatives'
+    (:func:`derivative_functions`) written, compiled once into ``directory`` (a file named by
+    the hash of the C, the compiler and the instruction set; its SHA-256 recorded beside it
+    and checked before every load) and loaded through ``casadi.external``."""
+    import hashlib  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    from grasping_sym.runtime.loader import library_tag  # noqa: PLC0415
+    from grasping_sym.store import files as stored  # noqa: PLC0415
+    from grasping_sym.store import safety  # noqa: PLC0415
+    from grasping_sym.toolchain.compiler import compile_shared  # noqa: PLC0415
+
+    cg = ca.CodeGenerator("gs_casadi_api.c", {"with_header": False, "casadi_int": "long long int"})
+    for g in fns.values():
+        for d in derivative_functions(g):
+            cg.add(d)
+    text = cg.dump()
+    digest = hashlib.sha256(f"{text}|{library_tag()}".encode()).hexdigest()[:20]
+    directory = Path(directory)
+    lib = directory / f"api-{digest}.so"
+    record = directory / f"api-{digest}.json"
+    safety.check_tree(directory, (lib.name, record.name))
+    want = (stored.read_json(record) or {}).get("sha256")  # None: absent or unreadable
+    if want is None or not lib.exists() or safety.sha256_file(lib) != want:
+        say(f"compiling {len(fns)} CasADi functions and their derivatives ({len(text) // 1000} kB of C)")
+        src = safety.write_text(directory / f"api-{digest}.c", text)
+        compile_shared([src], lib, extra_flags=("-O1",))
+        stored.write_json(record, {"sha256": safety.sha256_file(lib)})
+        src.unlink()
+    return {k: ca.external(g.name(), str(lib)) for k, g in fns.items()}

@@ -1,0 +1,197 @@
+"""Scene -> CasADi functions, for each kind of scene (called through the scene protocol).
+
+Each function returns a ``SceneFunctions``: the scene's ``CasadiModel`` (rhs, Jacobian,
+outputs, constraints; ``p`` = the scene's run-time parameters, then its start parameters),
+the seconds spent by stage, and the operation counts. No solved number enters these
+functions: what the start fixes is an input (``scene.start_param_names``).
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from grasping_sym.assemble.functions import CasadiModel
+
+Progress = Callable[[str], None]
+
+
+@dataclass
+class SceneFunctions:
+    model: CasadiModel
+    timings: dict = field(default_factory=dict)
+    #: the structure layer the model links (``{"name", "hash"}``), if any
+    structure: dict | None = None
+    #: the C of the model's 4-lane rhs and what was done (None: made from ``model.rhs``)
+    lanes: tuple[str | None, str] | None = None
+
+
+def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A planar scene in layers: its structure (the closed loop of its template, derived with
+    SymPy once per structure, ``codegen.templates``; compiled once, ``codegen.structure_cache``)
+    called by the scene's own contour functions (``codegen.layered``). The pivot ``(xm, ym)``
+    is a run-time input, after the scene's run-time parameters."""
+    from grasping_sym.assemble import (
+        structure_cache,  # noqa: PLC0415
+        templates,  # noqa: PLC0415
+    )
+    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
+    from grasping_sym.assemble.layered import compose_layered, contour_functions, lanes_glue  # noqa: PLC0415
+    from grasping_sym.assemble.structure import structure_functions  # noqa: PLC0415
+
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    scene.validate()
+    ctrl = controller_function(scene, scene.name)
+    spec, leaves = planar_structure(scene)
+    shared, gravity, inputs = spec.shared, spec.gravity, spec.inputs
+    t1 = time.perf_counter()
+    say(f"structure of {scene.name} (compiled once per structure)")
+    def make(name):
+        _prefetch_driver(scene, ctrl, n_constraints=2 * scene.n_fingers, jac=True, lanes=True)
+        template, source = templates.planar_template(shared, gravity, scene.n_fingers)
+        return structure_functions(template, spec, name), f"template: {source}"
+
+    meta, directory, source = structure_cache.ensure(spec, make, say)
+    t2 = time.perf_counter()
+    so = structure_cache.library(meta, directory)
+    t3 = time.perf_counter()
+    say("composing the contours with the structure (CasADi)")
+    nx = len(scene.state_names)
+    contours = contour_functions(leaves, meta["slots"], nx, scene.name, meta["leaf_entries"])
+    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, nx,
+                         len(scene.p_names), scene.name, ctrl, len(inputs))
+    glue = lanes_glue(scene.name, contours["rhs"], meta["rhs_lanes"],
+                      len(meta["leaf_entries"]["rhs"]["L"]), ctrl.function,
+                      meta["leaf_entries"]["rhs"].get("tau", []))
+    t4 = time.perf_counter()
+    return SceneFunctions(cm, {"validate": t1 - t0, "structure": t2 - t1,
+                               "structure_source": source, "structure_compile": t3 - t2,
+                               "compose": t4 - t3},
+                          structure={"name": meta["name"], "hash": meta["hash"]}, lanes=glue)
+
+
+def _prefetch_driver(scene, ctrl, *, n_constraints: int, jac: bool, lanes: bool) -> None:
+    """Start compiling the driver's objects for the model's predicted macros
+    (``library.predicted_defines``) while a new structure is derived and compiled: the first
+    model of a structure, whose dimensions this cache has likely not seen, then waits for
+    them no longer than for its own C."""
+    from grasping_sym.toolchain.library import predicted_defines, prefetch_driver  # noqa: PLC0415
+
+    ny = 0 if ctrl.reads_time else len(scene.outputs)  # outputs that read the time: not the driver's
+    prefetch_driver(predicted_defines(len(scene.state_names), len(scene.p_names), ny,
+                                      n_constraints, jac=jac, lanes=lanes,
+                                      second_order=_positions(scene.state_names) if jac else 0))
+
+
+def _positions(names) -> int:
+    """How many leading states have their speeds ``d<name>`` right after them (the states'
+    naming rule, ``model.names``): the Jacobian's second-order rows, predicted."""
+    for m in range(len(names) // 2, 0, -1):
+        if all(names[m + i] == "d" + names[i] for i in range(m)):
+            return m
+    return 0
+
+
+def planar_single_piece(scene) -> SceneFunctions:
+    """A planar scene's functions in one piece of SX: its template composed with its contours
+    (``functions.compose``), every derivative by CasADi's AD through the concrete contours.
+    Not what is compiled (``planar_functions``), but the same closed loop: CasADi's virtual
+    machine evaluates it with nothing compiled, and tests check the layers against it."""
+    from grasping_sym.assemble import templates  # noqa: PLC0415
+    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
+    from grasping_sym.assemble.functions import compose  # noqa: PLC0415
+    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
+
+    scene.validate()
+    inputs = (*scene.runtime, *scene.start_param_names)
+    values = parameter_values(scene)
+    template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene),
+                                            scene.n_fingers)
+    ctrl = controller_function(scene, scene.name)
+    return SceneFunctions(compose(template, list(scene.fingertips), scene.object, runtime=inputs,
+                                  constants={k: v for k, v in values.items() if k not in inputs},
+                                  outputs=scene.outputs, name=scene.name, controller=ctrl))
+
+
+def planar_structure(scene):
+    """The structure of a planar scene (``codegen.structure.StructureSpec``) and its contours'
+    leaves (``codegen.layered.contour_leaves``)."""
+    from grasping_sym.assemble.layered import contour_leaves  # noqa: PLC0415
+    from grasping_sym.assemble.structure import StructureSpec, fold_pattern  # noqa: PLC0415
+    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
+
+    values = parameter_values(scene)
+    inputs = (*scene.runtime, *scene.start_param_names)
+    leaves = contour_leaves([(tip, scene.object) for tip in scene.fingertips], scene.n_fingers)
+    spec = StructureSpec(shared=scene.shared_parameter, gravity=has_gravity(scene),
+                         n_fingers=scene.n_fingers, inputs=inputs,
+                         constants=tuple(sorted((k, float(v)) for k, v in values.items()
+                                                if k not in inputs)),
+                         folded=fold_pattern(leaves), outputs=tuple(scene.outputs))
+    return spec, leaves
+
+
+def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A 3D scene (regular formulation) in layers: its structure (``codegen.structure3d``:
+    derived, written and compiled once per structure, ``codegen.structure_cache``) called by
+    the scene's own jets of its surfaces (``codegen.layered.jets_function``)."""
+    from grasping_sym.assemble import structure_cache  # noqa: PLC0415
+    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
+    from grasping_sym.assemble.layered import compose_layered_3d, jets_functions  # noqa: PLC0415
+    from grasping_sym.assemble.structure3d import Structure3DSpec, structure3d_functions  # noqa: PLC0415
+
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    ctrl = controller_function(scene, scene.name)
+    spec = Structure3DSpec(scene.structure_key())
+
+    def make(name):
+        _prefetch_driver(scene, ctrl, n_constraints=3 * len(scene.fingers), jac=False, lanes=False)
+        return structure3d_functions(scene, name), "SymPy and CasADi's AD"
+
+    say(f"structure of {scene.name} (compiled once per structure)")
+    meta, directory, source = structure_cache.ensure(spec, make, say)
+    t1 = time.perf_counter()
+    so = structure_cache.library(meta, directory)
+    t2 = time.perf_counter()
+    say("the surfaces' jets (SymPy forms, CasADi AD)")
+    surfaces = [s for f in scene.fingers for s in (f.tip, scene.object_surface)]
+    nx = len(scene.state_names)
+    jets = jets_functions(surfaces, [tuple(s) for s in meta["slots"]], nx, scene.name,
+                          meta["jet_entries"])
+    inputs = (*scene.runtime, *scene.start_param_names)
+    cm = compose_layered_3d(structure_cache.externals(meta, so), meta, jets, nx,
+                            len(scene.p_names), scene.name, ctrl, len(inputs))
+    t3 = time.perf_counter()
+    return SceneFunctions(cm, {"structure": t1 - t0, "structure_source": source,
+                               "structure_compile": t2 - t1, "compose": t3 - t2},
+                          structure={"name": meta["name"], "hash": meta["hash"]},
+                          lanes=(None, "not made: a 3D rhs is too large for the 4-lane copy "
+                                       "(radau is not the 3D method of choice)"))
+
+
+def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A 3D grasping scene: SymPy for the pieces, CasADi's AD for the constraint derivatives
+    (``derive.grasp3d``). No generated Jacobian: 250k SX instructions that gcc needs minutes
+    for; the integrators difference the compiled rhs instead."""
+    import casadi as ca  # noqa: PLC0415
+
+    from grasping_sym.assemble.functions import sx_model  # noqa: PLC0415
+    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
+
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    say(f"deriving {scene.name} ({scene.formulation} formulation; SymPy, then CasADi AD)")
+    system = derive_grasp3d(scene)
+    t1 = time.perf_counter()
+    names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
+    G = system.start_conditions
+    implied = system.geometry["r_bar"] if G and scene.start_param_names else None
+    cm = sx_model(system.x, system.p, system.xdot, {k: system.outputs[k] for k in scene.outputs},
+                  scene.name, jacobian=False, constraints=system.pieces["C"],
+                  constraint_names=names, start_conditions=ca.vertcat(*G.values()) if G else None,
+                  start_names=tuple(G), start_values=implied, t=system.t,
+                  outputs_time=system.reads_time)
+    t2 = time.perf_counter()
+    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": t2 - t1})

@@ -1,0 +1,183 @@
+"""The structure layer of a 3D grasping scene: its closed loop compiled once, for any surfaces.
+
+A 3D scene's closed loop (``derive.grasp3d``) reads each contour slot's surface through a
+few quantities at the contact coordinates ``(u, v)``: the point ``S`` and the Montana frame
+``x, y, n``, and the forms ``M, K, T`` (``derive.grasp3d.surface_sx``). The loop then
+differentiates them by CasADi's AD: the constraint Jacobians once, the Baumgarte term
+``bhat`` twice for ``S`` and the frame, once for the forms (they enter through the contact
+rates).
+
+The structure takes those quantities as inputs ``J``, as a *jet* per slot: their values and
+their derivatives in ``(u, v)`` to second order (``S`` and the frame) or first order (the
+forms). Each enters the derivation as its Taylor polynomial about a copy ``(u*, v*)`` of the
+slot's coordinates; once every derivative is taken, ``(u*, v*)`` is set to ``(u, v)``, and the
+polynomial's vanishing terms drop out. The result is exact: the derivatives the loop takes
+are the jets' own.
+
+A scene's own small C (``<name>_jets``, ``codegen.layered``) evaluates the jets of its
+surfaces; the structure is compiled once (``codegen.structure_cache``) per everything else
+the code depends on (:func:`structure_key`).
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+
+from grasping_sym.assemble.functions import sx_model
+from grasping_sym.assemble.structure import StructureFunctions, prune_inputs
+
+__all__ = ["JET_FIRST", "JET_SECOND", "Structure3DSpec", "jet_size", "jet_values",
+           "structure3d_functions"]
+
+#: Quantities the loop differentiates twice: second-order jets.
+JET_SECOND = ("S", "x", "y", "n")
+#: Quantities it differentiates once: first-order jets.
+JET_FIRST = ("M", "K", "T")
+
+
+@lru_cache(maxsize=1)
+def _shapes() -> dict[str, tuple[int, int]]:
+    """The shape of each quantity of ``surface_sx`` (read from a sphere)."""
+    from grasping_sym.derive.grasp3d import surface_sx  # noqa: PLC0415
+    from grasping_sym.geometry.surface_library import sphere  # noqa: PLC0415
+
+    d = surface_sx(sphere(0.01), ca.SX.sym("u"), ca.SX.sym("v"))
+    return {k: d[k].shape for k in (*JET_SECOND, *JET_FIRST)}
+
+
+def _sizes() -> tuple[int, int]:
+    sh = _shapes()
+    n2 = sum(sh[k][0] * sh[k][1] for k in JET_SECOND)
+    n1 = sum(sh[k][0] * sh[k][1] for k in JET_FIRST)
+    return n2, n1
+
+
+def jet_size() -> int:
+    """Entries of one slot's jet: values, gradients and (for the second-order ones) the
+    Hessians' ``uu, uv, vv`` entries."""
+    n2, n1 = _sizes()
+    return 6 * n2 + 3 * n1
+
+
+def jet_values(d: dict, u, v) -> ca.SX:
+    """One slot's jet, from its concrete quantities ``d`` (``surface_sx`` at ``(u, v)``), in
+    the order :func:`_taylor` reads it."""
+    uv = ca.vertcat(u, v)
+    second = ca.vertcat(*[ca.vec(d[k]) for k in JET_SECOND])
+    first = ca.vertcat(*[ca.vec(d[k]) for k in JET_FIRST])
+    g2 = ca.jacobian(second, uv)
+    hess = []
+    for i in range(second.numel()):
+        h = ca.jacobian(g2[i, :], uv)
+        hess += [h[0, 0], h[0, 1], h[1, 1]]
+    g1 = ca.jacobian(first, uv)
+    return ca.vertcat(second, ca.vec(g2), ca.vertcat(*hess), first, ca.vec(g1))
+
+
+def _taylor(jet: ca.SX, du, dv) -> dict[str, ca.SX]:
+    """The quantities as Taylor polynomials in ``(du, dv)`` from one slot's jet."""
+    n2, n1 = _sizes()
+    k = 0
+    val2 = jet[k:k + n2]
+    k += n2
+    g2 = ca.reshape(jet[k:k + 2 * n2], n2, 2)
+    k += 2 * n2
+    h2 = ca.reshape(jet[k:k + 3 * n2], 3, n2).T
+    k += 3 * n2
+    val1 = jet[k:k + n1]
+    k += n1
+    g1 = ca.reshape(jet[k:k + 2 * n1], n1, 2)
+    second = (val2 + g2[:, 0] * du + g2[:, 1] * dv
+              + 0.5 * h2[:, 0] * du * du + h2[:, 1] * du * dv + 0.5 * h2[:, 2] * dv * dv)
+    first = val1 + g1[:, 0] * du + g1[:, 1] * dv
+    out, sh = {}, _shapes()
+    for keys, vec in ((JET_SECOND, second), (JET_FIRST, first)):
+        j = 0
+        for key in keys:
+            r, c = sh[key]
+            out[key] = ca.reshape(vec[j:j + r * c], r, c)
+            j += r * c
+    return out
+
+
+@dataclass(frozen=True)
+class Structure3DSpec:
+    """What a 3D structure's code depends on: the scene's code key without its name and its
+    surfaces (:meth:`model.grasp3d.GraspScene3D.structure_key`)."""
+
+    text: str
+
+    def key(self) -> str:
+        return "grasp3d-structure-v2|" + self.text
+
+    def digest(self, extra: str) -> str:
+        return hashlib.sha256(f"{self.key()}|{extra}".encode()).hexdigest()
+
+
+def structure3d_functions(scene, name: str) -> StructureFunctions:
+    """The structure of the 3D ``scene`` (regular formulation) as SX functions ``<name>_*``:
+    the model's signatures with a last input ``J``, the entries each takes of the slots' jets
+    (slot ``2 i``: contact ``i``'s fingertip, ``2 i + 1`` the object there)."""
+    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
+
+    n_slots = 2 * scene.n_contacts
+    size = jet_size()
+    J = ca.SX.sym("J", n_slots * size)
+    ustar = ca.SX.sym("uv_copy", 2 * n_slots)
+    coords = [None] * (2 * n_slots)
+
+    def provider(slot, surface, u, v, extra):
+        if extra:
+            raise ValueError("the structure layer covers the regular formulation only")
+        coords[2 * slot], coords[2 * slot + 1] = u, v
+        return _taylor(J[slot * size:(slot + 1) * size], u - ustar[2 * slot], v - ustar[2 * slot + 1])
+
+    system = derive_grasp3d(scene, surface_fn=provider, torque_inputs=True)
+    same = ca.vertcat(*coords)
+
+    def exact(*exprs):
+        return ca.substitute(list(exprs), [ustar], [same])
+
+    names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
+    G = system.start_conditions
+    implied = system.geometry["r_bar"] if G and scene.start_param_names else None
+    cm = sx_model(system.x, ca.vertcat(system.p, J), system.xdot,
+                  {k: system.outputs[k] for k in scene.outputs}, name, jacobian=False,
+                  constraints=system.pieces["C"], constraint_names=names,
+                  start_conditions=ca.vertcat(*G.values()) if G else None,
+                  start_names=tuple(G), start_values=implied, exact=exact)
+    index = {str(system.x[i]): i for i in range(system.x.numel())}
+    slots = tuple((index[str(coords[2 * s])], index[str(coords[2 * s + 1])], size)
+                  for s in range(n_slots))
+    n_p = system.p.numel()
+    pruned, entries = {}, {}
+    for kind, f, k_in in (("rhs", cm.rhs, 3), ("outputs", cm.outputs, 1),
+                          ("constraints", cm.constraints, 1), ("start", cm.start, 1)):
+        if f is not None:
+            pruned[kind], entries[kind] = _prune(f, k_in, n_p)
+    return StructureFunctions(name=name, rhs=pruned["rhs"], jac=None, outputs=pruned.get("outputs"),
+                              constraints=pruned["constraints"], start=pruned.get("start"),
+                              slots=slots, output_names=tuple(scene.outputs),
+                              constraint_info=cm.constraint_info, start_names=cm.start_names,
+                              n_leaves=n_slots * size, extra_meta={"jet_entries": entries})
+
+
+def _prune(f: ca.Function, k_in: int, n_p: int) -> tuple[ca.Function, list[int]]:
+    """``f`` with its input ``k_in`` (``[p; J]``) split into the ``n_p`` parameters and, as a
+    last input ``J``, the jet entries it depends on (``structure.prune_inputs``; their indices
+    in the whole jet are returned): the scene's jets function then computes only those (the
+    rhs needs about two thirds of them) and passes them without a copy."""
+    ins = [f.sx_in(i) for i in range(f.n_in())]
+    pe = ins[k_in]
+    p, J = ca.SX.sym(f.name_in(k_in), n_p), ca.SX.sym("J", pe.numel() - n_p)
+    args = list(ins)
+    args[k_in] = ca.vertcat(p, J)
+    new_ins = [*ins[:k_in], p, *ins[k_in + 1:], J]
+    names_in = [f.name_in(i) for i in range(f.n_in())] + ["J"]
+    names_out = [f.name_out(i) for i in range(f.n_out())]
+    split = ca.Function(f.name(), new_ins, f.call(args), names_in, names_out)
+    pruned, kept = prune_inputs(split, (len(new_ins) - 1,))
+    return pruned, kept[len(new_ins) - 1]

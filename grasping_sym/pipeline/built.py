@@ -1,0 +1,100 @@
+"""What ``gs.build`` returns: the runtime's ``Model`` with the scene it was built from, and
+what needs the scene or the compiler: the closed loop as CasADi functions
+(``casadi_function``), and, when it is pickled to another process or machine, its C compiled
+there when that platform cannot load the library sent (``runtime.portable``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from grasping_sym.assemble import casadi_api, structure_cache
+from grasping_sym.runtime import portable
+from grasping_sym.runtime.loader import library_name
+from grasping_sym.runtime.model import Model
+from grasping_sym.store import safety
+from grasping_sym.toolchain.compiler import toolchain_id
+from grasping_sym.toolchain.library import compile_model
+
+
+class BuiltModel(Model):
+    """A model made by ``gs.build``: a runtime ``Model`` that also knows its scene."""
+
+    def __reduce__(self):
+        """Pickled as the runtime model is (``runtime.portable``), with a layered model's
+        structure files, and restored by ``restore``: it compiles the C where the receiver's
+        platform cannot load the library sent."""
+        return restore, (portable.payload(self, structure=_structure_files(self.manifest)),)
+
+    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
+        """The closed loop as a CasADi Function with exact derivatives of any order
+        (``assemble.casadi_api``): ``"ode"`` ``(x, u, p) -> xdot`` (default),
+        ``"constraints"`` ``(x, p) -> C`` or ``"outputs"`` ``(x, u, p) -> y``; ``u`` the inputs
+        (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
+        start's values the model's. With ``time`` the ode and outputs take the time first.
+
+        ``compiled=True``: the same functions evaluated by C compiled from them, with their
+        Jacobian, forward, reverse and forward-over-reverse derivatives
+        (``assemble.casadi_api.compiled_functions``: what ``Opti``/IPOPT with exact Hessians
+        and the integrators' sensitivities call), compiled once and kept beside the model
+        (use them in ``Opti`` without ``expand``, which would inline the SX again).
+        Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
+        scene = self.scene
+        if scene is None:
+            raise ValueError("casadi_function needs the model's scene: make the model with "
+                             "gs.build(scene) (a model from gs.load, or one sent to another "
+                             "process, has no scene)")
+        key = (which, time, bool(compiled))
+        if key not in self._public:
+            fns = casadi_api.public_functions(scene, self.start_params, time=time)
+            if compiled:
+                where = safety.ensure_dir(self.directory / "casadi_api", root=self.directory)
+                fns = casadi_api.compiled_functions(fns, where)
+            for k, f in fns.items():
+                self._public[(k, time, bool(compiled))] = f
+        if key not in self._public:
+            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints' or 'outputs' "
+                             "(the latter only for a model with outputs)")
+        return self._public[key]
+
+
+
+def restore(data: dict) -> BuiltModel:
+    """The model ``data`` describes (``runtime.portable.restore``), compiled here if need be."""
+    return portable.restore(data, _compile_here, BuiltModel)
+
+
+def _compile_here(directory: Path, manifest: dict, data: dict) -> dict:
+    """A model's library compiled from the C sent, with its structure's files first; returns
+    the manifest with the library's record."""
+    if data.get("structure"):
+        structure_cache.install_files(data["structure"]["entry"], data["structure"]["files"])
+    return compiled_manifest(manifest, compile_library(directory, manifest))
+
+
+def compiled_manifest(manifest: dict, lib: Path) -> dict:
+    """``manifest`` with the record of a library just compiled: its checksum and what
+    compiled it (``toolchain.compiler.toolchain_id``, checked before a cached one is used)."""
+    return {**manifest, "compiled_with": toolchain_id(),
+            "libraries": {**manifest.get("libraries", {}), lib.name: safety.sha256_file(lib)}}
+
+
+def _structure_files(manifest: dict) -> dict | None:
+    """A model in layers links its structure's objects: the structure's C and record, so that
+    a receiver without it can compile them."""
+    entry = manifest.get("structure")
+    if not entry:
+        return None
+    meta, directory = structure_cache.locate(entry)
+    names = [*meta["files"], structure_cache.META]
+    return {"entry": entry, "files": {f: (directory / f).read_bytes() for f in names}}
+
+
+def compile_library(directory: Path, manifest: dict) -> Path:
+    """Compile the model's C files and link them with the driver (and the CPython fast-call
+    extension) and, for a model in layers, its structure's objects."""
+    sources = [directory / f for f in manifest["files"] if f.endswith(".c")]
+    linked = []
+    if "structure" in manifest:
+        linked = structure_cache.link_objects(*structure_cache.locate(manifest["structure"]))
+    return compile_model(sources, directory / library_name(manifest["name"]),
+                         manifest["driver_defines"], objects=linked)

@@ -1,0 +1,251 @@
+"""Content hash of a scene's generated code, and where generated code lives.
+
+- Built-in scenes: ``<repository>/generated/<name>/`` (committed C + manifest), installed as
+  the package data ``grasping_sym.generated``.
+- Every built model: ``<cache root>/<name>-<hash16>/`` with the C, the manifest and the
+  compiled library. The cache root is ``$GRASPING_SYM_CACHE`` if set, else
+  ``$XDG_CACHE_HOME/grasping_sym`` (default ``~/.cache/grasping_sym``).
+
+The hash covers the scene's canonical text, the package version, CasADi's version and the
+package's source tree read whole (``tree_digest``), so any change to one of them makes a
+fresh build; the compiler and its flags are checked against the library's record.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import stat
+from collections.abc import Sequence
+from contextlib import contextmanager
+from functools import lru_cache
+from pathlib import Path
+
+import casadi as ca
+
+from grasping_sym.errors import CacheContentsError
+from grasping_sym.store import files as stored
+from grasping_sym.store import safety
+
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+
+
+def generated_dir() -> Path:
+    """The committed generated code: the package data ``grasping_sym.generated`` (the
+    repository's top-level ``generated/`` in a source checkout or an editable install)."""
+    from importlib.resources import files  # noqa: PLC0415
+
+    return Path(str(files("grasping_sym.generated")))
+
+
+def source_checkout() -> Path | None:
+    """The repository root when the package runs from a source checkout (``generated/`` and
+    ``pyproject.toml`` beside the package), else None (an installed copy)."""
+    root = PACKAGE_DIR.parent
+    if (root / "pyproject.toml").is_file() and generated_dir().resolve() == (root / "generated").resolve():
+        return root
+    return None
+#: The floors above the build (``docs/architecture.md``): the layers contract in
+#: ``pyproject.toml`` forbids every module below them to import them, so they cannot shape
+#: generated code, and their text stays out of the code's hash. Everything else of the
+#: package's tree is read whole (``tree_digest``): no list of modules to keep.
+ABOVE_THE_BUILD = ("viz", "sweeps.py", "cli.py")
+
+
+def _tree_files() -> list[Path]:
+    """Every source file of the package that can shape generated code, in a fixed order."""
+    out = []
+    for path in sorted(PACKAGE_DIR.rglob("*")):
+        rel = path.relative_to(PACKAGE_DIR)
+        if path.suffix in (".py", ".c", ".h") and path.is_file() and "__pycache__" not in rel.parts \
+                and rel.parts[0] not in ABOVE_THE_BUILD:
+            out.append(path)
+    return out
+
+
+@lru_cache(maxsize=1)
+def tree_digest() -> str:
+    """Hash of the package's own source tree below its top floors (``ABOVE_THE_BUILD``), read
+    whole: every module, C file and header, by relative path and content (~1 ms, once a
+    process)."""
+    h = hashlib.sha256()
+    for path in _tree_files():
+        h.update(path.relative_to(PACKAGE_DIR).as_posix().encode() + b"\0")
+        h.update(path.read_bytes())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+_ROOT_OVERRIDE: list[Path] = []
+
+
+@contextmanager
+def root_override(path: Path):
+    """Use ``path`` as the cache root inside the ``with`` block (``generate_committed``
+    derives everything afresh in a private root)."""
+    _ROOT_OVERRIDE.append(Path(path))
+    try:
+        yield Path(path)
+    finally:
+        _ROOT_OVERRIDE.pop()
+
+
+def cache_root() -> Path:
+    if _ROOT_OVERRIDE:
+        return _ROOT_OVERRIDE[-1]
+    env = os.environ.get("GRASPING_SYM_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "grasping_sym"
+
+
+def content_hash(scene_key: str, version: str) -> dict:
+    """The hash of a model's generated code and the inputs it covers (recorded in the
+    manifest): the scene's code key, the package's version and source tree
+    (``tree_digest``), CasADi's version. The compiler and its flags shape the library, not
+    the C: the manifest records them beside the library's checksum (``compiled_with``), and a
+    library compiled otherwise is compiled again."""
+    inputs = {
+        "scene": hashlib.sha256(scene_key.encode()).hexdigest(),
+        "grasping_sym": version,
+        "casadi": ca.__version__,
+        "sources": tree_digest(),
+    }
+    h = hashlib.sha256("\n".join(f"{k}={inputs[k]}" for k in sorted(inputs)).encode())
+    return {"hash": h.hexdigest(), "inputs": inputs}
+
+
+def cache_dir(name: str, digest: str) -> Path:
+    return cache_root() / f"{name}-{digest[:16]}"
+
+
+def committed_dir(name: str) -> Path:
+    return generated_dir() / name
+
+
+# ---------------------------------------------------------------------------- entries
+# What the package makes at the cache root, and nothing else: ``cache clear`` removes these
+# only, and refuses a root that holds anything more (GRASPING_SYM_CACHE pointed at a folder
+# of one's own files must never lose them).
+
+#: A built model's directory: ``<scene name>-<hash16>`` (``cache_dir``).
+_MODEL_DIR = re.compile(r"(?P<scene>[^/\\]+)-(?P<hash>[0-9a-f]{16})")
+#: Shared directories at the root, and the names of what the package keeps in each.
+SHARED_DIRS = {
+    "structures": re.compile(r"gs_structure_[0-9a-f]{12}"),  # codegen.structure_cache
+    "templates": re.compile(r"(planar|finger)-[\w.+-]+\.json"),  # codegen.templates
+    "objects": re.compile(r"driver-[0-9a-f]{16}"),  # codegen.objects
+}
+#: The files an unfinished build (no manifest yet) may have left in a model's directory.
+_BUILD_FILE = re.compile(r"[\w.+-]+\.(c|h|json|so|o|dylib|lock)")
+
+
+def _is_model_dir(path: Path) -> bool:
+    """A model's directory: its name ``<scene>-<hash16>`` and its manifest naming that scene and
+    hash, or (a build stopped before its manifest) only the files a build writes."""
+    m = _MODEL_DIR.fullmatch(path.name)
+    if m is None:
+        return False
+    manifest = stored.read_manifest(path) if not os.path.islink(path / stored.MANIFEST) else None
+    if manifest is not None:
+        return manifest.get("name") == m["scene"] and str(manifest.get("hash", "")).startswith(m["hash"])
+    for e in os.scandir(path):
+        if safety.is_temporary(e.name):
+            continue
+        if not (e.is_file(follow_symlinks=False) and _BUILD_FILE.fullmatch(e.name)):
+            return False
+    return True
+
+
+def _is_entry(path: Path) -> bool:
+    """Whether ``path``, a child of the cache root, is something the package made there: a
+    real directory (never a link) that is a model's directory or one of ``SHARED_DIRS``
+    holding only what the package keeps there (and a build's temporaries)."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    if not stat.S_ISDIR(st.st_mode):
+        return False
+    pattern = SHARED_DIRS.get(path.name)
+    if pattern is None:
+        return _is_model_dir(path)
+    return all(safety.is_temporary(e.name) or pattern.fullmatch(e.name) and not e.is_symlink()
+               for e in os.scandir(path))
+
+
+def entries(root: Path | None = None) -> tuple[list[Path], list[Path]]:
+    """``(made, foreign)``: the children of the cache root the package made (``_is_entry``),
+    and everything else there, sorted by name."""
+    root = cache_root() if root is None else Path(root)
+    made, foreign = [], []
+    for p in sorted(root.iterdir(), key=lambda p: p.name):
+        (made if _is_entry(p) else foreign).append(p)
+    return made, foreign
+
+
+def _entry_names(given: Sequence[str]) -> list[str]:
+    """The names given to ``clear``, each a plain name of the root's children (no path)."""
+    bad = [n for n in given if not n or n in (".", "..") or "/" in n or "\\" in n or "\0" in n
+           or os.path.isabs(n)]
+    if bad:
+        raise CacheContentsError(
+            f"{bad}: give entries by their name in the cache root (as `cache list` shows them, "
+            "e.g. paper2d-0123456789abcdef) or a scene's name, never a path")
+    return list(given)
+
+
+def select(made: list[Path], names: Sequence[str], root: Path) -> list[Path]:
+    """The entries of ``made`` that ``names`` name (a directory's name, or a scene's name for
+    all its entries; none: all of them); a name that names no entry is refused."""
+    wanted = _entry_names(names)
+
+    def scene(p: Path) -> str | None:
+        m = _MODEL_DIR.fullmatch(p.name)
+        return m["scene"] if m else None
+
+    unknown = [n for n in wanted if not any(p.name == n or scene(p) == n for p in made)]
+    if unknown:
+        raise CacheContentsError(f"no cache entries named {unknown} in {root} (see `grasping-sym cache list`)")
+    return [p for p in made if not wanted or p.name in wanted or scene(p) in wanted]
+
+
+def clear(names: Sequence[str] = (), root: Path | None = None) -> list[Path]:
+    """Remove the cache entries ``names`` (a directory's name, or a scene's name for all its
+    models; default every entry) and return what was removed.
+
+    Raises
+    ------
+    CacheContentsError
+        The root holds anything the package did not make (nothing is removed then: it is not
+        a cache of the package's own), or a name is a path or names no entry.
+    UnsafeCacheError
+        The root or an entry is a link, another user's, or writable by others.
+    """
+    root = cache_root() if root is None else Path(root)
+    wanted = _entry_names(names)
+    if not os.path.lexists(root):
+        if wanted:
+            raise CacheContentsError(f"no cache entries named {wanted}: there is no cache at {root} yet")
+        return []
+    safety.check_dir(root)
+    made, foreign = entries(root)
+    if foreign:
+        shown = ", ".join(p.name + ("/" if p.is_dir() and not p.is_symlink() else "") for p in foreign[:8])
+        more = f" and {len(foreign) - 8} more" if len(foreign) > 8 else ""
+        raise CacheContentsError(
+            f"refusing to clear the cache root {root}: it holds {len(foreign)} entries grasping_sym "
+            f"did not make ({shown}{more}). Nothing was removed. Point GRASPING_SYM_CACHE at a "
+            "directory used only by grasping_sym (unset, it is ~/.cache/grasping_sym), or remove "
+            "the package's entries by hand")
+
+    chosen = select(made, names, root)
+    for p in chosen:
+        safety.check_dir(p)
+    removed = []
+    for p in chosen:
+        shutil.rmtree(p)  # removes links inside, never what they point to
+        removed.append(p)
+    return removed

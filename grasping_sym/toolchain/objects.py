@@ -1,0 +1,187 @@
+"""The runtime layer: the hand-written C driver compiled once into object files that every
+model library with the same sizes links.
+
+The driver (``c/driver.c`` and the files beside it) is configured by preprocessor macros
+(``library.driver_defines``).  Most of them are sizes of the model (states, parameters,
+outputs, constraints); the others name the model's CasADi functions.  Here the names are
+replaced by fixed ones (``gs_model_rhs``, ...), which a two-line file per library
+(:func:`links_c`) forwards to the model's functions, and CasADi's work sizes are rounded up
+to a power of two; the driver's objects then depend on the model's structure alone and are
+compiled once, into ``<cache root>/objects/driver-<hash16>/``.  A new shape, start or name
+on a known structure compiles only its own C.
+
+The hash covers the driver's C text, the macros, every compile flag (instruction set
+included), the compiler's version and, for the CPython front end, the include directories
+(the interpreter's and NumPy's).
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import tempfile
+import threading
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+
+from grasping_sym.store import paths as cache
+from grasping_sym.store import safety
+from grasping_sym.toolchain.compiler import (
+    BASE_FLAGS,
+    CASADI_FILE_FLAGS,
+    compile_objects,
+    compiler_command,
+    compiler_version,
+    isa_flags,
+)
+
+__all__ = ["ALIASES", "cached_objects", "driver_objects", "flags_digest", "links_c",
+           "object_defines", "prefetch_driver_objects"]
+
+#: The driver's macros that name a model function, and the fixed name each one gets.
+ALIASES: dict[str, str] = {
+    "GS_RHS": "gs_model_rhs", "GS_OUT": "gs_model_outputs", "GS_JAC": "gs_model_jac",
+    "GS_CON": "gs_model_constraints", "GS_RHS_LANES": "gs_model_rhs_lanes",
+}
+#: The work sizes and the least each is rounded up to: most models' sizes are below these, so
+#: that their driver objects depend on the model's dimensions alone, which a build knows
+#: before it derives anything (``prefetch_driver_objects``). Unused stack costs nothing.
+_WORK_SIZES = {"GS_SZ_ARG": 64, "GS_SZ_RES": 64, "GS_SZ_IW": 64, "GS_SZ_W": 4096}
+_CASADI_SIG = "(const double** arg, double** res, long long int* iw, double* w, int mem)"
+_LANES_SIG = "(const double* t, const double* const* x, const double* p, double* const* xdot)"
+
+
+def _bucket(n: int, least: int) -> int:
+    """``n`` rounded up to a power of two, at least ``least``."""
+    return max(least, 1 << max(0, int(n) - 1).bit_length())
+
+
+def object_defines(defines: Mapping[str, str | int]) -> dict[str, str | int]:
+    """The macros the driver's objects are compiled with: function names replaced by
+    :data:`ALIASES`, work sizes rounded up to powers of two (at least ``_WORK_SIZES``')."""
+    out = dict(defines)
+    for k, alias in ALIASES.items():
+        if k in out:
+            out[k] = alias
+    for k, least in _WORK_SIZES.items():
+        out[k] = _bucket(int(out[k]), least)
+    return out
+
+
+def links_c(defines: Mapping[str, str | int]) -> str:
+    """C source forwarding each fixed name of :data:`ALIASES` to the model's function (and,
+    for the Jacobian, its sparsity pattern), for the functions ``defines`` names."""
+    lines = ["/* grasping_sym: the driver's fixed names -> this model's functions (codegen.objects) */"]
+    for k, alias in ALIASES.items():
+        if k not in defines:
+            continue
+        target = defines[k]
+        if k == "GS_RHS_LANES":
+            lines += [f"int {target}{_LANES_SIG};",
+                      f"int {alias}{_LANES_SIG} {{ return {target}(t, x, p, xdot); }}"]
+            continue
+        lines += [f"int {target}{_CASADI_SIG};",
+                  f"int {alias}{_CASADI_SIG} {{ return {target}(arg, res, iw, w, mem); }}"]
+        if k == "GS_JAC":
+            lines += [f"const long long int* {target}_sparsity_out(long long int i);",
+                      f"const long long int* {alias}_sparsity_out(long long int i) "
+                      f"{{ return {target}_sparsity_out(i); }}"]
+    return "\n".join(lines) + "\n"
+
+
+@functools.lru_cache(maxsize=8)
+def _flags_digest(cc: tuple[str, ...], isa: tuple[str, ...]) -> str:
+    text = "\0".join([" ".join(cc), compiler_version(), " ".join(BASE_FLAGS),
+                      " ".join(CASADI_FILE_FLAGS), " ".join(isa)])
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def flags_digest() -> str:
+    """Hash of what an object file depends on besides its source: the compiler and its
+    version, the flags and the instruction set."""
+    return _flags_digest(tuple(compiler_command()), tuple(isa_flags()))
+
+
+def _digest(sources: Sequence[Path], defines: Mapping, include_dirs: Sequence[str]) -> str:
+    h = hashlib.sha256()
+    for part in (flags_digest(), repr(sorted(defines.items())), repr(list(include_dirs))):
+        h.update(part.encode() + b"\0")
+    c_dir = sources[0].parent
+    for f in sorted({*sources, *c_dir.glob("*.h")}):
+        h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()
+
+
+#: Driver compilations started ahead (``prefetch_driver_objects``), by object directory.
+_AHEAD: dict[Path, Future] = {}
+_AHEAD_LOCK = threading.Lock()
+
+
+def _driver_directory(sources: Sequence[Path], defs: Mapping, include_dirs: Sequence[str]) -> Path:
+    return cache.cache_root() / "objects" / f"driver-{_digest(sources, defs, include_dirs)[:16]}"
+
+
+def _compile_driver(sources, defs, include_dirs, directory: Path,
+                    at_once: int | None = None) -> list[Path]:
+    return cached_objects(sources, safety.ensure_dir(directory, root=cache.cache_root()), defs,
+                          include_dirs, at_once=at_once)
+
+
+def driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
+                   include_dirs: Sequence[str] = ()) -> list[Path]:
+    """The object files of the driver ``sources`` compiled with ``object_defines(defines)``:
+    from ``<cache root>/objects/`` or compiled there now (in parallel, each installed
+    atomically, so concurrent builds agree), or by a compilation started ahead for the same
+    macros (``prefetch_driver_objects``), waited for."""
+    defs = object_defines(defines)
+    directory = _driver_directory(sources, defs, include_dirs)
+    with _AHEAD_LOCK:
+        ahead = _AHEAD.pop(directory, None)
+    if ahead is not None:
+        try:
+            return ahead.result()
+        except Exception:  # noqa: BLE001 - compiled again below, which raises its error
+            pass
+    return _compile_driver(sources, defs, include_dirs, directory)
+
+
+def prefetch_driver_objects(sources: Sequence[Path], defines: Mapping[str, str | int],
+                            include_dirs: Sequence[str] = ()) -> None:
+    """Start compiling the driver's objects for ``defines`` in a background thread, unless
+    they are cached or already under way: a build that predicts its model's macros before it
+    derives anything (``library.predicted_defines``) compiles them meanwhile, and
+    :func:`driver_objects` waits for them. Only a head start: a wrong prediction costs the
+    compilation, never a wrong object."""
+    defs = object_defines(defines)
+    directory = _driver_directory(sources, defs, include_dirs)
+    if all(os.path.lexists(directory / f"{Path(src).stem}.o") for src in sources):
+        return
+    with _AHEAD_LOCK:
+        if directory not in _AHEAD:
+            pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gs-driver")
+            # one file at a time: the build's own work keeps the other CPU
+            _AHEAD[directory] = pool.submit(_compile_driver, sources, defs, include_dirs,
+                                            directory, 1)
+            pool.shutdown(wait=False)
+
+
+def cached_objects(sources: Sequence[Path], directory: Path,
+                   defines: Mapping[str, str | int] | None = None,
+                   include_dirs: Sequence[str] = (), quick: Sequence[Path] = (),
+                   at_once: int | None = None) -> list[Path]:
+    """The object files ``<directory>/<stem>.o`` of ``sources``: checked (``runtime.safety``)
+    when there, else compiled now (in parallel, each installed atomically, so concurrent
+    builds agree; ``quick``: sources compiled with ``compiler.QUICK_FLAGS``; ``at_once``: at
+    most that many compilers at a time). ``directory`` must exist and be the caller's to fill."""
+    objects = [Path(directory) / f"{Path(src).stem}.o" for src in sources]
+    if all(os.path.lexists(o) for o in objects):
+        for o in objects:
+            safety.check_file(o)
+        return objects
+    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+        built = compile_objects(sources, Path(tmp), defines, include_dirs, quick=quick,
+                                at_once=at_once)
+        for obj, final in zip(built, objects):
+            os.replace(obj, final)
+    return objects
