@@ -177,6 +177,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from grasping_sym.pipeline import build
+    from grasping_sym.viz import kinds as viz_kinds  # noqa: PLC0415 - lazy: matplotlib
 
     params = _params(args.param)
     out = _check_out(args.out)
@@ -205,7 +206,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     sim_wall = time.perf_counter() - t0
     csv_path = result.write_csv(out / "trajectory.csv")
     _say(f"writing figures into {out}")
-    figures = scene.write_figures(result, out)
+    figures = viz_kinds.write_figures(scene, result, out)
 
     stats = result.stats
     lines = [
@@ -222,7 +223,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     for key in ("s", "u0", "u1"):
         if key in result.state_names:
             lines.append(f"final {key:<11}{float(result[key][-1]):.6e}")
-    lines += scene.summary_lines(result)
+    lines += viz_kinds.summary_lines(scene, result)
     lines.append(f"trajectory       {csv_path}")
     if len(figures) <= 6:
         lines += [f"figure           {path}" for path in figures]

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from grasping_sym.assemble import structure_cache
+from grasping_sym.assemble.kinds import casadi_functions
 from grasping_sym.emit import lanes, vecmath
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary
@@ -136,7 +137,7 @@ def test_rewrites_are_applied_to_every_builtin_scene():
             assert grouped[f"{name}_rhs"] > 0, name
             continue
         scene = make()
-        for f in scene.casadi_functions().model.helpers:  # the SX contour / jets functions
+        for f in casadi_functions(scene).model.helpers:  # the SX contour / jets functions
             assert grouped[f.name()] == libm_calls(f) > 0, f.name()
         meta = json.loads((generated_dir() / structure_cache.DIR / manifest["structure"]["name"]
                            / structure_cache.META).read_text())

@@ -18,6 +18,7 @@ import pytest
 
 import grasping_sym as gs
 from grasping_sym.assemble import structure_cache
+from grasping_sym.assemble.kinds import casadi_functions
 from grasping_sym.assemble.scene_functions import planar_structure
 from grasping_sym.pipeline import with_check_outputs
 
@@ -31,7 +32,7 @@ def _ellipse_scene(**kw):
 def _single_piece(scene):
     """The scene's functions composed in one piece from its template (no layers), with the
     outputs a build compiles: the scene's and those the run-time checks read."""
-    return with_check_outputs(scene)[0].casadi_functions(layers=False).model
+    return casadi_functions(with_check_outputs(scene)[0], layers=False).model
 
 
 def _dense(v) -> np.ndarray:

@@ -17,6 +17,7 @@ import grasping_sym as gs
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry import library as L
 from grasping_sym.model.planar import ExtraFinger
+from grasping_sym.viz.kinds import write_figures
 
 U1 = math.pi + 0.3       # finger 1 touches the ellipse 0.3 rad below its -x vertex
 
@@ -83,7 +84,7 @@ def test_two_finger_scenes_have_default_outputs_and_plot(tmp_path):
     # both fingertips touch the object at the start: contact points coincide
     for p in every:
         assert np.linalg.norm(p.contact_finger - p.contact_object) < 1e-9
-    paths = scene.write_figures(res, tmp_path)
+    paths = write_figures(scene, res, tmp_path)
     assert len(paths) == 12 and all(p.stat().st_size > 10_000 for p in paths)
     assert any(p.name == "constraints_log.png" for p in paths)
     curves = plots.TIME_PLOTS[0].curves(scene, res)

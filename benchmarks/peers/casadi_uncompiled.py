@@ -2,7 +2,8 @@
 
 What a CasADi user gets without our C: the scene's SX graph (the one we generate C from) as
 a ``casadi.Function`` evaluated by CasADi's virtual machine (a planar scene in one piece:
-``casadi_functions(layers=False)``, not the layers that call compiled code), integrated by CVODES through
+``assemble.kinds.casadi_functions(scene, layers=False)``, not the layers that call compiled
+code), integrated by CVODES through
 ``casadi.integrator``, which takes its Jacobian by AD on the same graph (also interpreted).
 Same equations, same start, same tolerances as our compiled cvodes: the ratio is the price
 of interpreting the graph (and, for 3D, of CasADi's AD Jacobian against our differenced one).
@@ -18,6 +19,7 @@ import casadi as ca
 import numpy as np
 
 from benchmarks.timing import median
+from grasping_sym.assemble.kinds import casadi_functions
 
 
 def rhs_function(scene, model) -> ca.Function:
@@ -25,7 +27,7 @@ def rhs_function(scene, model) -> ca.Function:
 
     Its input ``p`` is the model's ``default_params`` (run-time and start values).
     """
-    fns = replace(scene, outputs=(), name=f"{scene.name}_vm").casadi_functions(layers=False)
+    fns = casadi_functions(replace(scene, outputs=(), name=f"{scene.name}_vm"), layers=False)
     return fns.model.rhs
 
 

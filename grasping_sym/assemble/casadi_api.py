@@ -1,6 +1,6 @@
 """A model's closed loop as CasADi Functions for optimal control and sensitivity analysis.
 
-The scene's functions in one piece of SX (``scene.casadi_functions(layers=False)``: the
+The scene's functions in one piece of SX (``assemble.kinds.casadi_functions(scene, layers=False)``: the
 same closed loop as the compiled layers, tests check it) restated with the control inputs
 as an argument of their own:
 
@@ -18,13 +18,15 @@ from __future__ import annotations
 
 import casadi as ca
 
+from grasping_sym.assemble import kinds
+
 __all__ = ["public_functions"]
 
 
 def public_functions(scene, start_values: dict[str, float], *, time: bool = False) -> dict:
     """``{"ode", "constraints", "outputs"}`` of ``scene`` (module docstring); with ``time`` the
     ode and the outputs take the time first: ``(t, x, u, p)`` (for a law that reads it)."""
-    cm = scene.casadi_functions(layers=False).model
+    cm = kinds.casadi_functions(scene, layers=False).model
     names = scene.p_names
     nx = len(scene.state_names)
     n_u = len(scene.input_names)

@@ -13,22 +13,28 @@ import hashlib
 import casadi as ca
 
 from grasping_sym.assemble.functions import FUNCTION_OPTIONS
+from grasping_sym.derive.quantities import grasp3d_quantities, planar_quantities
 from grasping_sym.errors import ControllerError
+from grasping_sym.model import kinds
+from grasping_sym.model.control import PAPER
+from grasping_sym.model.controllers import paper2d, paper3d
 
 __all__ = ["ControllerFunction", "controller_function", "controller_key", "controller_torques",
            "outputs_p"]
 
 
+#: kind -> (its quantities, ``derive.quantities``; the paper's law of its papers)
+_KINDS = {"planar": (planar_quantities, paper2d), "grasp3d": (grasp3d_quantities, paper3d)}
+
+
 def controller_torques(scene, t, x, p) -> tuple[ca.SX, bool, bool]:
     """The torques of every finger joint, in order; whether the law read the object; whether
     it reads the time itself (the inputs' ``a + b t`` aside)."""
-    from grasping_sym.model.control import PAPER  # noqa: PLC0415
-    from grasping_sym.model.controllers import paper2d, paper3d  # noqa: PLC0415
-
-    m = scene.quantities(t, x, p)
+    quantities, paper_law = kinds.of(scene, _KINDS, "a controller")
+    m = quantities(scene, t, x, p, scene.p_names)
     law = scene.controller
     if law == PAPER:
-        law = paper2d() if scene.dimension == 2 else paper3d()
+        law = paper_law()
     cols = law.torques(m) if law is not None else [ca.SX.zeros(dq.numel(), 1) for dq in m.dq]
     tau = ca.vertcat(*cols)
     known = {s.element_hash() for s in ca.symvar(ca.vertcat(t, x, p))}

@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
@@ -140,7 +139,9 @@ class GraspScene3D:
     inputs: str | None = None
     problems: tuple[str, ...] = field(default=(), repr=False)
 
-    #: The scene's dimension (the controller presets and quantities depend on it).
+    #: The scene's kind (``model.kinds``: every floor above asks it, never the dimension).
+    kind: ClassVar[str] = "grasp3d"
+    #: The scene's dimension: 2 or 3 (what a drawing of it has).
     dimension: ClassVar[int] = 3
 
     def __post_init__(self) -> None:
@@ -280,17 +281,10 @@ class GraspScene3D:
         parts = ["grasp3d-v2", self.name, self.support, self.formulation, repr(self.mass),
                  repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),
                  repr(self.params), repr(self.r_ctrl), repr(self.spin_damping), ",".join(self.outputs),
-                 ",".join(self.runtime), self.object_surface.key(), f"inputs={self.inputs}",
-                 f"controller={self._controller_key}"]
+                 ",".join(self.runtime), self.object_surface.key(), f"inputs={self.inputs}"]
         for f in self.fingers:
             parts += [repr(f.chain), f.tip.key()]
         return "\n".join(parts)
-
-    @cached_property
-    def _controller_key(self) -> str:
-        from grasping_sym.assemble.controller import controller_key  # noqa: PLC0415
-
-        return controller_key(self)
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -302,12 +296,6 @@ class GraspScene3D:
         """Every entry of the compiled functions' ``p``: the run-time parameters, the start's
         values, the inputs' coefficients."""
         return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
-
-    def quantities(self, t, x, p):
-        """What a control law sees (``derive.quantities``), on the compiled ``t, x, p``."""
-        from grasping_sym.derive.quantities import grasp3d_quantities  # noqa: PLC0415
-
-        return grasp3d_quantities(self, t, x, p, self.p_names)
 
     def structure_key(self) -> str:
         """What the code depends on besides the scene's name and its surfaces: the text of
@@ -341,57 +329,12 @@ class GraspScene3D:
     simulate_defaults: ClassVar[dict] = {"t_final": 5.0, "method": "radau",
                                          "tolerances": {"radau": (1e-6, 1e-9)}}
 
-    def casadi_functions(self, progress=None, layers: bool = True):
-        """The scene's CasADi functions: in layers (``codegen.scene_functions.grasp3d_layered``:
-        what is compiled, for the regular formulation), or in one piece of SX
-        (``grasp3d_functions``: with ``layers=False``, and for the paper formulation)."""
-        from grasping_sym.assemble import scene_functions  # noqa: PLC0415
-
-        if layers and self.formulation == "regular":
-            return scene_functions.grasp3d_layered(self, progress)
-        return scene_functions.grasp3d_functions(self, progress)
-
-    def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
-        """``(x0, start values, info)``: the consistent start nearest the guesses
-        (``derive.initial3d``, Gauss-Newton) and the centre spring's rest point."""
-        from grasping_sym.derive import start3d as initial3d  # noqa: PLC0415
-
-        x0, info = initial3d.initial_state(self)
-        values = dict(zip(self.start_param_names, map(float, info["r_bar0"])))
-        return x0, values, {"residual": float(info["residual"]), "iterations": int(info["iterations"])}
-
-    def write_figures(self, result, out_dir) -> list:
-        """The figures of a run (``plots3d.write_figures3d``; derives the geometry, 1-3 s)."""
-        from grasping_sym.viz.plots3d import write_figures3d  # noqa: PLC0415
-
-        return write_figures3d(self, result, out_dir)
-
-    def summary_lines(self, result) -> list[str]:
-        """Lines ``grasping-sym simulate`` prints of a 3D run (``plots3d.summary_lines``)."""
-        from grasping_sym.viz.plots3d import summary_lines  # noqa: PLC0415
-
-        return summary_lines(self, result)
-
     def manifest_extra(self) -> dict:
         """What a 3D scene adds to its manifest: its formulation; the rule each run-time
         parameter's value must meet (``Model.params`` checks it)."""
         return {"kind": "grasp3d", "formulation": self.formulation,
                 "param_rules": {k: "positive" if k in ("fd", "c") else "nonnegative"
                                 for k in self.runtime}}
-
-    def sympy_op_counts(self) -> dict[str, int]:
-        """Operation counts of SymPy pieces: none (the 3D pieces go to CasADi's AD)."""
-        return {}
-
-    def structure_templates(self) -> list[tuple[str, str, object]]:
-        """``(file name, key, build)`` of each template this scene's structure uses: one per
-        finger chain (``codegen.templates.finger_template``), committed for built-in scenes."""
-        from grasping_sym.assemble import templates  # noqa: PLC0415
-        from grasping_sym.derive.grasp3d import finger_function  # noqa: PLC0415
-
-        g = None if self.gravity is None else tuple(float(v) for v in self.gravity)
-        return [(templates.finger_template_name(f.chain, g), templates.finger_template_key(f.chain, g),
-                 lambda chain=f.chain: finger_function(chain, g)) for f in self.fingers]
 
     def bounds(self) -> tuple[list, list]:
         """Per-state bounds (None: unbounded): the surface coordinates of each contact stay

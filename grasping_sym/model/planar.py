@@ -148,7 +148,9 @@ class PlanarFingerScene:
     controller: object = PAPER
     inputs: str | None = None
 
-    #: The scene's dimension (the controller presets and quantities depend on it).
+    #: The scene's kind (``model.kinds``: every floor above asks it, never the dimension).
+    kind: ClassVar[str] = "planar"
+    #: The scene's dimension: 2 or 3 (what a drawing of it has).
     dimension: ClassVar[int] = 2
 
     def __post_init__(self) -> None:
@@ -372,14 +374,8 @@ class PlanarFingerScene:
             # with the contours' keys this fixes shared_parameter (which samples the contours)
             f"equal_start_parameters={self.u0_0 == self.u1_0}",
             *[f.code_key() for f in self.extra_fingers],
-            f"inputs={self.inputs}", f"controller={self._controller_key}",
+            f"inputs={self.inputs}"
         ])
-
-    @cached_property
-    def _controller_key(self) -> str:
-        from grasping_sym.assemble.controller import controller_key  # noqa: PLC0415
-
-        return controller_key(self)
 
     def key(self) -> str:
         """Canonical text of the whole definition: the code's and the start's."""
@@ -401,12 +397,6 @@ class PlanarFingerScene:
         values, the inputs' coefficients."""
         return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
 
-    def quantities(self, t, x, p):
-        """What a control law sees (``derive.quantities``), on the compiled ``t, x, p``."""
-        from grasping_sym.derive.quantities import planar_quantities  # noqa: PLC0415
-
-        return planar_quantities(self, t, x, p, self.p_names)
-
     def start_values(self) -> dict[str, float]:
         """Values of ``start_param_names``: the pivot solved from the initial contact."""
         xm, ym = self.pivot
@@ -417,31 +407,6 @@ class PlanarFingerScene:
     #: its tolerances (none given: the integrator's own defaults).
     simulate_defaults: ClassVar[dict] = {"t_final": 3.0, "method": "cvodes", "tolerances": {}}
 
-    def casadi_functions(self, progress=None, layers: bool = True):
-        """The scene's CasADi functions: in layers (``codegen.scene_functions.planar_functions``:
-        what is compiled), or with ``layers=False`` in one piece, pure SX with no compiled
-        part (``planar_single_piece``: for CasADi's virtual machine and as a reference)."""
-        from grasping_sym.assemble import scene_functions  # noqa: PLC0415
-
-        if not layers:
-            return scene_functions.planar_single_piece(self)
-        return scene_functions.planar_functions(self, progress)
-
-    def solve_start(self) -> tuple[np.ndarray, dict[str, float], dict]:
-        """``(x0, start values, info)``: the consistent start at rest and the pivot."""
-        self.validate()
-        return self.initial_state(), self.start_values(), {}
-
-    def write_figures(self, result, out_dir) -> list:
-        """The figures of a run (``plots.write_figures``)."""
-        from grasping_sym.viz.plots import write_figures  # noqa: PLC0415
-
-        return write_figures(self, result, out_dir)
-
-    def summary_lines(self, result) -> list[str]:
-        """Lines ``grasping-sym simulate`` prints of a run beyond the common ones: none."""
-        return []
-
     def manifest_extra(self) -> dict:
         """What this kind of scene adds to its manifest: a start solved at run time
         (``runtime.start``) holds the object's angle unless it is given or must move; the
@@ -449,17 +414,6 @@ class PlanarFingerScene:
         return {"start_hold": ["theta"],
                 "param_rules": {k: "nonnegative" if k in CSM_GAINS else "positive"
                                 for k in self.runtime}}
-
-    def sympy_op_counts(self) -> dict[str, int]:
-        """Operation counts of the SymPy pieces before and after SymPy's CSE."""
-        from grasping_sym.assemble.functions import sympy_op_counts  # noqa: PLC0415
-        from grasping_sym.derive.planar import derive_planar  # noqa: PLC0415
-
-        return sympy_op_counts(derive_planar(self))
-
-    def structure_templates(self) -> list:
-        """Templates beyond the planar ones (``codegen.templates.PLANAR_STRUCTURES``): none."""
-        return []
 
     def bounds(self) -> tuple[list, list]:
         """Per-state bounds (None: unbounded): each contact parameter stays inside its

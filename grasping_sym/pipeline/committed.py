@@ -5,7 +5,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from grasping_sym.assemble import structure_cache
+from grasping_sym.assemble import kinds, structure_cache
 from grasping_sym.pipeline.stages import generate, solve_start
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
@@ -101,7 +101,7 @@ def _generate_scene(scene, root: Path, check: bool, differ: dict, structures: se
 
     name = scene.name
 
-    for file_name, key, build in scene.structure_templates():
+    for file_name, key, build in kinds.kind(scene).templates(scene):
         finger_files.add(file_name)
         template(file_name, lambda path, b=build, k=key: templates.write_finger_template(path, b(), k))
     target = root / name

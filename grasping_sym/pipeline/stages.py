@@ -37,6 +37,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from grasping_sym import __version__
+from grasping_sym.assemble import kinds
+from grasping_sym.assemble.controller import controller_function, controller_key
 from grasping_sym.assemble.functions import guarded_rhs
 from grasping_sym.emit import cwriter, lanes
 from grasping_sym.pipeline.built import BuiltModel, compile_library, compiled_manifest
@@ -57,20 +59,25 @@ log = logging.getLogger(__name__)
 LANES_MAX_INSTRUCTIONS = 5000
 
 
+def _code_key(scene) -> str:
+    """The scene's code key with its controller's (the hash of the law's expressions)."""
+    return f"{scene.code_key()}|controller={controller_key(scene)}"
+
+
 def code_hash(scene) -> dict:
     """Content hash of the generated C for ``scene`` and the inputs it covers."""
-    return cache.content_hash(scene.code_key(), __version__)
+    return cache.content_hash(_code_key(scene), __version__)
 
 
 def start_key(scene) -> str:
     """Hash of what the scene's start depends on: its whole definition and the sources."""
-    text = "\n".join([scene.key(), cache.tree_digest(), __version__])
+    text = "\n".join([scene.key(), controller_key(scene), cache.tree_digest(), __version__])
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def solve_start(scene) -> dict:
     """The scene's start record (``runtime.stored.start_record``), solved now."""
-    x0, values, info = scene.solve_start()
+    x0, values, info = kinds.kind(scene).solve_start(scene)
     missing = [k for k in scene.start_param_names if k not in values]
     if missing:
         raise RuntimeError(f"{type(scene).__name__}.solve_start gave no value for {missing}")
@@ -89,7 +96,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     say = progress or (lambda msg: None)
     digest = code_hash(scene)
     scene, hidden = with_check_outputs(scene)
-    fns = scene.casadi_functions(say)
+    fns = kinds.casadi_functions(scene, say)
     cm, timings = fns.model, dict(fns.timings)
     lower, upper = scene.bounds()
     guarded = guarded_rhs(cm, lower, upper, scene.name)
@@ -109,10 +116,8 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     timings["write_c"] = time.perf_counter() - t0
     ops = dict(cm.op_counts)
     if count_ops:
-        ops.update(scene.sympy_op_counts())
+        ops.update(kinds.kind(scene).sympy_op_counts(scene))
     outputs_time = outputs_read_time(cm, len(scene.p_names))
-    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
-
     ctrl = controller_function(scene, "c")
     law = scene.controller
     manifest = {

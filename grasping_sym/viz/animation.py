@@ -106,7 +106,7 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
                               "gs.build(scene) (a model from gs.load, or a loaded result, has none)")
     check_scene(result, scene, "animate")
     check_options(len(result.t), fps=fps, seconds=seconds, dpi=dpi,
-                  dimension=getattr(scene, "dimension", 2))
+                  dimension=scene.dimension)
     path = Path(path)
     if path.suffix not in (".gif", ".mp4"):
         raise ViewOptionError(f"{path.name}: write a .gif (Pillow) or an .mp4 (ffmpeg)")
@@ -122,7 +122,7 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
     from matplotlib.figure import Figure  # noqa: PLC0415
 
     rows = frame_rows(result.t, fps, seconds)
-    three_d = getattr(scene, "dimension", 2) == 3
+    three_d = scene.dimension == 3
     fig = Figure(figsize=FIGSIZE[3 if three_d else 2], layout="constrained")
     FigureCanvasAgg(fig)
     draw = _frames_3d(fig, scene, result, rows) if three_d else _frames_2d(fig, scene, result, rows)

@@ -130,7 +130,7 @@ def write_viewer(result, path: str | Path, scene=None, *, frames: int = FRAMES, 
     if scene is None:
         raise ViewOptionError("the viewer needs the run's scene: pass scene=..., or run a model made "
                               "by gs.build(scene) (a model from gs.load, or a loaded result, has none)")
-    if getattr(scene, "dimension", 2) != 3:
+    if scene.dimension != 3:
         raise ViewOptionError("the viewer draws 3D scenes: for a 2D run use gs.viz.animate(res, 'motion.gif')")
     check_scene(result, scene, "view")
     path = Path(path)

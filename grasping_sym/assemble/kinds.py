@@ -1,0 +1,85 @@
+"""What the derivation and the assembly do with each kind of scene (``model.kinds``): one
+table, asked by the build (``pipeline``), never a switch on the dimension.
+
+Each row gives, for its kind:
+
+- ``functions(scene, progress, layers)``: the scene's CasADi functions
+  (``assemble.scene_functions``): in layers (what is compiled) or, with ``layers=False``, in
+  one piece of SX (CasADi's virtual machine, ``assemble.casadi_api``, the tests' reference);
+- ``solve_start(scene)``: ``(x0, start values, info)``, the consistent start and the run-time
+  values it fixes (2D: the pivot, from the scene's own tangency solution; 3D: Gauss-Newton,
+  ``derive.start3d``);
+- ``templates(scene)``: ``(file name, key, build)`` of each finger template the scene's
+  structure uses beyond the planar ones (committed for the built-in scenes);
+- ``sympy_op_counts(scene)``: operation counts of its SymPy pieces, for the manifest.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from grasping_sym.assemble import scene_functions, templates
+from grasping_sym.assemble.functions import sympy_op_counts
+from grasping_sym.derive import start3d
+from grasping_sym.derive.grasp3d import finger_function
+from grasping_sym.derive.planar import derive_planar
+from grasping_sym.model import kinds
+
+
+@dataclass(frozen=True)
+class Kind:
+    functions: Callable
+    solve_start: Callable
+    templates: Callable
+    sympy_op_counts: Callable
+
+
+def _planar_functions(scene, progress=None, layers: bool = True):
+    if not layers:
+        return scene_functions.planar_single_piece(scene)
+    return scene_functions.planar_functions(scene, progress)
+
+
+def _planar_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    scene.validate()
+    return scene.initial_state(), scene.start_values(), {}
+
+
+def _grasp3d_functions(scene, progress=None, layers: bool = True):
+    if layers and scene.formulation == "regular":
+        return scene_functions.grasp3d_layered(scene, progress)
+    return scene_functions.grasp3d_functions(scene, progress)
+
+
+def _grasp3d_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    x0, info = start3d.initial_state(scene)
+    values = dict(zip(scene.start_param_names, map(float, info["r_bar0"])))
+    return x0, values, {"residual": float(info["residual"]), "iterations": int(info["iterations"])}
+
+
+def _grasp3d_templates(scene) -> list[tuple[str, str, object]]:
+    g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)
+    return [(templates.finger_template_name(f.chain, g), templates.finger_template_key(f.chain, g),
+             lambda chain=f.chain: finger_function(chain, g)) for f in scene.fingers]
+
+
+#: kind name -> its row
+KINDS: dict[str, Kind] = {
+    "planar": Kind(functions=_planar_functions, solve_start=_planar_start,
+                   templates=lambda scene: [],
+                   sympy_op_counts=lambda scene: sympy_op_counts(derive_planar(scene))),
+    "grasp3d": Kind(functions=_grasp3d_functions, solve_start=_grasp3d_start,
+                    templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
+}
+
+
+def kind(scene) -> Kind:
+    """The row of ``scene``'s kind (a named error for a scene of no known kind)."""
+    return kinds.of(scene, KINDS, "deriving and assembling")
+
+
+def casadi_functions(scene, progress=None, layers: bool = True):
+    """``scene``'s CasADi functions (``Kind.functions``)."""
+    return kind(scene).functions(scene, progress, layers)

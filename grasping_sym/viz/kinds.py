@@ -1,0 +1,25 @@
+"""How the runs of each kind of scene (``model.kinds``) are drawn and summed up by the
+command line: ``write_figures(scene, result, out_dir)`` and ``summary_lines(scene, result)``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from grasping_sym.model import kinds
+from grasping_sym.viz import plots, plots3d
+
+#: kind name -> (write_figures, summary_lines)
+KINDS = {
+    "planar": (plots.write_figures, lambda scene, result: []),
+    "grasp3d": (plots3d.write_figures3d, plots3d.summary_lines),
+}
+
+
+def write_figures(scene, result, out_dir: Path | str) -> list:
+    """The figures of a run of ``scene`` written into ``out_dir`` (2D: the paper's time plots
+    and the scene; 3D: snapshots and contact traces, the geometry derived once, 1-3 s)."""
+    return kinds.of(scene, KINDS, "figures")[0](scene, result, out_dir)
+
+
+def summary_lines(scene, result) -> list[str]:
+    """Lines ``grasping-sym simulate`` prints of a run beyond the common ones."""
+    return kinds.of(scene, KINDS, "a summary")[1](scene, result)
