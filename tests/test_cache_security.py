@@ -178,7 +178,7 @@ def test_compiler_environment_cannot_change_a_cached_library(cache, tmp_path, mo
                                     gs.scenes.paper2d().object, name="cpath_probe")
     model = gs.build(scene)
     assert np.all(np.isfinite(model.rhs(model.initial_state(), model.params())))
-    from grasping_sym.runtime.loader import library_name
+    from grasping_sym.store.platform import library_name
     plain = library_name("x")
     monkeypatch.setenv("CC", "gcc -O2")
     assert library_name("x") != plain and "-cc" in library_name("x")

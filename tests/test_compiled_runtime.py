@@ -10,6 +10,7 @@ from scipy.integrate import solve_ivp
 
 from grasping_sym.errors import CompileError, IntegratorError
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.store import platform as platform_
 from grasping_sym.toolchain import compiler
 from grasping_sym.toolchain.compiler import COMPILER_FLAGS, compile_shared
 from grasping_sym.toolchain.library import build_library, driver_defines
@@ -212,14 +213,14 @@ V3_FLAGS = "fpu sse2 cx16 lahf_lm popcnt sse4_1 sse4_2 ssse3 avx avx2 bmi1 bmi2 
 ])
 def test_isa_level(monkeypatch, machine, flags, env, level):
     monkeypatch.setattr(compiler.platform, "machine", lambda: machine)
-    monkeypatch.setattr(compiler, "_cpu_flags", lambda: frozenset(flags.split()))
+    monkeypatch.setattr(platform_, "_cpu_flags", lambda: frozenset(flags.split()))
     if env is None:
         monkeypatch.delenv("GRASPING_SYM_ISA", raising=False)
     else:
         monkeypatch.setenv("GRASPING_SYM_ISA", env)
     assert compiler.isa_level() == level
     assert bool(compiler.isa_flags()) == (level != "baseline")
-    from grasping_sym.runtime.loader import library_tag  # noqa: PLC0415
+    from grasping_sym.store.platform import library_tag  # noqa: PLC0415
     mvec = "-mvec" if compiler.vector_libm() else ""  # glibc's vector libm (test_vecmath)
     assert mvec == "" or level == "x86-64-v3"
     assert library_tag().endswith("-" + level + mvec)  # the level is part of the name
@@ -234,7 +235,7 @@ def test_isa_setting_unknown(monkeypatch):
 def test_isa_flags_old_compiler(monkeypatch):
     """A compiler that rejects -march=x86-64-v3 (gcc < 11) builds for the baseline."""
     monkeypatch.setattr(compiler.platform, "machine", lambda: "x86_64")
-    monkeypatch.setattr(compiler, "_cpu_flags", lambda: frozenset(V3_FLAGS.split()))
+    monkeypatch.setattr(platform_, "_cpu_flags", lambda: frozenset(V3_FLAGS.split()))
     monkeypatch.setattr(compiler, "_compiler_accepts", lambda cc, flag: False)
     monkeypatch.delenv("GRASPING_SYM_ISA", raising=False)
     assert compiler.isa_level() == "x86-64-v3" and compiler.isa_flags() == ()

@@ -10,6 +10,7 @@ import pytest
 
 from grasping_sym.emit import vecmath
 from grasping_sym.runtime.compiled import CompiledLibrary
+from grasping_sym.store import platform as platform_
 from grasping_sym.toolchain import compiler
 from grasping_sym.toolchain.library import build_library
 
@@ -141,8 +142,8 @@ def test_vector_libm_settings(monkeypatch):
         compiler.vector_libm()
     monkeypatch.setenv("GRASPING_SYM_VECMATH", "auto")
     assert compiler.vector_libm() and "-DGS_VECMATH=1" in compiler.isa_flags()
-    monkeypatch.setattr(compiler, "_libmvec_complete", lambda: False)  # an older glibc
+    monkeypatch.setattr(platform_, "_libmvec_complete", lambda: False)  # an older glibc
     assert not compiler.vector_libm()
     monkeypatch.setenv("GRASPING_SYM_ISA", "baseline")
-    monkeypatch.setattr(compiler, "_libmvec_complete", lambda: True)
+    monkeypatch.setattr(platform_, "_libmvec_complete", lambda: True)
     assert not compiler.vector_libm()  # libmvec's AVX2 functions need the x86-64-v3 level

@@ -11,12 +11,13 @@ dCdot/dx for the speeds (zero elsewhere; the others would cost second derivative
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import sympy as sp
 
 from grasping_sym.derive.system import ConstrainedSystem, assemble
+from grasping_sym.emit.casadi_model import CasadiModel
 from grasping_sym.geometry.curves import T
 from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi
@@ -28,31 +29,6 @@ FUNCTION_OPTIONS = {"cse": True, "der_options": {"cse": True}}
 #: The planar contact constraints (template outputs, m): Q (paper (14)) and R (paper (24));
 #: with several fingers ``Q1, R1, Q2, R2, ...``.
 PLANAR_CONSTRAINTS = ("Q", "R")
-
-
-@dataclass
-class CasadiModel:
-    """The CasADi functions of one scene and the figures of merit of their graphs."""
-
-    rhs: ca.Function
-    jac: ca.Function
-    outputs: ca.Function | None
-    output_names: tuple[str, ...]
-    op_counts: dict[str, int] = field(default_factory=dict)
-    constraints: ca.Function | None = None
-    #: ``names`` of the constraints, ``position_states`` (the states C depends on) and
-    #: ``velocity_states`` (those Cdot depends on affinely and C not at all), by name index.
-    constraint_info: dict = field(default_factory=dict)
-    #: ``{name}_start`` ``(x, p) -> (G, dG_dx)``: every condition of a consistent contact
-    #: (C and the tangency the update law keeps), for starts solved at run time.
-    start: ca.Function | None = None
-    start_names: tuple[str, ...] = ()
-    #: further functions written into the C (a layered model's contour functions)
-    helpers: tuple[ca.Function, ...] = ()
-
-    def functions(self) -> list[ca.Function]:
-        return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start,
-                            *self.helpers) if f is not None]
 
 
 def _casadi_backend():

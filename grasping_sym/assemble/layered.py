@@ -19,8 +19,9 @@ from __future__ import annotations
 import casadi as ca
 
 from grasping_sym.assemble.controller import outputs_p
-from grasping_sym.assemble.functions import FUNCTION_OPTIONS, CasadiModel, _families
+from grasping_sym.assemble.functions import FUNCTION_OPTIONS, _families
 from grasping_sym.emit import lanes
+from grasping_sym.emit.casadi_model import CasadiModel
 from grasping_sym.geometry.curves import T
 from grasping_sym.symbolic.contour_functions import leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from grasping_sym.assemble.functions import CasadiModel
+from grasping_sym.emit.casadi_model import CasadiModel
 
 Progress = Callable[[str], None]
 

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import casadi as ca
 
-from grasping_sym.assemble.functions import CasadiModel
 from grasping_sym.emit import vecmath
+from grasping_sym.emit.casadi_model import CasadiModel
 from grasping_sym.store import safety
 
 HEADER = (

@@ -32,17 +32,13 @@ import heapq
 import re
 from typing import TYPE_CHECKING
 
+from grasping_sym.store.platform import VECTOR_FUNCTIONS
+
 if TYPE_CHECKING:  # the rewrite reads CasADi's functions; the runtime (compiler flags) does not
     from grasping_sym.emit import algorithm
 
 __all__ = ["VECTOR_FUNCTIONS", "VecmathError", "batch_libm_calls", "vector_declarations"]
 
-#: Functions with a 4-lane AVX2 version in glibc's libmvec (since glibc 2.35), by arity.
-VECTOR_FUNCTIONS: dict[str, int] = {
-    **dict.fromkeys(("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh",
-                     "asinh", "acosh", "atanh", "exp", "log", "log1p", "expm1", "erf"), 1),
-    "atan2": 2, "pow": 2,
-}
 #: Largest group: four doubles in an AVX2 register.
 WIDTH = 4
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 from grasping_sym.assemble import casadi_api, structure_cache
 from grasping_sym.runtime import portable
-from grasping_sym.runtime.loader import library_name
 from grasping_sym.runtime.model import Model
 from grasping_sym.store import safety
+from grasping_sym.store.platform import library_name
 from grasping_sym.toolchain.compiler import toolchain_id
 from grasping_sym.toolchain.library import compile_model
 

@@ -42,11 +42,11 @@ from grasping_sym.assemble.controller import controller_function, controller_key
 from grasping_sym.assemble.functions import guarded_rhs
 from grasping_sym.emit import cwriter, lanes
 from grasping_sym.pipeline.built import BuiltModel, compile_library, compiled_manifest
-from grasping_sym.runtime.loader import library_name
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
 from grasping_sym.store import safety
 from grasping_sym.store.manifest_schema import manifest_problems
+from grasping_sym.store.platform import library_name
 from grasping_sym.toolchain.compiler import toolchain_id, vector_libm
 from grasping_sym.toolchain.library import model_defines, outputs_read_time
 

@@ -2,34 +2,13 @@
 ``start.json`` (``runtime.stored``). Imports neither SymPy nor the code generation."""
 from __future__ import annotations
 
-import hashlib
-import os
-import sys
 from pathlib import Path
-
-import numpy as np
 
 from grasping_sym.runtime.model import Model
 from grasping_sym.store import files as stored
 from grasping_sym.store import safety
 from grasping_sym.store.manifest_schema import manifest_problems
-from grasping_sym.toolchain.compiler import isa_level, vector_libm
-
-
-def library_tag() -> str:
-    """What ties a compiled library to this interpreter (the fast path is an extension) and
-    to the instruction set it was compiled for (``compiler.isa_level``, with ``-mvec`` when
-    it calls glibc's vector libm, ``compiler.vector_libm``), and ``$CC`` when set (``-cc``
-    and a hash of it: another compiler makes another library)."""
-    mvec = "-mvec" if vector_libm() else ""
-    cc = os.environ.get("CC", "").strip()
-    cc = f"-cc{hashlib.sha256(cc.encode()).hexdigest()[:8]}" if cc else ""
-    return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}{mvec}{cc}"
-
-
-def library_name(name: str) -> str:
-    """File name of a model's compiled library for this interpreter and CPU."""
-    return f"lib{name}.{library_tag()}.so"
+from grasping_sym.store.platform import library_name
 
 
 def load(path: Path | str) -> Model:

@@ -2,7 +2,7 @@
 what ``pickle`` (and so Dask) sends, with no shared filesystem.
 
 The bytes hold the manifest, the start and the model's generated C, and the compiled library
-with the tag of the platform it was compiled for (``loader.library_tag``: interpreter, NumPy,
+with the tag of the platform it was compiled for (``store.platform.library_tag``: interpreter, NumPy,
 instruction-set level). The receiver looks in its own cache first (the model's directory, by
 the manifest's hash); else it installs the library where its platform is the sender's
 (checked against the manifest's SHA-256 before it is loaded). This module never compiles: a
@@ -22,11 +22,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 from grasping_sym.errors import CorruptCacheError
-from grasping_sym.runtime.loader import library_name
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
 from grasping_sym.store import safety
 from grasping_sym.store.manifest_schema import manifest_problems
+from grasping_sym.store.platform import library_name
 
 #: ``compile(directory, manifest, data)``: the model's library compiled from its C in
 #: ``directory`` (the build's, ``pipeline.built``), returning the manifest with the new
