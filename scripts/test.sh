@@ -11,5 +11,7 @@ if ! command -v chromium >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; 
         DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q chromium >/dev/null || \
         echo "could not install chromium: the viewer's test will say so" >&2
 fi
+# the floors: no import runs upward or closes a loop (pyproject.toml's contracts)
+lint-imports
 # every core, one test file per worker (module fixtures build once)
 python -m pytest -q -n auto --dist loadfile "$@"

@@ -20,6 +20,7 @@ import shutil
 import tempfile
 from collections.abc import Callable
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 import casadi as ca
@@ -110,18 +111,20 @@ def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: s
     return meta
 
 
-_AFRESH: list[bool] = []
+#: True inside ``derive_afresh`` in this context (a context variable: another thread's build
+#: still copies the committed structures).
+_AFRESH: ContextVar[bool] = ContextVar("grasping_sym_derive_afresh", default=False)
 
 
 @contextmanager
 def derive_afresh():
-    """Inside the ``with`` block, structures are never copied from the committed ones
-    (``generate_committed`` checks them against a fresh derivation)."""
-    _AFRESH.append(True)
+    """Inside the ``with`` block, in this context, structures are never copied from the
+    committed ones (``generate_committed`` checks them against a fresh derivation)."""
+    token = _AFRESH.set(True)
     try:
         yield
     finally:
-        _AFRESH.pop()
+        _AFRESH.reset(token)
 
 
 def ensure(spec, make: Callable[[str], tuple[StructureFunctions, str]],
@@ -138,7 +141,7 @@ def ensure(spec, make: Callable[[str], tuple[StructureFunctions, str]],
     if meta is not None:
         return meta, directory, "cache"
     committed = cache.generated_dir() / DIR / name
-    if not _AFRESH and (cm := _complete(committed, digest, trusted=True)) is not None:
+    if not _AFRESH.get() and (cm := _complete(committed, digest, trusted=True)) is not None:
         _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)
                                        for f in [*cm["files"], META]])
         return cm, directory, "committed"

@@ -19,6 +19,7 @@ import shutil
 import stat
 from collections.abc import Sequence
 from contextlib import contextmanager
+from contextvars import ContextVar
 from functools import lru_cache
 from pathlib import Path
 
@@ -77,23 +78,28 @@ def tree_digest() -> str:
     return h.hexdigest()
 
 
-_ROOT_OVERRIDE: list[Path] = []
+#: The cache root of this context (``root_override``), else None: a context variable, so
+#: that one thread's (or one asyncio task's) override never leaks into another's. Threads the
+#: package starts for a build run in the context of the thread that starts them
+#: (``contextvars.copy_context``, ``toolchain.objects``, ``toolchain.compiler``).
+_ROOT_OVERRIDE: ContextVar[Path | None] = ContextVar("grasping_sym_cache_root", default=None)
 
 
 @contextmanager
 def root_override(path: Path):
-    """Use ``path`` as the cache root inside the ``with`` block (``generate_committed``
-    derives everything afresh in a private root)."""
-    _ROOT_OVERRIDE.append(Path(path))
+    """Use ``path`` as the cache root inside the ``with`` block, in this context only
+    (``generate_committed`` derives everything afresh in a private root)."""
+    token = _ROOT_OVERRIDE.set(Path(path))
     try:
         yield Path(path)
     finally:
-        _ROOT_OVERRIDE.pop()
+        _ROOT_OVERRIDE.reset(token)
 
 
 def cache_root() -> Path:
-    if _ROOT_OVERRIDE:
-        return _ROOT_OVERRIDE[-1]
+    override = _ROOT_OVERRIDE.get()
+    if override is not None:
+        return override
     env = os.environ.get("GRASPING_SYM_CACHE")
     if env:
         return Path(env)

@@ -26,6 +26,7 @@ instead of 1). ``GRASPING_SYM_VECMATH=off`` turns it off.
 """
 from __future__ import annotations
 
+import contextvars
 import functools
 import logging
 import os
@@ -333,7 +334,7 @@ def compile_shared(
     with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}.build-") as tmp:
         if callable(objects):
             with ThreadPoolExecutor(max_workers=1) as pool:
-                other = pool.submit(objects)
+                other = pool.submit(contextvars.copy_context().run, objects)  # this context's cache root
                 built = compile_objects(sources, tmp, defines, include_dirs, extra_flags) if sources else []
                 objects = other.result()
         else:

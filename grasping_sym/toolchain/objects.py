@@ -16,6 +16,7 @@ included), the compiler's version and, for the CPython front end, the include di
 """
 from __future__ import annotations
 
+import contextvars
 import functools
 import hashlib
 import os
@@ -161,8 +162,9 @@ def prefetch_driver_objects(sources: Sequence[Path], defines: Mapping[str, str |
         if directory not in _AHEAD:
             pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gs-driver")
             # one file at a time: the build's own work keeps the other CPU
-            _AHEAD[directory] = pool.submit(_compile_driver, sources, defs, include_dirs,
-                                            directory, 1)
+            # in this thread's context: its cache root (``store.paths.root_override``)
+            _AHEAD[directory] = pool.submit(contextvars.copy_context().run, _compile_driver,
+                                            sources, defs, include_dirs, directory, 1)
             pool.shutdown(wait=False)
 
 
