@@ -21,9 +21,8 @@ from collections.abc import Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from functools import lru_cache
+from importlib import metadata
 from pathlib import Path
-
-import casadi as ca
 
 from grasping_sym.errors import CacheContentsError
 from grasping_sym.store import files as stored
@@ -107,6 +106,13 @@ def cache_root() -> Path:
     return Path(base) / "grasping_sym"
 
 
+@lru_cache(maxsize=1)
+def casadi_version() -> str:
+    """CasADi's version, read from its distribution's metadata: the store (and so the runtime)
+    never imports CasADi for it."""
+    return metadata.version("casadi")
+
+
 def content_hash(scene_key: str, version: str) -> dict:
     """The hash of a model's generated code and the inputs it covers (recorded in the
     manifest): the scene's code key, the package's version and source tree
@@ -116,7 +122,7 @@ def content_hash(scene_key: str, version: str) -> dict:
     inputs = {
         "scene": hashlib.sha256(scene_key.encode()).hexdigest(),
         "grasping_sym": version,
-        "casadi": ca.__version__,
+        "casadi": casadi_version(),
         "sources": tree_digest(),
     }
     h = hashlib.sha256("\n".join(f"{k}={inputs[k]}" for k in sorted(inputs)).encode())

@@ -1,0 +1,25 @@
+"""The runtime floor loads what was built without the floors that build it: importing every
+runtime module (what ``gs.load`` needs) imports no SymPy, no CasADi, and no module of the
+model, derivation, emitter, toolchain, assembly or pipeline floors (the import contracts in
+``pyproject.toml`` say so statically; this checks it in a fresh interpreter)."""
+from __future__ import annotations
+
+import json
+import pkgutil
+import subprocess
+import sys
+
+import grasping_sym.runtime
+
+
+def test_the_runtime_imports_neither_sympy_casadi_nor_the_build():
+    names = sorted(f"grasping_sym.runtime.{m.name}" for m in pkgutil.iter_modules(grasping_sym.runtime.__path__))
+    assert len(names) > 10
+    code = ("import importlib, json, sys\n"
+            f"for n in {names!r}: importlib.import_module(n)\n"
+            "print(json.dumps(sorted(sys.modules)))")
+    loaded = set(json.loads(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                                           text=True).stdout))
+    assert not {"sympy", "casadi"} & loaded
+    above = ("model", "derive", "emit", "toolchain", "assemble", "pipeline", "symbolic", "geometry", "viz")
+    assert not [m for m in loaded if m.split(".")[:2] in [["grasping_sym", a] for a in above]]
