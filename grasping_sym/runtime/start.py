@@ -46,6 +46,7 @@ import numpy as np
 
 from grasping_sym.errors import ProblemsError, StartBranchError, UnreachableStartError
 from grasping_sym.store import files as stored
+from grasping_sym.store import safety
 
 #: max|C| (m) and max|Cdot| (m/s) of an accepted start.
 START_TOL = 1e-13
@@ -114,6 +115,23 @@ class StartSolution:
                 "contact": dict(self.contact), "branch": self.branch,
                 "start_branch": self.start_branch, "on_start_branch": self.on_start_branch,
                 "steps": self.steps}
+
+
+def initial_state(model, values: dict[str, float], branch: str = "start") -> np.ndarray:
+    """``Model.initial_state``: the stored start (a fresh array) without ``values``, else the
+    state ``solve`` finds on ``branch``."""
+    if not values:
+        if branch not in BRANCHES:
+            return solve_start(model, values, branch).x  # refuses the bad branch
+        return np.array(model.start["initial_state"], dtype=float)
+    return solve(model, values, branch)
+
+
+def store(model, record: dict) -> None:
+    """Write the start ``record`` (``start_record``) beside the model, where
+    ``grasping_sym.load`` finds it (``<directory>/starts/<key>.json``)."""
+    starts = safety.ensure_dir(model.directory / stored.STARTS_DIR, root=model.directory)
+    stored.write_json(starts / f"{record['key'][:16]}.json", record)
 
 
 def start_record(model, values: dict[str, float], branch: str = "start") -> dict:

@@ -1,0 +1,156 @@
+"""One run of a model: its start checked, its segments over the inputs' schedule integrated,
+a failure named, the events along it checked, the result assembled (``Model.simulate``).
+
+A model with inputs restarts the integration at every knot of their table inside the run
+(``runtime.inputs``), so a table's kinks and jumps are met exactly. The integrators live in
+``runtime.integrators``; the failures are named by ``runtime.failures``; the checks are
+``runtime.checks``'s.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from grasping_sym.errors import ContactLeftContourError, IntegratorError, RunArgumentError
+from grasping_sym.runtime import checks as checks_
+from grasping_sym.runtime import failures, integrators
+from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime.inputs import as_schedule
+from grasping_sym.runtime.result import SimulationResult
+from grasping_sym.runtime.settings import RunSettings, numbers_array
+
+
+def start_state(model, x0) -> tuple[np.ndarray, bool]:
+    """``(x0, own_start)``: the state a run starts from, checked (shape, finite, inside the
+    contours' domains); ``own_start`` when it is the model's stored start (``x0`` None), whose
+    speeds are consistent by construction."""
+    own_start = x0 is None
+    x0 = model.initial_state() if own_start else numbers_array("x0", x0)
+    if x0.shape != (len(model.state_names),):
+        raise RunArgumentError(f"x0 has shape {x0.shape}; expected ({len(model.state_names)},) "
+                               f"ordered as {model.state_names}")
+    if not np.all(np.isfinite(x0)):
+        raise RunArgumentError(f"x0 = {x0} has non-finite entries")
+    failures.check_bounds(model, 0.0, x0)
+    return x0, own_start
+
+
+def schedule(model, u, method: str, t_eval: np.ndarray):
+    """The inputs' schedule (``grasping_sym.runtime.inputs``), None for a model without inputs."""
+    if not model.input_names:
+        if u is not None:
+            raise RunArgumentError("u given, but this model has no inputs: build the scene with "
+                                   "inputs='torques' (e.g. gs.scenes.paper2d(inputs='torques'))")
+        return None
+    sched = as_schedule(u, len(model.input_names))
+    if method == "rk4" and any(0 < k < t_eval[-1] for k in sched.knots):
+        raise RunArgumentError("rk4 reports on one uniform grid and cannot restart at the table's "
+                               "knots: use method='radau', 'dopri5' or 'cvodes' with a table input")
+    return sched
+
+
+def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> SimulationResult:
+    """``simulate`` once its arguments are checked (``s``; ``x0`` by ``start_state``): ``p`` is
+    every entry of ``p_names`` (the inputs' set from ``u``); a failure or an event raises its
+    named error."""
+    t_eval = s.t_eval
+    sched = schedule(model, u, s.method, t_eval)
+    segments = [(0.0, float(t_eval[-1]), None, None)] if sched is None else \
+        sched.segments(0.0, float(t_eval[-1]))
+    p0 = p if sched is None else model.with_inputs(p, segments[0][2], segments[0][3])
+    start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
+    t, X, stats = _segments(model, s, segments, sched, x0, p, start)
+    # the checks read the compiled outputs whether or not the result shows them; a run
+    # that returns none and has no event (checks.clean, on the watched columns) needs no more
+    quiet = s.checks and not s.outputs and sched is None and checks_.clean(model, t, X, p)
+    outs = outputs_.along(model, t, X, p, sched) if (s.outputs or s.checks and not quiet) \
+        and model.columns else {}
+    if s.checks and outs:
+        event = checks_.trajectory_event(model, t, X, outs, start)
+        if event is not None:
+            raise event
+    outs = {k: outs[k] for k in model.output_names} if s.outputs and outs else {}
+    if s.drop_first:
+        t, X = t[1:], X[1:]
+        outs = {k: v[1:].copy() for k, v in outs.items()}
+    pdict = dict(zip(model.param_names, [] if p is None else map(float, p)))
+    return SimulationResult(t=t, x=X, state_names=model.state_names, outputs=outs,
+                            method=s.method, stats=stats, params=pdict, scene=model.scene)
+
+
+def _segments(model, s: RunSettings, segments, sched, x0, p, start):
+    """``(t, X, stats)`` over every segment of the inputs, at the output times."""
+    t_eval = s.t_eval
+    rows_t, rows_x, stats = [], [], {}
+    x_now = x0
+    for k, (s0, s1, a, b) in enumerate(segments):
+        pk = p if sched is None else model.with_inputs(p, a, b)
+        grid = t_eval if len(segments) == 1 else np.array(
+            [s0, *t_eval[(t_eval > s0) & (t_eval < s1)], s1])
+        t, X, st = integrate(model, s.method, x_now, grid, pk, start, s.checks,
+                             **s.integration())
+        rows_t.append(t if k == 0 else t[1:])
+        rows_x.append(X if k == 0 else X[1:])
+        x_now = X[-1]
+        for key, v in st.items():
+            stats[key] = stats.get(key, 0) + v if isinstance(v, (int, float)) and key != "h" else v
+    t, X = np.concatenate(rows_t), np.concatenate(rows_x)
+    if len(segments) > 1:
+        keep = np.isin(t, t_eval)
+        t, X = t[keep], X[keep]
+        stats["segments"] = len(segments)
+    return t, X, stats
+
+
+def integrate(model, method, x0, t_eval, p, start, checks, *, rtol, atol, max_steps, h, proj,
+              time_limit):
+    """One integration over ``t_eval`` (one segment of the inputs) with named errors:
+    ``(t, X, stats)``."""
+    if method in integrators.C_LOOPS:
+        try:
+            return integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
+                                      max_steps=max_steps, h=h, projection=proj,
+                                      time_limit=time_limit)
+        except IntegratorError as exc:
+            err = failures.blow_up(model, failures.classify(model, exc), method, h)
+            if checks:
+                checks_.raise_earlier_event(model, err, p, start)
+            raise err from None
+    pp = np.zeros(0) if p is None else p
+    try:
+        t, X, stats = integrators.sundials(model, method, x0, t_eval, pp, rtol, atol, max_steps,
+                                           time_limit)
+    except IntegratorError as failed:
+        exc = failures.exit_at_failure(model, failed, t_eval, p, rtol, atol) \
+            if method == "cvodes" else failed
+        if checks:
+            checks_.raise_earlier_event(model, exc, p, start)
+        raise exc from None
+    _sundials_exits(model, t, X, stats.pop("excursions", ()), p, start, checks, rtol, atol)
+    return t, X, stats
+
+
+def _sundials_exits(model, t, X, excursions, p, start, checks, rtol, atol) -> None:
+    """Raise the first exit from a contour's domain of a SUNDIALS run, located between its
+    outputs: a step IDAS reports outside a domain (``excursions``), or an output outside one."""
+    for k in excursions:  # IDAS: a step ended outside a domain
+        found = ContactLeftContourError(t[k], X[k], "a contact left its contour between "
+                                        "the outputs", model.state_names)
+        exc = failures.locate_exit(model, found, t[k - 1], X[k - 1], t[min(k + 1, len(t) - 1)],
+                                   p, rtol, atol)
+        if exc is not found:
+            _raise(model, exc, t[:k], X[:k], p, start, checks)
+    for i in range(len(t)):
+        try:
+            failures.check_bounds(model, t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
+        except ContactLeftContourError as found:
+            exc = failures.locate_exit(model, found, t[i - 1], X[i - 1], t[i], p, rtol, atol) \
+                if i else found
+            _raise(model, exc, t[:i], X[:i], p, start, checks)
+
+
+def _raise(model, exc, t, X, p, start, checks):
+    """Raise ``exc`` (an earlier event along ``t, X`` first, with ``checks``)."""
+    if checks:
+        exc.trajectory = (t.copy(), X.copy())
+        checks_.raise_earlier_event(model, exc, p, start)
+    raise exc from None
