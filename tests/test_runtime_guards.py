@@ -232,7 +232,7 @@ def test_the_checks_run_whatever_outputs_the_model_shows(runtime_model):
     from tests.test_hard_cases import rolling_velocity
 
     hidden = _showing(runtime_model)
-    assert hidden.output_names == () and "f" in hidden._columns
+    assert hidden.output_names == () and "f" in hidden.columns
     x0 = hidden.initial_state()
     x0[1] += 0.01
     with pytest.raises(InconsistentInitialStateError, match="off the contact constraints"):
@@ -266,7 +266,7 @@ def test_the_checks_run_whatever_outputs_the_run_returns(runtime_model):
     # these settings take the short way (runtime.fastpath), which checks the events too
     weak.simulate(0.01, x0=x0, **{**kw, "t_eval": grid[:11]})
     from grasping_sym.runtime import fastpath
-    plan = next(iter(weak._plans.values()))
+    plan = next(iter(weak.short_way.plans.values()))
     assert fastpath.run(weak, plan, 0.06, grid, None) is not None
     assert fastpath.run(weak, plan, 0.06, grid, x0) is None  # an event: the full way names it
     with pytest.raises(ContactOpenedError, match="normal force f crosses 0"):

@@ -21,8 +21,11 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError
-from grasping_sym.runtime import c_loops, projection
+from grasping_sym.runtime import c_loops
 from grasping_sym.runtime import checks as checks_
+from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime import run as run_
+from grasping_sym.runtime.settings import RunSettings, numbers_array
 
 #: The methods ``simulate_many`` runs (the loops in C).
 METHODS = ("radau", "dopri5", "dop853", "rk4")
@@ -121,82 +124,96 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
-    from grasping_sym.runtime.model import _output_times, _states, flags, run_settings  # noqa: PLC0415
-
     start = perf_counter()
     if method not in METHODS:
         raise RunArgumentError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
                                "(cvodes and idas run through CasADi one at a time: loop over simulate)")
-    t_final, rtol, atol, max_steps, time_limit = run_settings(method, t_final, rtol, atol, h,
-                                                              max_steps, time_limit)
-    flags(outputs=outputs, checks=checks)
-    threads = default_threads() if threads is None else threads
-    if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral) \
-            or not 1 <= threads <= MAX_THREADS:
-        raise RunArgumentError(f"threads = {threads!r:.40} must be an integer from 1 to {MAX_THREADS} "
-                               f"(None: every core this process may use, {default_threads()} here)")
+    s = RunSettings.check(model, t_final, method=method, rtol=rtol, atol=atol,
+                          t_eval=[0.0, t_final] if t_eval is None else t_eval, h=h,
+                          max_steps=max_steps, project=project, outputs=outputs, checks=checks,
+                          time_limit=time_limit)
+    threads = _threads(threads)
     dense = t_eval is not None
-    grid, drop_first = _output_times([0.0, t_final] if t_eval is None else t_eval, t_final)
     if outputs and not model.output_names:
         raise RunArgumentError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
                                "the scene with outputs=(...) naming the ones you need")
 
     n_runs = _count(model, x0, params, u)
-    X0 = _initial_states(model, x0, n_runs, _states)
+    X0 = _initial_states(model, x0, n_runs)
     P, pdict = _parameters(model, params, n_runs)
-    sched, U = _inputs(model, u, n_runs, method, grid)
+    sched, U = _inputs(model, u, n_runs, method, s.t_eval)
     if U is not None:
         k = model.p_names.index(model.input_names[0])
         P[:, k:k + len(model.input_names)] = U
-    proj = projection.settings(model, project, method)
-    settings = dict(method=method, rtol=float(rtol), atol=float(atol), h=float(h),
-                    max_steps=max_steps, proj=proj, time_limit=time_limit)
 
     # the checks read the compiled outputs whether or not the result shows them
-    evaluate = (outputs or checks) and bool(model._columns)
-    res = _integrate(model, grid, X0, P, sched, dense, evaluate, checks, threads, settings)
+    evaluate = (outputs or checks) and bool(model.columns)
+    res = _integrate(model, s, X0, P, sched, dense, evaluate, threads)
     status = np.where(res["status"] == res["ok_code"], 0, res["status"]).astype(np.int64)
-    X, Y = res["X"], res.get("Y")
     if checks and n_runs:
-        own = x0 is None
-        refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own)
-        started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
-        status[refused & started] = REFUSED  # simulate refuses before it integrates
-        if Y is not None:
-            Y0 = res.get("Y0")
-            ys = _output_dict(model, Y if dense else np.stack([Y0, Y], axis=1))
-            hit = ~checks_.trajectory_clean(model, grid, ys, initial=_output_dict(model, Y0))
-            status[hit & (status == 0)] = EVENT
-    failed = np.flatnonzero(status != 0)
-    errors = np.full(n_runs, "", dtype=object)
-    for i in failed:
+        _check(model, s, res, status, dense, own_start=x0 is None)
+    errors = _errors(model, s, status, X0, x0 is None, P, U, sched)
+    return _result(model, s, res, status, errors, dense, X0=X0, pdict=pdict,
+                   wall=perf_counter() - start)
+
+
+def _threads(threads) -> int:
+    """``threads`` checked (None: every core this process may use)."""
+    threads = default_threads() if threads is None else threads
+    if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral) \
+            or not 1 <= threads <= MAX_THREADS:
+        raise RunArgumentError(f"threads = {threads!r:.40} must be an integer from 1 to {MAX_THREADS} "
+                               f"(None: every core this process may use, {default_threads()} here)")
+    return threads
+
+
+def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, own_start: bool) -> None:
+    """Mark in ``status`` the runs whose initial state the checks refuse (``REFUSED``) and those
+    with an event along their output samples (``EVENT``), as ``simulate`` checks them."""
+    refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own_start)
+    started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
+    status[refused & started] = REFUSED  # simulate refuses before it integrates
+    Y = res.get("Y")
+    if Y is not None:
+        Y0 = res.get("Y0")
+        ys = outputs_.by_name(model, Y if dense else np.stack([Y0, Y], axis=1))
+        hit = ~checks_.trajectory_clean(model, s.t_eval, ys, initial=outputs_.by_name(model, Y0))
+        status[hit & (status == 0)] = EVENT
+
+
+def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched) -> np.ndarray:
+    """Per run: ``""``, or the message of the named error ``simulate`` raises for it."""
+    errors = np.full(len(status), "", dtype=object)
+    for i in np.flatnonzero(status != 0):
         if status[i] == c_loops.ERR_INTERRUPT:  # the batch's time limit: not the run's doing
-            errors[i] = (f"stopped: the batch's wall-time limit of {time_limit:g} s was reached "
+            errors[i] = (f"stopped: the batch's wall-time limit of {s.time_limit:g} s was reached "
                          "before this run finished (raise time_limit, or run fewer at a time)")
             continue
-        errors[i] = _message(model, i, grid, drop_first, X0[i], x0 is None, P[i], U, sched,
-                             outputs, checks, settings, int(status[i]))
+        u = sched if sched is not None else (None if U is None else U[i])
+        errors[i] = _message(model, s, X0[i], own_start, P[i], u, int(status[i]))
+    return errors
+
+
+def _result(model, s: RunSettings, res, status, errors, dense, *, X0, pdict, wall) -> BatchResult:
+    """The ``BatchResult``: the failed runs' rows NaN, the first output time dropped where the
+    caller's ``t_eval`` did not hold it."""
+    X, Y = res["X"], res.get("Y")
     bad = status != 0
-    if dense:
-        X[bad] = np.nan
-        x_final = X[:, -1, :].copy()
-    else:
-        X[bad] = np.nan
-        x_final = X
+    X[bad] = np.nan
+    x_final = X[:, -1, :].copy() if dense else X
     outs = {}
-    if outputs and Y is not None:
+    if s.outputs and Y is not None:
         Y[bad] = np.nan
-        outs = _output_dict(model, Y, shown=True)
-    t_out = grid
-    x_all = X if dense else None
-    if dense and drop_first:
-        t_out, x_all = grid[1:], X[:, 1:]
+        outs = outputs_.by_name(model, Y, shown=True)
+    t_out, x_all = s.t_eval, (X if dense else None)
+    if dense and s.drop_first:
+        t_out, x_all = s.t_eval[1:], X[:, 1:]
         outs = {k: v[:, 1:] for k, v in outs.items()}
-    stats = _stats(method, res["stats"], proj[0] is not None)
+    stats = _stats(s.method, res["stats"], s.proj[0] is not None)
     return BatchResult(x_final=x_final, status=status, errors=errors,
-                       t=t_out if dense else np.array([0.0, t_final]),
-                       state_names=model.state_names, method=method, x0=X0, params=pdict,
-                       x=x_all, outputs=outs, stats=stats, wall_time=perf_counter() - start)
+                       t=t_out if dense else np.array([0.0, s.t_final]),
+                       state_names=model.state_names, method=s.method, x0=X0, params=pdict,
+                       x=x_all, outputs=outs, stats=stats, wall_time=wall)
 
 
 def _count(model, x0, params, u) -> int:
@@ -224,11 +241,11 @@ def _count(model, x0, params, u) -> int:
     return n
 
 
-def _initial_states(model, x0, n: int, as_numbers) -> np.ndarray:
+def _initial_states(model, x0, n: int) -> np.ndarray:
     nx = len(model.state_names)
     if x0 is None:
         return np.tile(model.initial_state(), (n, 1))
-    X0 = as_numbers("x0", x0)
+    X0 = numbers_array("x0", x0)
     if X0.ndim == 1:
         X0 = np.tile(X0, (n, 1))
     if X0.shape != (n, nx):
@@ -282,7 +299,7 @@ def _inputs(model, u, n: int, method: str, grid: np.ndarray):
         return None, None
     k = len(model.input_names)
     if u is not None and hasattr(u, "segments"):
-        sched = model._schedule(u, method, grid)
+        sched = run_.schedule(model, u, method, grid)
         if len(sched.segments(0.0, float(grid[-1]))) == 1:
             return None, np.tile(sched(0.0), (n, 1))
         return sched, None
@@ -300,33 +317,33 @@ def _inputs(model, u, n: int, method: str, grid: np.ndarray):
     return None, U
 
 
-def _integrate(model, grid, X0, P, sched, dense, outputs, checks, threads, s) -> dict:
-    """The C batch over the output ``grid`` (segment by segment for a table of inputs)."""
+def _integrate(model, s: RunSettings, X0, P, sched, dense, outputs, threads) -> dict:
+    """The C batch over the output grid ``s.t_eval`` (segment by segment for a table of inputs)."""
     lib = model.library
-    method = s["method"]
+    grid, method, checks = s.t_eval, s.method, s.checks
     timed = bool(model.manifest.get("outputs_time"))
     in_c = not timed and sched is None  # outputs the compiled batch can evaluate itself
-    kw = dict(threads=threads, rtol=s["rtol"], atol=s["atol"], max_steps=s["max_steps"],
+    kw = dict(threads=threads, rtol=s.rtol, atol=s.atol, max_steps=s.max_steps,
               nstiff=c_loops.NSTIFF if method in c_loops.STIFF_BOUND else 0, lo=model.lower, hi=model.upper,
-              proj_mask=s["proj"][0], proj_tol=s["proj"][1], time_limit=s["time_limit"],
-              rk4=_rk4_grid(grid, s["h"]) if method == "rk4" else None)
+              proj_mask=s.proj[0], proj_tol=s.proj[1], time_limit=s.time_limit,
+              rk4=_rk4_grid(grid, s.h) if method == "rk4" else None)
     if sched is None:
         res = lib.batch(method, grid, X0, P, keep=dense, outputs=outputs and in_c,
                         initial=checks, initial_outputs=not timed, **kw)
     else:
         res = _segments(model, method, grid, X0, P, sched, dense, checks, not timed, kw)
     res["ok_code"] = len(grid)
-    if checks and timed and model._columns:  # a law that reads the time: at t = 0
+    if checks and timed and model.columns:  # a law that reads the time: at t = 0
         first = P if sched is None else np.array(
             [model.with_inputs(row, *sched.segments(0.0, float(grid[-1]))[0][2:]) for row in P])
-        res["Y0"] = np.array([model._output_row(x, p, 0.0) for x, p in zip(X0, first)])
+        res["Y0"] = np.array([outputs_.row(model, x, p, 0.0) for x, p in zip(X0, first)])
     if outputs and not in_c:  # outputs that read the time or a table's ramps: run by run
         rows = res["X"] if dense else res["X"][:, None, :]
         tt = grid if dense else grid[-1:]
-        Y = np.full((*rows.shape[:2], len(model._columns)), np.nan)
+        Y = np.full((*rows.shape[:2], len(model.columns)), np.nan)
         for i in np.flatnonzero(res["status"] == res["ok_code"]):
-            outs = model._outputs_along(tt, rows[i], P[i], sched)
-            Y[i] = np.column_stack([outs[k] for k in model._columns])
+            outs = outputs_.along(model, tt, rows[i], P[i], sched)
+            Y[i] = np.column_stack([outs[k] for k in model.columns])
         res["Y"] = Y if dense else Y[:, 0, :]
     return res
 
@@ -379,24 +396,10 @@ def _rk4_grid(grid: np.ndarray, h: float) -> tuple[float, int, int]:
     return h_eff, nsteps, stride
 
 
-def _output_dict(model, Y: np.ndarray | None, shown: bool = False) -> dict[str, np.ndarray]:
-    """The columns of ``Y`` (every compiled output, ``model._columns``) by name; ``shown``:
-    only those the model shows (``model.output_names``), not those only the checks read."""
-    if Y is None:
-        return {}
-    keep = set(model.output_names) if shown else None
-    return {k: np.ascontiguousarray(Y[..., i]) for i, k in enumerate(model._columns)
-            if keep is None or k in keep}
-
-
-def _message(model, i, grid, drop_first, x0, own_start, p, U, sched, outputs, checks, s,
-             status: int) -> str:
-    """Run ``i`` once more on its own, by ``simulate``'s code: its named error's message."""
-    u = sched if sched is not None else (None if U is None else U[i])
+def _message(model, s: RunSettings, x0, own_start, p, u, status: int) -> str:
+    """Run one run once more on its own, by ``simulate``'s code: its named error's message."""
     try:
-        model._run(grid, drop_first, x0, own_start, p, u, method=s["method"], rtol=s["rtol"],
-                   atol=s["atol"], h=s["h"], max_steps=s["max_steps"], outputs=outputs,
-                   checks=checks, proj=s["proj"], time_limit=s["time_limit"])
+        run_.run(model, s, x0, own_start, p, u)
     except (GraspingSymError, ValueError) as exc:
         return f"{type(exc).__name__}: {exc}"
     return (f"status {status} ({STATUS.get(status, 'unknown')}) in the batch, but the run alone "

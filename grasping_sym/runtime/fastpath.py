@@ -21,24 +21,40 @@ from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import interrupt
 from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
+from grasping_sym.runtime.settings import RunSettings
 
 #: Initial states whose checks passed, remembered per model (the oldest dropped beyond this).
 CHECKED_STATES = 64
 
 
+class Memory:
+    """A model's short way: the plans its full path accepted (by ``key``), the initial states
+    whose checks passed (``checked``, the most recent ``CHECKED_STATES``), and what a run on
+    the short way reads of the model (its stored start ``x_start`` and run-time parameters by
+    name ``pdict``). ``Model.short_way`` holds one."""
+
+    __slots__ = ("plans", "checked", "x_start", "pdict")
+
+    def __init__(self, x_start: np.ndarray, pdict: dict[str, float]):
+        self.plans: dict = {}
+        self.checked: dict = {}
+        self.x_start = x_start
+        self.pdict = pdict
+
+
 class Plan:
-    """What the full path decided for one set of settings."""
+    """What the full path decided for one set of settings (a ``runtime.settings.RunSettings``)."""
 
     __slots__ = ("method", "code", "rtol", "atol", "max_steps", "nstiff", "mask", "proj_tol",
                  "checks", "projected")
 
-    def __init__(self, method: str, rtol: float, atol: float, max_steps: int, proj, checks: bool):
-        self.method, self.code = method, ADAPTIVE_CODES[method]
-        self.rtol, self.atol, self.max_steps = float(rtol), float(atol), int(max_steps)
-        self.nstiff = NSTIFF if method in STIFF_BOUND else 0
-        self.mask, self.proj_tol = proj
+    def __init__(self, s: RunSettings):
+        self.method, self.code = s.method, ADAPTIVE_CODES[s.method]
+        self.rtol, self.atol, self.max_steps = float(s.rtol), float(s.atol), int(s.max_steps)
+        self.nstiff = NSTIFF if s.method in STIFF_BOUND else 0
+        self.mask, self.proj_tol = s.proj
         self.projected = self.mask is not None
-        self.checks = bool(checks)
+        self.checks = bool(s.checks)
 
 
 def key(method, rtol, atol, max_steps, project, checks):
@@ -51,18 +67,28 @@ def key(method, rtol, atol, max_steps, project, checks):
     return k
 
 
-def remember(model, k, method, rtol, atol, max_steps, proj, checks) -> None:
-    """After the full path ran with these settings: keep them as a plan (C-loop methods with
-    the fast extension only)."""
-    if k is None or method not in ADAPTIVE_CODES or not model.library.fast:
+def plan(model, k) -> Plan | None:
+    """The plan kept for the settings' key ``k``, or None."""
+    return model.short_way.plans.get(k)
+
+
+def remember(model, k, s: RunSettings) -> None:
+    """After the full path ran with the settings ``s`` (key ``k``): keep them as a plan
+    (C-loop methods with the fast extension only)."""
+    if k is None or s.method not in ADAPTIVE_CODES or not model.library.fast:
         return
-    model._plans[k] = Plan(method, rtol, atol, max_steps, proj, checks)
+    model.short_way.plans[k] = Plan(s)
+
+
+def forget(model) -> None:
+    """Drop every plan of ``model``: its next calls take the full path (benchmarks)."""
+    model.short_way.plans.clear()
 
 
 def checked(model, x0: np.ndarray | None) -> None:
     """Remember that ``x0`` (None: the model's start) passed the initial checks with the
     model's own ``p``."""
-    memo = model._checked
+    memo = model.short_way.checked
     memo[b"" if x0 is None else x0.tobytes()] = True
     if len(memo) > CHECKED_STATES:
         del memo[next(iter(memo))]
@@ -74,13 +100,14 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     t = np.array(t_eval, dtype=float)
     if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or t[-1] != t_final:
         return None
+    memory = model.short_way
     if x0 is None:
-        x = model._x0
-        if plan.checks and b"" not in model._checked:
+        x = memory.x_start
+        if plan.checks and b"" not in memory.checked:
             return None
     else:
         x = np.ascontiguousarray(x0, dtype=float)
-        if x.shape != model._x0.shape or (plan.checks and x.tobytes() not in model._checked):
+        if x.shape != memory.x_start.shape or (plan.checks and x.tobytes() not in memory.checked):
             return None
     m = t.size
     lib = model.library
@@ -95,9 +122,9 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
             raise interrupt.interrupted(f"{plan.method} stopped by Ctrl-C")
         return None
-    if plan.checks and model._columns and not checks_.clean(
+    if plan.checks and model.columns and not checks_.clean(
             model, t, out[:m], model.default_params if model.p_names else None):
         return None  # an event along the run: the full way raises it, named
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
-    return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(model._pdict),
+    return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
                             model.scene)
