@@ -187,9 +187,9 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
     t1 = time.perf_counter()
     names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
     G = system.start_conditions
-    implied = system.geometry["r_bar"] if G and scene.start_param_names else None
+    implied = system.start_values if G and scene.start_param_names else None
     cm = sx_model(system.x, system.p, system.xdot, {k: system.outputs[k] for k in scene.outputs},
-                  scene.name, jacobian=False, constraints=system.pieces["C"],
+                  scene.name, jacobian=False, constraints=system.constraint,
                   constraint_names=names, start_conditions=ca.vertcat(*G.values()) if G else None,
                   start_names=tuple(G), start_values=implied, t=system.t,
                   outputs_time=system.reads_time)

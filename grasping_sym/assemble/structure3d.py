@@ -143,10 +143,10 @@ def structure3d_functions(scene, name: str) -> StructureFunctions:
 
     names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
     G = system.start_conditions
-    implied = system.geometry["r_bar"] if G and scene.start_param_names else None
+    implied = system.start_values if G and scene.start_param_names else None
     cm = sx_model(system.x, ca.vertcat(system.p, J), system.xdot,
                   {k: system.outputs[k] for k in scene.outputs}, name, jacobian=False,
-                  constraints=system.pieces["C"], constraint_names=names,
+                  constraints=system.constraint, constraint_names=names,
                   start_conditions=ca.vertcat(*G.values()) if G else None,
                   start_names=tuple(G), start_values=implied, exact=exact)
     index = {str(system.x[i]): i for i in range(system.x.numel())}

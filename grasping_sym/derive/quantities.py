@@ -145,8 +145,8 @@ def planar_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, .
 
 
 def grasp3d_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, ...]) -> Quantities:
-    """A 3D scene's quantities (its chains, ``derive.grasp3d.finger_sx``)."""
-    from grasping_sym.derive.grasp3d import finger_sx, state_slices  # noqa: PLC0415
+    """A 3D scene's quantities (its chains, ``derive.bodies3d.finger_sx``)."""
+    from grasping_sym.derive.bodies3d import finger_sx, state_slices  # noqa: PLC0415
 
     sl = state_slices(scene)
     g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)

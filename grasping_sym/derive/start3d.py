@@ -40,7 +40,7 @@ def _skew(w):
 
 
 def _residual_function(scene: GraspScene3D):
-    from grasping_sym.derive.grasp3d import finger_sx, surface_sx  # noqa: PLC0415
+    from grasping_sym.derive.bodies3d import finger_sx, surface_sx  # noqa: PLC0415
 
     nQ = sum(f.chain.n for f in scene.fingers)
     N = scene.n_contacts
@@ -162,12 +162,13 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
     system = derive_grasp3d(regular)
     fn = system.function("start_pieces", "pieces")
     geo = system.function("start_geometry", "geometry")
+    centre = ca.Function("start_values", [system.x, system.p], [system.start_values])
     # the centre spring's rest point is what this solve finds: zero here (it does not enter
     # the geometry, nor A or M)
     p = np.array([regular.params[k] for k in regular.runtime]
                  + [0.0] * (len(regular.p_names) - len(regular.runtime)))
     info = {"residual": conf["residual"], "iterations": conf["iterations"],
-            "r_bar0": np.asarray(geo(x=x, p=p)["r_bar"], float).ravel()}
+            "r_bar0": np.asarray(centre(x, p), float).ravel()}
     nQ = len(conf["q"])
     nz = nQ + (7 if scene.free else 4)
     nV = nQ + (6 if scene.free else 3)

@@ -1,0 +1,163 @@
+"""The bodies of a 3D grasping scene as CasADi SX: finger chains, the object, their surfaces.
+
+SymPy derives each finger's kinematics and Lagrangian dynamics (``derive.spatial``), the
+object's rotation from its quaternion, and each surface's point, Montana frame and forms
+(``geometry.surfaces``); ``symbolic.translate`` turns them into SX. :func:`bodies` reads a
+state ``x`` as a :class:`Bodies` record: what every later stage of the closed loop
+(``derive.loop3d``) uses.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import sympy as sp
+
+from grasping_sym.derive.spatial import (
+    finger_dynamics,
+    finger_kinematics,
+    quaternion_rate,
+    quaternion_rate_matrix,
+    quaternion_to_matrix,
+)
+from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from grasping_sym.model.grasp3d import GraspScene3D
+from grasping_sym.symbolic.translate import SympyToCasadi
+
+
+@lru_cache(maxsize=None)
+def _finger_symbolic(chain, gravity):
+    kin = finger_kinematics(chain)
+    dyn = finger_dynamics(kin, gravity)
+    return kin, dyn
+
+
+def finger_function(chain, gravity) -> ca.Function:
+    """``(q, dq) -> r, Pi, J, W, G, h, joints[, dP, P]``: the finger's kinematics and
+    dynamics, derived with SymPy (``derive.spatial``) and translated to SX."""
+    kin, dyn = _finger_symbolic(chain, gravity)
+    q, dq = ca.SX.sym("q", chain.n), ca.SX.sym("dq", chain.n)
+    tr = SympyToCasadi({**{kin.q[k]: q[k] for k in range(chain.n)},
+                        **{kin.dq[k]: dq[k] for k in range(chain.n)}})
+    out = {"r": tr(kin.r), "Pi": tr(kin.Pi), "J": tr(kin.J), "W": tr(kin.W), "G": tr(dyn.G),
+           "h": tr(dyn.h), "joints": ca.horzcat(*[tr(p) for p in kin.joint_positions], tr(kin.r))}
+    if gravity is not None:
+        out["dP"] = tr(dyn.gravity_gradient)
+        out["P"] = tr(dyn.potential_energy)
+    return ca.Function(f"finger_{chain.name}", [q, dq], list(out.values()), ["q", "dq"], list(out))
+
+
+def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
+    """The finger's kinematics and dynamics as SX in ``q, dq``: its template (derived with
+    SymPy once per chain and gravity, and stored, ``assemble.templates.finger_template``)
+    evaluated on ``q, dq``."""
+    from grasping_sym.assemble.templates import finger_template  # noqa: PLC0415
+
+    g = None if gravity is None else tuple(float(v) for v in gravity)
+    fn, _ = finger_template(chain, g, lambda: finger_function(chain, g))
+    outs = fn.call([q, dq])
+    return {fn.name_out(i): outs[i] for i in range(fn.n_out())}
+
+
+def surface_sx(surface: ParametricSurface, u, v, extra: bool = False) -> dict[str, ca.SX]:
+    """Point, Montana frame and forms of ``surface`` at ``(u, v)`` as SX: ``S``, ``x``,
+    ``y``, ``n``, ``M``, ``K``, ``T``; with ``extra`` also the tangent map ``Tm = [S_u S_v]``
+    and the second fundamental form ``II`` (surface frame)."""
+    tr = SympyToCasadi({U: u, V: v})
+    x, y, n = surface.frame
+    out = {"S": tr(surface.S), "x": tr(x), "y": tr(y), "n": tr(n),
+           "M": tr(surface.montana_metric), "K": tr(surface.curvature_form),
+           "T": tr(surface.torsion_form)}
+    if extra:
+        out["Tm"] = ca.horzcat(tr(surface.S_u), tr(surface.S_v))
+        out["II"] = tr(surface.second_fundamental_form)
+    return out
+
+
+def object_rotation(quat: ca.SX, om: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """``(R, quat', N)``: the rotation of a (not necessarily unit) quaternion, its rate at
+    the body angular velocity ``om`` and the matrix ``N`` of ``quat' = N om``."""
+    qs, ws = sp.Matrix(sp.symbols("qw qx qy qz", real=True)), sp.Matrix(sp.symbols("wX wY wZ", real=True))
+    tr = SympyToCasadi({**{qs[i]: quat[i] for i in range(4)}, **{ws[i]: om[i] for i in range(3)}})
+    return tr(quaternion_to_matrix(qs, unit=False)), tr(quaternion_rate(qs, ws)), tr(quaternion_rate_matrix(qs))
+
+
+def state_slices(scene: GraspScene3D) -> dict[str, slice]:
+    """Where the state's parts lie: ``q``, ``pos`` (free objects), ``quat``, ``dq``, ``vel``
+    (free objects), ``om``, then the contacts' states."""
+    nQ = sum(f.chain.n for f in scene.fingers)
+    sizes = [("q", nQ), ("pos", 3 if scene.free else 0), ("quat", 4), ("dq", nQ),
+             ("vel", 3 if scene.free else 0), ("om", 3)]
+    out, k = {}, 0
+    for key, n in sizes:
+        out[key] = slice(k, k + n)
+        k += n
+    return out
+
+
+@dataclass
+class Finger:
+    """One finger chain at ``(q, dq)`` (world frame, m): its tip centre ``r``, tip rotation
+    ``Pi``, Jacobians ``J`` (linear) and ``W`` (angular), mass matrix ``G``, bias ``h``,
+    joint positions ``joints`` (3 x (n + 1)), and with gravity the potential's gradient
+    ``dP`` and the potential ``P``."""
+
+    dq: ca.SX
+    r: ca.SX
+    Pi: ca.SX
+    J: ca.SX
+    W: ca.SX
+    G: ca.SX
+    h: ca.SX
+    joints: ca.SX
+    dP: ca.SX | None = None
+    P: ca.SX | None = None
+
+
+@dataclass
+class Bodies:
+    """A state ``x`` read as the scene's bodies.
+
+    ``zb``, ``Vs``: the bodies' positions ``(q, [pos], quat)`` and speeds ``(dq, [vel], om)``;
+    ``zb_dot``: the positions' rates (the quaternion's exact rate), ``zb_dot_lin``: the
+    same written ``N om`` (linear in the speeds); ``etas``: each contact's states.
+    """
+
+    x: ca.SX
+    fingers: list[Finger]
+    quat: ca.SX
+    om: ca.SX
+    pos: ca.SX | ca.DM
+    vel: ca.SX | None
+    R: ca.SX
+    etas: list[ca.SX]
+    gravity: tuple[float, ...] | None
+    zb: ca.SX
+    zb_dot: ca.SX
+    zb_dot_lin: ca.SX
+    Vs: ca.SX
+
+
+def bodies(scene: GraspScene3D, x: ca.SX, n_eta: int) -> Bodies:
+    """The bodies at state ``x``, whose contacts have ``n_eta`` states each."""
+    free = scene.free
+    sl = state_slices(scene)
+    q, quat, dq, om = x[sl["q"]], x[sl["quat"]], x[sl["dq"]], x[sl["om"]]
+    pos = x[sl["pos"]] if free else ca.DM(scene.position)
+    vel = x[sl["vel"]] if free else None
+    k = sl["om"].stop
+    etas = [x[k + i * n_eta:k + (i + 1) * n_eta] for i in range(scene.n_contacts)]
+    g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)
+    R, quat_dot, Eq = object_rotation(quat, om)
+    fingers, off = [], 0
+    for f in scene.fingers:
+        n = f.chain.n
+        fingers.append(Finger(dq=dq[off:off + n], **finger_sx(f.chain, g, q[off:off + n], dq[off:off + n])))
+        off += n
+    zb = ca.vertcat(q, pos, quat) if free else ca.vertcat(q, quat)
+    zb_dot_lin = ca.vertcat(dq, vel, Eq @ om) if free else ca.vertcat(dq, Eq @ om)
+    zb_dot = ca.vertcat(dq, vel, quat_dot) if free else ca.vertcat(dq, quat_dot)
+    Vs = ca.vertcat(dq, vel, om) if free else ca.vertcat(dq, om)
+    return Bodies(x=x, fingers=fingers, quat=quat, om=om, pos=pos, vel=vel, R=R, etas=etas,
+                  gravity=g, zb=zb, zb_dot=zb_dot, zb_dot_lin=zb_dot_lin, Vs=Vs)
