@@ -195,39 +195,8 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
     Mv = M * v
     # h = M' v - dK/dq + dV/dq  (Euler-Lagrange with L = K - V)
     h = Mv.jacobian(q) * v - sp.Matrix([kin]).jacobian(q).T + sp.Matrix([pot]).jacobian(q).T
-
-    # ---- contacts; update law (29) for any parameterisation
-    us, C, sigma, contacts = [], [], [], []
-    for i, fin in enumerate(fingers, start=1):
-        F0 = fingertip_functions(i)
-        if shared:
-            u0 = u1 = sp.Symbol("s", real=True)
-            us.append(u0)
-        else:
-            u0, u1 = sp.symbols("u0 u1" if one else f"u0_{i} u1_{i}", real=True)
-            us += [u0, u1]
-        c = _contact(fin, F0, u0, u1, th, Om)
-        contacts.append(c)
-        C += c["C"]
-        sdot = (fin["v"][0] + fin["v"][1] - dth) / c["kappa_sum"]
-        sigma += [sdot] if shared else [sdot / F0.speed(u0), sdot / OBJECT.speed(u1)]
-    C = sp.Matrix(C)
-    sigma = sp.Matrix(sigma)
-
-    # ---- constraint derivatives along the motion (u carried by sigma)
-    z = sp.Matrix([*q, *us])
-    zdot = sp.Matrix([*v, *sigma])
-    Cz = C.jacobian(z)
-    A = Cz[:, :len(q)]
-    Cdot = Cz * zdot
-    # C'' = dC'/dz z' + dC'/dv a (C' is a function of (z, v), u' = sigma(z, v) written out).
-    # With one shared contact parameter, SymPy's terms cancel into 2 % shorter code (paper2d's
-    # rhs: 954 SX instructions against 972), and the template is committed; otherwise C'' is
-    # left to the translation to CasADi (acc_jac, acc_bias None), whose AD through the Frenet
-    # rules takes a fraction of SymPy's time (0.05 s against 1.3 s for two fingers) and gives
-    # shorter code (2312 instructions against 2453 for two fingers).
-    Ahat = Cdot.jacobian(v) if shared else None
-    bhat = Cdot.jacobian(z) * zdot if shared else None
+    us, C, sigma, contacts = _contacts(fingers, shared, one, th, dth, Om)
+    A, Cdot, Ahat, bhat = _constraint_derivatives(C, q, v, us, sigma, shared)
 
     # ---- joint torques: symbols (the controller layer gives them)
     taus = [P[k] for k in torque_names(n_fingers)]
@@ -243,6 +212,53 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
         csm_stiffness=sp.Matrix([P["wf"], P["wl"]] * n_fingers),
         contact_rates=sigma, multipliers=list(mus),
     )
+    system.outputs = _outputs(contacts, mus, P, C, kin, pot, fingers, ctrls, one)
+    system.params = list(P.values())
+    return system
+
+
+def _contacts(fingers: list[dict], shared: bool, one: bool, th, dth, Om):
+    """``(u, C, sigma, contacts)``: the contact parameters, constraints, update law (29) for
+    any parameterisation, and each contact's geometry (``_contact``)."""
+    us, C, sigma, contacts = [], [], [], []
+    for i, fin in enumerate(fingers, start=1):
+        F0 = fingertip_functions(i)
+        if shared:
+            u0 = u1 = sp.Symbol("s", real=True)
+            us.append(u0)
+        else:
+            u0, u1 = sp.symbols("u0 u1" if one else f"u0_{i} u1_{i}", real=True)
+            us += [u0, u1]
+        c = _contact(fin, F0, u0, u1, th, Om)
+        contacts.append(c)
+        C += c["C"]
+        sdot = (fin["v"][0] + fin["v"][1] - dth) / c["kappa_sum"]
+        sigma += [sdot] if shared else [sdot / F0.speed(u0), sdot / OBJECT.speed(u1)]
+    return us, sp.Matrix(C), sp.Matrix(sigma), contacts
+
+
+def _constraint_derivatives(C, q, v, us, sigma, shared: bool):
+    """``(A, C', Ahat, bhat)`` along the motion (``u`` carried by ``sigma``).
+
+    C'' = dC'/dz z' + dC'/dv a (C' is a function of (z, v), u' = sigma(z, v) written out).
+    With one shared contact parameter, SymPy's terms cancel into 2 % shorter code (paper2d's
+    rhs: 954 SX instructions against 972), and the template is committed; otherwise C'' is
+    left to the translation to CasADi (``Ahat``, ``bhat`` None), whose AD through the Frenet
+    rules takes a fraction of SymPy's time (0.05 s against 1.3 s for two fingers) and gives
+    shorter code (2312 instructions against 2453 for two fingers).
+    """
+    z = sp.Matrix([*q, *us])
+    zdot = sp.Matrix([*v, *sigma])
+    Cz = C.jacobian(z)
+    A = Cz[:, :len(q)]
+    Cdot = Cz * zdot
+    Ahat = Cdot.jacobian(v) if shared else None
+    bhat = Cdot.jacobian(z) * zdot if shared else None
+    return A, Cdot, Ahat, bhat
+
+
+def _outputs(contacts, mus, P, C, kin, pot, fingers, ctrls, one: bool) -> dict:
+    """Every output of the template, ``mus`` standing for the multipliers."""
     available = {}
     for i, c in enumerate(contacts, start=1):
         tag = "" if one else str(i)
@@ -263,6 +279,4 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
         order = ["Q", "R", "f", "lam", "delta_f", "delta_lam", "N1", "kappa_sum",
                  "constraint_residual", "tangency_defect", "kinetic_energy", "potential_energy", "power"]
         available = {k: available[k] for k in order}
-    system.outputs = available
-    system.params = list(P.values())
-    return system
+    return available
