@@ -22,7 +22,7 @@ import numpy as np
 
 from grasping_sym.errors import CompileError, GraspingSymError
 from grasping_sym.runtime.integrators import METHODS
-from grasping_sym.runtime.model import run_settings
+from grasping_sym.runtime.settings import run_settings
 from grasping_sym.sweeps import check_store, parse_range
 
 PROG = "grasping-sym"
@@ -140,7 +140,7 @@ def _make_out(out: Path) -> Path:
 
 def _check_run(method: str, t_final: float, rtol, atol, h: float = 1e-4) -> None:
     """The simulated time (at most ``MAX_T_FINAL``) and the integrator's settings, as the
-    model will check them (``runtime.model.run_settings``)."""
+    model will check them (``runtime.settings.run_settings``)."""
     if t_final > MAX_T_FINAL:
         raise UsageError(f"--t-final {t_final:g}: at most {MAX_T_FINAL:g} s from the command line "
                          "(use the Python API, with its own t_eval, for longer runs)")

@@ -212,7 +212,7 @@ V3_FLAGS = "fpu sse2 cx16 lahf_lm popcnt sse4_1 sse4_2 ssse3 avx avx2 bmi1 bmi2 
     ("aarch64", V3_FLAGS, None, "baseline"),
 ])
 def test_isa_level(monkeypatch, machine, flags, env, level):
-    monkeypatch.setattr(compiler.platform, "machine", lambda: machine)
+    monkeypatch.setattr(platform_.platform, "machine", lambda: machine)
     monkeypatch.setattr(platform_, "_cpu_flags", lambda: frozenset(flags.split()))
     if env is None:
         monkeypatch.delenv("GRASPING_SYM_ISA", raising=False)
@@ -234,7 +234,7 @@ def test_isa_setting_unknown(monkeypatch):
 
 def test_isa_flags_old_compiler(monkeypatch):
     """A compiler that rejects -march=x86-64-v3 (gcc < 11) builds for the baseline."""
-    monkeypatch.setattr(compiler.platform, "machine", lambda: "x86_64")
+    monkeypatch.setattr(platform_.platform, "machine", lambda: "x86_64")
     monkeypatch.setattr(platform_, "_cpu_flags", lambda: frozenset(V3_FLAGS.split()))
     monkeypatch.setattr(compiler, "_compiler_accepts", lambda cc, flag: False)
     monkeypatch.delenv("GRASPING_SYM_ISA", raising=False)

@@ -245,14 +245,14 @@ def test_finger_templates_are_committed_and_equal_a_fresh_derivation():
     templates (no SymPy), and evaluate as a fresh SymPy derivation does."""
     import casadi as ca
 
-    from grasping_sym.assemble import templates
+    from grasping_sym.derive import finger_templates
     from grasping_sym.derive.grasp3d import finger_function
 
     scene = gs.scenes.paper3d()
     g = tuple(scene.gravity)
     rng = np.random.default_rng(5)
     for f in scene.fingers:
-        fn, source = templates.finger_template(f.chain, g, lambda: pytest.fail("derived again"))
+        fn, source = finger_templates.finger_template(f.chain, g, lambda: pytest.fail("derived again"))
         assert source == "committed"
         fresh = finger_function(f.chain, g)
         for _ in range(3):

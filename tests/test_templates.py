@@ -10,6 +10,7 @@ from grasping_sym.assemble import templates
 from grasping_sym.assemble.controller import controller_function
 from grasping_sym.assemble.functions import Template, build_casadi, compose
 from grasping_sym.derive.planar import derive_planar, parameter_values
+from grasping_sym.store.templates import committed_templates_dir
 
 
 def _ellipse_scene(**kw):
@@ -21,7 +22,7 @@ def _ellipse_scene(**kw):
 def test_every_structure_has_a_committed_template():
     for shared, gravity in templates.PLANAR_STRUCTURES:
         name = templates.template_name(shared, gravity)
-        assert (templates.committed_templates_dir() / f"{name}.json").is_file(), name
+        assert (committed_templates_dir() / f"{name}.json").is_file(), name
 
 
 def test_new_shape_is_composed_without_derivation():

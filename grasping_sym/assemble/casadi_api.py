@@ -75,9 +75,9 @@ def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: Non
     import hashlib  # noqa: PLC0415
     from pathlib import Path  # noqa: PLC0415
 
-    from grasping_sym.runtime.loader import library_tag  # noqa: PLC0415
     from grasping_sym.store import files as stored  # noqa: PLC0415
     from grasping_sym.store import safety  # noqa: PLC0415
+    from grasping_sym.store.platform import library_tag  # noqa: PLC0415
     from grasping_sym.toolchain.compiler import compile_shared  # noqa: PLC0415
 
     cg = ca.CodeGenerator("gs_casadi_api.c", {"with_header": False, "casadi_int": "long long int"})

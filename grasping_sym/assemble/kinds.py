@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from grasping_sym.assemble import scene_functions, templates
+from grasping_sym.assemble import scene_functions
 from grasping_sym.assemble.functions import sympy_op_counts
-from grasping_sym.derive import start3d
+from grasping_sym.derive import finger_templates, start3d
 from grasping_sym.derive.grasp3d import finger_function
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.model import kinds
@@ -61,7 +61,7 @@ def _grasp3d_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
 
 def _grasp3d_templates(scene) -> list[tuple[str, str, object]]:
     g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)
-    return [(templates.finger_template_name(f.chain, g), templates.finger_template_key(f.chain, g),
+    return [(finger_templates.finger_template_name(f.chain, g), finger_templates.finger_template_key(f.chain, g),
              lambda chain=f.chain: finger_function(chain, g)) for f in scene.fingers]
 
 

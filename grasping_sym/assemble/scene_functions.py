@@ -11,6 +11,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from grasping_sym.assemble.controller import controller_torques
 from grasping_sym.emit.casadi_model import CasadiModel
 
 Progress = Callable[[str], None]
@@ -183,7 +184,7 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     say(f"deriving {scene.name} ({scene.formulation} formulation; SymPy, then CasADi AD)")
-    system = derive_grasp3d(scene)
+    system = derive_grasp3d(scene, torques=controller_torques)
     t1 = time.perf_counter()
     names = tuple(f"{q}{i}" for i in range(1, scene.n_contacts + 1) for q in ("Qn", "Qb", "Qe"))
     G = system.start_conditions

@@ -14,6 +14,7 @@ from functools import lru_cache
 import casadi as ca
 import sympy as sp
 
+from grasping_sym.derive.finger_templates import finger_template
 from grasping_sym.derive.spatial import (
     finger_dynamics,
     finger_kinematics,
@@ -50,10 +51,8 @@ def finger_function(chain, gravity) -> ca.Function:
 
 def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
     """The finger's kinematics and dynamics as SX in ``q, dq``: its template (derived with
-    SymPy once per chain and gravity, and stored, ``assemble.templates.finger_template``)
+    SymPy once per chain and gravity, and stored, ``derive.finger_templates``)
     evaluated on ``q, dq``."""
-    from grasping_sym.assemble.templates import finger_template  # noqa: PLC0415
-
     g = None if gravity is None else tuple(float(v) for v in gravity)
     fn, _ = finger_template(chain, g, lambda: finger_function(chain, g))
     outs = fn.call([q, dq])

@@ -109,7 +109,8 @@ FORMULATIONS = {"regular": REGULAR, "paper": PAPER}
 
 
 # ------------------------------------------------------------------ the closed loop
-def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = False) -> ConstrainedSystem:
+def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = False,
+                   torques=None) -> ConstrainedSystem:
     """The scene's closed loop as a :class:`~grasping_sym.derive.system.ConstrainedSystem` of SX.
 
     ``surface_fn(slot, surface, u, v, extra)`` gives a contour slot's point, frame and forms
@@ -135,7 +136,7 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = F
     C = ca.vertcat(*[c.gap for c in cs])
     A, Cdot, Ahat, bhat = constraint_derivatives(C, b, *form.constraint_coordinates(b, cs))
     M, h = dynamics(scene, b)
-    torques, reads_time = _joint_torques(scene, t, x, p, len(p_names), torque_inputs)
+    torques, reads_time = _joint_torques(scene, t, x, p, len(p_names), torque_inputs, torques)
     u = split_torques(scene, torques)
     tau, dissipation = applied_forces(scene, b, cs, u)
     gain = p[scene.runtime.index("gain")] if "gain" in scene.runtime else ca.SX(scene.params["gain"])
@@ -162,13 +163,17 @@ def _param_names(scene: GraspScene3D, torque_inputs: bool) -> tuple[str, ...]:
     return scene.p_names
 
 
-def _joint_torques(scene: GraspScene3D, t, x, p, n_p: int, torque_inputs: bool) -> tuple[ca.SX, bool]:
+def _joint_torques(scene: GraspScene3D, t, x, p, n_p: int, torque_inputs: bool,
+                   law) -> tuple[ca.SX, bool]:
     """The joint torques (every finger's, in order) and whether the law reads the time: the
-    controller layer's, or the last entries of ``p`` (a structure's inputs)."""
+    last entries of ``p`` (a structure's inputs), the controller layer's (``law(scene, t, x,
+    p) -> (torques, uses_object, reads_time)``, ``assemble.controller.controller_torques``,
+    given by the assembly), or none (zero: what only reads the geometry and the constraints,
+    the start solver and the figures)."""
+    nQ = sum(f.chain.n for f in scene.fingers)
     if torque_inputs:
-        nQ = sum(f.chain.n for f in scene.fingers)
         return p[n_p - nQ:], False
-    from grasping_sym.assemble.controller import controller_torques  # noqa: PLC0415
-
-    torques, _, reads_time = controller_torques(scene, t, x, p)
+    if law is None:
+        return ca.SX.zeros(nQ, 1), False
+    torques, _, reads_time = law(scene, t, x, p)
     return torques, reads_time

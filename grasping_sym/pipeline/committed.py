@@ -6,6 +6,7 @@ import shutil
 from pathlib import Path
 
 from grasping_sym.assemble import kinds, structure_cache
+from grasping_sym.derive import finger_templates
 from grasping_sym.pipeline.stages import generate, solve_start
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
@@ -97,13 +98,12 @@ def _generate_scene(scene, root: Path, check: bool, differ: dict, structures: se
     manifest, its start and (for a model in layers) its structure."""
     import tempfile  # noqa: PLC0415
 
-    from grasping_sym.assemble import templates  # noqa: PLC0415
 
     name = scene.name
 
     for file_name, key, build in kinds.kind(scene).templates(scene):
         finger_files.add(file_name)
-        template(file_name, lambda path, b=build, k=key: templates.write_finger_template(path, b(), k))
+        template(file_name, lambda path, b=build, k=key: finger_templates.write_finger_template(path, b(), k))
     target = root / name
     with tempfile.TemporaryDirectory() as tmp:
         fresh = Path(tmp)

@@ -1,6 +1,6 @@
 """The named checks of ``Model.simulate``: silent failure modes turned into errors.
 
-Each check reads the model's compiled outputs, every column of them (``model._columns``):
+Each check reads the model's compiled outputs, every column of them (``model.columns``):
 those the scene asked to show and those the checks need that it did not ask for, compiled
 all the same (``scene.check_outputs()``, ``pipeline.with_check_outputs``), so every contact
 and every constraint is checked whatever outputs a model shows:
@@ -35,6 +35,7 @@ from grasping_sym.errors import (
     MovingFrameSingularityError,
     RelativeCurvatureError,
 )
+from grasping_sym.runtime import outputs, parameters
 
 #: ``kappa_sum`` / ``krel_min{i}`` may fall to this fraction of its initial value.
 KAPPA_SUM_RELATIVE = 1e-3
@@ -87,8 +88,8 @@ def denominator_thresholds(model) -> dict[str, float]:
     at the model's own start (evaluated once per model by the compiled outputs)."""
     cached = getattr(model, "_denominator_thresholds", None)
     if cached is None:
-        names = denominator_outputs(model._columns)
-        y = model._all_outputs(model.initial_state()) if names else {}
+        names = denominator_outputs(model.columns)
+        y = outputs.at(model, model.initial_state()) if names else {}
         cached = {k: FRAME_DENOMINATOR_RELATIVE * abs(y[k]) for k in names}
         model._denominator_thresholds = cached
     return cached
@@ -134,13 +135,13 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
     """Refuse an ``x0`` off the constraints, at a vanishing relative curvature or, in the paper
     formulation, with a (nearly) stopped contact. Returns the initial value of every
     curvature output (the reference of their thresholds along the run)."""
-    names = set(model._columns)
+    names = set(model.columns)
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if not names & watched:
         if rates:
             _check_initial_rates(model, x0, p)
         return {}
-    y = model._all_outputs(x0, p)
+    y = outputs.at(model, x0, p)
     if "Q" in y and "R" in y:
         residual = max(abs(y["Q"]), abs(y["R"]))
         what = f"max(|Q|, |R|) = max({abs(y['Q']):.3g}, {abs(y['R']):.3g})"
@@ -213,7 +214,7 @@ def _watched(model) -> tuple:
     thresholds."""
     cached = getattr(model, "_watched_columns", None)
     if cached is None:
-        cols = {k: i for i, k in enumerate(model._columns)}
+        cols = {k: i for i, k in enumerate(model.columns)}
         force = [cols[k] for k in force_outputs(cols)]
         curvature = [cols[k] for k in curvature_outputs(cols)]
         denominators = {cols[k]: thr for k, thr in denominator_thresholds(model).items()
@@ -240,9 +241,9 @@ def clean(model, t: np.ndarray, X: np.ndarray, p) -> bool:
     if not columns.size:
         return True
     if model.manifest.get("outputs_time"):
-        outs = model._outputs_along(t, X, p, None)
+        outs = outputs.along(model, t, X, p, None)
         return trajectory_event(model, t, X, outs, {}) is None
-    V = model.library.outputs_batch(X, model._p(p)).take(columns, axis=1)
+    V = model.library.outputs_batch(X, parameters.complete(model, p)).take(columns, axis=1)
     k = len(share)
     if len(V) <= _LIST_ROWS:
         rows = V.tolist()
@@ -332,7 +333,7 @@ def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
     """On a failed run: raise the curvature or moving-frame event instead when it came before
     ``exc.t`` (the cause of the blow-up). The sign of ``f`` is not checked here: near a
     numerical blow-up ``f`` swings wildly and "contact opens" would name a symptom."""
-    names = model._columns
+    names = model.columns
     if not (curvature_outputs(names) or denominator_outputs(names)):
         return
     rows_t, rows_x = [], []
@@ -358,7 +359,7 @@ def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
     t, X = t[keep], X[keep]
     if len(t) == 0:
         return
-    outs = model._all_outputs_batch(X, p)
+    outs = outputs.at_rows(model, X, p)
     note = f"; the integrator then failed at t = {exc.t:.6g} s: {exc.reason}"
     event = trajectory_event(model, t, X, outs, start, force=False, note=note)
     if event is not None and event.t <= exc.t:
@@ -387,7 +388,7 @@ def initial_ok(model, Y0: np.ndarray | None, CD0: np.ndarray | None, rates: bool
     ok = np.ones(n, dtype=bool)
     if rates and CD0 is not None:
         ok &= CD0 <= INITIAL_RATE
-    names = model._columns
+    names = model.columns
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if Y0 is None or not set(names) & watched:
         return ok

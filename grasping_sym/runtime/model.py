@@ -226,23 +226,6 @@ class Model:
         Y = outputs_.at_rows(self, X, p)
         return {k: Y[k] for k in self.output_names}
 
-    # runtime.checks reads these (until it calls runtime.outputs and runtime.parameters)
-    @property
-    def _columns(self) -> tuple[str, ...]:
-        return self.columns
-
-    def _all_outputs(self, x, p=None) -> dict[str, float]:
-        return outputs_.at(self, x, p)
-
-    def _all_outputs_batch(self, X, p=None) -> dict[str, np.ndarray]:
-        return outputs_.at_rows(self, X, p)
-
-    def _outputs_along(self, t, X, p, sched) -> dict[str, np.ndarray]:
-        return outputs_.along(self, t, X, p, sched)
-
-    def _p(self, p):
-        return parameters.complete(self, p)
-
     def external_rhs(self):
         """The compiled right-hand side as a CasADi Function (for CVODES/IDAS)."""
         if self._external is None:

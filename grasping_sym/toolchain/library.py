@@ -135,7 +135,7 @@ def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
     """The driver's macros for a model's functions (``functions.CasadiModel``) with ``n_p``
     parameters, and a 4-lane rhs when ``lanes``. A law that reads the time gives outputs that
     take it as one more last entry of p: the driver (whose p has the model's size) then does
-    not call them (``Model._output_row`` does)."""
+    not call them (``runtime.outputs.row`` does)."""
     from grasping_sym.emit.lanes import lanes_symbol  # noqa: PLC0415 - imports CasADi
 
     return driver_defines(cm.rhs, None if outputs_read_time(cm, n_p) else cm.outputs,
