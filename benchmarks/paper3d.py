@@ -106,6 +106,7 @@ import numpy as np
 import sympy as sp
 import grasping_sym as gs
 from grasping_sym import pipeline
+from grasping_sym.assemble.controller import controller_torques
 from grasping_sym.assemble.functions import sx_model
 from grasping_sym.derive import grasp3d as g3
 
@@ -127,7 +128,7 @@ for s in surfaces:
     s.S, s.frame, s.montana_metric, s.curvature_form, s.torsion_form
 g3._generic_rates()
 lap("sympy_surfaces_rates")
-sysm = g3.derive_grasp3d(scene)
+sysm = g3.derive_grasp3d(scene, torques=controller_torques)
 lap("translate_and_ad")
 for f in scene.fingers:
     g3._finger_symbolic(f.chain, None)

@@ -121,13 +121,14 @@ def test_compiled_equals_uncompiled_on_the_manifold(paper3d_scalar_libm, run5):
     in layers, with shared reciprocals (``codegen.reciprocals``), and CasADi's own double
     evaluation of the graph is off the exact value by up to ~4e-11 of the largest rate here
     (the closed loop's solves amplify roundings)."""
+    from grasping_sym.assemble.controller import controller_torques
     from grasping_sym.derive.grasp3d import derive_grasp3d
     from grasping_sym.emit import algorithm
     from tests.oracles.program import run
     paper3d_model = paper3d_scalar_libm
 
     scene = gs.scenes.paper3d()
-    system = derive_grasp3d(scene)
+    system = derive_grasp3d(scene, torques=controller_torques)
     f = system.function("check", "outputs")
     import casadi as ca
 

@@ -44,11 +44,12 @@ def test_large_closed_loop_agrees_with_casadi():
     of divisions by a few dozen values): the rewritten program, run by the interpreter above,
     is as close to the exact value (60 digits) as CasADi's own program is."""
     import grasping_sym as gs
+    from grasping_sym.assemble.controller import controller_torques
     from grasping_sym.derive.grasp3d import derive_grasp3d
 
     start = json.loads((Path(__file__).resolve().parents[1] / "generated" / "paper3d"
                         / "start.json").read_text())
-    system = derive_grasp3d(gs.scenes.paper3d())
+    system = derive_grasp3d(gs.scenes.paper3d(), torques=controller_torques)
     f = ca.Function("f", [system.x, system.p], [system.xdot], {"cse": True})
     program = algorithm.read(f)
     new = share_reciprocals(program)

@@ -59,7 +59,7 @@ def _tree_files() -> list[Path]:
     for path in sorted(PACKAGE_DIR.rglob("*")):
         rel = path.relative_to(PACKAGE_DIR)
         if path.suffix in (".py", ".c", ".h") and path.is_file() and "__pycache__" not in rel.parts \
-                and rel.parts[0] not in ABOVE_THE_BUILD:
+                and rel.parts[0] not in (*ABOVE_THE_BUILD, "generated"):
             out.append(path)
     return out
 
