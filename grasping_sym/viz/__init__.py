@@ -10,10 +10,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from grasping_sym.viz.animation import animate as _animate
+from grasping_sym.viz.kinds import summary_lines, write_figures
 from grasping_sym.viz.options import known_options
 from grasping_sym.viz.viewer import write_viewer
 
-__all__ = ["animate", "view"]
+__all__ = ["animate", "summary_lines", "view", "write_figures"]
 
 
 def animate(result, path: Path | str, scene=None, **options) -> Path:
