@@ -5,12 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from grasping_sym.model import kinds
-from grasping_sym.viz import plots, plots3d
+from grasping_sym.viz.plots import write_figures as planar_figures
+from grasping_sym.viz.plots3d import summary_lines as summary_lines3d
+from grasping_sym.viz.plots3d import write_figures3d
 
 #: kind name -> (write_figures, summary_lines)
 KINDS = {
-    "planar": (plots.write_figures, lambda scene, result: []),
-    "grasp3d": (plots3d.write_figures3d, plots3d.summary_lines),
+    "planar": (planar_figures, lambda scene, result: []),
+    "grasp3d": (write_figures3d, summary_lines3d),
 }
 
 
