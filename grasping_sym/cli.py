@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import re
+import subprocess
 import sys
 import tempfile
 import time
@@ -20,10 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
+from grasping_sym import __version__
 from grasping_sym.errors import CompileError, GraspingSymError
 from grasping_sym.runtime.integrators import METHODS
 from grasping_sym.runtime.settings import run_settings
-from grasping_sym.sweeps import check_store, parse_range
+from grasping_sym.store import paths as cache
+from grasping_sym.store import safety
+from grasping_sym.sweeps import check_store, parse_range, sweep
 
 PROG = "grasping-sym"
 EXIT_USER_ERROR = 2
@@ -48,14 +54,13 @@ def _say(msg: str) -> None:
 
 
 def _builtin() -> dict:
-    from grasping_sym.model.scenes import BUILTIN  # lazy: keeps `--help` fast
+    from grasping_sym.model.scenes import BUILTIN  # noqa: PLC0415 - lazy: SymPy, only for the commands that name a scene
 
     return BUILTIN
 
 
 def _describe(func) -> str:
     """The first sentence of ``func``'s docstring, on one line, without RST markup."""
-    import re  # noqa: PLC0415
 
     doc = (func.__doc__ or "").strip()
     if not doc:
@@ -176,14 +181,14 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from grasping_sym.pipeline import build
-    from grasping_sym.viz import kinds as viz_kinds  # noqa: PLC0415 - lazy: matplotlib
+    from grasping_sym.pipeline import build  # noqa: PLC0415 - lazy: SymPy and CasADi, only to build
+    from grasping_sym.viz import kinds as viz_kinds  # noqa: PLC0415 - lazy: matplotlib, only to draw
 
     params = _params(args.param)
     out = _check_out(args.out)
     _say(f"defining scene {args.name}")
     if args.name.endswith(".toml"):  # a scene file (grasping_sym.model.scene_files)
-        from grasping_sym.model.scene_files import load_scene
+        from grasping_sym.model.scene_files import load_scene  # noqa: PLC0415 - lazy: SymPy, only for a scene file
 
         scene = load_scene(args.name)
         missing = [k for k in params if k not in scene.runtime]
@@ -252,10 +257,7 @@ def _params(texts) -> dict[str, float]:
 
 # ---------------------------------------------------------------------------- cache
 def cmd_cache(args: argparse.Namespace) -> int:
-    import os  # noqa: PLC0415
 
-    from grasping_sym.store import paths as cache  # noqa: PLC0415
-    from grasping_sym.store import safety  # noqa: PLC0415
 
     root = cache.cache_root()
     if args.action == "clear":
@@ -287,7 +289,7 @@ def cmd_cache(args: argparse.Namespace) -> int:
 def _check_show(show: str, scene) -> None:
     """``--show``: a final state, ``settle_<state or output>``, ``min_``/``max_<...>``, or
     ``failure`` (what the sweep's store will hold)."""
-    from grasping_sym.viz.sweep_plots import FAILURE  # noqa: PLC0415
+    from grasping_sym.viz.sweep_plots import FAILURE  # noqa: PLC0415 - lazy: matplotlib, only to draw
 
     quantities = (*scene.state_names, *getattr(scene, "outputs", ()))
     known = [*scene.state_names, FAILURE] + [f"{kind}_{q}" for kind in ("settle", "min", "max")
@@ -302,9 +304,8 @@ def _check_show(show: str, scene) -> None:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from grasping_sym.pipeline import build
-    from grasping_sym.sweeps import sweep
-    from grasping_sym.viz.sweep_plots import FAILURE, sweep_figure
+    from grasping_sym.pipeline import build  # noqa: PLC0415 - lazy: SymPy and CasADi, only to build
+    from grasping_sym.viz.sweep_plots import FAILURE, sweep_figure  # noqa: PLC0415 - lazy: matplotlib, only to draw
 
     try:
         axes = [parse_range(text) for text in args.param]
@@ -364,7 +365,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 # Regenerates the committed C of built-in scenes (generated/<name>/) or, with --check,
 # verifies it is up to date (grasping_sym.pipeline.generate_committed).
 def cmd_generate(args: argparse.Namespace) -> int:
-    from grasping_sym.pipeline import generate_committed
+    from grasping_sym.pipeline import generate_committed  # noqa: PLC0415 - lazy: SymPy and CasADi, only to generate
 
     names = sorted(_builtin()) if args.all or not args.names else list(args.names)
     for name in names:
@@ -390,7 +391,6 @@ def cmd_generate(args: argparse.Namespace) -> int:
 # `bench` runs the benchmark suite of the source tree (benchmarks/ is not installed with the
 # package: it needs the repository, like `make bench`).
 def cmd_bench(args: argparse.Namespace) -> int:
-    import subprocess  # noqa: PLC0415
 
     root = Path(__file__).resolve().parent.parent
     if not (root / "benchmarks" / "run.py").is_file():
@@ -410,7 +410,6 @@ def make_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description="Rolling contact between smooth shapes: build, simulate and plot scenes.",
     )
-    from grasping_sym import __version__  # noqa: PLC0415
 
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

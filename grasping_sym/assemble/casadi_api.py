@@ -16,9 +16,16 @@ options of the NLP or integrator made from them compiles the whole problem to C.
 """
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import casadi as ca
 
 from grasping_sym.assemble import kinds
+from grasping_sym.store import files as stored
+from grasping_sym.store import safety
+from grasping_sym.store.platform import library_tag
+from grasping_sym.toolchain.compiler import compile_shared
 
 __all__ = ["public_functions"]
 
@@ -72,13 +79,7 @@ def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: Non
     (:func:`derivative_functions`) written, compiled once into ``directory`` (a file named by
     the hash of the C, the compiler and the instruction set; its SHA-256 recorded beside it
     and checked before every load) and loaded through ``casadi.external``."""
-    import hashlib  # noqa: PLC0415
-    from pathlib import Path  # noqa: PLC0415
 
-    from grasping_sym.store import files as stored  # noqa: PLC0415
-    from grasping_sym.store import safety  # noqa: PLC0415
-    from grasping_sym.store.platform import library_tag  # noqa: PLC0415
-    from grasping_sym.toolchain.compiler import compile_shared  # noqa: PLC0415
 
     cg = ca.CodeGenerator("gs_casadi_api.c", {"with_header": False, "casadi_int": "long long int"})
     for g in fns.values():

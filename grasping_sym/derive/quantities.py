@@ -23,6 +23,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from grasping_sym.derive.bodies3d import finger_sx, state_slices
+from grasping_sym.derive.planar import has_gravity, parameter_values
+
 __all__ = ["Quantities", "grasp3d_quantities", "planar_quantities"]
 
 
@@ -112,7 +115,6 @@ def _scalar(v) -> bool:
 
 def planar_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, ...]) -> Quantities:
     """A 2D scene's quantities (two-link fingers of uniform rods, ``model.planar``)."""
-    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
 
     names = scene.state_names
     values = {k: v for k, v in parameter_values(scene).items() if not k.startswith("tau_")}
@@ -146,7 +148,6 @@ def planar_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, .
 
 def grasp3d_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, ...]) -> Quantities:
     """A 3D scene's quantities (its chains, ``derive.bodies3d.finger_sx``)."""
-    from grasping_sym.derive.bodies3d import finger_sx, state_slices  # noqa: PLC0415
 
     sl = state_slices(scene)
     g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)

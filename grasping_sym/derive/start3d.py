@@ -23,9 +23,13 @@ import math
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 from scipy.spatial.transform import Rotation
 
+from grasping_sym.derive.bodies3d import finger_sx, surface_sx
+from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
+from grasping_sym.geometry.surfaces import U, V
 from grasping_sym.model.grasp3d import GraspScene3D
 
 #: m, largest contact residual accepted at the start.
@@ -40,7 +44,6 @@ def _skew(w):
 
 
 def _residual_function(scene: GraspScene3D):
-    from grasping_sym.derive.bodies3d import finger_sx, surface_sx  # noqa: PLC0415
 
     nQ = sum(f.chain.n for f in scene.fingers)
     N = scene.n_contacts
@@ -153,7 +156,6 @@ def initial_state(scene: GraspScene3D) -> tuple[np.ndarray, dict]:
 
     ``info``: ``r_bar0`` (m, mean fingertip centre), ``residual``, ``iterations``, ``V0``.
     """
-    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
 
     conf = solve_configuration(scene)
     regular = (dataclasses.replace(scene, formulation="regular", outputs=()) if scene.formulation != "regular"
@@ -227,9 +229,7 @@ def _contact_at_rest(k: int, speed: float, x: np.ndarray, state_names) -> Moving
 
 def _tangent(surface, u, v) -> np.ndarray:
     """3 x 2 ``[S_u S_v]`` at ``(u, v)`` (surface frame)."""
-    import sympy as sp  # noqa: PLC0415
 
-    from grasping_sym.geometry.surfaces import U, V  # noqa: PLC0415
 
     f = sp.lambdify((U, V), [surface.S_u, surface.S_v], "numpy")
     Su, Sv = f(u, v)

@@ -32,6 +32,8 @@ import heapq
 import re
 from typing import TYPE_CHECKING
 
+from grasping_sym.emit import algorithm
+from grasping_sym.emit.reciprocals import share_reciprocals
 from grasping_sym.store.platform import VECTOR_FUNCTIONS
 
 if TYPE_CHECKING:  # the rewrite reads CasADi's functions; the runtime (compiler flags) does not
@@ -109,7 +111,6 @@ def _nodes(program: list[algorithm.Instruction]):
     """One node per instruction: ``(C text with {} for the variables used, the variables used,
     the variable defined or None for a store, the vector function called or None)``, every
     definition a new variable (``v<k>``), and each variable's call depth."""
-    from grasping_sym.emit import algorithm  # noqa: PLC0415 - needs CasADi
     version: dict[int, str] = {}   # work index -> current variable
     depth: dict[str, int] = {}
     nodes = []
@@ -209,8 +210,6 @@ def batch_libm_calls(code: str, functions) -> tuple[str, dict[str, int]]:
     first function; and, per function name, the number of vector-function calls now in
     groups (0: none to group, or calls of other functions: its body left as CasADi wrote it).
     """
-    from grasping_sym.emit import algorithm  # noqa: PLC0415 - needs CasADi
-    from grasping_sym.emit.reciprocals import share_reciprocals  # noqa: PLC0415
 
     bodies = {m.group(2): m for m in _BODY.finditer(code)}
     index = {m.group(1): m.group(2) for m in _WRAPPER.finditer(code)}

@@ -9,6 +9,8 @@ coefficients ``u1, ..., u1_rate, ...`` follow the start's values in the compiled
 """
 from __future__ import annotations
 
+from grasping_sym.model.controllers import Controller
+
 #: The kinds of input a scene may ask for.
 INPUT_KINDS = ("torques",)
 #: The default controller: the scene's paper law.
@@ -27,7 +29,6 @@ def coefficient_names(names: tuple[str, ...]) -> tuple[str, ...]:
 
 def control_problems(controller, inputs) -> list[str]:
     """Named problems of a scene's ``controller`` and ``inputs`` values."""
-    from grasping_sym.model.controllers import Controller  # noqa: PLC0415
 
     problems = []
     if not (controller is None or controller == PAPER or isinstance(controller, Controller)):

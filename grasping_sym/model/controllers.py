@@ -22,8 +22,11 @@ from collections.abc import Callable, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from grasping_sym.errors import ControllerError, GraspingSymError
+from grasping_sym.geometry.expressions import to_expression
+from grasping_sym.symbolic.translate import SympyToCasadi
 
 __all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "paper2d", "paper3d",
            "turn3d"]
@@ -224,9 +227,7 @@ def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
     the model's joints, or a mapping from input-style names (``u1``, ``u2``, ...; the others
     0). ``t``: the time symbol of the expressions (default ``sympy.Symbol('t')``). Parsed
     without evaluation of any text (strings go through ``geometry.expressions``)."""
-    import sympy as sp  # noqa: PLC0415
 
-    from grasping_sym.geometry.expressions import to_expression  # noqa: PLC0415
 
     tsym = t if t is not None else sp.Symbol("t")
 
@@ -245,7 +246,6 @@ def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
     fixed = {k: expr(v) for k, v in items.items()} if items is not None else None
 
     def ff(m):
-        from grasping_sym.symbolic.translate import SympyToCasadi  # noqa: PLC0415
 
         tr = SympyToCasadi({tsym: m.t})
         n = m.n_joints

@@ -42,7 +42,9 @@ import tomllib
 from pathlib import Path
 
 from grasping_sym.errors import ProblemsError
+from grasping_sym.geometry import library, surface_library
 from grasping_sym.geometry.expressions import ExpressionError, evaluate_number
+from grasping_sym.model import scenes
 
 
 class SceneFileError(ProblemsError):
@@ -95,15 +97,14 @@ def load_scene(path: str | Path):
     if unknown:
         problems.append(f"unknown tables {unknown}: the tables are [scene], and [fingertip] and "
                         "[object] (planar_finger) or [object_surface] (3D bases)")
-    import grasping_sym as gs  # noqa: PLC0415
 
     if base == "planar_finger":
         curves = {k: _shape(k, data.get(k), _curve_functions(), problems) for k in ("fingertip", "object")}
         if problems:
             raise SceneFileError(path, problems)
-        factory = lambda **kw: gs.scenes.planar_finger(curves["fingertip"], curves["object"], **kw)  # noqa: E731
+        factory = lambda **kw: scenes.planar_finger(curves["fingertip"], curves["object"], **kw)  # noqa: E731
     else:
-        factory = getattr(gs.scenes, base)
+        factory = getattr(scenes, base)
         for k in SURFACES_3D:
             if k in data:
                 if base == "paper2d":
@@ -207,13 +208,11 @@ def _shape(table: str, spec, functions: dict, problems: list[str]):
 
 
 def _curve_functions() -> dict:
-    from grasping_sym.geometry import library  # noqa: PLC0415
 
     return {k: getattr(library, k) for k in library.__all__ if k[0].islower() and k != "spline"}
 
 
 def _surface_functions() -> dict:
-    from grasping_sym.geometry import surface_library  # noqa: PLC0415
 
     return {k: getattr(surface_library, k) for k in
             ("sphere", "ellipsoid", "superquadric", "plane", "torus")}

@@ -4,8 +4,13 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from grasping_sym.geometry import library
+import numpy as np
+
+from grasping_sym.geometry import library, surface_library
 from grasping_sym.geometry.curves import PlanarCurve
+from grasping_sym.model import chains
+from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
+from grasping_sym.model.inertia import solid_ellipsoid_inertia
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
 
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
@@ -109,10 +114,6 @@ def paper3d(**overrides) -> "GraspScene3D":
 
     Any field of ``GraspScene3D`` may be overridden by keyword (e.g. ``formulation='paper'``).
     """
-    from grasping_sym.geometry import surface_library  # noqa: PLC0415
-    from grasping_sym.model import chains  # noqa: PLC0415
-    from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
-    from grasping_sym.model.inertia import solid_ellipsoid_inertia  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     rot = _axis_angle((1.0, 1.0, 1.0), 0.2)
@@ -147,10 +148,6 @@ def pivot3d(**overrides) -> "GraspScene3D":
     """One finger (``chains.finger1``, spherical tip of 0.010 m) rolling on an ellipsoid
     (0.020, 0.025, 0.030) m that turns about its centre, fixed; no gravity. The controller pulls
     the fingertip centre toward the pivot (the 2D law (32)). The smallest 3D scene."""
-    from grasping_sym.geometry import surface_library  # noqa: PLC0415
-    from grasping_sym.model import chains  # noqa: PLC0415
-    from grasping_sym.model.grasp3d import Finger3D, GraspScene3D  # noqa: PLC0415
-    from grasping_sym.model.inertia import solid_ellipsoid_inertia  # noqa: PLC0415
 
     a, b, c = PAPER3D_SEMI_AXES
     fingers = (Finger3D(chain=chains.finger1(), tip=surface_library.sphere(PAPER3D_TIP_RADIUS, name="fingertip"),
@@ -166,8 +163,7 @@ def pivot3d(**overrides) -> "GraspScene3D":
 
 
 def _axis_angle(axis, angle: float) -> tuple:
-    import numpy as np  # noqa: PLC0415
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 - lazy: SciPy (0.15 s) only for a 3D start rotation
 
     a = np.asarray(axis, float)
     return tuple(map(tuple, Rotation.from_rotvec(angle * a / np.linalg.norm(a)).as_matrix()))

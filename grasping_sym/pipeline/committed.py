@@ -2,11 +2,14 @@
 checked against a fresh generation (``grasping-sym generate``)."""
 from __future__ import annotations
 
+import difflib
 import shutil
+import tempfile
 from pathlib import Path
 
-from grasping_sym.assemble import kinds, structure_cache
+from grasping_sym.assemble import kinds, structure_cache, templates
 from grasping_sym.derive import finger_templates
+from grasping_sym.model.scenes import BUILTIN
 from grasping_sym.pipeline.stages import generate, solve_start
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
@@ -14,7 +17,6 @@ from grasping_sym.store import paths as cache
 
 def _text_diff(old: Path, new: Path, label: str) -> str:
     """A unified diff of two text files (empty when byte-identical), at most 60 lines."""
-    import difflib  # noqa: PLC0415
 
     a = old.read_bytes() if old.exists() else b""
     b = new.read_bytes()
@@ -38,10 +40,7 @@ def generate_committed(names=None, *, check: bool = False,
     differs from a fresh generation with a unified diff (or the entries beyond tolerance);
     empty when up to date. With ``check=True`` nothing is written.
     """
-    import tempfile  # noqa: PLC0415
 
-    from grasping_sym.assemble import templates  # noqa: PLC0415
-    from grasping_sym.model.scenes import BUILTIN  # noqa: PLC0415
 
     if root is None:
         checkout = cache.source_checkout()
@@ -96,7 +95,6 @@ def _generate_scene(scene, root: Path, check: bool, differ: dict, structures: se
                     finger_files: set, template) -> None:
     """``generate_committed`` for one built-in scene: its finger templates, its C and
     manifest, its start and (for a model in layers) its structure."""
-    import tempfile  # noqa: PLC0415
 
 
     name = scene.name

@@ -30,6 +30,7 @@ committed C, else derive and write C, then compile; then the start, from the cac
 from __future__ import annotations
 
 import dataclasses
+import errno
 import hashlib
 import logging
 import time
@@ -41,6 +42,7 @@ from grasping_sym.assemble import kinds
 from grasping_sym.assemble.controller import controller_function, controller_key
 from grasping_sym.assemble.functions import guarded_rhs
 from grasping_sym.emit import cwriter, lanes
+from grasping_sym.errors import CacheWriteError, GraspingSymError
 from grasping_sym.pipeline.built import BuiltModel, compile_library, compiled_manifest
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
@@ -217,9 +219,7 @@ def build(scene, *, progress: Progress | None = None, force: bool = False) -> Bu
     CacheWriteError
         The cache is full, read-only or not writable (the path and the fix are named).
     """
-    import errno  # noqa: PLC0415
 
-    from grasping_sym.errors import CacheWriteError, GraspingSymError  # noqa: PLC0415
     try:
         return _build(scene, progress=progress, force=force)
     except OSError as exc:

@@ -17,10 +17,22 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+from matplotlib import animation
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from grasping_sym.errors import ViewOptionError
 from grasping_sym.geometry.values import as_real
 from grasping_sym.viz.options import check_scene
+from grasping_sym.viz.plots import draw_scene, motion_limits
+from grasping_sym.viz.plots3d import (
+    _equal_box,
+    draw_scene3d,
+    geometry_at,
+    geometry_function,
+    parts_points,
+    scene_parts3d,
+)
 
 #: Frames per second of the animation, by default.
 FPS = 20
@@ -114,13 +126,6 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
         raise ViewOptionError("an .mp4 needs ffmpeg on the PATH (e.g. apt install ffmpeg); or write a .gif")
     if len(result.t) < 2:
         raise ViewOptionError("a result of one sample does not move: simulate with more output times")
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    from matplotlib import animation  # noqa: PLC0415
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
-    from matplotlib.figure import Figure  # noqa: PLC0415
-
     rows = frame_rows(result.t, fps, seconds)
     three_d = scene.dimension == 3
     fig = Figure(figsize=FIGSIZE[3 if three_d else 2], layout="constrained")
@@ -140,7 +145,6 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
 
 
 def _frames_2d(fig, scene, result, rows):
-    from grasping_sym.viz.plots import draw_scene, motion_limits  # noqa: PLC0415
 
     ax = fig.add_subplot()
     lo, hi = motion_limits(scene, result.x[rows[:: max(1, len(rows) // 20)]])
@@ -157,14 +161,6 @@ def _frames_2d(fig, scene, result, rows):
 
 
 def _frames_3d(fig, scene, result, rows):
-    from grasping_sym.viz.plots3d import (  # noqa: PLC0415
-        _equal_box,
-        draw_scene3d,
-        geometry_at,
-        geometry_function,
-        parts_points,
-        scene_parts3d,
-    )
 
     geos = geometry_at(geometry_function(scene), scene, result, rows)
     ax = fig.add_subplot(projection="3d")

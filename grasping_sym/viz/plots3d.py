@@ -22,6 +22,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.grasp3d import GraspScene3D
 from grasping_sym.runtime.result import SimulationResult
@@ -57,7 +58,6 @@ def geometry_function(scene: GraspScene3D):
     Derives the scene with SymPy (``derive.grasp3d``, 1-3 s). The geometry does not depend on
     ``p``: pass the model's ``default_params``, or zeros.
     """
-    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415 - slow import
 
     return derive_grasp3d(scene).function("geometry", "geometry")
 

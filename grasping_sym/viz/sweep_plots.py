@@ -5,6 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from grasping_sym.runtime.batch import STATUS
+from grasping_sym.sweeps import START
 
 #: What ``sweep_figure`` can show besides a variable of the Dataset.
 FAILURE = "failure"
@@ -13,11 +19,6 @@ FAILURE = "failure"
 def sweep_figure(ds, show: str, path: str | Path) -> Path:
     """Write ``show`` (a variable of ``ds``, or ``"failure"``: which points failed, by
     status) over the sweep's grid to ``path`` (PNG)."""
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
     if show != FAILURE and show not in ds.data_vars:
         raise ValueError(f"nothing called {show!r} in this sweep: show one of "
                          f"{[v for v in ds.data_vars if v != 'error'] + [FAILURE]}")
@@ -32,12 +33,14 @@ def sweep_figure(ds, show: str, path: str | Path) -> Path:
     else:
         values = ds[show].values
         label = _label(show)
-    fig, ax = plt.subplots(figsize=(6.4, 4.8), constrained_layout=True)
+    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
+    FigureCanvasAgg(fig)  # drawn off screen, whatever the user's backend
+    ax = fig.subplots()
     if len(dims) == 2:
         y, x = (ds[d].values for d in dims)
         if show == FAILURE:
             codes = sorted(set(np.unique(values).tolist()))
-            cmap = plt.get_cmap("tab10", max(len(codes), 2))
+            cmap = colormaps["tab10"].resampled(max(len(codes), 2))
             index = np.searchsorted(codes, values)
             mesh = ax.pcolormesh(x, y, index, cmap=cmap, vmin=-0.5, vmax=len(codes) - 0.5, shading="nearest")
             bar = fig.colorbar(mesh, ax=ax, ticks=range(len(codes)))
@@ -65,7 +68,6 @@ def sweep_figure(ds, show: str, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return path
 
 
@@ -79,8 +81,6 @@ def _label(name: str) -> str:
 
 
 def _status_name(code: float) -> str:
-    from grasping_sym.runtime.batch import STATUS  # noqa: PLC0415
-    from grasping_sym.sweeps import START  # noqa: PLC0415
 
     names = {**STATUS, START: "start unreachable"}
     return f"{int(code)}: {names.get(int(code), 'failed')}"

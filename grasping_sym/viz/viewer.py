@@ -24,6 +24,7 @@ import numpy as np
 
 from grasping_sym.errors import ViewOptionError
 from grasping_sym.viz.options import check_scene
+from grasping_sym.viz.plots3d import geometry_at, geometry_function, surface_mesh
 
 #: Frames written by default (evenly spaced in time).
 FRAMES = 150
@@ -138,7 +139,6 @@ def write_viewer(result, path: str | Path, scene=None, *, frames: int = FRAMES, 
         raise ViewOptionError(f"{path.name}: the viewer is an .html file")
     if len(result.t) < 2:
         raise ViewOptionError("a result of one sample does not move: simulate with more output times")
-    from grasping_sym.viz.plots3d import geometry_at, geometry_function, surface_mesh  # noqa: PLC0415
 
     rows = np.unique(np.linspace(0, len(result.t) - 1, min(int(frames), len(result.t))).astype(int))
     geos = geometry_at(geometry_function(scene), scene, result, rows)
