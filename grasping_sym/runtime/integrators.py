@@ -137,7 +137,7 @@ def dae_for(model, method: str):
     over the bounded states, ``e(0) = 0``: ``e`` stays exactly zero unless a step ends outside a
     domain, so an excursion between two outputs shows in ``e`` at the next one
     (``excursion_intervals``), where the C Radau loop locates it at its step."""
-    import casadi as ca  # noqa: PLC0415
+    import casadi as ca  # noqa: PLC0415 - lazy: CasADi only for its SUNDIALS methods
 
     rhs = model.external_rhs_guarded() if method == "cvodes" else model.external_rhs()
     if model.library.has_budget:
@@ -271,7 +271,7 @@ def _failure(model, method, x0, t_eval, p, rtol, atol, max_steps: int,
     known (the step budget's), which spares the repeated run; ``t_hint``: the time of the last
     step attempted (``c/budget.c``), the failure's time when SUNDIALS prints none.
     """
-    import casadi as ca  # noqa: PLC0415
+    import casadi as ca  # noqa: PLC0415 - lazy: CasADi only for its SUNDIALS methods
     opts = {**_tolerances(model, method, rtol, atol), "max_num_steps": max_steps,
             **_step_floor(method, t_eval)}
     xa = np.append(x0, 0.0) if augmented(model, method) else x0

@@ -114,7 +114,7 @@ class SimulationResult:
 
     def to_dataframe(self):
         """A ``pandas.DataFrame`` indexed by ``t``, a column per state and output."""
-        import pandas as pd  # noqa: PLC0415
+        import pandas as pd  # noqa: PLC0415 - lazy: an optional dependency, only for this view
 
         cols = {k: self.x[:, i] for i, k in enumerate(self.state_names)}
         cols.update(self.outputs)
@@ -123,7 +123,7 @@ class SimulationResult:
     def to_xarray(self):
         """An ``xarray.Dataset`` over ``t``, a variable per state and output; the method, the
         parameters and the integrator's counters as attributes."""
-        import xarray as xr  # noqa: PLC0415
+        import xarray as xr  # noqa: PLC0415 - lazy: xarray (0.3 s) only for this view
 
         data = {k: ("t", self.x[:, i]) for i, k in enumerate(self.state_names)}
         data.update({k: ("t", np.asarray(v)) for k, v in self.outputs.items()})

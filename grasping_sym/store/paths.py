@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from functools import lru_cache
 from importlib import metadata
+from importlib.resources import files
 from pathlib import Path
 
 from grasping_sym.errors import CacheContentsError
@@ -34,7 +35,6 @@ PACKAGE_DIR = Path(__file__).resolve().parent.parent
 def generated_dir() -> Path:
     """The committed generated code: the package data ``grasping_sym.generated`` (the
     repository's top-level ``generated/`` in a source checkout or an editable install)."""
-    from importlib.resources import files  # noqa: PLC0415
 
     return Path(str(files("grasping_sym.generated")))
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import errno
 import hashlib
 import os
+import shutil
 import stat
 import time
 from pathlib import Path
@@ -159,7 +160,6 @@ def is_temporary(name: str) -> bool:
 def clean_stale(directory: Path, max_age: float = STALE_AFTER) -> list[str]:
     """Remove the temporaries an interrupted build left in ``directory`` (names starting with
     a dot and holding a temporary marker, older than ``max_age`` seconds); return their names."""
-    import shutil  # noqa: PLC0415
 
     removed = []
     now = time.time()

@@ -34,6 +34,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -236,7 +237,6 @@ def _check_loads(path: Path, name: str) -> None:
     ``dlopen(RTLD_NOW)`` does) before it is installed: a library with an undefined symbol (its
     C rewritten by another build while gcc read it) is never installed, and a crash while
     loading stays in that process."""
-    import sys  # noqa: PLC0415
 
     proc = subprocess.run([sys.executable, "-I", "-S", "-c",
                            "import ctypes, sys; ctypes.CDLL(sys.argv[1])", str(path)],
