@@ -95,8 +95,8 @@ class SimulationResult:
         wall = self.stats.get("wall_time")
         run = (f", {steps} steps" if steps is not None else "") + \
             (f" in {wall * 1e3:.3g} ms" if isinstance(wall, float) else "")
-        return (f"SimulationResult({self.method}: {span}; states {_names(self.state_names)}; "
-                f"outputs {_names(tuple(self.outputs))}{run})")
+        return (f"SimulationResult({self.method}: {span}; states {names_text(self.state_names)}; "
+                f"outputs {names_text(tuple(self.outputs))}{run})")
 
     def _repr_html_(self) -> str:
         """A summary table for Jupyter: each state and output at the start and the end, and its
@@ -242,7 +242,7 @@ def _shape_problem(t, x, state_names, outputs) -> str | None:
         return f"t has shape {nt}: give one time per row, shape (n,)"
     if np.shape(x) != (nt[0], len(state_names)):
         return (f"x has shape {np.shape(x)}, but there are {nt[0]} times and {len(state_names)} "
-                f"state names {_names(tuple(state_names))}: x must be ({nt[0]}, {len(state_names)}), "
+                f"state names {names_text(tuple(state_names))}: x must be ({nt[0]}, {len(state_names)}), "
                 "a row per time and a column per state name")
     for k, v in outputs.items():
         if np.shape(v) != nt:
@@ -320,7 +320,8 @@ def _short(v, most: int = 80) -> str:
     text = repr(v)
     return text if len(text) <= most else text[:most] + "..."
 
-def _names(names: tuple[str, ...], most: int = 6) -> str:
+def names_text(names: tuple[str, ...], most: int = 6) -> str:
+    """``names`` for a message: the first ``most`` of them and how many in all."""
     if len(names) <= most:
         return "(" + ", ".join(names) + ")"
     return "(" + ", ".join(names[:most]) + f", ... {len(names)} in all)"

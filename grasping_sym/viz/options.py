@@ -5,6 +5,7 @@ from __future__ import annotations
 import inspect
 
 from grasping_sym.errors import ViewOptionError
+from grasping_sym.runtime.result import names_text
 
 
 def known_options(draw, what: str, options: dict) -> None:
@@ -22,11 +23,6 @@ def check_scene(result, scene, what: str) -> None:
     if names is not None and tuple(names) != tuple(result.state_names):
         raise ViewOptionError(
             f"{what}: the scene {getattr(scene, 'name', '?')!r} has the states "
-            f"{_names(tuple(names))}, the result {_names(tuple(result.state_names))}: pass the "
+            f"{names_text(tuple(names))}, the result {names_text(tuple(result.state_names))}: pass the "
             "scene the result was run on")
 
-
-def _names(names: tuple[str, ...], most: int = 6) -> str:
-    if len(names) <= most:
-        return "(" + ", ".join(names) + ")"
-    return "(" + ", ".join(names[:most]) + f", ... {len(names)} in all)"
