@@ -23,3 +23,16 @@ def test_the_runtime_imports_neither_sympy_casadi_nor_the_build():
     assert not {"sympy", "casadi"} & loaded
     above = ("model", "derive", "emit", "toolchain", "assemble", "pipeline", "symbolic", "geometry", "viz")
     assert not [m for m in loaded if m.split(".")[:2] in [["grasping_sym", a] for a in above]]
+
+
+def test_a_loaded_model_names_what_casadi_function_needs(paper2d_model):
+    """A model from ``gs.load`` runs without SymPy and has no scene: asking it for the CasADi
+    functions names ``gs.build`` (a model from ``gs.build`` gives them)."""
+    import pytest
+
+    import grasping_sym as gs
+
+    loaded = gs.load(paper2d_model.directory)
+    with pytest.raises(ValueError, match=r"gs\.build\(scene\)"):
+        loaded.casadi_function()
+    assert paper2d_model.casadi_function().name() == "paper2d_ode"

@@ -19,6 +19,10 @@ from grasping_sym.toolchain.library import compile_model
 class BuiltModel(Model):
     """A model made by ``gs.build``: a runtime ``Model`` that also knows its scene."""
 
+    def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict, scene=None):
+        super().__init__(directory, manifest, library_path, start, scene)
+        self._public: dict = {}  # the CasADi functions made, by (which, time, compiled)
+
     def __reduce__(self):
         """Pickled as the runtime model is (``runtime.portable``), with a layered model's
         structure files, and restored by ``restore``: it compiles the C where the receiver's
@@ -39,10 +43,8 @@ class BuiltModel(Model):
         (use them in ``Opti`` without ``expand``, which would inline the SX again).
         Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
         scene = self.scene
-        if scene is None:
-            raise ValueError("casadi_function needs the model's scene: make the model with "
-                             "gs.build(scene) (a model from gs.load, or one sent to another "
-                             "process, has no scene)")
+        if scene is None:  # restored in another process: no scene was sent
+            return super().casadi_function(which, time=time, compiled=compiled)
         key = (which, time, bool(compiled))
         if key not in self._public:
             fns = casadi_api.public_functions(scene, self.start_params, time=time)

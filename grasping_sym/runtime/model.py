@@ -86,7 +86,6 @@ class Model:
                                        default_p=self.default_params if self.p_names else None)
         self._external = None
         self._guarded = None
-        self._public: dict = {}
         #: the short way of repeated calls (``runtime.fastpath``): the plans and checked
         #: starts it remembers
         self.short_way = fastpath.Memory(np.array(start["initial_state"], dtype=float),
@@ -225,6 +224,14 @@ class Model:
         outputs_.need(self)
         Y = outputs_.at_rows(self, X, p)
         return {k: Y[k] for k in self.output_names}
+
+    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
+        """The closed loop as a CasADi Function: it needs the scene, so it is a method of a
+        model made by ``gs.build`` (``pipeline.built.BuiltModel.casadi_function``); a model
+        from ``gs.load`` (or one sent to another process) names that."""
+        raise ValueError("casadi_function needs the model's scene: make the model with "
+                         "gs.build(scene) (a model from gs.load, or one sent to another "
+                         "process, has no scene)")
 
     def external_rhs(self):
         """The compiled right-hand side as a CasADi Function (for CVODES/IDAS)."""
