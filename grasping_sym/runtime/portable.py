@@ -33,7 +33,7 @@ from grasping_sym.store.platform import library_name
 #: library's record; None: this process cannot compile.
 Compile = Callable[[Path, dict, dict], dict]
 
-#: Models restored in this process, by (manifest hash, start key).
+#: Models restored in this process, by (manifest hash, start key, the class made).
 _RESTORED: dict = {}
 
 
@@ -49,7 +49,7 @@ def restore(data: dict, compile: Compile | None, make: Callable):
     """The model ``data`` (``payload``) describes, from this process's memory, this machine's
     cache, the library bytes, or (with ``compile``) the C compiled here. ``make(directory,
     manifest, library, start)`` makes the model object (the pickled model's class)."""
-    key = (data["manifest"]["hash"], data["start"]["key"])
+    key = (data["manifest"]["hash"], data["start"]["key"], make)
     model = _RESTORED.get(key)
     if model is None:
         model = _RESTORED[key] = _materialise(data, compile, make)
