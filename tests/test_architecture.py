@@ -36,3 +36,19 @@ def test_a_loaded_model_names_what_casadi_function_needs(paper2d_model):
     with pytest.raises(ValueError, match=r"gs\.build\(scene\)"):
         loaded.casadi_function()
     assert paper2d_model.casadi_function().name() == "paper2d_ode"
+
+
+def test_2d_and_3d_derivations_make_one_kind_of_system():
+    """Both derivations return the canonical ``ConstrainedSystem``, with the constraint and
+    its Jacobian of matching sizes: what the assembly reads never depends on the dimension."""
+    import grasping_sym as gs
+    from grasping_sym.derive.grasp3d import derive_grasp3d
+    from grasping_sym.derive.planar import derive_template
+    from grasping_sym.derive.system import ConstrainedSystem
+
+    planar = derive_template(shared=True, gravity=False)
+    spatial = derive_grasp3d(gs.scenes.pivot3d())
+    for system in (planar, spatial):
+        assert type(system) is ConstrainedSystem
+        assert system.constraint.shape[0] == system.constraint_jac.shape[0]
+        assert system.constraint_jac.shape[1] == system.n
