@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 
 from grasping_sym.errors import ViewOptionError
 from grasping_sym.geometry.values import as_real
+from grasping_sym.model import kinds
 from grasping_sym.viz.options import check_scene
 from grasping_sym.viz.plots import draw_scene, motion_limits
 from grasping_sym.viz.plots3d import (
@@ -80,7 +81,7 @@ def check_options(n_samples: int, *, fps: float = FPS, seconds: float | None = N
                               f"{DPI_RANGE[1]:g}] (default 80)")
     length = MAX_SECONDS if seconds is None else float(seconds)
     frames = min(max(2, int(round(length * fps)) + 1), max(int(n_samples), 2))
-    w, h = FIGSIZE[3 if dimension == 3 else 2]
+    w, h = FIGSIZE[dimension]
     pixels = frames * round(w * dpi) * round(h * dpi)
     if pixels > MAX_PIXELS:
         raise ViewOptionError(f"{frames} frames of {round(w * dpi)} x {round(h * dpi)} pixels (fps = {fps!r}, "
@@ -127,10 +128,9 @@ def animate(result, path: str | Path, scene=None, *, fps: float = FPS, seconds: 
     if len(result.t) < 2:
         raise ViewOptionError("a result of one sample does not move: simulate with more output times")
     rows = frame_rows(result.t, fps, seconds)
-    three_d = scene.dimension == 3
-    fig = Figure(figsize=FIGSIZE[3 if three_d else 2], layout="constrained")
+    fig = Figure(figsize=FIGSIZE[scene.dimension], layout="constrained")
     FigureCanvasAgg(fig)
-    draw = _frames_3d(fig, scene, result, rows) if three_d else _frames_2d(fig, scene, result, rows)
+    draw = kinds.of(scene, _FRAMES, "an animation")(fig, scene, result, rows)
     writer = animation.PillowWriter(fps=fps) if path.suffix == ".gif" else animation.FFMpegWriter(fps=fps)
     path.parent.mkdir(parents=True, exist_ok=True)
     # one drawing per frame (FuncAnimation.save draws each frame three times), and the layout
@@ -176,3 +176,7 @@ def _frames_3d(fig, scene, result, rows):
         _equal_box(ax, box, "m", pad=0.02)
         ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s", fontsize=10)
     return draw
+
+
+#: kind of scene (``model.kinds``) -> how its frames are drawn
+_FRAMES = {"planar": _frames_2d, "grasp3d": _frames_3d}
