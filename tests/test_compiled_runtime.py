@@ -284,3 +284,58 @@ def test_compile_clean_and_atomic(tmp_path, pendulum, caplog):
     ext = ca.external("pend_rhs", str(so))
     np.testing.assert_allclose(np.array(ext(0, [0.3, 0.1], [], P, [])[0]).ravel(),
                                CompiledLibrary(so).rhs([0.3, 0.1], P), rtol=1e-15)
+
+
+def test_models_of_different_sizes_link_the_same_driver_objects(tmp_path, monkeypatch):
+    """The driver's objects are compiled once per set of features: a model of 3 states and one
+    of 5 (each with 2 parameters, outputs of different lengths, a Jacobian) link the very same
+    object files, each library reads its own sizes at run time (``objects.links_c``), and a
+    wrong shape is reported with the library's own size."""
+    from grasping_sym.toolchain import objects
+
+    monkeypatch.setenv("GRASPING_SYM_CACHE", str(tmp_path / "cache"))
+    linked = []
+    real = objects.driver_objects
+    monkeypatch.setattr(objects, "driver_objects",
+                        lambda *a, **k: linked.append(real(*a, **k)) or linked[-1])
+    libs = {}
+    for nx in (3, 5):
+        x, p = ca.SX.sym("x", nx), ca.SX.sym("p", 2)
+        ode = -p[0] * x + p[1] * ca.vertcat(x[1:], x[0]) ** 2  # a ring of decaying, coupled states
+        rhs = _dae_rhs(f"ring{nx}_rhs", x, p, ode)
+        out = ca.Function(f"ring{nx}_outputs", [x, p], [ca.vertcat(*[x[i] * x[i] for i in range(nx - 1)])])
+        d = tmp_path / f"ring{nx}"
+        d.mkdir()
+        c_file = _generate(d, f"ring{nx}", [rhs, rhs.jacobian(), out])
+        lib = CompiledLibrary(build_library(c_file, d / f"ring{nx}.so", rhs, out,
+                                            jac_fn=rhs.jacobian()))
+        x0, pv = np.linspace(0.1, 0.5, nx), np.array([0.7, 0.2])
+        np.testing.assert_array_equal(lib.rhs(x0, pv), np.array(rhs(0, x0, [], pv, [])[0]).ravel())
+        np.testing.assert_array_equal(lib.outputs(x0, pv), np.array(out(x0, pv)).ravel())
+        assert lib.outputs(x0, pv).shape == (nx - 1,)
+        with pytest.raises(ValueError, match=rf"\({nx},\)"):
+            lib.rhs(np.zeros(nx + 1), pv)
+        with pytest.raises(ValueError, match=r"np = 2"):
+            lib.rhs(x0)
+        _, X, stats = lib.radau5(x0, np.linspace(0.0, 1.0, 11), p=pv, rtol=1e-8, atol=1e-10)
+        ref = solve_ivp(lambda t, y: np.array(rhs(t, y, [], pv, [])[0]).ravel(), (0.0, 1.0), x0,
+                        t_eval=np.linspace(0.0, 1.0, 11), rtol=1e-11, atol=1e-13)
+        np.testing.assert_allclose(X, ref.y.T, rtol=0, atol=1e-7)
+        libs[nx] = lib
+    assert len(linked) == 2 and linked[0] == linked[1]
+    assert len(list((tmp_path / "cache" / "objects").glob("driver-*"))) == 1
+
+
+def test_radau_matrices_of_a_large_model_go_on_the_heap(tmp_path):
+    """No size bound: gs_radau5 keeps its matrices on the stack up to GS_WORK_ON_STACK_MAX
+    (256 KiB, n = 90) and on the heap above; a model of 120 states integrates like a small
+    one (a chain of decaying states, exact solution known)."""
+    nx = 120
+    x, p = ca.SX.sym("x", nx), ca.SX.sym("p", 1)
+    rhs = _dae_rhs("chain_rhs", x, p, -p[0] * x)
+    c_file = _generate(tmp_path, "chain", [rhs, rhs.jacobian()])
+    lib = CompiledLibrary(build_library(c_file, tmp_path / "chain.so", rhs, jac_fn=rhs.jacobian()))
+    x0, t_out = np.linspace(1.0, 2.0, nx), np.linspace(0.0, 1.0, 5)
+    _, X, stats = lib.radau5(x0, t_out, p=[1.5], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(X, np.exp(-1.5 * t_out)[:, None] * x0, rtol=1e-8)
+    assert stats["n_lu"] > 0

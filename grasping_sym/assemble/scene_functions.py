@@ -49,7 +49,7 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     t1 = time.perf_counter()
     say(f"structure of {scene.name} (compiled once per structure)")
     def make(name):
-        _prefetch_driver(scene, ctrl, n_constraints=2 * scene.n_fingers, jac=True, lanes=True)
+        _prefetch_driver(scene, ctrl, jac=True, lanes=True)
         template, source = templates.planar_template(shared, gravity, scene.n_fingers)
         return structure_functions(template, spec, name), f"template: {source}"
 
@@ -72,26 +72,16 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
                           structure={"name": meta["name"], "hash": meta["hash"]}, lanes=glue)
 
 
-def _prefetch_driver(scene, ctrl, *, n_constraints: int, jac: bool, lanes: bool) -> None:
-    """Start compiling the driver's objects for the model's predicted macros
-    (``library.predicted_defines``) while a new structure is derived and compiled: the first
-    model of a structure, whose dimensions this cache has likely not seen, then waits for
-    them no longer than for its own C."""
+def _prefetch_driver(scene, ctrl, *, jac: bool, lanes: bool) -> None:
+    """Start compiling the driver's objects for the model's features
+    (``library.predicted_defines``) while a new structure is derived and compiled: in a cache
+    that has not seen these features (the driver's objects do not depend on the model's
+    sizes), the first model then waits for them no longer than for its own C."""
     from grasping_sym.toolchain.library import predicted_defines, prefetch_driver  # noqa: PLC0415
 
-    ny = 0 if ctrl.reads_time else len(scene.outputs)  # outputs that read the time: not the driver's
-    prefetch_driver(predicted_defines(len(scene.state_names), len(scene.p_names), ny,
-                                      n_constraints, jac=jac, lanes=lanes,
-                                      second_order=_positions(scene.state_names) if jac else 0))
-
-
-def _positions(names) -> int:
-    """How many leading states have their speeds ``d<name>`` right after them (the states'
-    naming rule, ``model.names``): the Jacobian's second-order rows, predicted."""
-    for m in range(len(names) // 2, 0, -1):
-        if all(names[m + i] == "d" + names[i] for i in range(m)):
-            return m
-    return 0
+    # outputs that read the time are not the driver's; every scene has contact constraints
+    prefetch_driver(predicted_defines(outputs=bool(scene.outputs) and not ctrl.reads_time,
+                                      constraints=True, jac=jac, lanes=lanes))
 
 
 def planar_single_piece(scene) -> SceneFunctions:
@@ -148,7 +138,7 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
     spec = Structure3DSpec(scene.structure_key())
 
     def make(name):
-        _prefetch_driver(scene, ctrl, n_constraints=3 * len(scene.fingers), jac=False, lanes=False)
+        _prefetch_driver(scene, ctrl, jac=False, lanes=False)
         return structure3d_functions(scene, name), "SymPy and CasADi's AD"
 
     say(f"structure of {scene.name} (compiled once per structure)")

@@ -67,19 +67,19 @@ static void gs_fill_nan(double* v, long n) {
 
 /* One run of the job, scratch: job->rows + 2 rows of nx. */
 static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
-  const long nx = GS_NX, m = job->n_out;
+  const long nx = gs_nx, m = job->n_out;
   const double* x0 = job->X0 + i * nx;
   const double* p = job->P ? job->P + i * job->p_stride : NULL;
   double st[GS_NSTATS] = {0};
   double tf = NAN;
   long rc;
 #if GS_HAS_OUT
-  if (job->Y0 && gs_outputs(x0, p, job->Y0 + i * GS_NY)) gs_fill_nan(job->Y0 + i * GS_NY, GS_NY);
+  if (job->Y0 && gs_outputs(x0, p, job->Y0 + i * gs_ny)) gs_fill_nan(job->Y0 + i * gs_ny, gs_ny);
 #endif
 #if GS_HAS_CON
   if (job->CD0) {
-    double cd[GS_NC];
-    job->CD0[i] = gs_constraints(x0, p, NULL, NULL, cd, NULL) ? NAN : gs_max_abs(cd, GS_NC);
+    double cd[gs_nc];
+    job->CD0[i] = gs_constraints(x0, p, NULL, NULL, cd, NULL) ? NAN : gs_max_abs(cd, gs_nc);
   }
 #endif
   if (job->method == 0)
@@ -123,11 +123,11 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
 #if GS_HAS_OUT
   if (job->Y) {
     const long rows = job->keep ? m : 1;
-    double* Y = job->Y + i * rows * GS_NY;
+    double* Y = job->Y + i * rows * gs_ny;
     const double* X = job->keep ? job->X + i * m * nx : job->X + i * nx;
     const long good = job->keep ? written : ok;
     for (long r = 0; r < rows; ++r)
-      if (r >= good || gs_outputs(X + r * nx, p, Y + r * GS_NY)) gs_fill_nan(Y + r * GS_NY, GS_NY);
+      if (r >= good || gs_outputs(X + r * nx, p, Y + r * gs_ny)) gs_fill_nan(Y + r * gs_ny, gs_ny);
   }
 #endif
   if (ok) __atomic_fetch_add(&job->ok, 1, __ATOMIC_RELAXED);
@@ -136,7 +136,7 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
 
 static void* gs_batch_worker(void* arg) {
   gs_batch_job* job = (gs_batch_job*)arg;
-  double* scratch = malloc((size_t)((job->rows + 2) * GS_NX) * sizeof(double));
+  double* scratch = malloc((size_t)((job->rows + 2) * gs_nx) * sizeof(double));
   gs_stop_batch_thread(1, job->deadline);
   for (;;) {
     const long i = __atomic_fetch_add(&job->next, 1, __ATOMIC_RELAXED);
@@ -152,12 +152,12 @@ static void* gs_batch_worker(void* arg) {
         memset(job->stats + i * GS_NSTATS, 0, GS_NSTATS * sizeof(double));
         job->stats[i * GS_NSTATS + GS_ST_ROWS] = -1.0; /* the mark of a run never started */
       }
-      gs_fill_nan(job->X + i * (job->keep ? job->n_out : 1) * GS_NX,
-                  (job->keep ? job->n_out : 1) * GS_NX);
+      gs_fill_nan(job->X + i * (job->keep ? job->n_out : 1) * gs_nx,
+                  (job->keep ? job->n_out : 1) * gs_nx);
 #if GS_HAS_OUT
-      if (job->Y) gs_fill_nan(job->Y + i * (job->keep ? job->n_out : 1) * GS_NY,
-                              (job->keep ? job->n_out : 1) * GS_NY);
-      if (job->Y0) gs_fill_nan(job->Y0 + i * GS_NY, GS_NY);
+      if (job->Y) gs_fill_nan(job->Y + i * (job->keep ? job->n_out : 1) * gs_ny,
+                              (job->keep ? job->n_out : 1) * gs_ny);
+      if (job->Y0) gs_fill_nan(job->Y0 + i * gs_ny, gs_ny);
 #endif
       if (job->CD0) job->CD0[i] = NAN;
       continue;
@@ -176,7 +176,7 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
                         double proj_tol, double time_limit, int keep, double* X, double* Y,
                         double* Y0, double* CD0, long* status, double* t_fail, double* stats) {
   if (method < 0 || method > 3 || n_threads < 1 || n_runs < 0 || n_out < 2 || !t_out || !X0 ||
-      !X || !status || !t_fail || p_stride < 0 || (GS_NP > 0 && !P) || !(time_limit >= 0.0) ||
+      !X || !status || !t_fail || p_stride < 0 || (gs_np > 0 && !P) || !(time_limit >= 0.0) ||
       (method == 2 && (nsteps < 1 || stride < 1 || nsteps % stride || nsteps / stride + 1 != n_out)))
     return GS_ERR_ARGS;
 #if !GS_HAS_OUT

@@ -77,14 +77,15 @@ static const double gs_d8_d[4][16] = {
 };
 
 /* ys = y + h sum_{j < s} a_sj k_j */
-static inline void gs_d8_stage(int s, double h, const double* y, double k[][GS_NX], double* ys) {
-  for (int i = 0; i < GS_NX; ++i) ys[i] = 0.0;
+static inline void gs_d8_stage(int s, double h, const double* y, const int n, double k[][n],
+                               double* ys) {
+  for (int i = 0; i < n; ++i) ys[i] = 0.0;
   for (int j = 0; j < s; ++j) {
     const double a = gs_d8_a[s][j];
     if (a == 0.0) continue;
-    for (int i = 0; i < GS_NX; ++i) ys[i] += a * k[j][i];
+    for (int i = 0; i < n; ++i) ys[i] += a * k[j][i];
   }
-  for (int i = 0; i < GS_NX; ++i) ys[i] = y[i] + h * ys[i];
+  for (int i = 0; i < n; ++i) ys[i] = y[i] + h * ys[i];
 }
 
 /*
@@ -98,7 +99,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
                          const double* p, double rtol, double atol, double h0, long max_steps,
                          long nstiff, const double* lo, const double* hi, const int* proj_mask,
                          double proj_tol, double* out, double* stats, double* t_fail) {
-  enum { n = GS_NX };
+  const int n = gs_nx;
   GS_DECLARE_WORK(wk);
   double y[n], y1[n], ys[n], ystiff[n], scale[n], dense[7][n];
   double k[16][n];
@@ -153,7 +154,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     /* Stages 1..11; stage 11 is at t + h (its state kept for the stiffness test). */
     for (int s = 1; s < 12; ++s) {
       const double ts = s == 11 ? tph : t + gs_d8_c[s] * h;
-      gs_d8_stage(s, h, y, k, s == 11 ? ystiff : ys);
+      gs_d8_stage(s, h, y, n, k, s == 11 ? ystiff : ys);
       if ((rc = gs_eval_rhs(wk, &ts, s == 11 ? ystiff : ys, p, k[s]))) goto fail;
     }
     st[GS_ST_RHS] += 11;
@@ -223,7 +224,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     if (inside) {
       for (int s = 13; s < 16; ++s) {
         const double ts = t + gs_d8_c[s] * h;
-        gs_d8_stage(s, h, y, k, ys);
+        gs_d8_stage(s, h, y, n, k, ys);
         if ((rc = gs_eval_rhs(wk, &ts, ys, p, k[s]))) goto fail;
       }
       st[GS_ST_RHS] += 3;

@@ -85,7 +85,7 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
                          const double* p, double rtol, double atol, double h0, long max_steps,
                          long nstiff, const double* lo, const double* hi, const int* proj_mask,
                          double proj_tol, double* out, double* stats, double* t_fail) {
-  enum { n = GS_NX };
+  const int n = gs_nx;
   GS_DECLARE_WORK(wk);
   double y[n], y1[n], ys[n], ysti[n], scale[n], dense[5][n];
   double k1[n], k2[n], k3[n], k4[n], k5[n], k6[n], k7[n];

@@ -23,20 +23,28 @@
  *                  total (gs_budget_begin, gs_budget_hit)
  *   gs_internal.h  what they share: the macro defaults and checks, error codes, GS_ST_*
  *                  indices, work arrays, the CasADi prototypes and the small helpers
- *   gs_driver.h    the gs_ prototypes used by pyfast.c
+ *   gs_driver.h    the gs_ prototypes used by pyfast.c, and the model's sizes
+ *   lu_real.h      lu.c's real LU routines (included twice: any size, and unrolled)
  *
- * All are configured entirely by preprocessor macros passed with -D (the same for
+ * The model's sizes are read at run time: hidden const ints defined by the library's link
+ * file (toolchain/objects.py: links_c), compiled with the model's own C, so that the
+ * driver's objects are compiled once per set of the macros below and serve models of any
+ * size:
+ *
+ *   gs_nx         number of states nx (>= 1)
+ *   gs_np         number of parameters np (>= 0)
+ *   gs_ny         number of outputs ny (0 without GS_HAS_OUT)
+ *   gs_nc         number of constraints nc (>= 1 with GS_HAS_CON, else 0)
+ *
+ * Everything else is configured by preprocessor macros passed with -D (the same for
  * every file):
  *
  *   GS_RHS        name of the CasADi DAE right-hand side, e.g. paper2d_rhs.
  *                 Inputs (t[1], x[nx], z[0], p[np], u[0]),
  *                 outputs (ode[nx], alg[0], quad[0], zero[0]).          required
- *   GS_NX         number of states nx (>= 1)                              required
- *   GS_NP         number of parameters np (>= 0)                          required
  *   GS_HAS_OUT    1 if an outputs function exists, else 0         default 0
  *   GS_OUT        name of the outputs function, inputs (x[nx], p[np]),
  *                 output y[ny]                                    needed if GS_HAS_OUT
- *   GS_NY         number of outputs ny                            default 0
  *   GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W
  *                 work sizes: maximum over the functions used of CasADi's
  *                 Function.sz_arg(), sz_res(), sz_iw(), sz_w()            required
@@ -56,9 +64,6 @@
  *                                                                 needed if GS_HAS_JAC
  *   GS_JAC_NIN, GS_JAC_NOUT   Function.n_in(), n_out() of GS_JAC  needed if GS_HAS_JAC
  *   GS_JAC_BLOCK  index of the output d ode / d x                 default 1
- *   GS_RADAU_M    the rows x_i' = x_{i+m} (i < m) GS_JAC has by its sparsity,
- *                 the size gs_radau5's reduced systems are compiled for
- *                 (radau5.c, lu.c)                                default 0
  *                 (the GS_SZ_* maxima must include GS_JAC's work sizes)
  *   GS_HAS_CON    1 if a constraints function is compiled in, else 0  default 0
  *   GS_CON        its name, e.g. paper2d_constraints: inputs (x[nx], p[np]), outputs
@@ -66,7 +71,6 @@
  *                 Cdot[nc] (d C / dt along the closed loop), dCdot/dv (nc x nx: the
  *                 speeds' columns of dCdot/dx, the others unused); both Jacobians
  *                 dense, column-major (CasADi's storage)             needed if GS_HAS_CON
- *   GS_NC         number of constraints nc (>= 1)                  needed if GS_HAS_CON
  *                 (the GS_SZ_* maxima must include GS_CON's work sizes)
  *   GS_HAS_RHS_LANES  1 if the 4-lane rhs is compiled in, else 0  default 0
  *   GS_RHS_LANES  its name, e.g. paper2d_rhs_lanes (codegen/lanes.py): int f(const double*
@@ -121,14 +125,14 @@
  * Thread safety: CasADi work arrays live on the stack of each exported call
  * (or in thread-local storage when they are large, see GS_WORK_ON_STACK_MAX),
  * so every gs_ function is reentrant and may be called from several threads
- * at once.  p may be NULL when GS_NP == 0.
+ * at once.  p may be NULL when gs_np == 0.
  */
 #include "gs_internal.h"
 
 GS_EXPORT int gs_info(long* nx, long* np, long* ny) {
-  if (nx) *nx = GS_NX;
-  if (np) *np = GS_NP;
-  if (ny) *ny = GS_HAS_OUT ? GS_NY : -1;
+  if (nx) *nx = gs_nx;
+  if (np) *np = gs_np;
+  if (ny) *ny = GS_HAS_OUT ? gs_ny : -1;
   return GS_HAS_OUT;
 }
 
@@ -143,7 +147,7 @@ GS_EXPORT int gs_rhs_batch(long n, const double* X, const double* p, double* XDO
   GS_DECLARE_WORK(wk);
   if (n < 0) return GS_ERR_ARGS;
   for (long k = 0; k < n; ++k) {
-    int rc = gs_eval_rhs(wk, &t0, X + k * GS_NX, p, XDOT + k * GS_NX);
+    int rc = gs_eval_rhs(wk, &t0, X + k * gs_nx, p, XDOT + k * gs_nx);
     if (rc) return rc;
   }
   return 0;
@@ -159,7 +163,7 @@ GS_EXPORT int gs_outputs_batch(long n, const double* X, const double* p, double*
   GS_DECLARE_WORK(wk);
   if (n < 0) return GS_ERR_ARGS;
   for (long k = 0; k < n; ++k) {
-    int rc = gs_eval_out(wk, X + k * GS_NX, p, Y + k * GS_NY);
+    int rc = gs_eval_out(wk, X + k * gs_nx, p, Y + k * gs_ny);
     if (rc) return rc;
   }
   return 0;
@@ -168,7 +172,7 @@ GS_EXPORT int gs_outputs_batch(long n, const double* X, const double* p, double*
 
 GS_EXPORT int gs_con_info(long* nc) {
 #if GS_HAS_CON
-  if (nc) *nc = GS_NC;
+  if (nc) *nc = gs_nc;
 #else
   if (nc) *nc = -1;
 #endif

@@ -9,12 +9,15 @@
 #ifndef GS_HAS_OUT
 #define GS_HAS_OUT 0
 #endif
-#ifndef GS_NY
-#define GS_NY 0
-#endif
 #ifndef GS_HAS_CON
 #define GS_HAS_CON 0
 #endif
+
+/* The model's sizes, read at run time: defined (hidden, const) by the library's link file,
+ * which is compiled with the model's own C (toolchain/objects.py: links_c), so that one
+ * build of the driver serves models of every size.  gs_ny is 0 without outputs, gs_nc 0
+ * without constraints. */
+extern __attribute__((visibility("hidden"))) const int gs_nx, gs_np, gs_ny, gs_nc;
 
 /* Length of the stats array of gs_rk4, gs_radau5, gs_dopri5 and gs_project. */
 #define GS_NSTATS 16

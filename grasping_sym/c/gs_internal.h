@@ -30,12 +30,6 @@
 #ifndef GS_RHS
 #error "define GS_RHS (name of the CasADi right-hand-side function)"
 #endif
-#ifndef GS_NX
-#error "define GS_NX (number of states)"
-#endif
-#ifndef GS_NP
-#error "define GS_NP (number of parameters)"
-#endif
 #if !defined(GS_SZ_ARG) || !defined(GS_SZ_RES) || !defined(GS_SZ_IW) || !defined(GS_SZ_W)
 #error "define GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW and GS_SZ_W (CasADi work sizes)"
 #endif
@@ -66,8 +60,8 @@
 #error "GS_HAS_RHS_LANES is 1 but GS_RHS_LANES (name of the 4-lane rhs) is not defined"
 #endif
 
-#if GS_HAS_CON && (!defined(GS_CON) || !defined(GS_NC))
-#error "GS_HAS_CON is 1 but GS_CON (name of the constraints function) or GS_NC is not defined"
+#if GS_HAS_CON && !defined(GS_CON)
+#error "GS_HAS_CON is 1 but GS_CON (name of the constraints function) is not defined"
 #endif
 #if GS_HAS_CON && GS_SZ_RES < 4
 #error "GS_SZ_RES must be at least 4 (the constraints function has four outputs)"
@@ -185,7 +179,7 @@ static inline int gs_eval_rhs3(gs_work* wk, const double* t, const double* const
                                const double* p, double* const* xdot) {
 #if GS_HAS_RHS_LANES
   (void)wk;
-  double spare[GS_NX];
+  double spare[gs_nx];
   const double tl[4] = {t[0], t[1], t[2], t[2]};
   const double* xl[4] = {x[0], x[1], x[2], x[2]};
   double* yl[4] = {xdot[0], xdot[1], xdot[2], spare};
@@ -224,9 +218,9 @@ static inline int gs_eval_con(gs_work* wk, const double* x, const double* p, dou
 /* 0 if x is finite and inside [lo, hi]; otherwise GS_ERR_NONFINITE / GS_ERR_BOUNDS.
  * lo / hi may be NULL (unbounded). */
 static inline int gs_check(const double* x, const double* lo, const double* hi) {
-  for (int i = 0; i < GS_NX; ++i)
+  for (int i = 0; i < gs_nx; ++i)
     if (!isfinite(x[i])) return GS_ERR_NONFINITE;
-  for (int i = 0; i < GS_NX; ++i)
+  for (int i = 0; i < gs_nx; ++i)
     if ((lo && x[i] < lo[i]) || (hi && x[i] > hi[i])) return GS_ERR_BOUNDS;
   return 0;
 }
@@ -245,7 +239,7 @@ static inline double gs_max_abs(const double* v, int m) {
 static inline double gs_rms(const double* v, const double* scale, int m) {
   double s = 0.0;
   for (int i = 0; i < m; ++i) {
-    const double q = v[i] / scale[i % GS_NX];
+    const double q = v[i] / scale[i % gs_nx];
     s += q * q;
   }
   return sqrt(s / (double)m);
@@ -277,17 +271,17 @@ static inline int gs_adaptive_args_ok(double t0, long n_out, const double* t_out
 static inline int gs_adaptive_begin(double t0, long n_out, const double* t_out, const double* x0,
                                     const double* lo, const double* hi, double* y,
                                     double* x_bad, double* out, long* row) {
-  for (int i = 0; i < GS_NX; ++i) {
+  for (int i = 0; i < gs_nx; ++i) {
     y[i] = x0[i];
     x_bad[i] = NAN;
   }
   const int rc = gs_check(y, lo, hi);
   if (rc) {
-    for (int i = 0; i < GS_NX; ++i) x_bad[i] = y[i];
+    for (int i = 0; i < gs_nx; ++i) x_bad[i] = y[i];
     return rc;
   }
   for (; *row < n_out && t_out[*row] <= t0; ++*row)
-    for (int i = 0; i < GS_NX; ++i) out[*row * GS_NX + i] = y[i];
+    for (int i = 0; i < gs_nx; ++i) out[*row * gs_nx + i] = y[i];
   return 0;
 }
 
@@ -304,9 +298,9 @@ static inline long gs_adaptive_end(long rc, long row, double t, double* st, doub
   if (rc >= 0) return rc;
   if (t_fail) *t_fail = t;
   const int bad = rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT;
-  for (int i = 0; i < GS_NX; ++i) {
-    out[row * GS_NX + i] = y[i];
-    out[(row + 1) * GS_NX + i] = bad ? x_bad[i] : NAN;
+  for (int i = 0; i < gs_nx; ++i) {
+    out[row * gs_nx + i] = y[i];
+    out[(row + 1) * gs_nx + i] = bad ? x_bad[i] : NAN;
   }
   return rc;
 }
@@ -322,18 +316,18 @@ static inline long gs_adaptive_end(long rc, long row, double t, double* st, doub
 static inline int gs_initial_step(gs_work* wk, double t0, const double* y, const double* f,
                                   const double* p, double rtol, double atol, double interval,
                                   int order, double probe_cap, double* st, double* h_out) {
-  double scale[GS_NX], tmp[GS_NX], fnew[GS_NX];
-  for (int i = 0; i < GS_NX; ++i) scale[i] = atol + fabs(y[i]) * rtol;
-  const double d0 = gs_rms(y, scale, GS_NX), d1 = gs_rms(f, scale, GS_NX);
+  double scale[gs_nx], tmp[gs_nx], fnew[gs_nx];
+  for (int i = 0; i < gs_nx; ++i) scale[i] = atol + fabs(y[i]) * rtol;
+  const double d0 = gs_rms(y, scale, gs_nx), d1 = gs_rms(f, scale, gs_nx);
   double hh = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
   if (hh > interval) hh = interval;
-  for (int i = 0; i < GS_NX; ++i) tmp[i] = y[i] + hh * f[i];
+  for (int i = 0; i < gs_nx; ++i) tmp[i] = y[i] + hh * f[i];
   const double t1 = t0 + hh;
   const int rc = gs_eval_rhs(wk, &t1, tmp, p, fnew);
   if (rc) return rc;
   st[GS_ST_RHS] += 1;
-  for (int i = 0; i < GS_NX; ++i) tmp[i] = fnew[i] - f[i];
-  const double d2 = gs_rms(tmp, scale, GS_NX) / hh;
+  for (int i = 0; i < gs_nx; ++i) tmp[i] = fnew[i] - f[i];
+  const double d2 = gs_rms(tmp, scale, gs_nx) / hh;
   double h1;
   if (d1 <= 1e-15 && d2 <= 1e-15)
     h1 = fmax(1e-6, hh * 1e-3);
@@ -370,19 +364,13 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 /* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major) ---- */
 #if GS_HAS_JAC
 GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const double* p,
-                          double* J);
+                          double* J, double* val);
 #else
 GS_HIDDEN int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double* p,
                         const double* f, double atol, double* J);
 #endif
 
-/* ---- Defined in lu.c (used by gs_radau5): dense n x n LU, n = GS_NX, row-major ---- */
-GS_HIDDEN int gs_lu_real(double* A, int* piv);
-GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b);
-GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv);
-GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
-                                   double* br, double* bi);
-/* The same for a size n <= GS_NX given at run time (row stride n). */
+/* ---- Defined in lu.c (used by gs_radau5): dense n x n LU, row-major (row stride n) ---- */
 GS_HIDDEN int gs_lu_real_n(double* A, int* piv, int n);
 GS_HIDDEN void gs_lu_solve_real_n(const double* LU, const int* piv, double* b, int n);
 GS_HIDDEN int gs_lu_complex_n(double* Ar, double* Ai, int* piv, int n);

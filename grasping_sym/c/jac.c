@@ -3,11 +3,12 @@
 #include "gs_internal.h"
 
 #if GS_HAS_JAC
-/* J (dense row-major, nx x nx) = block GS_JAC_BLOCK of the generated Jacobian.
+/* J (dense row-major, nx x nx) = block GS_JAC_BLOCK of the generated Jacobian, its values
+ * first written to val (nx x nx doubles of scratch, the caller's).
  * Only the structural non-zeros are written: J must be zeroed once beforehand. */
 GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const double* p,
-                          double* J) {
-  double val[GS_NX * GS_NX];
+                          double* J, double* val) {
+  const int n = gs_nx;
   const GS_CASADI_INT* sp = GS_JAC_SPARSITY_OUT(GS_JAC_BLOCK);
   for (int i = 0; i < GS_JAC_NIN; ++i) wk->arg[i] = NULL;
   for (int i = 0; i < GS_JAC_NOUT; ++i) wk->res[i] = NULL;
@@ -16,15 +17,15 @@ GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const d
   wk->arg[3] = p;
   wk->res[GS_JAC_BLOCK] = val;
   if (GS_JAC(wk->arg, wk->res, wk->iw, wk->w, 0)) return GS_ERR_EVAL;
-  if (!sp || sp[0] != GS_NX || sp[1] != GS_NX) return GS_ERR_ARGS;
+  if (!sp || sp[0] != n || sp[1] != n) return GS_ERR_ARGS;
   if (sp[2] == 1) { /* CasADi's compressed form of a dense pattern: [nrow, ncol, 1] */
-    for (int c = 0; c < GS_NX; ++c)
-      for (int r = 0; r < GS_NX; ++r) J[r * GS_NX + c] = val[c * GS_NX + r];
+    for (int c = 0; c < n; ++c)
+      for (int r = 0; r < n; ++r) J[r * n + c] = val[c * n + r];
   } else {
     const GS_CASADI_INT* colind = sp + 2;
-    const GS_CASADI_INT* row = sp + 2 + GS_NX + 1;
-    for (int c = 0; c < GS_NX; ++c)
-      for (GS_CASADI_INT k = colind[c]; k < colind[c + 1]; ++k) J[row[k] * GS_NX + c] = val[k];
+    const GS_CASADI_INT* row = sp + 2 + n + 1;
+    for (int c = 0; c < n; ++c)
+      for (GS_CASADI_INT k = colind[c]; k < colind[c + 1]; ++k) J[row[k] * n + c] = val[k];
   }
   return 0;
 }
@@ -32,16 +33,17 @@ GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const d
 /* Forward-difference Jacobian (fallback when no Jacobian was compiled in). */
 GS_HIDDEN int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double* p,
                         const double* f, double atol, double* J) {
-  double xp[GS_NX], fp[GS_NX];
-  for (int i = 0; i < GS_NX; ++i) xp[i] = x[i];
-  for (int j = 0; j < GS_NX; ++j) {
+  const int n = gs_nx;
+  double xp[n], fp[n];
+  for (int i = 0; i < n; ++i) xp[i] = x[i];
+  for (int j = 0; j < n; ++j) {
     double d = sqrt(GS_EPS) * fmax(fabs(x[j]), fmax(atol, 1e-8) * 1e3);
     xp[j] = x[j] + d;
     d = xp[j] - x[j];
     int rc = gs_eval_rhs(wk, t, xp, p, fp);
     xp[j] = x[j];
     if (rc) return rc;
-    for (int i = 0; i < GS_NX; ++i) J[i * GS_NX + j] = (fp[i] - f[i]) / d;
+    for (int i = 0; i < n; ++i) J[i * n + j] = (fp[i] - f[i]) / d;
   }
   return 0;
 }

@@ -1,66 +1,27 @@
 /* grasping_sym driver: dense LU factorisations (real and complex) with partial pivoting
- * of n x n matrices, n = GS_NX, for the Newton iteration of gs_radau5 (radau5.c). */
+ * of n x n matrices, for the Newton iteration of gs_radau5 (radau5.c). */
 #include "gs_internal.h"
 
-/* n = GS_NX is a compile-time constant (7 for paper2d): for n <= 8 the real routines'
- * loops are unrolled, and the real factorisation runs in 43 ns instead of 65 and a solve in
- * 20 instead of 44 (gcc 12, x86-64-v3); the arithmetic and its order are unchanged, so are
- * the results.  (Unrolling the complex routines or the solve's pivot loop measured no
- * faster.)  Up to n = 16 they used to be unrolled too; but gcc then takes 0.5 s for this
- * file at n = 14 (0.16 s without), in the background of a first build, and a planar model
- * with a generated Jacobian solves its reduced systems (radau5.c) instead of these. */
-#if defined(__GNUC__) && !defined(__clang__) && GS_NX <= 8
+/* The sizes n <= 8 (GS_LU_CASES) take copies of the routines compiled for that n (a switch
+ * on n): the real routines' loops are then unrolled, and the real factorisation runs in 43 ns
+ * instead of 65 and a solve in 20 instead of 44 (n = 7, gcc 12, x86-64-v3); the complex ones
+ * gain from the constant size alone (paper2d's reduced systems, 4 rows: 2.6 % faster runs).
+ * The arithmetic and its order are those of the loops for any n, so are the results.
+ * (Unrolling the complex routines or the solve's pivot loop measured no faster; unrolling
+ * up to n = 16 cost gcc 0.5 s for this file, and a planar model with a generated Jacobian
+ * solves its reduced systems, radau5.c, instead of the full ones.) */
+#define GS_LU_NAME(f) f
+#define GS_UNROLL
+#include "lu_real.h"
+#undef GS_LU_NAME
+#undef GS_UNROLL
+#define GS_LU_NAME(f) f##_unrolled
+#if defined(__GNUC__) && !defined(__clang__)
 #define GS_UNROLL _Pragma("GCC unroll 16")
 #else
 #define GS_UNROLL
 #endif
-
-/* LU with partial pivoting of the row-major n x n matrix A (in place).
- * Returns 0, or 1 if a pivot is exactly zero (singular). */
-static inline int lu_real(double* A, int* piv, const int n) {
-  GS_UNROLL for (int k = 0; k < n; ++k) {
-    int m = k;
-    double amax = fabs(A[k * n + k]);
-    GS_UNROLL for (int i = k + 1; i < n; ++i)
-      if (fabs(A[i * n + k]) > amax) amax = fabs(A[i * n + k]), m = i;
-    piv[k] = m;
-    if (amax == 0.0) return 1;
-    if (m != k)
-      GS_UNROLL for (int j = 0; j < n; ++j) {
-        double tmp = A[k * n + j];
-        A[k * n + j] = A[m * n + j];
-        A[m * n + j] = tmp;
-      }
-    const double inv = 1.0 / A[k * n + k];
-    GS_UNROLL for (int i = k + 1; i < n; ++i) {
-      const double l = (A[i * n + k] *= inv);
-      if (l != 0.0)
-        GS_UNROLL for (int j = k + 1; j < n; ++j) A[i * n + j] -= l * A[k * n + j];
-    }
-  }
-  return 0;
-}
-
-static inline void lu_solve_real(const double* LU, const int* piv, double* b, const int n) {
-  for (int k = 0; k < n; ++k) {
-    const int pk = piv[k];
-    if (pk > k && pk < n) {
-      double tmp = b[k];
-      b[k] = b[pk];
-      b[pk] = tmp;
-    }
-  }
-  GS_UNROLL for (int i = 1; i < n; ++i) {
-    double s = b[i];
-    GS_UNROLL for (int j = 0; j < i; ++j) s -= LU[i * n + j] * b[j];
-    b[i] = s;
-  }
-  GS_UNROLL for (int i = n - 1; i >= 0; --i) {
-    double s = b[i];
-    GS_UNROLL for (int j = i + 1; j < n; ++j) s -= LU[i * n + j] * b[j];
-    b[i] = s / LU[i * n + i];
-  }
-}
+#include "lu_real.h"
 
 /* LU with partial pivoting of the complex row-major n x n matrix (Ar + i Ai), in
  * place.  Complex arithmetic is written out in real and imaginary parts: C99
@@ -139,52 +100,39 @@ static inline void lu_solve_complex(const double* Ar, const double* Ai, const in
   }
 }
 
-/* The routines for n = GS_NX (inlined with the size known: the loops unroll as above), and
- * for a smaller size n <= GS_NX given at run time (gs_radau5's system reduced by its
- * second-order rows, radau5.c), on matrices stored with row stride n. */
-GS_HIDDEN int gs_lu_real(double* A, int* piv) { return lu_real(A, piv, GS_NX); }
-GS_HIDDEN void gs_lu_solve_real(const double* LU, const int* piv, double* b) {
-  lu_solve_real(LU, piv, b, GS_NX);
-}
-GS_HIDDEN int gs_lu_complex(double* Ar, double* Ai, int* piv) {
-  return lu_complex(Ar, Ai, piv, GS_NX);
-}
-GS_HIDDEN void gs_lu_solve_complex(const double* Ar, const double* Ai, const int* piv,
-                                   double* br, double* bi) {
-  lu_solve_complex(Ar, Ai, piv, br, bi, GS_NX);
-}
-/* GS_RADAU_M (codegen.library.second_order_rows): the second-order rows the model's Jacobian
- * has by its structure, so that the reduced size GS_NR = GS_NX - GS_RADAU_M is compiled as a
- * constant too when it is small (paper2d, 4 rows: 2.6 % faster runs than with the size a
- * variable); any other size, or a larger one (whose unrolled code costs gcc more time than
- * a first build can spare), takes the general loops. */
-#ifndef GS_RADAU_M
-#define GS_RADAU_M 0
-#endif
-#define GS_NR (GS_NX - GS_RADAU_M)
-#if GS_RADAU_M > 0 && GS_NR <= 5
-#define GS_NR_CONST 1
-#else
-#define GS_NR_CONST 0
-#endif
+/* The routines for a size n given at run time (gs_radau5's full system, n = nx, or its
+ * system reduced by the second-order rows, radau5.c), on matrices of row stride n. */
+#define GS_LU_CASES(CASE) CASE(1) CASE(2) CASE(3) CASE(4) CASE(5) CASE(6) CASE(7) CASE(8)
 GS_HIDDEN int gs_lu_real_n(double* A, int* piv, int n) {
-  if (GS_NR_CONST && n == GS_NR) return lu_real(A, piv, GS_NR);
-  return lu_real(A, piv, n);
+  switch (n) {
+#define GS_CASE(k) case k: return lu_real_unrolled(A, piv, k);
+    GS_LU_CASES(GS_CASE)
+#undef GS_CASE
+    default: return lu_real(A, piv, n);
+  }
 }
 GS_HIDDEN void gs_lu_solve_real_n(const double* LU, const int* piv, double* b, int n) {
-  if (GS_NR_CONST && n == GS_NR)
-    lu_solve_real(LU, piv, b, GS_NR);
-  else
-    lu_solve_real(LU, piv, b, n);
+  switch (n) {
+#define GS_CASE(k) case k: lu_solve_real_unrolled(LU, piv, b, k); return;
+    GS_LU_CASES(GS_CASE)
+#undef GS_CASE
+    default: lu_solve_real(LU, piv, b, n);
+  }
 }
 GS_HIDDEN int gs_lu_complex_n(double* Ar, double* Ai, int* piv, int n) {
-  if (GS_NR_CONST && n == GS_NR) return lu_complex(Ar, Ai, piv, GS_NR);
-  return lu_complex(Ar, Ai, piv, n);
+  switch (n) {
+#define GS_CASE(k) case k: return lu_complex(Ar, Ai, piv, k);
+    GS_LU_CASES(GS_CASE)
+#undef GS_CASE
+    default: return lu_complex(Ar, Ai, piv, n);
+  }
 }
 GS_HIDDEN void gs_lu_solve_complex_n(const double* Ar, const double* Ai, const int* piv,
                                      double* br, double* bi, int n) {
-  if (GS_NR_CONST && n == GS_NR)
-    lu_solve_complex(Ar, Ai, piv, br, bi, GS_NR);
-  else
-    lu_solve_complex(Ar, Ai, piv, br, bi, n);
+  switch (n) {
+#define GS_CASE(k) case k: lu_solve_complex(Ar, Ai, piv, br, bi, k); return;
+    GS_LU_CASES(GS_CASE)
+#undef GS_CASE
+    default: lu_solve_complex(Ar, Ai, piv, br, bi, n);
+  }
 }

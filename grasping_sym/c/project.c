@@ -53,19 +53,19 @@ static int gs_solve_small(int m, double* A, double* b) {
  * the residual's Jacobian.  Returns 1 when J_S J_S^T is singular. */
 static int gs_least_norm(double* x, const int* mask, int which, const double* J,
                          const double* r) {
-  enum { m = GS_NC };
+  const int m = gs_nc;
   double A[m * m], y[m];
   for (int a = 0; a < m; ++a) {
     y[a] = r[a];
     for (int b = 0; b <= a; ++b) {
       double s = 0.0;
-      for (int i = 0; i < GS_NX; ++i)
+      for (int i = 0; i < gs_nx; ++i)
         if (mask[i] == which) s += J[i * m + a] * J[i * m + b];
       A[a * m + b] = A[b * m + a] = s;
     }
   }
   if (gs_solve_small(m, A, y)) return 1;
-  for (int i = 0; i < GS_NX; ++i)
+  for (int i = 0; i < gs_nx; ++i)
     if (mask[i] == which) {
       double d = 0.0;
       for (int a = 0; a < m; ++a) d += J[i * m + a] * y[a];
@@ -79,13 +79,13 @@ static int gs_least_norm(double* x, const int* mask, int which, const double* J,
  * *changed (may be NULL) is set to 1 when x was modified. */
 GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const int* mask,
                                double tol, double* st, int* changed) {
-  double C[GS_NC], JC[GS_NC * GS_NX], Cd[GS_NC], JCd[GS_NC * GS_NX];
+  double C[gs_nc], JC[gs_nc * gs_nx], Cd[gs_nc], JCd[gs_nc * gs_nx];
   int rc;
   if (changed) *changed = 0;
   for (int it = 0;; ++it) { /* positions: Gauss-Newton on C(x) = 0 */
     if ((rc = gs_eval_con(wk, x, p, C, JC, Cd, JCd))) return rc;
     st[GS_ST_CON_EVALS] += 1;
-    const double r = gs_max_abs(C, GS_NC);
+    const double r = gs_max_abs(C, gs_nc);
     if (it == 0) st[GS_ST_DRIFT_C] = fmax(st[GS_ST_DRIFT_C], r);
     if (r <= tol) break;
     if (it == GS_PROJ_MAXIT || !isfinite(r) || gs_least_norm(x, mask, 1, JC, C)) {
@@ -98,7 +98,7 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
   /* velocities: Cdot is affine in them, Cdot = JCd v + b(q), so one least-norm step
    * zeroes it up to rounding (relative GS_EPS times the condition of JCd JCd^T, checked by
    * gs_solve_small's pivot test); it is not evaluated again. */
-  const double r = gs_max_abs(Cd, GS_NC);
+  const double r = gs_max_abs(Cd, gs_nc);
   st[GS_ST_DRIFT_CDOT] = fmax(st[GS_ST_DRIFT_CDOT], r);
   if (r <= tol) return 0;
   if (!isfinite(r) || gs_least_norm(x, mask, 2, JCd, Cd)) {

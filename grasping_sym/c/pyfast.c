@@ -4,8 +4,8 @@
  * library.  It exists because a ctypes call plus NumPy allocation costs a few
  * microseconds, while a METH_FASTCALL function costs a few hundred nanoseconds.
  *
- * Needs the same -D macros as driver.c (GS_NX, GS_NP, GS_HAS_OUT, GS_NY) and
- * the include directories of Python.h and numpy/arrayobject.h.  The module
+ * Needs the same -D macros as driver.c (GS_HAS_OUT), reads the model's sizes (gs_nx, gs_np,
+ * gs_ny, gs_driver.h) at run time, and needs the include directories of Python.h and numpy/arrayobject.h.  The module
  * uses multi-phase initialisation, so a rebuilt library loaded from the same
  * path is never served from CPython's single-phase extension cache.
  *
@@ -59,7 +59,10 @@ static PyObject* shape_str(PyArrayObject* a) {
   return s;
 }
 
-static void shape_error(const char* name, const char* expected, PyArrayObject* a) {
+/* expected: a shape, with %d for the model's size n (read at run time, gs_driver.h). */
+static void shape_error(const char* name, const char* expected_fmt, int n, PyArrayObject* a) {
+  char expected[96];
+  snprintf(expected, sizeof expected, expected_fmt, n);
   PyObject* got = shape_str(a);
   if (!got) return;
   PyErr_Format(PyExc_ValueError, "%s must have shape %s, got shape %U", name, expected, got);
@@ -104,20 +107,20 @@ static int parse_p(PyObject* obj, PyArrayObject** pa, const double** pp) {
   *pa = NULL;
   *pp = NULL;
   if (obj == Py_None) {
-    if (GS_NP == 0) return 0;
-    PyErr_SetString(PyExc_ValueError,
-                    "this model has np = " Py_STRINGIFY(GS_NP) " parameters: pass p of shape (" Py_STRINGIFY(GS_NP) ",)");
+    if (gs_np == 0) return 0;
+    PyErr_Format(PyExc_ValueError, "this model has np = %d parameters: pass p of shape (%d,)",
+                 gs_np, gs_np);
     return -1;
   }
   PyArrayObject* a = as_f64(obj);
   if (!a) return -1;
-  if (PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != GS_NP) {
-    shape_error("p", "(" Py_STRINGIFY(GS_NP) ",)", a);
+  if (PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != gs_np) {
+    shape_error("p", "(%d,)", gs_np, a);
     Py_DECREF(a);
     return -1;
   }
   *pa = a;
-  *pp = GS_NP ? (const double*)PyArray_DATA(a) : NULL;
+  *pp = gs_np ? (const double*)PyArray_DATA(a) : NULL;
   return 0;
 }
 
@@ -133,8 +136,8 @@ static PyObject* call_single(const char* fname, single_fn fn, npy_intp nout,
   PyArrayObject* p = NULL;
   const double* pp = NULL;
   PyObject* out = NULL;
-  if (PyArray_NDIM(x) != 1 || PyArray_DIM(x, 0) != GS_NX) {
-    shape_error("x", "(" Py_STRINGIFY(GS_NX) ",)", x);
+  if (PyArray_NDIM(x) != 1 || PyArray_DIM(x, 0) != gs_nx) {
+    shape_error("x", "(%d,)", gs_nx, x);
     goto done;
   }
   if (parse_p(po, &p, &pp)) goto done;
@@ -159,8 +162,8 @@ static PyObject* call_batch(const char* fname, batch_fn fn, npy_intp nout,
   PyArrayObject* p = NULL;
   const double* pp = NULL;
   PyObject* out = NULL;
-  if (PyArray_NDIM(X) != 2 || PyArray_DIM(X, 1) != GS_NX) {
-    shape_error("X", "(n, " Py_STRINGIFY(GS_NX) ")", X);
+  if (PyArray_NDIM(X) != 2 || PyArray_DIM(X, 1) != gs_nx) {
+    shape_error("X", "(n, %d)", gs_nx, X);
     goto done;
   }
   if (parse_p(po, &p, &pp)) goto done;
@@ -185,26 +188,26 @@ done:
 static PyObject* py_rhs(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
                         PyObject* kwnames) {
   (void)self;
-  return call_single("rhs", gs_rhs, GS_NX, args, nargs, kwnames);
+  return call_single("rhs", gs_rhs, gs_nx, args, nargs, kwnames);
 }
 
 static PyObject* py_rhs_batch(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
                         PyObject* kwnames) {
   (void)self;
-  return call_batch("rhs_batch", gs_rhs_batch, GS_NX, args, nargs, kwnames);
+  return call_batch("rhs_batch", gs_rhs_batch, gs_nx, args, nargs, kwnames);
 }
 
 #if GS_HAS_OUT
 static PyObject* py_outputs(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
                         PyObject* kwnames) {
   (void)self;
-  return call_single("outputs", gs_outputs, GS_NY, args, nargs, kwnames);
+  return call_single("outputs", gs_outputs, gs_ny, args, nargs, kwnames);
 }
 
 static PyObject* py_outputs_batch(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
                         PyObject* kwnames) {
   (void)self;
-  return call_batch("outputs_batch", gs_outputs_batch, GS_NY, args, nargs, kwnames);
+  return call_batch("outputs_batch", gs_outputs_batch, gs_ny, args, nargs, kwnames);
 }
 #endif
 
@@ -230,12 +233,13 @@ static int array_arg(PyObject* obj, const char* name, int type, int ndim2, npy_i
   }
   int ok;
   if (ndim2)
-    ok = PyArray_NDIM(a) == 2 && PyArray_DIM(a, 1) == GS_NX &&
+    ok = PyArray_NDIM(a) == 2 && PyArray_DIM(a, 1) == gs_nx &&
          (n >= 0 ? PyArray_DIM(a, 0) == n : PyArray_DIM(a, 0) >= -n);
   else
     ok = PyArray_NDIM(a) == 1 && (n < 0 || PyArray_DIM(a, 0) == n);
   if (!ok) {
-    shape_error(name, ndim2 ? "(rows, nx) with enough rows" : "(n,) of the model's size", a);
+    shape_error(name, ndim2 ? "(rows, %d) with enough rows" : "(n,) of the model's size", gs_nx,
+                a);
     return -1;
   }
   *ptr = PyArray_DATA(a);
@@ -266,11 +270,11 @@ static PyObject* py_adaptive(PyObject* self, PyObject* const* args, Py_ssize_t n
     PyErr_SetString(PyExc_ValueError, "adaptive(): t_out needs at least two times");
     return NULL;
   }
-  if (array_arg(args[2], "x0", NPY_DOUBLE, 0, GS_NX, 0, 0, &x0) ||
-      array_arg(args[3], "p", NPY_DOUBLE, 0, GS_NP, 0, GS_NP == 0, &p) ||
-      array_arg(args[9], "lo", NPY_DOUBLE, 0, GS_NX, 0, 1, &lo) ||
-      array_arg(args[10], "hi", NPY_DOUBLE, 0, GS_NX, 0, 1, &hi) ||
-      array_arg(args[11], "mask", NPY_INT32, 0, GS_NX, 0, 1, &mask) ||
+  if (array_arg(args[2], "x0", NPY_DOUBLE, 0, gs_nx, 0, 0, &x0) ||
+      array_arg(args[3], "p", NPY_DOUBLE, 0, gs_np, 0, gs_np == 0, &p) ||
+      array_arg(args[9], "lo", NPY_DOUBLE, 0, gs_nx, 0, 1, &lo) ||
+      array_arg(args[10], "hi", NPY_DOUBLE, 0, gs_nx, 0, 1, &hi) ||
+      array_arg(args[11], "mask", NPY_INT32, 0, gs_nx, 0, 1, &mask) ||
       array_arg(args[13], "out", NPY_DOUBLE, 1, -(m + 1), 1, 0, &out) ||
       array_arg(args[14], "stats", NPY_DOUBLE, 0, GS_NSTATS, 1, 0, &stats))
     return NULL;
@@ -313,9 +317,9 @@ static PyMethodDef gs_methods[] = {
 
 static int gs_exec(PyObject* m) {
   if (_import_array() < 0) return -1;
-  if (PyModule_AddIntConstant(m, "nx", GS_NX) < 0) return -1;
-  if (PyModule_AddIntConstant(m, "np", GS_NP) < 0) return -1;
-  if (PyModule_AddIntConstant(m, "ny", GS_HAS_OUT ? GS_NY : -1) < 0) return -1;
+  if (PyModule_AddIntConstant(m, "nx", gs_nx) < 0) return -1;
+  if (PyModule_AddIntConstant(m, "np", gs_np) < 0) return -1;
+  if (PyModule_AddIntConstant(m, "ny", GS_HAS_OUT ? gs_ny : -1) < 0) return -1;
   return 0;
 }
 

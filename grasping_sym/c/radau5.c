@@ -2,6 +2,7 @@
  * tuning defaults are in radau5.h, its Jacobian in jac.c, its LU factorisations in lu.c. */
 #include "gs_internal.h"
 #include "radau5.h"
+#include <stdlib.h>
 #ifdef GS_RADAU_DEBUG
 #include <stdio.h>
 #endif
@@ -24,21 +25,15 @@
  * our own; the constants are those of the reference.
  */
 
-/* Work storage of gs_radau5: a few n x n matrices, on the stack when small. */
+/* Work storage of gs_radau5: four n x n matrices (row-major) and two pivot vectors, in one
+ * block sized at run time (gs_radau5: on the stack when small, else on the heap). */
 typedef struct {
-  double J[GS_NX * GS_NX];           /* d f / d x, row-major                     */
-  double LUr[GS_NX * GS_NX];         /* LU of mu_real/h I - J (row-major)        */
-  double LUcr[GS_NX * GS_NX];        /* LU of mu_complex/h I - J (row-major), */
-  double LUci[GS_NX * GS_NX];        /* real and imaginary parts              */
-  int pr[GS_NX], pc[GS_NX];          /* row pivots                               */
+  double* J;         /* d f / d x                                               */
+  double* LUr;       /* LU of mu_real/h I - J                                   */
+  double* LUcr;      /* LU of mu_complex/h I - J, */
+  double* LUci;      /* real and imaginary parts  */
+  int *pr, *pc;      /* row pivots                                              */
 } gs_radau_mats;
-
-#define GS_RADAU_MATS_BYTES (8L * 4L * GS_NX * GS_NX + 8L * GS_NX)
-#if GS_RADAU_MATS_BYTES > GS_WORK_ON_STACK_MAX
-#define GS_DECLARE_MATS(name) static _Thread_local gs_radau_mats name##_storage; gs_radau_mats* name = &name##_storage
-#else
-#define GS_DECLARE_MATS(name) gs_radau_mats name##_storage; gs_radau_mats* name = &name##_storage
-#endif
 
 /*
  * Second-order rows (Hairer's RADAU5, IWORK(9) = M1 = IWORK(10) = M2, H&W IV.8): when the
@@ -51,8 +46,7 @@ typedef struct {
  * 4 instead of 7).  gs_radau5 reads m off every Jacobian it evaluates (0: none, the full
  * system; a finite-difference Jacobian is not exactly identity there).
  */
-static int gs_second_order_rows(const double* J) {
-  const int n = GS_NX;
+static int gs_second_order_rows(const double* J, const int n) {
   for (int m = n / 2; m > 0; --m) {
     int ok = 1;
     for (int i = 0; i < m && ok; ++i)
@@ -63,8 +57,9 @@ static int gs_second_order_rows(const double* J) {
 }
 
 /* The reduced matrices (row stride n - m) of mr I - J and (mcr + i mci) I - J, factored. */
-static int gs_radau_reduced_lu(gs_radau_mats* M, int m, double mr, double mcr, double mci) {
-  const int n = GS_NX, k = n - m;
+static int gs_radau_reduced_lu(gs_radau_mats* M, const int n, int m, double mr, double mcr,
+                               double mci) {
+  const int k = n - m;
   const double d = 1.0 / (mcr * mcr + mci * mci), ir = mcr * d, ii = -mci * d; /* 1 / mu */
   for (int a = 0; a < k; ++a)
     for (int b = 0; b < k; ++b) {
@@ -77,10 +72,10 @@ static int gs_radau_reduced_lu(gs_radau_mats* M, int m, double mr, double mcr, d
 }
 
 /* (mr I - J)^-1 b in place: the full LU (m = 0) or the reduced one. */
-static inline void gs_radau_solve_real(const gs_radau_mats* M, int m, double mr, double* b) {
-  const int n = GS_NX;
+static inline void gs_radau_solve_real(const gs_radau_mats* M, const int n, int m, double mr,
+                                       double* b) {
   if (!m) {
-    gs_lu_solve_real(M->LUr, M->pr, b);
+    gs_lu_solve_real_n(M->LUr, M->pr, b, n);
     return;
   }
   const double inv = 1.0 / mr;
@@ -94,11 +89,10 @@ static inline void gs_radau_solve_real(const gs_radau_mats* M, int m, double mr,
 }
 
 /* ((mcr + i mci) I - J)^-1 (br + i bi) in place. */
-static inline void gs_radau_solve_complex(const gs_radau_mats* M, int m, double mcr, double mci,
-                                          double* br, double* bi) {
-  const int n = GS_NX;
+static inline void gs_radau_solve_complex(const gs_radau_mats* M, const int n, int m, double mcr,
+                                          double mci, double* br, double* bi) {
   if (!m) {
-    gs_lu_solve_complex(M->LUcr, M->LUci, M->pc, br, bi);
+    gs_lu_solve_complex_n(M->LUcr, M->LUci, M->pc, br, bi, n);
     return;
   }
   const double d = 1.0 / (mcr * mcr + mci * mci), ir = mcr * d, ii = -mci * d;
@@ -175,13 +169,14 @@ static inline void gs_radau_solve_complex(const gs_radau_mats* M, int m, double 
  *   GS_ERR_MAXSTEPS  (-6)  max_steps steps were taken before the end,
  *   GS_ERR_PROJECT   (-7)  the projection failed.
  */
-GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const double* x0,
-                         const double* p, double rtol, double atol, double h0, long max_steps,
-                         const double* lo, const double* hi, const int* proj_mask,
-                         double proj_tol, double* out, double* stats, double* t_fail) {
-  enum { n = GS_NX, nit = GS_RADAU_NIT };
+static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double* t_out,
+                          const double* x0, const double* p, double rtol, double atol, double h0,
+                          long max_steps, const double* lo, const double* hi,
+                          const int* proj_mask, double proj_tol, double* out, double* stats,
+                          double* t_fail) {
+  const int n = gs_nx;
+  enum { nit = GS_RADAU_NIT };
   GS_DECLARE_WORK(wk);
-  GS_DECLARE_MATS(M);
   double y[n], f[n], ynew[n], fnew[n], scale[n], tmp[n], err[n], ze[n];
   double Z[3][n], W[3][n], F[3][n], dW[3][n], Q[n][3], yold[n];
   double st[GS_NSTATS] = {0};
@@ -248,7 +243,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
         yj = tmp;
       }
 #if GS_HAS_JAC
-      if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J))) goto fail;
+      if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J, M->LUr))) goto fail; /* LUr: scratch */
 #else
       if (yj != y) {
         if ((rc = gs_eval_rhs(wk, &tj, yj, p, fnew))) goto fail;
@@ -260,7 +255,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
       st[2] += n;
 #endif
       st[3] += 1;
-      m2 = gs_second_order_rows(M->J);
+      m2 = gs_second_order_rows(M->J, n);
       st[GS_ST_REDUCED] = m2;
       need_jac = 0;
       caljac = 1;
@@ -276,7 +271,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
     const double mcr = GS_MU_CRE / h, mci = GS_MU_CIM / h;
     if (!lu_valid && m2) {
       st[4] += 2;
-      if (gs_radau_reduced_lu(M, m2, mr, mcr, mci)) {
+      if (gs_radau_reduced_lu(M, n, m2, mr, mcr, mci)) {
         if (++nsing >= 5) {
           rc = GS_ERR_STEP;
           goto fail;
@@ -297,7 +292,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
         M->LUci[i * n + i] = mci;
       }
       st[4] += 2;
-      if (gs_lu_real(M->LUr, M->pr) || gs_lu_complex(M->LUcr, M->LUci, M->pc)) {
+      if (gs_lu_real_n(M->LUr, M->pr, n) || gs_lu_complex_n(M->LUcr, M->LUci, M->pc, n)) {
         if (++nsing >= 5) {
           rc = GS_ERR_STEP;
           goto fail;
@@ -335,7 +330,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
         if (newt >= nit) goto unexpected;
         int finite = 1;
         {
-          double ts[3], ys[3][GS_NX];
+          double ts[3], ys[3][n];
           for (int s = 0; s < 3; ++s) {
             ts[s] = t + h * gs_rd_C[s];
             for (int i = 0; i < n; ++i) ys[s][i] = y[i] + Z[s][i];
@@ -358,8 +353,8 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
           dW[1][i] = re - (mcr * W[1][i] - mci * W[2][i]);
           dW[2][i] = im - (mcr * W[2][i] + mci * W[1][i]);
         }
-        gs_radau_solve_real(M, m2, mr, dW[0]);
-        gs_radau_solve_complex(M, m2, mcr, mci, dW[1], dW[2]);
+        gs_radau_solve_real(M, n, m2, mr, dW[0]);
+        gs_radau_solve_complex(M, n, m2, mcr, mci, dW[1], dW[2]);
         ++newt;
         const double dyno = gs_rms(&dW[0][0], scale, 3 * n);
         if (newt > 1 && newt < nit) {
@@ -397,7 +392,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
             ze[i] = (gs_rd_E[0] * Z[0][i] + gs_rd_E[1] * Z[1][i] + gs_rd_E[2] * Z[2][i]) / h;
             err[i] = f[i] + ze[i];
           }
-          gs_radau_solve_real(M, m2, mr, err);
+          gs_radau_solve_real(M, n, m2, mr, err);
           for (int i = 0; i < n; ++i) scale[i] = atol + fmax(fabs(y[i]), fabs(ynew[i])) * rtol;
           double err_norm = gs_rms(err, scale, n);
           if (!(err_norm < 1.0) && (first || reject)) {
@@ -405,7 +400,7 @@ GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const doubl
             if ((rc = gs_eval_rhs(wk, &t, tmp, p, fnew))) goto fail;
             st[2] += 1;
             for (int i = 0; i < n; ++i) err[i] = fnew[i] + ze[i];
-            gs_radau_solve_real(M, m2, mr, err);
+            gs_radau_solve_real(M, n, m2, mr, err);
             err_norm = gs_rms(err, scale, n);
           }
           if (!isfinite(err_norm)) goto unexpected;
@@ -524,4 +519,23 @@ done:
 
 fail:
   return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, ynew);
+}
+
+/* gs_radau5's matrices: on the stack up to GS_WORK_ON_STACK_MAX bytes, on the heap above
+ * (n > 90 with the default): no size is too large but for the memory. */
+GS_EXPORT long gs_radau5(double t0, long n_out, const double* t_out, const double* x0,
+                         const double* p, double rtol, double atol, double h0, long max_steps,
+                         const double* lo, const double* hi, const int* proj_mask,
+                         double proj_tol, double* out, double* stats, double* t_fail) {
+  const size_t n = (size_t)gs_nx, doubles = 4 * n * n;
+  const int small = doubles * sizeof(double) <= (size_t)GS_WORK_ON_STACK_MAX;
+  double on_stack[small ? doubles : 1];
+  int piv[2 * n];
+  double* block = small ? on_stack : malloc(doubles * sizeof(double));
+  if (!block) return GS_ERR_ARGS; /* out of memory: nothing written */
+  gs_radau_mats M = {block, block + n * n, block + 2 * n * n, block + 3 * n * n, piv, piv + n};
+  const long rc = gs_radau5_run(&M, t0, n_out, t_out, x0, p, rtol, atol, h0, max_steps, lo, hi,
+                                proj_mask, proj_tol, out, stats, t_fail);
+  if (!small) free(block);
+  return rc;
 }

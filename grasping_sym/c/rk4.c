@@ -34,7 +34,7 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
                       const int* proj_mask, double proj_tol, double* out, double* stats,
                       double* t_fail) {
   GS_DECLARE_WORK(wk);
-  double x[GS_NX], xn[GS_NX], xs[GS_NX], k1[GS_NX], k2[GS_NX], k3[GS_NX], k4[GS_NX];
+  double x[gs_nx], xn[gs_nx], xs[gs_nx], k1[gs_nx], k2[gs_nx], k3[gs_nx], k4[gs_nx];
   double ts;
   double st[GS_NSTATS] = {0};
   long row = 1;
@@ -44,7 +44,7 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
       !gs_proj_args_ok(proj_mask, proj_tol))
     return GS_ERR_ARGS;
   gs_stop_reset();
-  for (int i = 0; i < GS_NX; ++i) {
+  for (int i = 0; i < gs_nx; ++i) {
     x[i] = out[i] = x0[i];
     xn[i] = NAN; /* reported as the rejected state if the very first evaluation fails */
   }
@@ -56,33 +56,33 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
       goto fail;
     }
     if ((rc = gs_eval_rhs(wk, &t, x, p, k1))) goto fail;
-    for (int i = 0; i < GS_NX; ++i) xs[i] = x[i] + 0.5 * h * k1[i];
+    for (int i = 0; i < gs_nx; ++i) xs[i] = x[i] + 0.5 * h * k1[i];
     ts = t + 0.5 * h;
     if ((rc = gs_eval_rhs(wk, &ts, xs, p, k2))) goto fail;
-    for (int i = 0; i < GS_NX; ++i) xs[i] = x[i] + 0.5 * h * k2[i];
+    for (int i = 0; i < gs_nx; ++i) xs[i] = x[i] + 0.5 * h * k2[i];
     if ((rc = gs_eval_rhs(wk, &ts, xs, p, k3))) goto fail;
-    for (int i = 0; i < GS_NX; ++i) xs[i] = x[i] + h * k3[i];
+    for (int i = 0; i < gs_nx; ++i) xs[i] = x[i] + h * k3[i];
     ts = t + h;
     if ((rc = gs_eval_rhs(wk, &ts, xs, p, k4))) goto fail;
-    for (int i = 0; i < GS_NX; ++i)
+    for (int i = 0; i < gs_nx; ++i)
       xn[i] = x[i] + (h / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
     st[GS_ST_RHS] += 4;
     if ((rc = gs_check(xn, lo, hi))) goto fail;
     GS_PROJECT_STEP(xn, NULL);
     st[GS_ST_STEPS] += 1;
-    for (int i = 0; i < GS_NX; ++i) x[i] = xn[i];
+    for (int i = 0; i < gs_nx; ++i) x[i] = xn[i];
     if ((k + 1) % stride == 0) {
-      for (int i = 0; i < GS_NX; ++i) out[row * GS_NX + i] = x[i];
+      for (int i = 0; i < gs_nx; ++i) out[row * gs_nx + i] = x[i];
       ++row;
     }
     continue;
   fail:
     if (t_fail) *t_fail = t;
     {
-      double* r = out + (k / stride + 1) * GS_NX;
-      for (int i = 0; i < GS_NX; ++i) {
+      double* r = out + (k / stride + 1) * gs_nx;
+      for (int i = 0; i < gs_nx; ++i) {
         r[i] = x[i];
-        r[GS_NX + i] = xn[i];
+        r[gs_nx + i] = xn[i];
       }
     }
     if (stats)

@@ -58,9 +58,11 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
     -------
     dict
         ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_HAS_JAC, [GS_JAC,
-        GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK, GS_RADAU_M,] GS_HAS_CON, [GS_CON, GS_NC,]
+        GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_HAS_CON, [GS_CON, GS_NC,]
         GS_HAS_RHS_LANES, [GS_RHS_LANES,] GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes
-        are maxima over all the functions given.
+        are maxima over all the functions given. The sizes (``GS_NX``, ``GS_NP``, ``GS_NY``,
+        ``GS_NC``) are not compiled into the driver: the library's link file defines them for
+        it to read at run time (``objects.links_c``).
     """
     fns = [rhs_fn] + [f for f in (outputs_fn, jac_fn, constraints_fn) if f is not None]
     defines: dict[str, str | int] = {
@@ -91,8 +93,7 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
                 f"{names_in}, outputs {names_out[:3]}..."
             )
         defines.update({"GS_JAC": jac_fn.name(), "GS_JAC_NIN": int(jac_fn.n_in()),
-                        "GS_JAC_NOUT": int(jac_fn.n_out()), "GS_JAC_BLOCK": int(block),
-                        "GS_RADAU_M": second_order_rows(jac_fn.sparsity_out(block))})
+                        "GS_JAC_NOUT": int(jac_fn.n_out()), "GS_JAC_BLOCK": int(block)})
     defines["GS_HAS_CON"] = int(constraints_fn is not None)
     if constraints_fn is not None:
         nx, nc = defines["GS_NX"], int(constraints_fn.numel_out(0))
@@ -115,22 +116,6 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
     return defines
 
 
-def second_order_rows(jac_sparsity) -> int:
-    """The largest ``m <= nx / 2`` such that the Jacobian's rows ``i < m`` have one structural
-    entry each, at column ``i + m`` (``x_i' = x_{i+m}``: positions, then their speeds); 0 if
-    none. ``gs_radau5`` then expects to solve its linear systems on the other ``nx - m`` rows
-    and is compiled for that size (``GS_RADAU_M``; it still checks every Jacobian's values,
-    ``c/radau5.c``)."""
-    n = jac_sparsity.size1()
-    rows: list[set[int]] = [set() for _ in range(n)]
-    for r, c in zip(*jac_sparsity.get_triplet()):
-        rows[r].add(c)
-    for m in range(n // 2, 0, -1):
-        if all(rows[i] == {i + m} for i in range(m)):
-            return m
-    return 0
-
-
 def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
     """The driver's macros for a model's functions (``functions.CasadiModel``) with ``n_p``
     parameters, and a 4-lane rhs when ``lanes``. A law that reads the time gives outputs that
@@ -148,30 +133,28 @@ def outputs_read_time(cm, n_p: int) -> bool:
     return cm.outputs is not None and cm.outputs.nnz_in(1) == n_p + 1
 
 
-def predicted_defines(nx: int, np_: int, ny: int, nc: int, *, jac: bool,
-                      lanes: bool, second_order: int = 0) -> dict[str, str | int]:
-    """The driver's macros of a model with ``nx`` states, ``np_`` parameters, ``ny`` outputs
-    the driver calls (0: none), ``nc`` constraints, a generated Jacobian or not and a 4-lane
-    rhs or not, and ``second_order`` positions whose rates are the speeds after them
-    (``second_order_rows``), before its functions exist: ``driver_defines`` of stand-in
-    functions of these sizes. The work sizes are the stand-ins', below what ``objects.object_defines`` rounds
-    every size up to, so the objects are the model's whenever its own work sizes are too."""
+def predicted_defines(*, outputs: bool, constraints: bool, jac: bool,
+                      lanes: bool) -> dict[str, str | int]:
+    """The driver's macros of a model with outputs the driver calls or not, constraints or
+    not, a generated Jacobian or not and a 4-lane rhs or not, before its functions exist:
+    ``driver_defines`` of stand-in functions (2 states, 1 parameter, 1 output, 1 constraint).
+    The driver's objects depend on these features alone (``objects.object_defines`` leaves
+    the sizes out), and on the work sizes, which are the stand-ins', below what
+    ``object_defines`` rounds every size up to: the objects are the model's whenever its own
+    work sizes are too."""
     import casadi as ca  # noqa: PLC0415
 
     from grasping_sym.emit.lanes import lanes_symbol  # noqa: PLC0415
 
-    x, p = ca.SX.sym("x", nx), ca.SX.sym("p", np_)
+    x, p = ca.SX.sym("x", 2), ca.SX.sym("p", 1)
     none = ca.SX(0, 1)
-    m = second_order
-    ode = ca.vertcat(x[m:2 * m], x[m:]) if m else x  # rows i < m: x_{i+m}
     rhs = ca.Function("m_rhs", [ca.SX.sym("t"), x, ca.SX.sym("z", 0), p, ca.SX.sym("u", 0)],
-                      [ode, none, none, none], ca.dyn_in(), ca.dyn_out())
-    outputs = ca.Function("m_outputs", [x, p], [ca.SX.zeros(ny)]) if ny else None
-    dense = ca.densify(ca.SX.zeros(nc, nx))
-    constraints = ca.Function("m_constraints", [x, p], [ca.SX.zeros(nc), dense, ca.SX.zeros(nc),
-                                                      dense]) if nc else None
-    return driver_defines(rhs, outputs, jac_fn=rhs.jacobian() if jac else None,
-                          constraints_fn=constraints,
+                      [x, none, none, none], ca.dyn_in(), ca.dyn_out())
+    out = ca.Function("m_outputs", [x, p], [ca.SX.zeros(1)]) if outputs else None
+    dense = ca.densify(ca.SX.zeros(1, 2))
+    con = ca.Function("m_constraints", [x, p], [ca.SX.zeros(1), dense, ca.SX.zeros(1), dense]
+                      ) if constraints else None
+    return driver_defines(rhs, out, jac_fn=rhs.jacobian() if jac else None, constraints_fn=con,
                           rhs_lanes=lanes_symbol(rhs) if lanes else None)
 
 
@@ -237,9 +220,9 @@ def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True,
 
     ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
     committed C file compiles without the CasADi functions at hand). The driver's objects
-    come from the runtime layer's cache (``codegen.objects``: compiled once per set of
-    sizes); only the model's C and a file forwarding the driver's names to the model's
-    functions are compiled here; ``objects`` (a structure's, ``codegen.structure_cache``)
+    come from the object cache (``toolchain.objects``: compiled once per set of features,
+    whatever the sizes); only the model's C and a file giving the driver the model's sizes
+    and forwarding its names to the model's functions are compiled here; ``objects`` (a structure's, ``codegen.structure_cache``)
     are linked in too.
     """
     generated = [Path(c) for c in casadi_c] if isinstance(casadi_c, (list, tuple)) else [Path(casadi_c)]

@@ -1,14 +1,16 @@
 """The runtime layer: the hand-written C driver compiled once into object files that every
-model library with the same sizes links.
+model library with the same features links, whatever its sizes.
 
-The driver (``c/driver.c`` and the files beside it) is configured by preprocessor macros
-(``library.driver_defines``).  Most of them are sizes of the model (states, parameters,
-outputs, constraints); the others name the model's CasADi functions.  Here the names are
-replaced by fixed ones (``gs_model_rhs``, ...), which a two-line file per library
-(:func:`links_c`) forwards to the model's functions, and CasADi's work sizes are rounded up
-to a power of two; the driver's objects then depend on the model's structure alone and are
-compiled once, into ``<cache root>/objects/driver-<hash16>/``.  A new shape, start or name
-on a known structure compiles only its own C.
+A model's driver macros (``library.driver_defines``) hold its sizes (states, parameters,
+outputs, constraints), the names of its CasADi functions, its features (outputs, Jacobian,
+constraints, 4-lane rhs) and CasADi's work sizes.  The driver's objects are compiled with the
+features alone: the names are replaced by fixed ones (``gs_model_rhs``, ...) and the sizes
+left out, and a small file per library (:func:`links_c`, compiled with the model's own C)
+forwards the fixed names to the model's functions and defines the sizes the driver reads at
+run time (``gs_nx``, ... in ``c/gs_driver.h``); CasADi's work sizes are rounded up to a power
+of two. The objects are compiled once per set of features, into
+``<cache root>/objects/driver-<hash16>/``: a model of a new size, shape, start or name
+compiles only its own C.
 
 The hash covers the driver's C text, the macros, every compile flag (instruction set
 included), the compiler's version and, for the CPython front end, the include directories
@@ -37,17 +39,19 @@ from grasping_sym.toolchain.compiler import (
     isa_flags,
 )
 
-__all__ = ["ALIASES", "cached_objects", "driver_objects", "flags_digest", "links_c",
+__all__ = ["ALIASES", "SIZES", "cached_objects", "driver_objects", "flags_digest", "links_c",
            "object_defines", "prefetch_driver_objects"]
 
+#: The model's sizes among the driver's macros, and the run-time variable each one defines in
+#: the link file (``c/gs_driver.h``); the driver's objects are compiled without them.
+SIZES: dict[str, str] = {"GS_NX": "gs_nx", "GS_NP": "gs_np", "GS_NY": "gs_ny", "GS_NC": "gs_nc"}
 #: The driver's macros that name a model function, and the fixed name each one gets.
 ALIASES: dict[str, str] = {
     "GS_RHS": "gs_model_rhs", "GS_OUT": "gs_model_outputs", "GS_JAC": "gs_model_jac",
     "GS_CON": "gs_model_constraints", "GS_RHS_LANES": "gs_model_rhs_lanes",
 }
 #: The work sizes and the least each is rounded up to: most models' sizes are below these, so
-#: that their driver objects depend on the model's dimensions alone, which a build knows
-#: before it derives anything (``prefetch_driver_objects``). Unused stack costs nothing.
+#: that their driver objects depend on the model's features alone. Unused stack costs nothing.
 _WORK_SIZES = {"GS_SZ_ARG": 64, "GS_SZ_RES": 64, "GS_SZ_IW": 64, "GS_SZ_W": 4096}
 _CASADI_SIG = "(const double** arg, double** res, long long int* iw, double* w, int mem)"
 _LANES_SIG = "(const double* t, const double* const* x, const double* p, double* const* xdot)"
@@ -60,8 +64,9 @@ def _bucket(n: int, least: int) -> int:
 
 def object_defines(defines: Mapping[str, str | int]) -> dict[str, str | int]:
     """The macros the driver's objects are compiled with: function names replaced by
-    :data:`ALIASES`, work sizes rounded up to powers of two (at least ``_WORK_SIZES``')."""
-    out = dict(defines)
+    :data:`ALIASES`, the sizes (:data:`SIZES`) left out (``links_c`` defines them), work sizes
+    rounded up to powers of two (at least ``_WORK_SIZES``')."""
+    out = {k: v for k, v in defines.items() if k not in SIZES}
     for k, alias in ALIASES.items():
         if k in out:
             out[k] = alias
@@ -72,8 +77,14 @@ def object_defines(defines: Mapping[str, str | int]) -> dict[str, str | int]:
 
 def links_c(defines: Mapping[str, str | int]) -> str:
     """C source forwarding each fixed name of :data:`ALIASES` to the model's function (and,
-    for the Jacobian, its sparsity pattern), for the functions ``defines`` names."""
-    lines = ["/* grasping_sym: the driver's fixed names -> this model's functions (codegen.objects) */"]
+    for the Jacobian, its sparsity pattern), for the functions ``defines`` names, and defining
+    the model's sizes the driver reads (:data:`SIZES`; outputs and constraints 0 when the
+    driver has none)."""
+    has = {"GS_NY": bool(defines.get("GS_HAS_OUT")), "GS_NC": bool(defines.get("GS_HAS_CON"))}
+    lines = ["/* grasping_sym: this model's sizes and functions, for the driver (toolchain.objects) */"]
+    for k, var in SIZES.items():
+        value = int(defines[k]) if has.get(k, True) else 0
+        lines.append(f'__attribute__((visibility("hidden"))) const int {var} = {value};')
     for k, alias in ALIASES.items():
         if k not in defines:
             continue
