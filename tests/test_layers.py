@@ -8,6 +8,7 @@ conditions with their Jacobians. Then: shapes on one structure share its compile
 """
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -62,11 +63,11 @@ def test_layered_functions_equal_the_single_piece_composition(make):
     scene = make()
     model = gs.build(scene)
     assert "structure" in model.manifest
-    meta, _ = structure_cache.locate(model.manifest["structure"])
-    split = "jac2" in meta["functions"]
+    record, _ = structure_cache.locate(model.manifest["structure"])
+    split = "jac2" in record.functions
     assert split == (scene.n_fingers > 1)  # one finger's Jacobian is small enough to stay whole
     # the parts of a split Jacobian are compiled quick, each in its own file
-    assert meta["quick_files"] == ([f"{meta['name']}_{k}.c" for k in (2, 3)] if split else [])
+    assert record.quick_files == (tuple(f"{record.name}_{k}.c" for k in (2, 3)) if split else ())
     one = _single_piece(scene)
     lib = str(model.library_path)
     ext = {k: ca.external(f"{scene.name}_{k}", lib) for k in ("rhs", "outputs", "constraints",
@@ -117,6 +118,38 @@ def test_shapes_on_one_structure_share_its_compiled_code():
     assert not np.array_equal(a.rhs(x), b.rhs(x, b.params()))  # the radius is in the shape's C
     ra, rb = a.simulate(0.5, method="radau"), b.simulate(0.5, method="radau")
     assert np.all(np.isfinite(ra.x)) and np.all(np.isfinite(rb.x))
+
+
+def test_structure_records_read_and_write_the_committed_files_unchanged(tmp_path):
+    """``structure.json`` of every committed structure (2D and 3D) is read into a typed
+    record (slots, what each function reads) and written back as the same bytes; a record
+    lacking a field is refused by name."""
+    from grasping_sym.assemble.structure import CONTOUR_LEAVES, SURFACE_JETS
+    from grasping_sym.store import files as stored
+    from grasping_sym.store import safety
+    from grasping_sym.store.paths import generated_dir
+
+    paths = sorted((generated_dir() / structure_cache.DIR).glob(f"*/{structure_cache.META}"))
+    layouts = set()
+    for path in paths:
+        record = structure_cache.StructureRecord.from_json(json.loads(path.read_text()))
+        layouts.add(record.layout)
+        assert record.name == path.parent.name
+        assert all(set(by_input) <= {"L", "dL", "tau", "J"} for by_input in record.reads.values())
+        if record.layout is CONTOUR_LEAVES:
+            assert all(len(slot.states) == 1 for slot in record.slots)
+        else:
+            assert all(len(slot.states) == 2 and slot.entries == tuple(range(len(slot.entries)))
+                       for slot in record.slots)
+            assert set(record.reads["rhs"]) == {"J"}
+        copy = stored.write_json(tmp_path / f"{record.name}.json", record.to_json())
+        assert copy.read_bytes() == path.read_bytes(), path
+        assert record["files"] == record.files
+    assert layouts == {CONTOUR_LEAVES, SURFACE_JETS}
+    data = json.loads(paths[0].read_text())
+    del data["slots"]
+    with pytest.raises(safety.CorruptCacheError, match="slots"):
+        structure_cache.StructureRecord.from_json(data)
 
 
 def test_unit_speed_leaves_are_folded_into_the_structure():

@@ -229,8 +229,8 @@ def test_model_contains_only_what_the_scene_needs(tmp_path):
     def c_text(d, m):
         """The model's C and its structure's."""
         text = "".join((tmp_path / d / f).read_text() for f in m["files"] if f.endswith(".c"))
-        meta, sdir = structure_cache.locate(m["structure"])
-        return text + "".join((sdir / f).read_text() for f in meta["files"] if f.endswith(".c"))
+        record, sdir = structure_cache.locate(m["structure"])
+        return text + "".join((sdir / f).read_text() for f in record.files if f.endswith(".c"))
 
     assert "9.81" in c_text("g", full)
     assert "9.81" not in c_text("h", flat)

@@ -1,18 +1,25 @@
-"""A model in layers: its shape's own small C, calling a compiled structure (2D: the
-contours; 3D: the surfaces' jets, :func:`jets_functions`).
+"""A model in layers: its scene's own small C, calling a compiled structure.
 
-The structure (``codegen.structure``, compiled once and cached by ``codegen.structure_cache``)
-is loaded through ``casadi.external``; the model's functions are CasADi MX functions that
-evaluate the contours at the contact (``<name>_contours_<kind>``: the leaves ``L`` and their
-derivatives ``dL`` that the structure's function of that kind reads) and call the
-structure's. CasADi
-writes their C with calls to the structure's symbols, which the model library links from the
+The structure (``assemble.structure``, ``assemble.structure3d``; compiled once and cached by
+``assemble.structure_cache``) is loaded through ``casadi.external``; the model's functions are
+CasADi MX functions that evaluate the scene's own values at the contact slots and call the
+structure's. Those values come from one SX function per kind of structure function,
+``<name>_<what>_<kind>``, cut to the entries that function reads (its record's ``reads``):
+
+- 2D, ``contours`` (:func:`contour_functions`): the contour leaves ``L`` and their derivatives
+  ``dL`` along the contact parameters;
+- 3D, ``jets`` (:func:`jets_functions`): the surfaces' jets ``J``.
+
+:func:`compose_layered` composes either: the two differ only in data, the structure's
+``Layout`` (how its functions take the values and the controller's torques). CasADi writes
+the model's C with calls to the structure's symbols, which the model library links from the
 structure's objects: a new shape compiles only this small file.
 
 The functions keep the names and signatures of a single-piece model (``functions.sx_model``):
 ``<name>_rhs`` with CasADi's DAE signature, ``jac_<name>_rhs`` with the signature of
-``Function.jacobian()`` (so that ``casadi.external`` and CVODES use it), ``<name>_outputs``,
-``<name>_constraints`` and ``<name>_start``.
+``Function.jacobian()`` (so that ``casadi.external`` and CVODES use it; 2D only, the 3D
+integrators difference the rhs), ``<name>_outputs``, ``<name>_constraints`` and
+``<name>_start``.
 """
 from __future__ import annotations
 
@@ -20,13 +27,19 @@ import casadi as ca
 
 from grasping_sym.assemble.controller import outputs_p
 from grasping_sym.assemble.functions import FUNCTION_OPTIONS, _families
+from grasping_sym.assemble.structure import CONTOUR_LEAVES, SURFACE_JETS, Slot
+from grasping_sym.assemble.structure3d import jet_values
+from grasping_sym.assemble.structure_cache import StructureRecord
+from grasping_sym.derive.grasp3d import surface_sx
 from grasping_sym.emit import lanes
 from grasping_sym.emit.casadi_model import CasadiModel
 from grasping_sym.geometry.curves import T
 from grasping_sym.symbolic.contour_functions import leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi
 
-__all__ = ["compose_layered", "contour_functions", "contour_leaves", "lanes_glue"]
+__all__ = ["compose_layered", "contour_functions", "contour_leaves", "jets_functions", "lanes_glue"]
+
+Reads = dict[str, dict[str, tuple[int, ...]]]
 
 
 def contour_leaves(curves, n_contacts: int) -> list[list]:
@@ -40,31 +53,50 @@ def contour_leaves(curves, n_contacts: int) -> list[list]:
     return out
 
 
-def contour_functions(leaves: list[list], slots, nx: int, name: str,
-                      entries: dict[str, dict[str, list[int]]]) -> dict[str, ca.Function]:
-    """Per function kind of the structure, ``<name>_contours_<kind> (x) -> (L, [dL])``: the
-    contour leaves (``slots``: per slot its state index and leaf indices) and their
-    derivatives along their contact parameters that the structure's function of that kind
-    reads (``entries[kind]``: indices into ``L`` and ``dL``). Kinds that read the same
-    entries share one function."""
+def contour_functions(leaves: list[list], slots: tuple[Slot, ...], reads: Reads, nx: int,
+                      name: str) -> dict[str, ca.Function]:
+    """Per function kind of a planar structure, ``<name>_contours_<kind> (x) -> (L, [dL])``:
+    the contour leaves (``leaves``, :func:`contour_leaves`; of each slot those it takes) and
+    their derivatives along their contact parameters that the structure's function of that
+    kind reads (``reads[kind]``: indices into ``L`` and ``dL``)."""
     x = ca.SX.sym("x", nx)
     L, dL = [], []
-    for exprs, (i, kept) in zip(leaves, slots):
+    for exprs, slot in zip(leaves, slots):
+        (i,) = slot.states
         tr = SympyToCasadi({T: x[i]})
-        for k in kept:
+        for k in slot.entries:
             value = tr(exprs[k])
             L.append(value)
             dL.append(ca.jacobian(value, x[i]))
+    return _by_kind(x, {"L": L, "dL": dL}, reads, f"{name}_{CONTOUR_LEAVES.what}")
+
+
+def jets_functions(surfaces, slots: tuple[Slot, ...], reads: Reads, nx: int, name: str
+                   ) -> dict[str, ca.Function]:
+    """Per function kind of a 3D structure, ``<name>_jets_<kind> (x) -> J``: the entries of
+    the contour slots' jets (``structure3d.jet_values``; slot ``s`` of surface ``surfaces[s]``
+    at its states ``u, v``) that the structure's function of that kind reads
+    (``reads[kind]["J"]``)."""
+    x = ca.SX.sym("x", nx)
+    jets = []
+    for surface, slot in zip(surfaces, slots):
+        u, v = (x[i] for i in slot.states)
+        jets.append(jet_values(surface_sx(surface, u, v), u, v))
+    return _by_kind(x, {"J": ca.vertcat(*jets)}, reads, f"{name}_{SURFACE_JETS.what}")
+
+
+def _by_kind(x: ca.SX, values: dict, reads: Reads, prefix: str) -> dict[str, ca.Function]:
+    """Per function kind, ``<prefix>_<kind> (x) ->`` the entries of each of ``values`` (by
+    input name) that kind reads; kinds that read the same entries share one function."""
     out, made = {}, {}
-    for kind, idx in entries.items():
-        idx = {k: v for k, v in idx.items() if k in ("L", "dL")}
-        key = tuple((k, tuple(v)) for k, v in idx.items())
+    for kind, by_input in reads.items():
+        names = [n for n in by_input if n in values]
+        key = tuple((n, tuple(by_input[n])) for n in names)
         if key not in made:
-            parts = {"L": [L[i] for i in idx["L"]], "dL": [dL[i] for i in idx.get("dL", [])]}
-            names = ["L", "dL"] if "dL" in idx else ["L"]
-            made[key] = ca.Function(f"{name}_contours_{kind}", [x],
-                                    [ca.vertcat(*parts[n]) if parts[n] else ca.SX(0, 1)
-                                     for n in names], ["x"], names, FUNCTION_OPTIONS)
+            made[key] = ca.Function(
+                f"{prefix}_{kind}", [x],
+                [ca.vertcat(*[values[n][i] for i in by_input[n]]) if by_input[n] else ca.SX(0, 1)
+                 for n in names], ["x"], names, FUNCTION_OPTIONS)
         out[kind] = made[key]
     return out
 
@@ -82,41 +114,93 @@ def _jacobian_layout(nx: int, np_: int):
     return ins, outs
 
 
-def compose_layered(structure: dict[str, ca.Function], meta: dict,
-                    contours: dict[str, ca.Function], nx: int, np_: int, name: str,
+def compose_layered(structure: dict[str, ca.Function], record: StructureRecord,
+                    own: dict[str, ca.Function], nx: int, np_: int, name: str,
                     ctrl, n_structure_p: int) -> CasadiModel:
-    """The model's MX functions over the structure's ``external`` functions (keys ``rhs``,
-    ``jac``, ``outputs``, ``constraints``, ``start``), the model's contour functions
-    (:func:`contour_functions`, one per kind) and its controller (``codegen.controller``:
-    ``ctrl.function (t, x, p) -> tau``). The structure reads the first ``n_structure_p`` entries of ``p``
-    (the run-time parameters and the start's values; the inputs' coefficients reach it
-    through ``tau``)."""
+    """The model's MX functions over the structure's ``external`` functions (by kind:
+    ``rhs``, ``jac`` and ``jac2`` if any, ``outputs``, ``constraints``, ``start`` if any;
+    ``record`` its record), the model's own functions of its contact values by kind
+    (:func:`contour_functions` or :func:`jets_functions`) and its controller
+    (``assemble.controller``: ``ctrl.function (t, x, p) -> tau``).
+
+    Each structure function's inputs are given by name: ``t, x, z, u``; its values at the
+    contacts (``L, dL`` or ``J``, from ``own[kind]``); ``p``, the model's first
+    ``n_structure_p`` entries (its run-time parameters and the start's values; the inputs'
+    coefficients reach the structure through the torques), followed by the torques where
+    the record's layout has them there, else ``tau``, the torques the function reads. The
+    rhs and its Jacobian read the torques at ``t``, the outputs at ``t = 0`` or at a time
+    in ``p`` (``controller.outputs_p``), the constraints and the start at ``t = 0``."""
+    layout = record.layout
     t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
     z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
     empty = ca.MX(0, 1)
     ps = p[:n_structure_p]
     controller = ctrl.function
     tau = controller(t, x, p)
-    entries = meta["leaf_entries"]
 
-    def args(kind, torques=tau):
-        """The contour values and the torques the structure's function ``kind`` reads."""
-        leaves = contours[kind].call([x])
-        kept = entries[kind].get("tau", [])
-        return [*leaves, ca.vertcat(*[torques[k] for k in kept]) if kept else ca.MX(0, 1)]
+    def args(kind, p_structure=ps, torques=tau):
+        """The inputs of the structure's function ``kind``, in its order."""
+        f = structure[kind]
+        values = dict(zip(own[kind].name_out(), own[kind].call([x])))
+        kept = record.reads[kind].get("tau", ())
+        given = {"t": t, "x": x, "z": z, "u": u, **values,
+                 "p": ca.vertcat(p_structure, torques) if layout.torques_in_p else p_structure,
+                 "tau": ca.vertcat(*[torques[k] for k in kept]) if kept else ca.MX(0, 1)}
+        return [given[f.name_in(i)] for i in range(f.n_in())]
 
-    xdot = structure["rhs"](t, x, ps, *args("rhs"))
-    rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u], [xdot, empty, empty, empty],
+    def padded(outs, n):
+        return [*outs, *[empty] * (n - len(outs))]
+
+    rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u], padded(structure["rhs"].call(args("rhs")), 4),
                       ca.dyn_in(), ca.dyn_out())
-    if "jac2" in structure:  # split in two (``structure.split_jacobian``): same inputs
-        jac_args = args("jac")
-        Jx_rest, Jp, Jtau = structure["jac2"](t, x, ps, *jac_args)
-        Jx = ca.horzcat(structure["jac"](t, x, ps, *jac_args), Jx_rest)
+    jac = _jacobian(structure, args("jac"), record.reads["jac"].get("tau", ()), controller,
+                    (t, x, z, p, u, tau), np_ - n_structure_p, name) if "jac" in structure else None
+    out_fn = None
+    if record.output_names:
+        # the outputs are functions of (x, p): the torques at t = 0, or at the time in a last
+        # entry of p when the law reads the time (``assemble.controller.outputs_p``)
+        p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
+        y = structure["outputs"].call(args("outputs", pm[:n_structure_p], controller(t_out, x, pm)))
+        out_fn = ca.Function(f"{name}_outputs", [x, p_out], y, ["x", "p"], ["y"])
+    tau0 = controller(0, x, p)
+    constraints = ca.Function(f"{name}_constraints", [x, p],
+                              structure["constraints"].call(args("constraints", ps, tau0)),
+                              ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
+    start = None
+    if "start" in structure:
+        start = ca.Function(f"{name}_start", [x, p],
+                            padded(structure["start"].call(args("start", ps, tau0)), 3),
+                            ["x", "p"], ["G", "dG_dx", "v"])
+    distinct = tuple({id(f): f for f in own.values()}.values())
+    helpers = (*distinct, controller)
+    ops = dict(record.op_counts)
+    n_own = sum(f.n_instructions() for f in distinct)
+    if layout.controller_apart:
+        ops[f"{layout.what}_sx_instructions"] = n_own
+        ops["controller_sx_instructions"] = controller.n_instructions()
     else:
-        Jx, Jp, Jtau = structure["jac"](t, x, ps, *args("jac"))
-    # the torques' share by the chain rule (the controller's Jacobian is its own SX's)
-    Jp = ca.horzcat(Jp, ca.MX(nx, np_ - n_structure_p))  # the inputs act only through tau
-    kept = entries["jac"].get("tau", [])
+        ops[f"{layout.what}_sx_instructions"] = n_own + controller.n_instructions()
+        ops[f"rhs_{layout.what}_sx_instructions"] = own["rhs"].n_instructions()
+    return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=record.output_names,
+                       op_counts=ops, constraints=constraints,
+                       constraint_info=record.constraint_info, start=start,
+                       start_names=record.start_names, helpers=helpers)
+
+
+def _jacobian(structure: dict[str, ca.Function], jac_args: list, kept: tuple[int, ...],
+              controller: ca.Function, dae: tuple, n_inputs: int, name: str) -> ca.Function:
+    """``jac_<name>_rhs``: the structure's Jacobian (whole, or split in two,
+    ``structure.split_jacobian``: the same inputs ``jac_args``) with the torques' share by the
+    chain rule (the controller's Jacobian is its own SX's); the ``n_inputs`` last entries of
+    ``p`` act only through the torques."""
+    t, x, z, p, u, tau = dae
+    nx, np_ = x.numel(), p.numel()
+    if "jac2" in structure:
+        Jx_rest, Jp, Jtau = structure["jac2"].call(jac_args)
+        Jx = ca.horzcat(structure["jac"].call(jac_args)[0], Jx_rest)
+    else:
+        Jx, Jp, Jtau = structure["jac"].call(jac_args)
+    Jp = ca.horzcat(Jp, ca.MX(nx, n_inputs))
     if kept:
         cj = controller.jacobian()(t, x, p, tau)
         Jx = Jx + ca.mtimes(Jtau, ca.vertcat(*[cj[1][k, :] for k in kept]))
@@ -124,34 +208,13 @@ def compose_layered(structure: dict[str, ca.Function], meta: dict,
     ins, outs = _jacobian_layout(nx, np_)
     jin = [t, x, z, p, u] + [ca.MX.sym(n, s) for n, s in ins[5:]]
     blocks = {"jac_ode_x": Jx, "jac_ode_p": Jp}
-    jac = ca.Function(f"jac_{name}_rhs", jin, [blocks.get(n, ca.MX(*shape)) for n, shape in outs],
-                      [n for n, _ in ins], [n for n, _ in outs])
-    out_fn = None
-    output_names = tuple(meta["output_names"])
-    if output_names:
-        # the outputs are functions of (x, p): the torques at t = 0, or at the time in a last
-        # entry of p when the law reads the time (``codegen.controller.outputs_p``)
-        p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
-        y = structure["outputs"](x, pm[:n_structure_p], *args("outputs", controller(t_out, x, pm)))
-        out_fn = ca.Function(f"{name}_outputs", [x, p_out], [y], ["x", "p"], ["y"])
-    con = structure["constraints"](x, ps, *args("constraints"))
-    constraints = ca.Function(f"{name}_constraints", [x, p], list(con),
-                              ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
-    G, dG = structure["start"](x, ps, *args("start"))
-    start = ca.Function(f"{name}_start", [x, p], [G, dG, empty], ["x", "p"], ["G", "dG_dx", "v"])
-    ops = dict(meta.get("op_counts", {}))
-    helpers = tuple({id(f): f for f in contours.values()}.values()) + (controller,)
-    ops["contours_sx_instructions"] = sum(f.n_instructions() for f in helpers[:-1])
-    ops["controller_sx_instructions"] = controller.n_instructions()
-    return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=output_names,
-                       op_counts=ops, constraints=constraints,
-                       constraint_info=meta["constraint_info"], start=start,
-                       start_names=tuple(meta["start_names"]), helpers=helpers)
+    return ca.Function(f"jac_{name}_rhs", jin, [blocks.get(n, ca.MX(*shape)) for n, shape in outs],
+                       [n for n, _ in ins], [n for n, _ in outs])
 
 
 def lanes_glue(name: str, contours: ca.Function, structure_lanes: str | None,
                n_leaves: int, controller: ca.Function, tau_kept: list[int]) -> tuple[str | None, str]:
-    """C of ``<name>_rhs_lanes`` (the driver's 4-lane rhs, ``codegen.lanes``): the contours
+    """C of ``<name>_rhs_lanes`` (the driver's 4-lane rhs, ``emit.lanes``): the contours
     and the controller's torques at the four states (four at once where they have a lane
     version, else one by one), then the structure's 4-lane rhs
     ``structure_lanes`` (which reads the torques ``tau_kept``); or None and why not."""
@@ -212,70 +275,3 @@ def lanes_glue(name: str, contours: ca.Function, structure_lanes: str | None,
     how_ctrl = ("the controller four at a time" if ctrl_lanes is not None
                 else f"the controller one lane at a time ({ctrl_status})")
     return text, f"applied ({how}, {how_ctrl}, then the structure's 4-lane rhs)"
-
-
-def jets_functions(surfaces, slots, nx: int, name: str, entries: dict[str, list[int]]
-                   ) -> dict[str, ca.Function]:
-    """Per function kind, ``<name>_jets_<kind> (x) -> J[entries[kind]]``: the entries of the
-    3D contour slots' jets (``codegen.structure3d``; slot ``s`` of surface ``surfaces[s]`` at
-    ``x[slots[s][0]], x[slots[s][1]]``) that the structure's function of that kind takes.
-    Kinds that take the same entries share one function."""
-    from grasping_sym.assemble.structure3d import jet_values  # noqa: PLC0415
-    from grasping_sym.derive.grasp3d import surface_sx  # noqa: PLC0415
-
-    x = ca.SX.sym("x", nx)
-    jets = []
-    for surface, (iu, iv, _size) in zip(surfaces, slots):
-        u, v = x[iu], x[iv]
-        jets.append(jet_values(surface_sx(surface, u, v), u, v))
-    J = ca.vertcat(*jets)
-    out, made = {}, {}
-    for kind, idx in entries.items():
-        key = tuple(idx)
-        if key not in made:
-            made[key] = ca.Function(f"{name}_jets_{kind}", [x],
-                                    [ca.vertcat(*[J[i] for i in idx]) if idx else ca.SX(0, 1)],
-                                    ["x"], ["J"], FUNCTION_OPTIONS)
-        out[kind] = made[key]
-    return out
-
-
-def compose_layered_3d(structure: dict[str, ca.Function], meta: dict,
-                       jets: dict[str, ca.Function], nx: int, np_: int, name: str,
-                       ctrl, n_structure_p: int) -> CasadiModel:
-    """A 3D model's MX functions over its structure's ``external`` functions (each takes the
-    structure's ``p``: the model's first ``n_structure_p`` entries, then the joint torques of
-    the controller ``ctrl``; and the jet entries ``J`` it needs) and its jets functions."""
-    t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
-    z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
-    controller = ctrl.function
-
-    def J(kind):
-        return jets[kind](x)
-
-    def ps(time=t, pm=p):
-        return ca.vertcat(pm[:n_structure_p], controller(time, x, pm))
-
-    rhs = ca.Function(f"{name}_rhs", [t, x, z, p, u],
-                      list(structure["rhs"](t, x, z, ps(), u, J("rhs"))), ca.dyn_in(), ca.dyn_out())
-    out_fn = None
-    output_names = tuple(meta["output_names"])
-    if output_names:
-        p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
-        out_fn = ca.Function(f"{name}_outputs", [x, p_out],
-                             [structure["outputs"](x, ps(t_out, pm), J("outputs"))], ["x", "p"], ["y"])
-    constraints = ca.Function(f"{name}_constraints", [x, p],
-                              list(structure["constraints"](x, ps(0), J("constraints"))),
-                              ["x", "p"], ["C", "dC_dx", "Cdot", "dCdot_dv"])
-    start = None
-    if "start" in structure:
-        start = ca.Function(f"{name}_start", [x, p], list(structure["start"](x, ps(0), J("start"))),
-                            ["x", "p"], ["G", "dG_dx", "v"])
-    ops = dict(meta.get("op_counts", {}))
-    helpers = tuple({id(f): f for f in jets.values()}.values()) + (controller,)
-    ops["jets_sx_instructions"] = sum(f.n_instructions() for f in helpers)
-    ops["rhs_jets_sx_instructions"] = jets["rhs"].n_instructions()
-    return CasadiModel(rhs=rhs, jac=None, outputs=out_fn, output_names=output_names,
-                       op_counts=ops, constraints=constraints,
-                       constraint_info=meta["constraint_info"], start=start,
-                       start_names=tuple(meta["start_names"]), helpers=helpers)

@@ -11,7 +11,28 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from grasping_sym.assemble.controller import controller_torques
+import casadi as ca
+
+from grasping_sym.assemble import structure_cache, templates
+from grasping_sym.assemble.controller import controller_function, controller_torques
+from grasping_sym.assemble.functions import compose, sx_model
+from grasping_sym.assemble.layered import (
+    compose_layered,
+    contour_functions,
+    contour_leaves,
+    jets_functions,
+    lanes_glue,
+)
+from grasping_sym.assemble.structure import (
+    PlanarStructureSpec,
+    StructureSpec,
+    fold_pattern,
+    structure_functions,
+)
+from grasping_sym.assemble.structure3d import Grasp3DStructureSpec, structure3d_functions
+from grasping_sym.assemble.structure_cache import StructureRecord
+from grasping_sym.derive.grasp3d import derive_grasp3d
+from grasping_sym.derive.planar import has_gravity, parameter_values
 from grasping_sym.emit.casadi_model import CasadiModel
 
 Progress = Callable[[str], None]
@@ -29,47 +50,57 @@ class SceneFunctions:
 
 def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     """A planar scene in layers: its structure (the closed loop of its template, derived with
-    SymPy once per structure, ``codegen.templates``; compiled once, ``codegen.structure_cache``)
-    called by the scene's own contour functions (``codegen.layered``). The pivot ``(xm, ym)``
-    is a run-time input, after the scene's run-time parameters."""
-    from grasping_sym.assemble import (
-        structure_cache,  # noqa: PLC0415
-        templates,  # noqa: PLC0415
-    )
-    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
-    from grasping_sym.assemble.layered import compose_layered, contour_functions, lanes_glue  # noqa: PLC0415
-    from grasping_sym.assemble.structure import structure_functions  # noqa: PLC0415
-
+    SymPy once per structure, ``assemble.templates``; compiled once,
+    ``assemble.structure_cache``) called by the scene's own contour functions
+    (``assemble.layered``). The pivot ``(xm, ym)`` is a run-time input, after the scene's
+    run-time parameters."""
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     scene.validate()
     ctrl = controller_function(scene, scene.name)
     spec, leaves = planar_structure(scene)
-    shared, gravity, inputs = spec.shared, spec.gravity, spec.inputs
     t1 = time.perf_counter()
-    say(f"structure of {scene.name} (compiled once per structure)")
+
     def make(name):
         _prefetch_driver(scene, ctrl, jac=True, lanes=True)
-        template, source = templates.planar_template(shared, gravity, scene.n_fingers)
+        template, source = templates.planar_template(spec.shared, spec.gravity, scene.n_fingers)
         return structure_functions(template, spec, name), f"template: {source}"
 
-    meta, directory, source = structure_cache.ensure(spec, make, say)
+    def contours(record):
+        return contour_functions(leaves, record.slots, record.reads, len(scene.state_names),
+                                 scene.name)
+
+    cm, own, record, timings = _in_layers(scene, spec, make, contours, ctrl, say,
+                                          "composing the contours with the structure (CasADi)")
+    rhs_reads = record.reads["rhs"]
+    glue = lanes_glue(scene.name, own["rhs"], record.rhs_lanes, len(rhs_reads["L"]),
+                      ctrl.function, list(rhs_reads.get("tau", ())))
+    return SceneFunctions(cm, {"validate": t1 - t0, **timings}, structure=record.entry(),
+                          lanes=glue)
+
+
+def _in_layers(scene, spec: StructureSpec, make, own_functions, ctrl, say: Progress, saying: str
+               ) -> tuple[CasadiModel, dict, StructureRecord, dict]:
+    """A scene's model in layers (``layered.compose_layered``): its structure ``spec`` from
+    the cache (``make(name)`` derives it when the cache lacks it), compiled, and the scene's
+    own functions of its contact values (``own_functions(record)``, by kind), with the
+    controller ``ctrl``. Returns the model, the own functions, the structure's record and
+    the seconds by stage."""
+    t0 = time.perf_counter()
+    say(f"structure of {scene.name} (compiled once per structure)")
+    record, directory, source = structure_cache.ensure(spec, make, say)
+    t1 = time.perf_counter()
+    so = structure_cache.library(record, directory)
     t2 = time.perf_counter()
-    so = structure_cache.library(meta, directory)
+    say(saying)
+    own = own_functions(record)
+    n_structure_p = len(scene.runtime) + len(scene.start_param_names)
+    cm = compose_layered(structure_cache.externals(record, so), record, own,
+                         len(scene.state_names), len(scene.p_names), scene.name, ctrl,
+                         n_structure_p)
     t3 = time.perf_counter()
-    say("composing the contours with the structure (CasADi)")
-    nx = len(scene.state_names)
-    contours = contour_functions(leaves, meta["slots"], nx, scene.name, meta["leaf_entries"])
-    cm = compose_layered(structure_cache.externals(meta, so), meta, contours, nx,
-                         len(scene.p_names), scene.name, ctrl, len(inputs))
-    glue = lanes_glue(scene.name, contours["rhs"], meta["rhs_lanes"],
-                      len(meta["leaf_entries"]["rhs"]["L"]), ctrl.function,
-                      meta["leaf_entries"]["rhs"].get("tau", []))
-    t4 = time.perf_counter()
-    return SceneFunctions(cm, {"validate": t1 - t0, "structure": t2 - t1,
-                               "structure_source": source, "structure_compile": t3 - t2,
-                               "compose": t4 - t3},
-                          structure={"name": meta["name"], "hash": meta["hash"]}, lanes=glue)
+    return cm, own, record, {"structure": t1 - t0, "structure_source": source,
+                             "structure_compile": t2 - t1, "compose": t3 - t2}
 
 
 def _prefetch_driver(scene, ctrl, *, jac: bool, lanes: bool) -> None:
@@ -89,11 +120,6 @@ def planar_single_piece(scene) -> SceneFunctions:
     (``functions.compose``), every derivative by CasADi's AD through the concrete contours.
     Not what is compiled (``planar_functions``), but the same closed loop: CasADi's virtual
     machine evaluates it with nothing compiled, and tests check the layers against it."""
-    from grasping_sym.assemble import templates  # noqa: PLC0415
-    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
-    from grasping_sym.assemble.functions import compose  # noqa: PLC0415
-    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
-
     scene.validate()
     inputs = (*scene.runtime, *scene.start_param_names)
     values = parameter_values(scene)
@@ -105,59 +131,41 @@ def planar_single_piece(scene) -> SceneFunctions:
                                   outputs=scene.outputs, name=scene.name, controller=ctrl))
 
 
-def planar_structure(scene):
-    """The structure of a planar scene (``codegen.structure.StructureSpec``) and its contours'
-    leaves (``codegen.layered.contour_leaves``)."""
-    from grasping_sym.assemble.layered import contour_leaves  # noqa: PLC0415
-    from grasping_sym.assemble.structure import StructureSpec, fold_pattern  # noqa: PLC0415
-    from grasping_sym.derive.planar import has_gravity, parameter_values  # noqa: PLC0415
-
+def planar_structure(scene) -> tuple[PlanarStructureSpec, list[list]]:
+    """The structure of a planar scene (``structure.PlanarStructureSpec``) and its contours'
+    leaves (``layered.contour_leaves``)."""
     values = parameter_values(scene)
     inputs = (*scene.runtime, *scene.start_param_names)
     leaves = contour_leaves([(tip, scene.object) for tip in scene.fingertips], scene.n_fingers)
-    spec = StructureSpec(shared=scene.shared_parameter, gravity=has_gravity(scene),
-                         n_fingers=scene.n_fingers, inputs=inputs,
-                         constants=tuple(sorted((k, float(v)) for k, v in values.items()
-                                                if k not in inputs)),
-                         folded=fold_pattern(leaves), outputs=tuple(scene.outputs))
+    spec = PlanarStructureSpec(shared=scene.shared_parameter, gravity=has_gravity(scene),
+                               n_fingers=scene.n_fingers, inputs=inputs,
+                               constants=tuple(sorted((k, float(v)) for k, v in values.items()
+                                                      if k not in inputs)),
+                               folded=fold_pattern(leaves), outputs=tuple(scene.outputs))
     return spec, leaves
 
 
 def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
-    """A 3D scene (regular formulation) in layers: its structure (``codegen.structure3d``:
-    derived, written and compiled once per structure, ``codegen.structure_cache``) called by
-    the scene's own jets of its surfaces (``codegen.layered.jets_function``)."""
-    from grasping_sym.assemble import structure_cache  # noqa: PLC0415
-    from grasping_sym.assemble.controller import controller_function  # noqa: PLC0415
-    from grasping_sym.assemble.layered import compose_layered_3d, jets_functions  # noqa: PLC0415
-    from grasping_sym.assemble.structure3d import Structure3DSpec, structure3d_functions  # noqa: PLC0415
-
+    """A 3D scene (regular formulation) in layers: its structure (``assemble.structure3d``:
+    derived, written and compiled once per structure, ``assemble.structure_cache``) called by
+    the scene's own jets of its surfaces (``assemble.layered.jets_functions``)."""
     say = progress or (lambda msg: None)
-    t0 = time.perf_counter()
     ctrl = controller_function(scene, scene.name)
-    spec = Structure3DSpec(scene.structure_key())
+    spec = Grasp3DStructureSpec(scene.structure_key())
 
     def make(name):
         _prefetch_driver(scene, ctrl, jac=False, lanes=False)
         return structure3d_functions(scene, name), "SymPy and CasADi's AD"
 
-    say(f"structure of {scene.name} (compiled once per structure)")
-    meta, directory, source = structure_cache.ensure(spec, make, say)
-    t1 = time.perf_counter()
-    so = structure_cache.library(meta, directory)
-    t2 = time.perf_counter()
-    say("the surfaces' jets (SymPy forms, CasADi AD)")
     surfaces = [s for f in scene.fingers for s in (f.tip, scene.object_surface)]
-    nx = len(scene.state_names)
-    jets = jets_functions(surfaces, [tuple(s) for s in meta["slots"]], nx, scene.name,
-                          meta["jet_entries"])
-    inputs = (*scene.runtime, *scene.start_param_names)
-    cm = compose_layered_3d(structure_cache.externals(meta, so), meta, jets, nx,
-                            len(scene.p_names), scene.name, ctrl, len(inputs))
-    t3 = time.perf_counter()
-    return SceneFunctions(cm, {"structure": t1 - t0, "structure_source": source,
-                               "structure_compile": t2 - t1, "compose": t3 - t2},
-                          structure={"name": meta["name"], "hash": meta["hash"]},
+
+    def jets(record):
+        return jets_functions(surfaces, record.slots, record.reads, len(scene.state_names),
+                              scene.name)
+
+    cm, _, record, timings = _in_layers(scene, spec, make, jets, ctrl, say,
+                                        "the surfaces' jets (SymPy forms, CasADi AD)")
+    return SceneFunctions(cm, timings, structure=record.entry(),
                           lanes=(None, "not made: a 3D rhs is too large for the 4-lane copy "
                                        "(radau is not the 3D method of choice)"))
 
@@ -166,11 +174,6 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
     """A 3D grasping scene: SymPy for the pieces, CasADi's AD for the constraint derivatives
     (``derive.grasp3d``). No generated Jacobian: 250k SX instructions that gcc needs minutes
     for; the integrators difference the compiled rhs instead."""
-    import casadi as ca  # noqa: PLC0415
-
-    from grasping_sym.assemble.functions import sx_model  # noqa: PLC0415
-    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
-
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     say(f"deriving {scene.name} ({scene.formulation} formulation; SymPy, then CasADi AD)")

@@ -1,5 +1,12 @@
-"""The structure layer of a planar scene: its closed loop as compiled functions of the
-contour values, shared by every shape.
+"""The structure layer: a scene's closed loop as compiled functions of its values at the
+contacts, shared by every shape.
+
+What every structure is, 2D or 3D: a spec that keys its code (:class:`StructureSpec`: key,
+digest, name), its functions with what the model glue needs to call them
+(:class:`StructureFunctions`), its contact slots (:class:`Slot`) and how its functions take
+the model's values (:class:`Layout`), and the cutting of their inputs to what they read
+(:func:`prune_inputs`). How a structure is derived differs by kind: the planar one here, from
+its template; the 3D one in ``structure3d``, from the scene with its surfaces' jets.
 
 A planar template (``functions.Template``) is the closed loop as a function of ``(x, q, L)``,
 ``L`` the abstract contour functions at the contact (``derive.contour_functions``). A
@@ -14,7 +21,7 @@ A planar template (``functions.Template``) is the closed loop as a function of `
 
 Its functions take the remaining leaves ``L`` (and, for derivatives, their derivatives
 ``dL`` along the contact parameters) and the joint torques ``tau`` (the controller layer's,
-``codegen.controller``) as inputs:
+``assemble.controller``) as inputs:
 
 - ``<s>_rhs (t, x, p, L, tau) -> xdot``
 - ``<s>_jac (t, x, p, L, dL, tau) -> (dxdot/dx, dxdot/dp, dxdot/dtau)``; a Jacobian of more
@@ -49,44 +56,80 @@ from grasping_sym.assemble.functions import (
     planar_constraint_names,
 )
 
-__all__ = ["StructureFunctions", "StructureSpec", "fold_pattern", "prune_inputs",
-           "structure_functions"]
+__all__ = ["CONTOUR_LEAVES", "LAYOUTS", "SURFACE_JETS", "Layout", "PlanarStructureSpec", "Slot",
+           "StructureFunctions", "StructureSpec", "fold_pattern", "prune_inputs", "structure_functions",
+           "structure_name"]
 
 
-def fold_pattern(concrete: list[dict]) -> tuple[tuple[tuple[int, int], ...], ...]:
-    """Per contour slot (``concrete``: each slot's leaf -> SymPy expression, in the order of
-    its family's ``leaves()``), the leaves that are exactly 0 or 1: ``(index, value)``."""
-    out = []
-    for leaves in concrete:
-        fixed = []
-        for k, expr in enumerate(leaves):
-            e = sp.sympify(expr)
-            if e.is_Number and e in (sp.Integer(0), sp.Integer(1)):
-                fixed.append((k, int(e)))
-        out.append(tuple(fixed))
-    return tuple(out)
+# -- what every structure is: its spec, its functions, how they take the model's values -----
 
-
-@dataclass(frozen=True)
 class StructureSpec:
-    """What a structure's code depends on (see the module's docstring)."""
+    """What a structure's code depends on, as text: every kind of structure names itself by a
+    versioned ``TAG`` and gives the rest as :meth:`body` (frozen dataclasses:
+    :class:`PlanarStructureSpec`, ``structure3d.Grasp3DStructureSpec``)."""
 
-    shared: bool
-    gravity: bool
-    n_fingers: int
-    inputs: tuple[str, ...]
-    constants: tuple[tuple[str, float], ...]
-    folded: tuple[tuple[tuple[int, int], ...], ...]
-    outputs: tuple[str, ...]
+    TAG = ""
+
+    def body(self) -> str:
+        raise NotImplementedError
 
     def key(self) -> str:
-        consts = ";".join(f"{k}={float(v)!r}" for k, v in self.constants)
-        return "|".join(["planar-structure-v2", repr((self.shared, self.gravity, self.n_fingers)),
-                         ",".join(self.inputs), consts, repr(self.folded), ",".join(self.outputs)])
+        return f"{self.TAG}|{self.body()}"
 
     def digest(self, extra: str) -> str:
         """The structure's hash, given what else its code depends on (sources, versions)."""
         return hashlib.sha256(f"{self.key()}|{extra}".encode()).hexdigest()
+
+    def name(self, extra: str) -> str:
+        """The structure's C prefix (:func:`structure_name` of its digest)."""
+        return structure_name(self.digest(extra))
+
+
+def structure_name(digest: str) -> str:
+    """``gs_structure_<hash12>``: a symbol name never means two codes."""
+    return f"gs_structure_{digest[:12]}"
+
+
+@dataclass(frozen=True)
+class Slot:
+    """A contour slot (finger ``i``'s fingertip, then the object, contact by contact): the
+    states holding its contact coordinates (2D: ``u``; 3D: ``u, v``) and the entries of its
+    values the structure takes (2D: its leaves' indices in its family, those not folded; 3D:
+    its whole surface jet, ``range(jet_size)``)."""
+
+    states: tuple[int, ...]
+    entries: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How a kind of structure's functions take what the model's own functions supply: the
+    one thing composing a 2D and a 3D model in layers differs in, as data
+    (``layered.compose_layered``).
+
+    The values at the contact slots come from the model's functions
+    ``<scene>_<what>_<kind>`` (``what``: ``contours``, the leaves ``L`` and their derivatives
+    ``dL``; or ``jets``, the surfaces' jets ``J``); the controller's torques enter either as
+    an input ``tau`` of their own, cut to the entries the function reads (``torques_in_p``
+    False), or after the structure's parameters in its ``p``."""
+
+    what: str
+    #: the key of ``structure.json`` that holds what each function reads
+    entries_key: str
+    #: None: that key maps each function to its entries by input (``{"L": [...], "dL": [...],
+    #: "tau": [...]}``) and a slot is stored as ``[state, [entries]]``; else the one input it
+    #: maps each function's entries of, as a list, a slot stored as ``[states..., size]``
+    single_input: str | None
+    torques_in_p: bool
+    #: operation counts: the controller's instructions apart (2D), or within the jets' count
+    #: beside the rhs's jets (3D: as the committed manifests record them)
+    controller_apart: bool
+
+
+CONTOUR_LEAVES = Layout("contours", "leaf_entries", None, torques_in_p=False, controller_apart=True)
+SURFACE_JETS = Layout("jets", "jet_entries", "J", torques_in_p=True, controller_apart=False)
+#: by the key of ``structure.json`` that says which it is
+LAYOUTS = {layout.entries_key: layout for layout in (CONTOUR_LEAVES, SURFACE_JETS)}
 
 
 @dataclass
@@ -98,10 +141,12 @@ class StructureFunctions:
     jac: ca.Function | None
     outputs: ca.Function | None
     constraints: ca.Function
-    start: ca.Function
-    #: per contour slot: its state index (indices) and what it takes (2D: the leaves that are
-    #: inputs, by index in its family; 3D: the size of its surface jet)
-    slots: tuple
+    start: ca.Function | None
+    layout: Layout
+    slots: tuple[Slot, ...]
+    #: per function kind, per input it takes of the model's values (``L``, ``dL``, ``tau``;
+    #: ``J``), the entries it reads (``prune_inputs``)
+    reads: dict[str, dict[str, tuple[int, ...]]]
     output_names: tuple[str, ...]
     constraint_info: dict
     start_names: tuple[str, ...]
@@ -109,8 +154,6 @@ class StructureFunctions:
     n_leaves: int = 0
     #: ``(kinds, names)`` of the 4-lane rhs (``lanes.function_lanes``), None: no lanes
     lanes: tuple | None = None
-    #: further entries of ``structure.json`` (3D: which jet entries each function takes)
-    extra_meta: dict | None = None
     #: the second part of a split Jacobian (same inputs as ``jac``; see the module docstring)
     jac2: ca.Function | None = None
 
@@ -128,7 +171,63 @@ class StructureFunctions:
         return {k: f.name() for k, f in self.by_kind() if f is not None}
 
 
-def structure_functions(template: Template, spec: StructureSpec, name: str) -> StructureFunctions:
+def prune_inputs(f: ca.Function, inputs) -> tuple[ca.Function, dict[int, list[int]]]:
+    """``f`` with each of its ``inputs`` (indices) cut to the entries ``f`` depends on, and
+    those entries by input index. The shape's code then computes only what each structure
+    function reads (CasADi's structural Jacobian sparsity says which)."""
+    ins = [f.sx_in(i) for i in range(f.n_in())]
+    args, new_ins, kept = list(ins), list(ins), {}
+    for k in inputs:
+        outs = [f.sparsity_jac(k, o) for o in range(f.n_out()) if f.nnz_out(o)]
+        needed = sorted(set(ca.vertcat(*outs).get_col())) if outs else []
+        sym = ca.SX.sym(f.name_in(k), len(needed))
+        full = ca.SX.zeros(ins[k].numel(), 1)
+        for j, c in enumerate(needed):
+            full[c] = sym[j]
+        args[k], new_ins[k], kept[k] = full, sym, needed
+    names_in = [f.name_in(i) for i in range(f.n_in())]
+    names_out = [f.name_out(i) for i in range(f.n_out())]
+    return (ca.Function(f.name(), new_ins, f.call(args), names_in, names_out, FUNCTION_OPTIONS),
+            kept)
+
+
+# -- the planar structure: its spec and its derivation from a template -----------------------
+
+def fold_pattern(concrete: list[dict]) -> tuple[tuple[tuple[int, int], ...], ...]:
+    """Per contour slot (``concrete``: each slot's leaf -> SymPy expression, in the order of
+    its family's ``leaves()``), the leaves that are exactly 0 or 1: ``(index, value)``."""
+    out = []
+    for leaves in concrete:
+        fixed = []
+        for k, expr in enumerate(leaves):
+            e = sp.sympify(expr)
+            if e.is_Number and e in (sp.Integer(0), sp.Integer(1)):
+                fixed.append((k, int(e)))
+        out.append(tuple(fixed))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class PlanarStructureSpec(StructureSpec):
+    """What a planar structure's code depends on (see the module's docstring)."""
+
+    TAG = "planar-structure-v2"
+
+    shared: bool
+    gravity: bool
+    n_fingers: int
+    inputs: tuple[str, ...]
+    constants: tuple[tuple[str, float], ...]
+    folded: tuple[tuple[tuple[int, int], ...], ...]
+    outputs: tuple[str, ...]
+
+    def body(self) -> str:
+        consts = ";".join(f"{k}={float(v)!r}" for k, v in self.constants)
+        return "|".join([repr((self.shared, self.gravity, self.n_fingers)), ",".join(self.inputs),
+                         consts, repr(self.folded), ",".join(self.outputs)])
+
+
+def structure_functions(template: Template, spec: PlanarStructureSpec, name: str) -> StructureFunctions:
     """The structure ``spec`` of ``template`` as SX functions named ``<name>_*``."""
     nx = len(template.state_names)
     x = ca.SX.sym("x", nx)
@@ -153,14 +252,14 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
     slots = []
     for i, size, fixed in zip(slot_states, slot_sizes, spec.folded):
         held = dict(fixed)
-        slots.append((i, tuple(k for k in range(size) if k not in held)))
-    n_leaves = sum(len(leaves) for _, leaves in slots)
+        slots.append(Slot((i,), tuple(k for k in range(size) if k not in held)))
+    n_leaves = sum(len(slot.entries) for slot in slots)
     L = ca.SX.sym("L", n_leaves)
     dL = ca.SX.sym("dL", n_leaves)
     u_copy = ca.SX.sym("u_copy", len(slots))
     taylor, j = [], 0
-    for s, ((i, _kept), size, fixed) in enumerate(zip(slots, slot_sizes, spec.folded)):
-        held = dict(fixed)
+    for s, (slot, size, fixed) in enumerate(zip(slots, slot_sizes, spec.folded)):
+        (i,), held = slot.states, dict(fixed)
         for k in range(size):
             if k in held:
                 taylor.append(ca.SX(held[k]))
@@ -168,7 +267,7 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
                 taylor.append(L[j] + dL[j] * (x[i] - u_copy[s]))
                 j += 1
     Lt = ca.vertcat(*taylor)
-    same = ca.vertcat(*[x[i] for i, _ in slots])
+    same = ca.vertcat(*[x[slot.states[0]] for slot in slots])
 
     def exact(*exprs):
         return ca.substitute(list(exprs), [u_copy], [same])
@@ -202,7 +301,7 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
     start = ca.Function(f"{name}_start", [x, p, L, dL, tau],
                         exact(G_t, ca.densify(ca.jacobian(G_t, x))),
                         ["x", "p", "L", "dL", "tau"], ["G", "dG_dx"], FUNCTION_OPTIONS)
-    entries: dict[str, dict[str, list[int]]] = {}
+    reads: dict[str, dict[str, tuple[int, ...]]] = {}
     pruned = {}
     for kind, f, leaf_inputs in (("rhs", rhs, (3, 4)), ("jac", jac, (3, 4, 5)),
                                  ("outputs", outputs, (2, 3)), ("constraints", constraints, (2, 3, 4)),
@@ -210,16 +309,16 @@ def structure_functions(template: Template, spec: StructureSpec, name: str) -> S
         if f is None:
             continue
         pruned[kind], kept = prune_inputs(f, leaf_inputs)
-        entries[kind] = {f.name_in(k): kept[k] for k in leaf_inputs}
+        reads[kind] = {f.name_in(k): tuple(kept[k]) for k in leaf_inputs}
     jac, jac2 = split_jacobian(pruned["jac"])
     return StructureFunctions(name=name, rhs=pruned["rhs"], jac=jac, jac2=jac2,
                               outputs=pruned.get("outputs"), constraints=pruned["constraints"],
-                              start=pruned["start"], slots=tuple(slots),
+                              start=pruned["start"], layout=CONTOUR_LEAVES, slots=tuple(slots),
+                              reads=reads,
                               output_names=tuple(spec.outputs), constraint_info=info,
                               start_names=names + tangency, n_leaves=n_leaves,
                               lanes=(("t", "lane", "shared", "lane", "lane"),
-                                     ("t", "x", "p", "L", "tau", "xdot")),
-                              extra_meta={"leaf_entries": entries})
+                                     ("t", "x", "p", "L", "tau", "xdot")))
 
 
 #: A structure's Jacobian of more SX instructions than this is split in two (gcc takes about
@@ -241,23 +340,3 @@ def split_jacobian(jac: ca.Function) -> tuple[ca.Function, ca.Function | None]:
     second = ca.Function(f"{jac.name()}2", ins, [Jx[:, k:], Jp, Jtau], names_in,
                          ["dxdot_dx_rest", "dxdot_dp", "dxdot_dtau"], FUNCTION_OPTIONS)
     return first, second
-
-
-def prune_inputs(f: ca.Function, inputs) -> tuple[ca.Function, dict[int, list[int]]]:
-    """``f`` with each of its ``inputs`` (indices) cut to the entries ``f`` depends on, and
-    those entries by input index. The shape's code then computes only what each structure
-    function reads (CasADi's structural Jacobian sparsity says which)."""
-    ins = [f.sx_in(i) for i in range(f.n_in())]
-    args, new_ins, kept = list(ins), list(ins), {}
-    for k in inputs:
-        outs = [f.sparsity_jac(k, o) for o in range(f.n_out()) if f.nnz_out(o)]
-        needed = sorted(set(ca.vertcat(*outs).get_col())) if outs else []
-        sym = ca.SX.sym(f.name_in(k), len(needed))
-        full = ca.SX.zeros(ins[k].numel(), 1)
-        for j, c in enumerate(needed):
-            full[c] = sym[j]
-        args[k], new_ins[k], kept[k] = full, sym, needed
-    names_in = [f.name_in(i) for i in range(f.n_in())]
-    names_out = [f.name_out(i) for i in range(f.n_out())]
-    return (ca.Function(f.name(), new_ins, f.call(args), names_in, names_out, FUNCTION_OPTIONS),
-            kept)

@@ -14,22 +14,29 @@ slot's coordinates; once every derivative is taken, ``(u*, v*)`` is set to ``(u,
 polynomial's vanishing terms drop out. The result is exact: the derivatives the loop takes
 are the jets' own.
 
-A scene's own small C (``<name>_jets``, ``codegen.layered``) evaluates the jets of its
-surfaces; the structure is compiled once (``codegen.structure_cache``) per everything else
+A scene's own small C (``<name>_jets``, ``assemble.layered``) evaluates the jets of its
+surfaces; the structure is compiled once (``assemble.structure_cache``) per everything else
 the code depends on (:func:`structure_key`).
 """
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from functools import lru_cache
 
 import casadi as ca
 
 from grasping_sym.assemble.functions import sx_model
-from grasping_sym.assemble.structure import StructureFunctions, prune_inputs
+from grasping_sym.assemble.structure import (
+    SURFACE_JETS,
+    Slot,
+    StructureFunctions,
+    StructureSpec,
+    prune_inputs,
+)
+from grasping_sym.derive.grasp3d import derive_grasp3d, surface_sx
+from grasping_sym.geometry.surface_library import sphere
 
-__all__ = ["JET_FIRST", "JET_SECOND", "Structure3DSpec", "jet_size", "jet_values",
+__all__ = ["JET_FIRST", "JET_SECOND", "Grasp3DStructureSpec", "jet_size", "jet_values",
            "structure3d_functions"]
 
 #: Quantities the loop differentiates twice: second-order jets.
@@ -41,9 +48,6 @@ JET_FIRST = ("M", "K", "T")
 @lru_cache(maxsize=1)
 def _shapes() -> dict[str, tuple[int, int]]:
     """The shape of each quantity of ``surface_sx`` (read from a sphere)."""
-    from grasping_sym.derive.grasp3d import surface_sx  # noqa: PLC0415
-    from grasping_sym.geometry.surface_library import sphere  # noqa: PLC0415
-
     d = surface_sx(sphere(0.01), ca.SX.sym("u"), ca.SX.sym("v"))
     return {k: d[k].shape for k in (*JET_SECOND, *JET_FIRST)}
 
@@ -104,25 +108,22 @@ def _taylor(jet: ca.SX, du, dv) -> dict[str, ca.SX]:
 
 
 @dataclass(frozen=True)
-class Structure3DSpec:
+class Grasp3DStructureSpec(StructureSpec):
     """What a 3D structure's code depends on: the scene's code key without its name and its
     surfaces (:meth:`model.grasp3d.GraspScene3D.structure_key`)."""
 
+    TAG = "grasp3d-structure-v2"
+
     text: str
 
-    def key(self) -> str:
-        return "grasp3d-structure-v2|" + self.text
-
-    def digest(self, extra: str) -> str:
-        return hashlib.sha256(f"{self.key()}|{extra}".encode()).hexdigest()
+    def body(self) -> str:
+        return self.text
 
 
 def structure3d_functions(scene, name: str) -> StructureFunctions:
     """The structure of the 3D ``scene`` (regular formulation) as SX functions ``<name>_*``:
     the model's signatures with a last input ``J``, the entries each takes of the slots' jets
     (slot ``2 i``: contact ``i``'s fingertip, ``2 i + 1`` the object there)."""
-    from grasping_sym.derive.grasp3d import derive_grasp3d  # noqa: PLC0415
-
     n_slots = 2 * scene.n_contacts
     size = jet_size()
     J = ca.SX.sym("J", n_slots * size)
@@ -150,19 +151,20 @@ def structure3d_functions(scene, name: str) -> StructureFunctions:
                   start_conditions=ca.vertcat(*G.values()) if G else None,
                   start_names=tuple(G), start_values=implied, exact=exact)
     index = {str(system.x[i]): i for i in range(system.x.numel())}
-    slots = tuple((index[str(coords[2 * s])], index[str(coords[2 * s + 1])], size)
+    slots = tuple(Slot((index[str(coords[2 * s])], index[str(coords[2 * s + 1])]), tuple(range(size)))
                   for s in range(n_slots))
     n_p = system.p.numel()
-    pruned, entries = {}, {}
+    pruned, reads = {}, {}
     for kind, f, k_in in (("rhs", cm.rhs, 3), ("outputs", cm.outputs, 1),
                           ("constraints", cm.constraints, 1), ("start", cm.start, 1)):
         if f is not None:
-            pruned[kind], entries[kind] = _prune(f, k_in, n_p)
+            pruned[kind], kept = _prune(f, k_in, n_p)
+            reads[kind] = {"J": tuple(kept)}
     return StructureFunctions(name=name, rhs=pruned["rhs"], jac=None, outputs=pruned.get("outputs"),
                               constraints=pruned["constraints"], start=pruned.get("start"),
-                              slots=slots, output_names=tuple(scene.outputs),
-                              constraint_info=cm.constraint_info, start_names=cm.start_names,
-                              n_leaves=n_slots * size, extra_meta={"jet_entries": entries})
+                              layout=SURFACE_JETS, slots=slots, reads=reads,
+                              output_names=tuple(scene.outputs), constraint_info=cm.constraint_info,
+                              start_names=cm.start_names, n_leaves=n_slots * size)
 
 
 def _prune(f: ca.Function, k_in: int, n_p: int) -> tuple[ca.Function, list[int]]:
