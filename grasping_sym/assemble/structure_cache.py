@@ -77,13 +77,6 @@ class StructureRecord:
     rewrites: dict
     op_counts: dict[str, int]
 
-    def __getitem__(self, field: str) -> tuple[str, ...]:
-        """``record["files"]``, for the pipeline's readers of the record when it was a dict
-        (``pipeline.committed``, ``pipeline.built``); every other field by its attribute."""
-        if field != "files":
-            raise KeyError(f"{field!r}: read StructureRecord.{field}")
-        return self.files
-
     def entry(self) -> dict[str, str]:
         """What a model's manifest names it by: ``{"name", "hash"}`` (:func:`locate`)."""
         return {"name": self.name, "hash": self.hash}

@@ -87,7 +87,7 @@ def _structure_files(manifest: dict) -> dict | None:
     if not entry:
         return None
     meta, directory = structure_cache.locate(entry)
-    names = [*meta["files"], structure_cache.META]
+    names = [*meta.files, structure_cache.META]
     return {"entry": entry, "files": {f: (directory / f).read_bytes() for f in names}}
 
 

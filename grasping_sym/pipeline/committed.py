@@ -131,7 +131,7 @@ def _generate_scene(scene, root: Path, check: bool, differ: dict, structures: se
         structures.add(entry["name"])
         meta, sdir = structure_cache.locate(entry)
         target = root / structure_cache.DIR / entry["name"]
-        files = [*meta["files"], structure_cache.META]
+        files = [*meta.files, structure_cache.META]
         for f in files:
             if d := _text_diff(target / f, sdir / f, f"structures/{entry['name']}/{f}"):
                 differ["structures"][f"{entry['name']}/{f}"] = d
