@@ -1,40 +1,34 @@
-"""What compiling the C driver per model size buys (issue 26, part 6).
+"""What the driver's run-time sizes cost (issue 26, part 6).
 
 The driver (``grasping_sym/c``: the integrators, the projection, the batch loop and the
-CPython front end) is compiled into object files once per set of model sizes: ``GS_NX``,
-``GS_NP``, ``GS_NY``, ``GS_NC`` and ``GS_RADAU_M`` are preprocessor constants
-(``toolchain.library.model_defines``, ``toolchain.objects``). Here every model is linked
-twice, with the same CasADi-generated objects, flags and link line:
+CPython front end) used to be compiled into object files once per set of model sizes
+(``GS_NX``, ``GS_NP``, ``GS_NY``, ``GS_NC``, ``GS_RADAU_M`` preprocessor constants). It now
+reads the sizes at run time (``gs_nx``, ... hidden ``const int`` globals the library's link
+file defines, ``toolchain.objects.links_c``), so its objects depend on the model's features
+alone and are compiled once per set of them. Here every model is linked twice, with the same
+CasADi-generated objects, flags and link line:
 
-* **per-size**: the driver as the package compiles it (``objects.object_defines``);
-* **run-time sizes**: one build of the same C whose sizes are variables. The five size
-  macros are defined to ``gs_rt_nx`` ... ``gs_rt_m``, ``const int`` globals defined by the
-  library's small link file (another translation unit, no LTO: the driver's code cannot see
-  their values). A handful of textual edits make the C accept that (``_RUNTIME_EDITS``):
-  ``enum { n = GS_NX }`` becomes ``const int n = GS_NX``, so the stack arrays become
-  variable-length arrays; ``gs_radau5``'s matrix struct gets a fixed bound
-  (``GS_NX_MAX`` = 64 rows); the ``lu.c`` unrolling for ``GS_NX <= 8`` is off (it needs the
-  size known) and the reduced-system size is a variable (``GS_RADAU_M`` reads 0 in ``#if``).
-  The features (``GS_HAS_OUT/JAC/CON/RHS_LANES``), the function names and CasADi's work
-  sizes (rounded to the same power-of-two buckets) stay compile-time, as the package has them:
-  one run-time build therefore serves every model with the same features (paper2d and the
-  2-finger model get the very same objects here).
+* **A, per size**: the driver's C of the revision before the change (``BEFORE``, read with
+  ``git show`` into a temporary directory), compiled with the model's sizes as macros, as
+  that revision's ``objects.object_defines`` did (names aliased, work sizes bucketed);
+* **B, run-time sizes**: the package's driver as it is compiled now
+  (``objects.object_defines``, which leaves the sizes out).
 
 Measured per model: ``simulate(3.0)`` with two methods and the bare C loop of the same
 integrator (``model.library.<method>``, output every ms), the two libraries interleaved in
 one process (A B B A ...), min and median of repeated samples; the results of A and B are
-compared (they should be bit-identical: the arithmetic is the same, ``-ffp-contract=off``);
-and the serial gcc seconds of the driver's objects (the 12 files one after another), which
-the per-size scheme pays for every new set of sizes and the run-time one once.
+compared bit for bit (these runs, and rk4, a projected radau run and a batch of radau runs);
+and the serial gcc seconds of the driver's objects (the files one after another), which A
+pays for every new set of sizes and B once per set of features.
 
     python -m benchmarks.driver_sizes   ->  benchmarks/results/driver_sizes.md (GS_BENCH_SAMPLES: samples)
 """
 from __future__ import annotations
 
 import os
-import re
-import shutil
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from functools import partial
@@ -48,33 +42,10 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 #: Decision rule of issue 26: keep the per-size compile only where it buys this much run time.
 THRESHOLD = 0.05
-#: Stack bound of gs_radau5's matrices in the run-time build (rows).
-NX_MAX = 64
-#: The size macros and the globals that replace them in the run-time build.
-SIZE_VARS = {"GS_NX": "gs_rt_nx", "GS_NP": "gs_rt_np", "GS_NY": "gs_rt_ny", "GS_NC": "gs_rt_nc",
-             "GS_RADAU_M": "gs_rt_m"}
-
-_DECLS = ("\n/* benchmarks.driver_sizes: the sizes as run-time variables (defined by the link file) */\n"
-          + "".join(f'extern __attribute__((visibility("hidden"))) const int {v};\n'
-                    for v in SIZE_VARS.values())
-          + f"#define GS_NX_MAX {NX_MAX}\n")
-#: (file, old text, new text, expected count): the edits of the run-time build.
-_RUNTIME_EDITS = [
-    ("gs_driver.h", "#define GS_DRIVER_H\n", "#define GS_DRIVER_H\n" + _DECLS, 1),
-    ("dopri5.c", "enum { n = GS_NX };", "const int n = GS_NX;", 1),
-    ("dop853.c", "enum { n = GS_NX };", "const int n = GS_NX;", 1),
-    ("project.c", "enum { m = GS_NC };", "const int m = GS_NC;", 1),
-    ("radau5.c", "enum { n = GS_NX, nit = GS_RADAU_NIT };",
-     "const int n = GS_NX;\n  enum { nit = GS_RADAU_NIT };", 1),
-    ("radau5.c", "double J[GS_NX * GS_NX];", "double J[GS_NX_MAX * GS_NX_MAX];", 1),
-    ("radau5.c", "double LUr[GS_NX * GS_NX];", "double LUr[GS_NX_MAX * GS_NX_MAX];", 1),
-    ("radau5.c", "double LUcr[GS_NX * GS_NX];", "double LUcr[GS_NX_MAX * GS_NX_MAX];", 1),
-    ("radau5.c", "double LUci[GS_NX * GS_NX];", "double LUci[GS_NX_MAX * GS_NX_MAX];", 1),
-    ("radau5.c", "int pr[GS_NX], pc[GS_NX];", "int pr[GS_NX_MAX], pc[GS_NX_MAX];", 1),
-    ("radau5.c", "(8L * 4L * GS_NX * GS_NX + 8L * GS_NX)",
-     "(8L * 4L * GS_NX_MAX * GS_NX_MAX + 8L * GS_NX_MAX)", 1),
-    ("lu.c", "!defined(__clang__) && GS_NX <= 8", "!defined(__clang__) && 0", 1),
-]
+#: The revision whose driver is A: the last one compiled per set of sizes.
+BEFORE = "1bded56^"
+#: The git checkout ``BEFORE`` is read from (GS_BENCH_REPO: another clone of the repository).
+REPO = Path(os.environ.get("GS_BENCH_REPO", Path(__file__).resolve().parent.parent))
 
 #: (model, method, tolerances) of the simulations timed.
 CASES = [
@@ -96,47 +67,40 @@ def _scenes() -> dict:
     return {"paper2d": gs.scenes.paper2d(), "paper3d": gs.scenes.paper3d(), "fingers2": fingers2d(2)}
 
 
-def runtime_sources(dest: Path) -> list[Path]:
-    """The driver's C copied to ``dest`` with :data:`_RUNTIME_EDITS` applied; its sources in the
-    package's order (``DRIVER_SOURCES`` + ``pyfast.c``)."""
-    from grasping_sym.toolchain.library import DRIVER_SOURCES, PYFAST_C
-
-    c_dir = PYFAST_C.parent
-    for f in c_dir.iterdir():
-        if f.suffix in (".c", ".h"):
-            shutil.copy2(f, dest / f.name)
-    for name, old, new, count in _RUNTIME_EDITS:
-        path = dest / name
-        text = path.read_text()
-        if text.count(old) != count:
-            raise RuntimeError(f"{name}: expected {count} x {old!r}, found {text.count(old)}: "
-                               "the driver's C changed, update _RUNTIME_EDITS")
-        path.write_text(text.replace(old, new))
-    for f in dest.glob("*.[ch]"):  # any size left in a constant-only place would be an #if
-        for line in f.read_text().splitlines():
-            if re.match(r"\s*#\s*(if|elif)\s", line) and re.search(
-                    r"\bGS_N[XPYC]\b", re.sub(r"defined\s*\(?\s*\w+\s*\)?", "", line)):
-                raise RuntimeError(f"{f.name}: a size in a preprocessor test: {line.strip()}")
-    return [dest / s.name for s in (*DRIVER_SOURCES, PYFAST_C)]
+def before_sources(dest: Path, rev: str = BEFORE) -> list[Path]:
+    """The driver's C of ``rev`` written to ``dest``; its sources in that revision's order
+    (``DRIVER_SOURCES`` + ``pyfast.c`` then)."""
+    names = subprocess.run(["git", "ls-tree", "--name-only", rev, "grasping_sym/c/"], cwd=REPO,
+                           check=True, capture_output=True, text=True).stdout.split()
+    for name in names:
+        text = subprocess.run(["git", "show", f"{rev}:{name}"], cwd=REPO, check=True,
+                              capture_output=True, text=True).stdout
+        (dest / Path(name).name).write_text(text)
+    order = ("driver.c", "project.c", "rk4.c", "radau5.c", "jac.c", "lu.c", "dopri5.c", "dop853.c",
+             "stop.c", "batch.c", "budget.c", "pyfast.c")
+    return [dest / n for n in order]
 
 
-def runtime_defines(defines: dict) -> dict:
-    """The run-time build's macros: ``object_defines`` with the sizes named as variables."""
+def _positions(names) -> int:
+    """The leading states whose speeds ``d<name>`` follow them: the Jacobian's second-order
+    rows, the ``GS_RADAU_M`` the per-size build compiled in (the models here are built with
+    the naming rule of ``model.names``)."""
+    for m in range(len(names) // 2, 0, -1):
+        if all(names[m + i] == "d" + names[i] for i in range(m)):
+            return m
+    return 0
+
+
+def per_size_defines(model) -> dict:
+    """A's macros: the model's driver macros as the per-size revision compiled them."""
     from grasping_sym.toolchain.objects import object_defines
 
-    out = object_defines(defines)
-    for k, var in SIZE_VARS.items():
-        out[k] = var
+    d = model.manifest["driver_defines"]
+    out = object_defines(d)
+    out.update({k: d[k] for k in ("GS_NX", "GS_NP", "GS_NY", "GS_NC") if k in d})
+    if d.get("GS_HAS_JAC"):
+        out["GS_RADAU_M"] = _positions(model.state_names)
     return out
-
-
-def sizes_c(defines: dict) -> str:
-    """The definitions of the size variables for one model (linked into its library)."""
-    values = {"GS_NX": defines["GS_NX"], "GS_NP": defines["GS_NP"],
-              "GS_NY": defines.get("GS_NY", 0) if defines.get("GS_HAS_OUT") else 0,
-              "GS_NC": defines.get("GS_NC", 0), "GS_RADAU_M": defines.get("GS_RADAU_M", 0)}
-    return "".join(f'__attribute__((visibility("hidden"))) const int {SIZE_VARS[k]} = {int(v)};\n'
-                   for k, v in values.items())
 
 
 def _compile_serial(sources: list[Path], out_dir: Path, defines: dict, include_dirs) -> tuple[list[Path], float]:
@@ -153,9 +117,9 @@ def _compile_serial(sources: list[Path], out_dir: Path, defines: dict, include_d
     return objs, total
 
 
-def build_pair(model, work: Path, rt_src: list[Path], log=print) -> dict:
-    """Link ``model``'s generated code with the per-size driver (A) and the run-time-size one
-    (B) in ``work``; the two library paths and the serial compile seconds of each driver."""
+def build_pair(model, work: Path, before_src: list[Path], log=print) -> dict:
+    """Link ``model``'s generated code with the per-size driver (A) and the package's run-time
+    one (B) in ``work``; the two library paths and the serial compile seconds of each driver."""
     from grasping_sym.assemble import structure_cache
     from grasping_sym.toolchain import objects as object_cache
     from grasping_sym.toolchain.compiler import compile_objects, compile_shared
@@ -170,14 +134,13 @@ def build_pair(model, work: Path, rt_src: list[Path], log=print) -> dict:
     (work / "gen").mkdir()
     gen_objs = compile_objects(gen, work / "gen")  # once, linked into both
     out = {}
-    for tag, sources, defs, extra in (
-            ("A", [*DRIVER_SOURCES, PYFAST_C], object_cache.object_defines(defines), ""),
-            ("B", rt_src, runtime_defines(defines), sizes_c(defines))):
+    for tag, sources, defs in (("A", before_src, per_size_defines(model)),
+                               ("B", [*DRIVER_SOURCES, PYFAST_C], object_cache.object_defines(defines))):
         d = work / tag
         d.mkdir()
         drv, seconds = _compile_serial(sources, d, defs, include_dirs)
         links = d / "gs_links.c"
-        links.write_text(object_cache.links_c(defines) + extra)
+        links.write_text(object_cache.links_c(defines))  # A ignores the size variables
         lib = compile_shared([links], d / "lib" / f"lib{model.name}_{tag}.so",
                              objects=[*gen_objs, *linked, *drv])
         out[tag] = {"library": lib, "compile_s": seconds}
@@ -226,18 +189,19 @@ def run(samples: int = 25, log=print) -> dict:
     rows, builds = [], {}
     with tempfile.TemporaryDirectory(prefix="gs-bench-driver-sizes-") as tmp:
         tmp = Path(tmp)
-        rt_dir = tmp / "c_runtime"
-        rt_dir.mkdir()
-        rt_src = runtime_sources(rt_dir)
+        before_dir = tmp / "c_before"
+        before_dir.mkdir()
+        before_src = before_sources(before_dir)
         variants = {}
         for name, model in models.items():
             d = model.manifest["driver_defines"]
             log(f"{name}: nx {d['GS_NX']}, np {d['GS_NP']}, ny {d.get('GS_NY', 0)}, "
-                f"nc {d.get('GS_NC', 0)}, radau m {d.get('GS_RADAU_M', 0)}")
+                f"nc {d.get('GS_NC', 0)}")
             work = tmp / name
             work.mkdir()
-            pair = build_pair(model, work, rt_src, log)
-            builds[name] = {"sizes": {k: d.get(k, 0) for k in SIZE_VARS},
+            pair = build_pair(model, work, before_src, log)
+            builds[name] = {"sizes": {k: v for k, v in per_size_defines(model).items()
+                                      if k in ("GS_NX", "GS_NP", "GS_NY", "GS_NC", "GS_RADAU_M")},
                             "features": {k: d.get(k, 0) for k in ("GS_HAS_OUT", "GS_HAS_JAC", "GS_HAS_CON",
                                                                   "GS_HAS_RHS_LANES")},
                             "compile_A_s": pair["A"]["compile_s"], "compile_B_s": pair["B"]["compile_s"]}
@@ -268,8 +232,65 @@ def run(samples: int = 25, log=print) -> dict:
             log(f"{name} {method}: simulate A {sim['A_min_ms']:.3f} ms, B {sim['B_min_ms']:.3f} ms, "
                 f"B/A {sim['ratio_min']:.3f} (min) {sim['ratio_pairs']:.3f} (pairs); C loop B/A "
                 f"{loop['ratio_min']:.3f}; identical {same}")
-    return {"machine": machine_info(), "samples": samples, "nx_max": NX_MAX, "builds": builds,
-            "rows": rows}
+        extra = {}
+        for name in variants:
+            extra[name] = _bitwise_extras(variants[name]["A"], variants[name]["B"])
+            log(f"{name}: rk4, projected radau, batch of radau runs identical: {extra[name]}")
+    machine = machine_info()
+    if not machine.get("git_commit"):  # run from a copy of the tree: the commit of GS_BENCH_REPO
+        machine["git_commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                                               capture_output=True, text=True).stdout.strip()
+    return {"machine": machine, "samples": samples, "builds": builds, "rows": rows,
+            "bitwise_extras": extra}
+
+
+def _bitwise_extras(ma, mb) -> bool:
+    """Whether A and B agree bit for bit on rk4 (h = 1e-4, 1 s), radau with the projection
+    and a batch of three radau runs (final states)."""
+    same = True
+    for kw in ({"method": "rk4", "h": 1e-4}, {"method": "radau", "project": True}):
+        ra, rb = ma.simulate(1.0, **kw), mb.simulate(1.0, **kw)
+        same &= bool(np.array_equal(np.asarray(ra.x), np.asarray(rb.x)))
+    x0 = np.tile(ma.initial_state(), (3, 1))
+    x0[1] *= 1.0 + 1e-6  # an inconsistent start: its run fails alike in both (NaN final state)
+    ba, bb = ma.simulate_many(1.0, x0=x0), mb.simulate_many(1.0, x0=x0)
+    return same and bool(np.array_equal(ba.x_final, bb.x_final, equal_nan=True)
+                         and np.array_equal(ba.status, bb.status))
+
+
+_FIRST_BUILD = """
+import sys, time
+import grasping_sym as gs
+from grasping_sym.toolchain import library
+from benchmarks.scenes import ellipse2d
+if sys.argv[1] == "off":
+    library.prefetch_driver = lambda defines, fast=True: None
+if sys.argv[2] == "warm":
+    gs.build(gs.scenes.paper2d())  # a planar model built before: the driver's objects cached
+t0 = time.perf_counter()
+gs.build(ellipse2d())
+print(time.perf_counter() - t0)
+"""
+
+
+def first_builds(runs: int = 2, log=print) -> dict:
+    """Wall seconds of the first build of a new planar shape (``benchmarks.scenes.ellipse2d``),
+    each in a fresh process and cache root, with the driver's prefetch (``library.
+    prefetch_driver``) on and off: in an empty cache (``cold``) and after paper2d (``warm``)."""
+    out: dict = {}
+    for _ in range(runs):
+        for where in ("cold", "warm"):
+            for mode in ("on", "off"):
+                with tempfile.TemporaryDirectory(prefix="gs-bench-first-") as root:
+                    env = {**os.environ, "GRASPING_SYM_CACHE": root,
+                           "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+                    s = float(subprocess.run([sys.executable, "-c", _FIRST_BUILD, mode, where],
+                                             check=True, capture_output=True, text=True, env=env,
+                                             cwd=Path(__file__).resolve().parent.parent
+                                             ).stdout.split()[-1])
+                out.setdefault(where, {}).setdefault(mode, []).append(s)
+                log(f"first build of ellipse2d, {where} cache, prefetch {mode}: {s:.2f} s")
+    return out
 
 
 def decide(data: dict) -> dict:
@@ -292,15 +313,16 @@ def write_report(data: dict, path_md: Path) -> None:
     m = data["machine"]
     verdict = decide(data)
     lines = [
-        "# The driver compiled per model size, against one build with the sizes at run time",
+        "# The driver's sizes at run time: its cost against the driver compiled per model size",
         "",
-        "Generated by `python -m benchmarks.driver_sizes` (issue 26, part 6). **A** = the driver's objects "
-        "as the package compiles them, per set of sizes (`GS_NX`, `GS_NP`, `GS_NY`, `GS_NC`, `GS_RADAU_M` "
-        "compile-time constants); **B** = one build of the same C with those five sizes as `const int` "
-        "globals defined in another translation unit (the library's link file; no LTO), stack arrays as "
-        "VLAs, `gs_radau5`'s matrices bounded at "
-        f"{data['nx_max']} rows, the `lu.c` unrolling (n <= 8) and the constant reduced size off. "
-        "Features, function names and the (bucketed) CasADi work sizes stay compile-time in both. "
+        "Generated by `python -m benchmarks.driver_sizes` (issue 26, part 6). **A** = the driver's C of "
+        f"`{BEFORE}` (the last revision compiled per set of sizes: `GS_NX`, `GS_NP`, `GS_NY`, `GS_NC`, "
+        "`GS_RADAU_M` compile-time constants), compiled with this model's sizes; **B** = the package's "
+        "driver as it is now: the sizes are `const int` globals the library's link file defines "
+        "(`objects.links_c`, another translation unit, no LTO), stack arrays are VLAs, `gs_radau5`'s "
+        "matrices are on the stack up to 256 KiB and on the heap above (no size bound), `lu.c` "
+        "dispatches sizes 1-8 to copies compiled for that size. Features, function names and the "
+        "(bucketed) CasADi work sizes are compile-time in both. "
         "Both libraries link the same CasADi-generated objects with the same flags; they are timed in one "
         "process, interleaved (A B B A ...), "
         f"{data['samples']} samples each of back-to-back runs (~30 ms a sample). "
@@ -330,7 +352,8 @@ def write_report(data: dict, path_md: Path) -> None:
         "",
         "Serial gcc wall seconds for the 12 driver files (11 + `pyfast.c`), one after another, as the "
         "background prefetch compiles them. A is paid once per new set of sizes (and features); B once per "
-        "set of features (paper2d and fingers2 have the same features, so B's objects are the same file set).",
+        "set of features (paper2d and fingers2 have the same features: B's objects are the same files, "
+        "the package compiles them once).",
         "",
         "| model | nx | np | ny | nc | radau m | features (out, jac, con, lanes) | A: gcc s per size "
         "| B: gcc s (once) |",
@@ -338,10 +361,14 @@ def write_report(data: dict, path_md: Path) -> None:
     ]
     for name, b in data["builds"].items():
         s, f = b["sizes"], b["features"]
-        lines.append(f"| {name} | {s['GS_NX']} | {s['GS_NP']} | {s['GS_NY']} | {s['GS_NC']} | {s['GS_RADAU_M']} "
+        lines.append(f"| {name} | {s['GS_NX']} | {s['GS_NP']} | {s.get('GS_NY', 0)} | {s.get('GS_NC', 0)} "
+                     f"| {s.get('GS_RADAU_M', 0)} "
                      f"| {f['GS_HAS_OUT']}, {f['GS_HAS_JAC']}, {f['GS_HAS_CON']}, {f['GS_HAS_RHS_LANES']} "
                      f"| {b['compile_A_s']:.2f} | {b['compile_B_s']:.2f} |")
     lines += [
+        "",
+        "Bit for bit, A = B also on rk4 (h = 1e-4), radau with the projection and a batch of three radau "
+        "runs: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in data["bitwise_extras"].items()) + ".",
         "",
         f"## Decision (rule: keep per-size compiles only where they buy >= {THRESHOLD:.0%} of run time)",
         "",
@@ -353,6 +380,32 @@ def write_report(data: dict, path_md: Path) -> None:
     ]
     for name, v in verdict.items():
         lines.append(f"| {name} | {v['gain']:+.1%} | {v['method']} | {'yes' if v['keep_per_size'] else 'no'} |")
+    lines += [
+        "",
+        "Implemented: the sizes at run time everywhere (B is the package's driver). The driver's objects "
+        "are compiled once per set of features (`objects.object_defines` leaves the sizes out).",
+    ]
+    fb = data.get("first_builds")
+    if fb:
+        lines += [
+            "",
+            "## The driver's prefetch",
+            "",
+            "A build that derives a new structure starts compiling the driver's objects in the background "
+            "first (`library.prefetch_driver`, now predicted from the features alone). Wall seconds of the "
+            "first build of a new planar shape (`ellipse2d`), each in a fresh process and cache root: "
+            "*cold* = an empty cache, *warm* = after paper2d was built (the planar driver objects cached).",
+            "",
+            "| cache | prefetch on: s (each run) | prefetch off: s (each run) | saved (min) |",
+            "|---|---|---|---|",
+        ]
+        for where, v in fb.items():
+            lines.append(f"| {where} | {', '.join(f'{s:.2f}' for s in v['on'])} "
+                         f"| {', '.join(f'{s:.2f}' for s in v['off'])} | {min(v['off']) - min(v['on']):+.2f} |")
+        cold = min(fb["cold"]["off"]) - min(fb["cold"]["on"])
+        lines += ["", f"Kept only if it saves >= 0.2 s: it saves {cold:.2f} s on the first build in an empty "
+                  f"cache, so it is {'kept' if cold >= 0.2 else 'to be removed'}; once a model with the same "
+                  "features was built its objects are cached and it does nothing."]
     path_md.write_text("\n".join(lines) + "\n")
 
 
@@ -360,6 +413,7 @@ def main() -> None:
     RESULTS.mkdir(exist_ok=True)
     samples = int(os.environ.get("GS_BENCH_SAMPLES", "25"))
     data = run(samples=samples)
+    data["first_builds"] = first_builds()
     data["decision"] = decide(data)
     write_report(data, RESULTS / "driver_sizes.md")
     print((RESULTS / "driver_sizes.md").read_text())

@@ -318,8 +318,8 @@ def test_models_of_different_sizes_link_the_same_driver_objects(tmp_path, monkey
         with pytest.raises(ValueError, match=r"np = 2"):
             lib.rhs(x0)
         _, X, stats = lib.radau5(x0, np.linspace(0.0, 1.0, 11), p=pv, rtol=1e-8, atol=1e-10)
-        ref = solve_ivp(lambda t, y: np.array(rhs(t, y, [], pv, [])[0]).ravel(), (0.0, 1.0), x0,
-                        t_eval=np.linspace(0.0, 1.0, 11), rtol=1e-11, atol=1e-13)
+        ref = solve_ivp(lambda t, y, f=rhs, pv=pv: np.array(f(t, y, [], pv, [])[0]).ravel(),
+                        (0.0, 1.0), x0, t_eval=np.linspace(0.0, 1.0, 11), rtol=1e-11, atol=1e-13)
         np.testing.assert_allclose(X, ref.y.T, rtol=0, atol=1e-7)
         libs[nx] = lib
     assert len(linked) == 2 and linked[0] == linked[1]

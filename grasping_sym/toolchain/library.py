@@ -222,8 +222,8 @@ def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True,
     committed C file compiles without the CasADi functions at hand). The driver's objects
     come from the object cache (``toolchain.objects``: compiled once per set of features,
     whatever the sizes); only the model's C and a file giving the driver the model's sizes
-    and forwarding its names to the model's functions are compiled here; ``objects`` (a structure's, ``codegen.structure_cache``)
-    are linked in too.
+    and forwarding its names to the model's functions are compiled here; ``objects`` (a
+    structure's, ``codegen.structure_cache``) are linked in too.
     """
     generated = [Path(c) for c in casadi_c] if isinstance(casadi_c, (list, tuple)) else [Path(casadi_c)]
     drivers, include_dirs = _driver_inputs(fast)
