@@ -34,6 +34,7 @@ from grasping_sym.assemble.structure_cache import StructureRecord
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.derive.planar import has_gravity, parameter_values
 from grasping_sym.emit.casadi_model import CasadiModel
+from grasping_sym.toolchain.library import predicted_defines, prefetch_driver
 
 Progress = Callable[[str], None]
 
@@ -108,7 +109,6 @@ def _prefetch_driver(scene, ctrl, *, jac: bool, lanes: bool) -> None:
     (``library.predicted_defines``) while a new structure is derived and compiled: in a cache
     that has not seen these features (the driver's objects do not depend on the model's
     sizes), the first model then waits for them no longer than for its own C."""
-    from grasping_sym.toolchain.library import predicted_defines, prefetch_driver  # noqa: PLC0415
 
     # outputs that read the time are not the driver's; every scene has contact constraints
     prefetch_driver(predicted_defines(outputs=bool(scene.outputs) and not ctrl.reads_time,

@@ -13,8 +13,10 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
+from grasping_sym.emit.lanes import lanes_symbol
 from grasping_sym.toolchain import objects as object_cache
 from grasping_sym.toolchain.compiler import compile_shared
 
@@ -121,7 +123,6 @@ def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
     parameters, and a 4-lane rhs when ``lanes``. A law that reads the time gives outputs that
     take it as one more last entry of p: the driver (whose p has the model's size) then does
     not call them (``runtime.outputs.row`` does)."""
-    from grasping_sym.emit.lanes import lanes_symbol  # noqa: PLC0415 - imports CasADi
 
     return driver_defines(cm.rhs, None if outputs_read_time(cm, n_p) else cm.outputs,
                           jac_fn=cm.jac, constraints_fn=cm.constraints,
@@ -142,9 +143,7 @@ def predicted_defines(*, outputs: bool, constraints: bool, jac: bool,
     the sizes out), and on the work sizes, which are the stand-ins', below what
     ``object_defines`` rounds every size up to: the objects are the model's whenever its own
     work sizes are too."""
-    import casadi as ca  # noqa: PLC0415
 
-    from grasping_sym.emit.lanes import lanes_symbol  # noqa: PLC0415
 
     x, p = ca.SX.sym("x", 2), ca.SX.sym("p", 1)
     none = ca.SX(0, 1)
