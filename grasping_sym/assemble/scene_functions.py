@@ -34,7 +34,7 @@ from grasping_sym.assemble.structure_cache import StructureRecord
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.derive.planar import has_gravity, parameter_values
 from grasping_sym.emit.casadi_model import CasadiModel
-from grasping_sym.toolchain.library import predicted_defines, prefetch_driver
+from grasping_sym.toolchain import library
 
 Progress = Callable[[str], None]
 
@@ -111,8 +111,8 @@ def _prefetch_driver(scene, ctrl, *, jac: bool, lanes: bool) -> None:
     sizes), the first model then waits for them no longer than for its own C."""
 
     # outputs that read the time are not the driver's; every scene has contact constraints
-    prefetch_driver(predicted_defines(outputs=bool(scene.outputs) and not ctrl.reads_time,
-                                      constraints=True, jac=jac, lanes=lanes))
+    library.prefetch_driver(library.predicted_defines(
+        outputs=bool(scene.outputs) and not ctrl.reads_time, constraints=True, jac=jac, lanes=lanes))
 
 
 def planar_single_piece(scene) -> SceneFunctions:
