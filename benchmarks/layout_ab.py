@@ -99,7 +99,7 @@ print(json.dumps({"v": statistics.median(ts) * 1e3}))
 """,
     "simulate_many, 256 paper2d runs, 1 thread (runs/s)": _PRELUDE + """
 m = gs.build(gs.scenes.paper2d(runtime=("fd",)))
-P = np.tile(m.params(), (256, 1)); P[:, 0] = np.linspace(0.4, 0.6, 256)
+P = {"fd": np.linspace(0.4, 0.6, 256)}
 m.simulate_many(3.0, params=P, threads=1)
 ts = []
 for _ in range(5):

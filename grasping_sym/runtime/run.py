@@ -86,8 +86,9 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start):
         pk = p if sched is None else model.with_inputs(p, a, b)
         grid = t_eval if len(segments) == 1 else np.array(
             [s0, *t_eval[(t_eval > s0) & (t_eval < s1)], s1])
-        t, X, st = integrate(model, s.method, x_now, grid, pk, start, s.checks,
-                             **s.integration())
+        t, X, st = integrate(model, s, x_now, grid, pk, start)
+        if len(segments) == 1:  # one segment: its rows and counters as they are
+            return t, X, st
         rows_t.append(t if k == 0 else t[1:])
         rows_x.append(X if k == 0 else X[1:])
         x_now = X[-1]
@@ -101,15 +102,15 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start):
     return t, X, stats
 
 
-def integrate(model, method, x0, t_eval, p, start, checks, *, rtol, atol, max_steps, h, proj,
-              time_limit):
-    """One integration over ``t_eval`` (one segment of the inputs) with named errors:
-    ``(t, X, stats)``."""
+def integrate(model, s: RunSettings, x0, t_eval, p, start):
+    """One integration over ``t_eval`` (one segment of the inputs) with the settings ``s`` and
+    named errors: ``(t, X, stats)``."""
+    method, checks, rtol, atol, h = s.method, s.checks, s.rtol, s.atol, s.h
     if method in integrators.C_LOOPS:
         try:
             return integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
-                                      max_steps=max_steps, h=h, projection=proj,
-                                      time_limit=time_limit)
+                                      max_steps=s.max_steps, h=h, projection=s.proj,
+                                      time_limit=s.time_limit)
         except IntegratorError as exc:
             err = failures.blow_up(model, failures.classify(model, exc), method, h)
             if checks:
@@ -117,8 +118,8 @@ def integrate(model, method, x0, t_eval, p, start, checks, *, rtol, atol, max_st
             raise err from None
     pp = np.zeros(0) if p is None else p
     try:
-        t, X, stats = integrators.sundials(model, method, x0, t_eval, pp, rtol, atol, max_steps,
-                                           time_limit)
+        t, X, stats = integrators.sundials(model, method, x0, t_eval, pp, rtol, atol, s.max_steps,
+                                           s.time_limit)
     except IntegratorError as failed:
         exc = failures.exit_at_failure(model, failed, t_eval, p, rtol, atol) \
             if method == "cvodes" else failed

@@ -35,7 +35,7 @@ SUNDIALS_MIN_T = 1e-12
 MAX_DEFAULT_OUTPUTS = 10_000_000
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(slots=True, eq=False)
 class RunSettings:
     """How a run integrates, checked (``RunSettings.check``).
 
@@ -91,11 +91,6 @@ class RunSettings:
         return cls(method=method, t_final=t_final, rtol=float(rtol), atol=float(atol),
                    h=float(h) if method == "rk4" else h, max_steps=max_steps, time_limit=time_limit, t_eval=grid,
                    drop_first=drop_first, proj=proj, outputs=outputs, checks=checks)
-
-    def integration(self) -> dict:
-        """The keywords of one integration (``runtime.run.integrate``)."""
-        return dict(rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, h=self.h,
-                    proj=self.proj, time_limit=self.time_limit)
 
 
 def tolerances(method: str, rtol, atol) -> tuple:
