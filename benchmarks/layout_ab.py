@@ -8,6 +8,10 @@ one (``PYTHONPATH``), each with its own private cache, alternating A B A B ... s
 machine's drift touches both alike. The figures are the paths a user takes:
 
 - a cached build of paper2d (``gs.build`` with everything on disk; the package imported first);
+- a cold build of paper2d in an empty cache (its committed C compiled, the driver's objects
+  too), then, in that cache, paper2d with ``fd`` at run time: a model of other sizes (one
+  parameter more), whose structure is new in both trees and whose driver objects only the
+  per-size driver (before) compiles again;
 - the first build of a new planar shape (derive, write and compile its own C; structures and
   the driver already cached);
 - paper2d ``simulate(3.0)`` with every default (outputs every ms, checks);
@@ -35,7 +39,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 #: The last commit before the reorganisation into floors.
 BASELINE = "3d965a0"
 #: Fresh-process samples per figure and tree.
-ROUNDS = int(os.environ.get("GS_BENCH_ROUNDS", "5"))
+ROUNDS = int(os.environ.get("GS_BENCH_ROUNDS", "9"))
 
 _PRELUDE = """
 import json, time, statistics
@@ -57,6 +61,20 @@ gs.build(gs.scenes.paper2d())  # structures and driver cached, as a user's secon
 a = 0.012 + random.random() * 1e-4
 scene = gs.scenes.planar_finger(gs.curves.paper_fingertip(),
                                 gs.curves.ellipse(a, 0.008, clockwise=True), name="ab_shape")
+t0 = time.perf_counter(); gs.build(scene); t1 = time.perf_counter()
+print(json.dumps({"v": t1 - t0}))
+""",
+    "cold build of paper2d in an empty cache, from its committed C (s)": _PRELUDE + """
+import os, tempfile
+os.environ["GRASPING_SYM_CACHE"] = tempfile.mkdtemp()  # nothing cached: the driver compiled too
+t0 = time.perf_counter(); gs.build(gs.scenes.paper2d()); t1 = time.perf_counter()
+print(json.dumps({"v": t1 - t0}))
+""",
+    "then paper2d with fd at run time: other sizes (s)": _PRELUDE + """
+import os, tempfile
+os.environ["GRASPING_SYM_CACHE"] = tempfile.mkdtemp()
+gs.build(gs.scenes.paper2d())  # the driver's objects for paper2d's sizes are cached
+scene = gs.scenes.paper2d(name="ab_runtime_fd", runtime=("fd",))  # one parameter more: GS_NP
 t0 = time.perf_counter(); gs.build(scene); t1 = time.perf_counter()
 print(json.dumps({"v": t1 - t0}))
 """,
@@ -124,6 +142,9 @@ def measure(log=print) -> dict:
         base = Path(tmp) / "baseline"
         subprocess.run(["git", "worktree", "add", "--detach", "-q", str(base), BASELINE], cwd=REPO,
                        check=True)
+        # the baseline's committed code as its package data (``grasping_sym.generated``), not
+        # this tree's (which the editable install maps it to)
+        (base / "grasping_sym" / "generated").symlink_to(base / "generated")
         try:
             trees = {"before": base, "after": REPO}
             caches = {k: Path(tmp) / f"cache-{k}" for k in trees}

@@ -67,11 +67,6 @@ def key(method, rtol, atol, max_steps, project, checks):
     return k
 
 
-def plan(model, k) -> Plan | None:
-    """The plan kept for the settings' key ``k``, or None."""
-    return model.short_way.plans.get(k)
-
-
 def remember(model, k, s: RunSettings) -> None:
     """After the full path ran with the settings ``s`` (key ``k``): keep them as a plan
     (C-loop methods with the fast extension only)."""

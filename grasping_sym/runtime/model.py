@@ -365,7 +365,7 @@ class Model:
                  and (not outputs or not self.columns))
         plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks) if short else None
         if plan_key is not None:  # runtime.fastpath: settings a previous call accepted, straight to C
-            plan = fastpath.plan(self, plan_key)
+            plan = self.short_way.plans.get(plan_key)
             if plan is not None and type(t_final) in (float, int):
                 res = fastpath.run(self, plan, t_final, t_eval, x0)
                 if res is not None:
