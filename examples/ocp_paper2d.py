@@ -1,10 +1,15 @@
 """Optimal control through rolling contact (2D): turn the paper's object to 0.3 rad, at rest,
-in 1 s, with the least effort, the contact kept closed.
+in 1 s, with the least effort, the contact kept closed and inside a friction cone of mu = 0.3.
 
 paper2d with no controller and joint torques ``u`` as inputs: direct collocation (Legendre,
 degree 3) in CasADi's ``Opti`` with IPOPT and exact Hessians of the exact closed loop
 (``model.casadi_function``, evaluated by compiled C), ``min ∫ |u|² dt`` with the normal force ``f >= 0.1 N`` along the
-way. The optimal ``u`` (piecewise constant) is then re-simulated by the compiled model.
+way, and the friction cone ``|lam| <= mu f`` with ``mu = 0.3`` at every collocation point
+(``model.casadi_function("cone")``: ``mu^2 f^2 - lam^2 >= 0``, imposed with 0.95 mu at the
+collocation points so that it also holds between them; without it the optimum needs
+``|lam|/f = 0.54``). The optimal ``u`` (piecewise constant) is then re-simulated by the compiled
+model with ``mu = 0.3``: a force leaving the cone anywhere between the collocation points
+would stop it with ``FrictionConeError``, so a run that finishes found no slip.
 
 Run: ``python examples/ocp_paper2d.py [out.png]``.
 What made IPOPT converge (measured, benchmarks/results/control.md): the start as the first
@@ -15,6 +20,7 @@ infeasibility grows to 1e12); a box around the motion; the objective scaled to o
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -26,6 +32,9 @@ import grasping_sym as gs
 THETA_TARGET = 0.3   # rad
 T_FINAL = 1.0        # s
 F_MIN = 0.1          # N, least normal force
+MU = 0.3             # Coulomb friction coefficient at the contact
+MU_BACKOFF = 0.95    # the cone imposed at the collocation points: 0.95 mu (between them the
+                     # polynomial's force may cross an active constraint; at 1.0 it does, by 1e-6)
 N_INTERVALS = 20
 DEGREE = 4
 COST_SCALE = 1e6     # the objective in (mN m)^2 s: of order 1 for IPOPT
@@ -51,12 +60,14 @@ def squeeze(model, x0: np.ndarray) -> np.ndarray:
 
 
 def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool = True,
-          verbose: bool = False) -> dict:
+          verbose: bool = False, mu: float | None = MU) -> dict:
     """The optimal control problem; returns the solution and IPOPT's figures. ``compiled``:
     the closed loop and its derivatives evaluated by compiled C (built once and kept with the
-    model), else by CasADi's virtual machine on the SX expanded into the problem."""
+    model), else by CasADi's virtual machine on the SX expanded into the problem. ``mu``: the
+    friction cone kept at every collocation point (None: unlimited friction)."""
     f = model.casadi_function("ode", compiled=compiled)
     y = model.casadi_function("outputs", compiled=compiled)
+    cone = model.casadi_function("cone", compiled=compiled)
     i_f = model.output_names.index("f")
     x0 = model.initial_state()
     nx, nu = x0.size, len(model.input_names)
@@ -87,6 +98,9 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
         opti.subject_to(X[:, k + 1] == xs @ D)
         cost = cost + h * ca.sumsqr(U[:, k])
     opti.subject_to(Y[i_f, :] >= F_MIN)
+    if mu is not None:  # inside the cone: mu^2 f^2 - lam^2 >= 0 (f >= F_MIN > 0 above)
+        _, margin = cone.map(n * degree)(Xc, Urep, p, MU_BACKOFF * mu)
+        opti.subject_to(margin >= 0)
     opti.set_initial(U, np.repeat(u_guess[:, None], n, 1))
     opti.set_initial(X, np.repeat(x0[:, None], n + 1, 1))   # the start everywhere (on the contact)
     opti.set_initial(Xc, np.repeat(x0[:, None], n * degree, 1))
@@ -118,12 +132,14 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
             "cost": float(sol.value(cost)), "h": h, "f_points": np.ravel(sol.value(Y[i_f, :]))}
 
 
-def resimulate(model, result: dict):
-    """The compiled model under the optimal (zero-order hold) torques."""
+def resimulate(model, result: dict, mu: float | None = MU):
+    """The compiled model under the optimal (zero-order hold) torques, the friction cone
+    checked with ``mu`` (``FrictionConeError`` if a force leaves it; None: not checked)."""
     n = result["U"].shape[1]
     knots = np.arange(n) * result["h"]
     u = gs.inputs.zero_order_hold(knots, result["U"].T)
-    return model.simulate(T_FINAL, u=u, method="radau", rtol=1e-10, atol=1e-12)
+    return model.simulate(T_FINAL, u=u, method="radau", rtol=1e-10, atol=1e-12,
+                          mu=math.inf if mu is None else mu)
 
 
 def main(out: str | None = None) -> dict:
@@ -133,8 +149,10 @@ def main(out: str | None = None) -> dict:
     theta_end = float(res["theta"][-1])
     print(f"IPOPT: {result['status']}, {result['iterations']} iterations, "
           f"{result['wall_time']:.2f} s; cost {result['cost']:.4g} N^2 m^2 s")
+    ratio = float(np.max(np.abs(res["lam"]) / res["f"]))
     print(f"re-simulated: theta(1 s) = {theta_end:.7f} rad (target {THETA_TARGET}), "
-          f"min f = {res['f'].min():.4f} N (at the collocation points {result['f_points'].min():.4f} N)")
+          f"min f = {res['f'].min():.4f} N (at the collocation points {result['f_points'].min():.4f} N), "
+          f"max |lam|/f = {ratio:.4f} (mu = {MU}): no slip")
     if out:
         import matplotlib  # noqa: PLC0415
 
@@ -157,7 +175,7 @@ def main(out: str | None = None) -> dict:
         fig.suptitle("paper2d: minimum-effort turn to 0.3 rad by rolling (IPOPT, exact Hessians)")
         fig.tight_layout()
         fig.savefig(out, dpi=110)
-    return {**result, "theta_end": theta_end, "f_min": float(res["f"].min())}
+    return {**result, "theta_end": theta_end, "f_min": float(res["f"].min()), "cone_ratio_max": ratio}
 
 
 if __name__ == "__main__":

@@ -27,10 +27,11 @@ _LAZY = {
     "inputs": ("grasping_sym.runtime.inputs", None),
     "sweep": ("grasping_sym.sweeps", "sweep"),
     "viz": ("grasping_sym.viz", None),
+    "contact": ("grasping_sym.contact", None),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "controllers", "inputs", "sweep", "viz", "__version__"]
+           "controllers", "inputs", "sweep", "viz", "contact", "__version__"]
 
 
 def __getattr__(name: str):

@@ -83,6 +83,23 @@ class ContactOpenedError(IntegratorError):
     """
 
 
+class FrictionConeError(IntegratorError):
+    """A contact's force left its friction cone: ``|F_t| > mu f``, the contact would slip.
+
+    ``t`` is the time (s) where the cone margin ``mu f - |F_t|`` reaches zero, located by
+    integrating again between the output samples around it; ``x`` the state there.
+    ``contact`` (1, 2, ...), ``mu``, ``normal`` (``f``, N), ``tangential`` (``|F_t|``, N)
+    and ``ratio`` (``|F_t| / f``) at that time.
+    """
+
+    def __init__(self, t: float, x, reason: str, state_names=None, *, contact: int = 0,
+                 mu: float = math.nan, normal: float = math.nan, tangential: float = math.nan):
+        super().__init__(t, x, reason, state_names)
+        self.contact, self.mu = int(contact), float(mu)
+        self.normal, self.tangential = float(normal), float(tangential)
+        self.ratio = self.tangential / self.normal if self.normal > 0 else math.inf
+
+
 class RelativeCurvatureError(IntegratorError):
     """The relative curvature ``kappa0 + kappa1`` fell to (or below) its threshold.
 

@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, SweepStoreBusyError, SweepStoreError
+from grasping_sym.runtime import friction
 from grasping_sym.runtime.batch import default_threads
 from grasping_sym.runtime.model import Model
 from grasping_sym.runtime.start import start_point
@@ -166,6 +167,8 @@ def _roles(model, names) -> dict[str, tuple[str, str]]:
             roles[k] = ("start", k[:-2])
         elif k in model.input_names:
             roles[k] = ("input", k)
+        elif k == "mu":
+            roles[k] = ("mu", k)
         else:
             problems.append(k)
     if problems:
@@ -174,7 +177,8 @@ def _roles(model, names) -> dict[str, tuple[str, str]]:
             f"{list(model.param_names) or '(none: build the scene with runtime=(...))'}, start values "
             f"{list(model.start_params)}, starting poses "
             f"{[s + '_0' for s in model.state_names[:len(model.state_names) // 2]]}..."
-            + (f", inputs {list(model.input_names)}" if model.input_names else ""))
+            + (f", inputs {list(model.input_names)}" if model.input_names else "")
+            + ", or mu (the friction coefficient of every contact)")
     return roles
 
 
@@ -183,7 +187,8 @@ def _check_values(model, g: Grid, roles) -> None:
     ``simulate_many`` checks them, but before any task is sent)."""
     rules = model.manifest.get("param_rules", {})
     for k, ax in zip(g.names, g.axes):
-        rule = rules.get(k, "finite") if roles[k][0] == "param" else "finite"
+        rule = rules.get(k, "finite") if roles[k][0] == "param" else \
+            "nonnegative" if roles[k][0] == "mu" else "finite"
         bad = (ax <= 0) if rule == "positive" else (ax < 0) if rule == "nonnegative" else np.zeros(len(ax), bool)
         if bad.any():
             raise ValueError(f"grid[{k!r}] has {float(ax[bad][0])!r}: {k} must be "
@@ -191,22 +196,40 @@ def _check_values(model, g: Grid, roles) -> None:
                              "give physical values")
 
 
-def _measures(model, outputs, measures) -> list[tuple[str, str, str]]:
-    """``(variable, kind, quantity)`` for every output and measure asked for."""
+def _cone_names(model) -> tuple[str, ...]:
+    """The friction cone's outputs a run with ``mu`` gains (``runtime.friction.QUANTITIES``)."""
+    n = len(friction.contacts(model))
+    return tuple(q.format(i=i) for q in friction.QUANTITIES for i in range(1, n + 1))
+
+
+def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str, str, str]]:
+    """``(variable, kind, quantity)`` for every output and measure asked for: ``min:Q``,
+    ``max:Q``, ``settle:Q`` of a state, an output or (with a friction coefficient) a cone
+    quantity; ``first_slip:<i>`` (contact ``i``, from 1) and ``held``."""
     out, problems = [], []
-    known = (*model.state_names, *model.output_names)
+    cone = _cone_names(model)
+    known = (*model.state_names, *model.output_names, *(cone if with_mu else ()))
+    n_contacts = len(friction.contacts(model))
     for k in outputs:
         (out.append((k, "final", k)) if k in model.output_names else problems.append(k))
     for m in measures:
         kind, _, q = m.partition(":")
-        if kind not in ("min", "max", "settle") or q not in known:
+        if m == "held":
+            out.append(("held", "held", ""))
+        elif kind == "first_slip" and q.isdigit() and 1 <= int(q) <= n_contacts:
+            out.append((f"first_slip_{q}", "first_slip", q))
+        elif kind not in ("min", "max", "settle") or q not in known:
             problems.append(m)
         else:
             out.append((f"{kind}_{q}", kind, q))
     if problems:
         raise ValueError(f"sweep: {problems} are not outputs of {model.name!r} "
                          f"({list(model.output_names)}) or measures 'min:Q', 'max:Q', 'settle:Q' "
-                         f"of a state or output Q")
+                         f"of a state or output Q (with mu also of {list(cone[:n_contacts * 4])}), "
+                         f"'first_slip:i' (contact i = 1..{n_contacts}, with mu) or 'held'")
+    if not with_mu and any(kind == "first_slip" for _, kind, _ in out):
+        raise ValueError("sweep: 'first_slip:i' needs a friction coefficient: give mu=... (or a grid "
+                         "axis 'mu'), or build the scene with friction=gs.contact.coulomb(mu)")
     return out
 
 
@@ -236,17 +259,33 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
             if roles[k][0] == "input":
                 u[:, model.input_names.index(k)] = v
     measures = task["measures"]
+    settings = _per_run_mu(task["settings"], n)
+    if "mu" in vals:
+        settings["mu"] = vals["mu"]
+    cone = _cone_names(model)
+    sliding = any(kind in ("first_slip", "held") or q in cone for _, kind, q in measures)
+    if sliding:  # the measures of the cone read the whole rolling run: it goes on past a slip
+        settings["slip"] = "record"
     dense = any(kind != "final" for _, kind, _ in measures)
     t_eval = np.linspace(0.0, task["t_final"], task["samples"]) if dense else None
     batch = model.simulate_many(task["t_final"], x0=x0, params=params or None, u=u, t_eval=t_eval,
-                                outputs=bool(model.output_names) and any(
-                                    q in model.output_names for _, _, q in measures),
-                                **task["settings"])
+                                outputs=(bool(model.output_names) or sliding) and any(
+                                    q in model.output_names or q in cone or kind != "final"
+                                    for _, kind, q in measures),
+                                **settings)
     failed = status == 0
     status[failed] = batch.status[failed]
     error[failed] = batch.errors[failed]
     out = {k: batch.x_final[:, i] for i, k in enumerate(model.state_names)}
+    keep = []
     for var, kind, q in measures:
+        if kind == "held":
+            out[var] = _held(model, batch, status, error)
+            keep.append(var)
+            continue
+        if kind == "first_slip":
+            out[var] = _first_crossing(batch.t, batch.outputs[f"cone_margin{q}"])
+            continue
         series = _series(model, batch, q, dense)
         if kind == "final":
             out[var] = series[:, -1] if series.ndim == 2 else series
@@ -257,10 +296,41 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
         else:
             out[var] = _settling_time(batch.t, series, task["settle_tol"])
     bad = status != 0
-    for v in out.values():
-        v[bad] = np.nan
+    for k, v in out.items():
+        if k not in keep:
+            v[bad] = np.nan
     out["status"], out["error"] = status, error
     return out
+
+
+def _first_crossing(t: np.ndarray, margin: np.ndarray) -> np.ndarray:
+    """Per run, the first time the cone margin reaches 0 (linear between the samples; 0 when it
+    is <= 0 at the start, ``inf`` when it never does)."""
+    out = np.full(len(margin), np.inf)
+    bad = ~(margin > 0)
+    for r in np.flatnonzero(bad.any(axis=1)):
+        i = int(np.argmax(bad[r]))
+        if i == 0:
+            out[r] = t[0]
+            continue
+        a, b = margin[r, i - 1], margin[r, i]
+        frac = a / (a - b) if np.isfinite(b) and a != b else 1.0
+        out[r] = t[i - 1] + min(max(frac, 0.0), 1.0) * (t[i] - t[i - 1])
+    return out
+
+
+def _held(model, batch, status, error) -> np.ndarray:
+    """Per run: 1 when it ended with every contact closed and inside its cone all along (at the
+    samples), 0 when a contact opened (``ContactOpenedError``) or left its cone, NaN when the
+    run failed otherwise."""
+    held = np.full(len(status), np.nan)
+    ok = status == 0
+    margins = [v for k, v in batch.outputs.items() if k.startswith("cone_margin")]
+    inside = np.all([np.all(m > 0, axis=1) for m in margins], axis=0) if margins else np.ones(len(ok), bool)
+    held[ok] = inside[ok].astype(float)
+    opened = np.array([str(e).startswith("ContactOpenedError") for e in error])
+    held[opened] = 0.0
+    return held
 
 
 def _series(model, batch, q: str, dense: bool) -> np.ndarray:
@@ -314,7 +384,7 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
           chunk: int | None = None, outputs: Sequence[str] = (), measures: Sequence[str] = (),
           samples: int = SAMPLES, settle_tol: float = SETTLE_TOL, method: str = "radau",
           rtol: float | None = None, atol: float | None = None, project: bool | float = False,
-          max_steps: int = 1_000_000, checks: bool = True, progress: bool = True):
+          max_steps: int = 1_000_000, checks: bool = True, progress: bool = True, mu=None):
     """Run ``model`` (a built model, or a scene: built first) at every point of ``grid`` for
     ``t_final`` seconds and return the results as an ``xarray.Dataset`` (module docstring).
 
@@ -322,7 +392,11 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
     one worker process per core) or a ``dask.distributed.Client``. ``chunk``: points per task
     (default ``default_chunk``: about 8 tasks per thread, 1000 to 20 000 points). ``method``,
     ``rtol``, ``atol``, ``project``, ``max_steps``, ``checks``: as for ``simulate_many``.
-    ``progress``: a progress bar on stderr.
+    ``progress``: a progress bar on stderr. ``mu``: the contacts' friction coefficient (one,
+    or one per contact; default the scene's ``friction``), unless the grid has an axis ``mu``:
+    a run whose force leaves its cone stops (status ``-11``, ``FrictionConeError``), unless a
+    measure of the cone is asked for (``first_slip:i``, ``held``, ``max:cone_ratio{i}``, ...),
+    which reads the whole rolling run (``slip="record"``).
     """
 
     if not isinstance(model, Model):
@@ -339,11 +413,14 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
         raise ValueError(f"settle_tol = {settle_tol!r} must be a number > 0")
     roles = _roles(model, g.names)
     _check_values(model, g, roles)
+    fixed = friction.resolve(model, mu)
+    with_mu = fixed is not None or "mu" in g.names
     task = {"grid": g, "roles": roles, "t_final": float(t_final),
-            "measures": _measures(model, tuple(outputs), tuple(measures)), "samples": int(samples),
-            "settle_tol": float(settle_tol),
+            "measures": _measures(model, tuple(outputs), tuple(measures), with_mu),
+            "samples": int(samples), "settle_tol": float(settle_tol),
             "settings": dict(method=method, rtol=rtol, atol=atol, project=project,
-                             max_steps=max_steps, checks=checks, threads=1)}
+                             max_steps=max_steps, checks=checks, threads=1,
+                             mu=None if fixed is None else [min(float(m), 1e300) for m in fixed])}
     _check_settings(model, task)  # bad settings are named here, before any task is sent
     chunk = int(chunk or default_chunk(g.size, client))
     variables = [*model.state_names, *(v for v, _, _ in task["measures"])]
@@ -378,9 +455,15 @@ def default_chunk(n: int, client) -> int:
 
 def _check_settings(model, task) -> None:
     """Refuse bad settings by name before any task runs: one short run with them."""
-    s = task["settings"]
+    s = _per_run_mu(task["settings"], 1)
     model.simulate_many(min(task["t_final"], 1e-3), x0=model.initial_state()[None, :],
                         **{**s, "checks": False})
+
+
+def _per_run_mu(settings: dict, n: int) -> dict:
+    """The settings with the sweep's one friction coefficient per contact as ``(n, contacts)``."""
+    mu = settings.get("mu")
+    return settings if mu is None else {**settings, "mu": np.tile(np.asarray(mu, float), (n, 1))}
 
 
 def _key(model, task, variables, chunk) -> str:

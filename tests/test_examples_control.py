@@ -26,6 +26,9 @@ def test_ocp_paper2d_reaches_the_target_with_the_contact_closed(tmp_path):
     # the path constraint holds where it is imposed, and the contact never opens in between
     assert out["f_points"].min() >= ocp.F_MIN - 1e-6
     assert out["f_min"] > 0.9 * ocp.F_MIN
+    # inside the friction cone: re-simulated with mu (a slip would have raised
+    # FrictionConeError), and the cone constraint was active (the optimum without it needs 0.54)
+    assert 0.9 * ocp.MU < out["cone_ratio_max"] <= ocp.MU
     assert np.all(np.isfinite(out["U"])) and (tmp_path / "ocp.png").stat().st_size > 10_000
 
 

@@ -6,7 +6,10 @@ as an argument of their own:
 
 - ``ode (x, u, p) -> xdot``: the right-hand side at the inputs' values ``u``;
 - ``constraints (x, p) -> C``: the contact constraints (zero on the motion);
-- ``outputs (x, u, p) -> y``: the scene's outputs.
+- ``outputs (x, u, p) -> y``: the scene's outputs;
+- ``cone (x, u, p, mu) -> (f, margin)``: every contact's normal force and friction-cone margin
+  ``mu^2 f^2 - |F_t|^2`` (a path constraint ``f >= 0``, ``margin >= 0`` keeps every contact
+  from slipping).
 
 ``p`` is the model's run-time parameters (``param_names``); the start's values (2D: the pivot)
 are those of the model's start. Being SX, every derivative of any order is exact (CasADi's
@@ -16,7 +19,9 @@ options of the NLP or integrator made from them compiles the whole problem to C.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import re
 from pathlib import Path
 
 import casadi as ca
@@ -30,9 +35,19 @@ from grasping_sym.toolchain.compiler import compile_shared
 __all__ = ["public_functions"]
 
 
+def force_names(scene) -> tuple[str, ...]:
+    """The contact forces' outputs of ``scene``, per contact the normal one then the tangential
+    components (``f``, ``lam``; 3D ``f1``, ``lam1``, ``eta1``, ...)."""
+    return tuple(k for k in scene.check_outputs() if re.fullmatch(r"(f|lam|eta)\d*", k))
+
+
 def public_functions(scene, start_values: dict[str, float], *, time: bool = False) -> dict:
-    """``{"ode", "constraints", "outputs"}`` of ``scene`` (module docstring); with ``time`` the
-    ode and the outputs take the time first: ``(t, x, u, p)`` (for a law that reads it)."""
+    """``{"ode", "constraints", "outputs", "cone"}`` of ``scene`` (module docstring); with
+    ``time`` the ode, the outputs and the cone take the time first: ``(t, x, u, p)`` (for a law
+    that reads it)."""
+    own = tuple(scene.outputs)
+    forces = force_names(scene)
+    scene = dataclasses.replace(scene, outputs=(*own, *(k for k in forces if k not in own)))
     cm = kinds.casadi_functions(scene, layers=False).model
     names = scene.p_names
     nx = len(scene.state_names)
@@ -58,11 +73,32 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
     C = cm.constraints(x, full)[0]
     out["constraints"] = ca.Function(f"{scene.name}_contact_constraints", [x, p], [C],
                                      ["x", "p"], ["C"])
-    if cm.outputs is not None:
-        y = cm.outputs(x, ca.vertcat(full, tt) if reads_time else full)
-        out["outputs"] = ca.Function(f"{scene.name}_outputs_of", [*head, x, u, p], [y],
+    y = cm.outputs(x, ca.vertcat(full, tt) if reads_time else full)
+    if own:
+        out["outputs"] = ca.Function(f"{scene.name}_outputs_of", [*head, x, u, p], [y[:len(own)]],
                                      [*hnames, "x", "u", "p"], ["y"])
+    out["cone"] = _cone(scene, y, [*head, x, u, p], [*hnames, "x", "u", "p"])
     return out
+
+
+def _cone(scene, y: ca.SX, args: list, names: list) -> ca.Function:
+    """``cone (x, u, p, mu) -> (f, margin)``: per contact the normal force ``f`` (N) and the
+    friction cone's smooth margin ``mu^2 f^2 - |F_t|^2`` (N^2), ``mu`` one per contact: the
+    force is inside the cone where ``f >= 0`` and ``margin >= 0`` (``runtime.friction``'s
+    ``cone_margin`` = ``mu f - |F_t|`` has the same sign there; its square form is smooth
+    where ``F_t = 0``, which an optimiser's derivatives need)."""
+    order = list(scene.outputs)
+    at = {k: y[order.index(k)] for k in force_names(scene)}
+    normals = [k for k in at if k.startswith("f")]
+    mu = ca.SX.sym("mu", len(normals))
+    f, margin = [], []
+    for i, k in enumerate(normals):
+        tail = k[1:]
+        tang = [at[n] for n in (f"lam{tail}", f"eta{tail}") if n in at]
+        f.append(at[k])
+        margin.append(mu[i] ** 2 * at[k] ** 2 - sum(t ** 2 for t in tang))
+    return ca.Function(f"{scene.name}_cone", [*args, mu], [ca.vertcat(*f), ca.vertcat(*margin)],
+                       [*names, "mu"], ["f", "margin"])
 
 
 def derivative_functions(g: ca.Function) -> list[ca.Function]:

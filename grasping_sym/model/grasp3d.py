@@ -33,6 +33,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from grasping_sym.contact import Coulomb, friction_problems
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain
@@ -137,6 +138,9 @@ class GraspScene3D:
     runtime: tuple[str, ...] = ()
     controller: object = PAPER
     inputs: str | None = None
+    #: Coulomb friction at the contacts (``gs.contact.coulomb``): read at run time only, so it
+    #: is in no cache key; None: no friction limit
+    friction: Coulomb | None = None
     problems: tuple[str, ...] = field(default=(), repr=False)
 
     #: The scene's kind (``model.kinds``: every floor above asks it, never the dimension).
@@ -213,6 +217,7 @@ class GraspScene3D:
             if k not in RUNTIME_ALLOWED:
                 p.append(f"runtime parameter {k!r} not allowed: choose from {RUNTIME_ALLOWED}")
         p += output_problems(self.outputs, self.output_catalogue())
+        p += friction_problems(self.friction, len(self.fingers))
         return p
 
     # ------------------------------------------------------------------ names
@@ -237,12 +242,14 @@ class GraspScene3D:
     def check_outputs(self) -> tuple[str, ...]:
         """The outputs ``runtime.checks`` reads, compiled whatever ``outputs`` asks for (the
         model does not show those the user did not ask for): the constraints
-        (``constraint_residual``), every contact's normal force and relative curvature
-        (``f{i}``, ``krel_min{i}``) and, in the paper formulation, its frame denominator
+        (``constraint_residual``), every contact's normal and tangential forces (its friction
+        cone, ``runtime.friction``) and relative curvature (``f{i}``, ``lam{i}``, ``eta{i}``,
+        ``krel_min{i}``) and, in the paper formulation, its frame denominator
         (``frame_denominator{i}``)."""
         n = range(1, self.n_contacts + 1)
         paper = [f"frame_denominator{i}" for i in n] if self.formulation == "paper" else []
-        return ("constraint_residual", *[f"f{i}" for i in n], *[f"krel_min{i}" for i in n],
+        return ("constraint_residual", *[f"f{i}" for i in n],
+                *[k for i in n for k in (f"lam{i}", f"eta{i}")], *[f"krel_min{i}" for i in n],
                 *paper)
 
     @property

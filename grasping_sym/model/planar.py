@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from grasping_sym.contact import Coulomb, friction_problems
 from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
@@ -147,6 +148,9 @@ class PlanarFingerScene:
     extra_fingers: tuple[ExtraFinger, ...] = ()
     controller: object = PAPER
     inputs: str | None = None
+    #: Coulomb friction at the contacts (``gs.contact.coulomb``): read at run time only, so it
+    #: is in no cache key; None: no friction limit
+    friction: Coulomb | None = None
 
     #: The scene's kind (``model.kinds``: every floor above asks it, never the dimension).
     kind: ClassVar[str] = "planar"
@@ -197,12 +201,14 @@ class PlanarFingerScene:
         """The outputs ``runtime.checks`` reads, compiled whatever ``outputs`` asks for (the
         model does not show those the user did not ask for): the constraints at the start
         (``Q``, ``R``; with several fingers ``constraint_residual``), every contact's normal
-        force and relative curvature (``f``, ``kappa_sum``; with several fingers ``f1``,
+        force, tangential force (its friction cone, ``runtime.friction``) and relative
+        curvature (``f``, ``lam``, ``kappa_sum``; with several fingers ``f1``, ``lam1``,
         ``kappa_sum1``, ...)."""
         if self.n_fingers == 1:
-            return ("Q", "R", "f", "kappa_sum")
+            return ("Q", "R", "f", "lam", "kappa_sum")
         n = range(1, self.n_fingers + 1)
-        return ("constraint_residual", *[f"f{i}" for i in n], *[f"kappa_sum{i}" for i in n])
+        return ("constraint_residual", *[f"f{i}" for i in n], *[f"lam{i}" for i in n],
+                *[f"kappa_sum{i}" for i in n])
 
     def default_outputs(self) -> tuple[str, ...]:
         """``DEFAULT_OUTPUTS`` for this scene: with several fingers, each per-contact output once
@@ -329,6 +335,7 @@ class PlanarFingerScene:
                     f"{list(RUNTIME_ALLOWED)} (geometry fixes the initial configuration)"
                 )
         problems += output_problems(self.outputs, self.output_names())
+        problems += friction_problems(self.friction, 1 + len(self.extra_fingers))
         for i, f in enumerate(self.extra_fingers, start=2):
             if not isinstance(f, ExtraFinger):
                 problems.append(f"extra finger {i} is {type(f).__name__}: give an ExtraFinger")

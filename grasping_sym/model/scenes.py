@@ -40,19 +40,21 @@ def planar_finger(
     extra_fingers: tuple = (),
     controller="paper",
     inputs: str | None = None,
+    friction=None,
     **params: float,
 ) -> PlanarFingerScene:
     """The general 2D scene with any two contours; unspecified parameters from the paper.
 
     ``extra_fingers``: further fingers on the same object (``model.planar.ExtraFinger``);
     ``controller``, ``inputs``: the control (``model.control``; default the paper's law (32),
-    no inputs)."""
+    no inputs); ``friction``: Coulomb friction at the contacts (``gs.contact.coulomb``)."""
     values = dict(PAPER2D_PARAMS)
     values.update(params)
     return PlanarFingerScene(
         name=name, fingertip=fingertip, object=object, params=values, runtime=runtime,
         outputs=outputs, gravity=gravity, q1_0=q1_0, theta_0=theta_0, u0_0=u0_0, u1_0=u1_0,
         extra_fingers=tuple(extra_fingers), controller=controller, inputs=inputs,
+        friction=friction,
     )
 
 

@@ -5,6 +5,7 @@ there when that platform cannot load the library sent (``runtime.portable``).
 """
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 from grasping_sym.assemble import casadi_api, structure_cache
@@ -19,20 +20,26 @@ from grasping_sym.toolchain.library import compile_model
 class BuiltModel(Model):
     """A model made by ``gs.build``: a runtime ``Model`` that also knows its scene."""
 
-    def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict, scene=None):
-        super().__init__(directory, manifest, library_path, start, scene)
+    def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict, scene=None,
+                 friction=None):
+        super().__init__(directory, manifest, library_path, start, scene,
+                         friction if scene is None else getattr(scene, "friction", None))
         self._public: dict = {}  # the CasADi functions made, by (which, time, compiled)
 
     def __reduce__(self):
         """Pickled as the runtime model is (``runtime.portable``), with a layered model's
-        structure files, and restored by ``restore``: it compiles the C where the receiver's
-        platform cannot load the library sent."""
-        return restore, (portable.payload(self, structure=_structure_files(self.manifest)),)
+        structure files and its friction law, and restored by ``restore``: it compiles the C
+        where the receiver's platform cannot load the library sent."""
+        return restore, (portable.payload(self, structure=_structure_files(self.manifest)),
+                         self.friction)
 
     def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
         """The closed loop as a CasADi Function with exact derivatives of any order
         (``assemble.casadi_api``): ``"ode"`` ``(x, u, p) -> xdot`` (default),
-        ``"constraints"`` ``(x, p) -> C`` or ``"outputs"`` ``(x, u, p) -> y``; ``u`` the inputs
+        ``"constraints"`` ``(x, p) -> C``, ``"outputs"`` ``(x, u, p) -> y`` or ``"cone"``
+        ``(x, u, p, mu) -> (f, margin)`` (every contact's normal force and friction-cone margin
+        ``mu^2 f^2 - |F_t|^2``: a path constraint ``f >= 0``, ``margin >= 0`` keeps the contacts
+        from slipping, ``mu`` one per contact); ``u`` the inputs
         (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
         start's values the model's. With ``time`` the ode and outputs take the time first.
 
@@ -54,15 +61,21 @@ class BuiltModel(Model):
             for k, f in fns.items():
                 self._public[(k, time, bool(compiled))] = f
         if key not in self._public:
-            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints' or 'outputs' "
+            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints', 'cone' or 'outputs' "
                              "(the latter only for a model with outputs)")
         return self._public[key]
 
 
 
-def restore(data: dict) -> BuiltModel:
-    """The model ``data`` describes (``runtime.portable.restore``), compiled here if need be."""
-    return portable.restore(data, _compile_here, BuiltModel)
+def restore(data: dict, friction=None) -> BuiltModel:
+    """The model ``data`` describes (``runtime.portable.restore``), compiled here if need be,
+    with the friction law it was sent with (a copy of the one this process restored when the
+    laws differ: the law is read at run time, the compiled model is shared)."""
+    model = portable.restore(data, _compile_here, BuiltModel)
+    if model.friction != friction:
+        model = copy.copy(model)
+        model.friction = friction
+    return model
 
 
 def _compile_here(directory: Path, manifest: dict, data: dict) -> dict:

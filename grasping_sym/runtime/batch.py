@@ -15,17 +15,17 @@ import math
 import numbers
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from time import perf_counter
 
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError
-from grasping_sym.runtime import c_loops
+from grasping_sym.runtime import c_loops, friction
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
-from grasping_sym.runtime.settings import RunSettings, numbers_array
+from grasping_sym.runtime.settings import RunSettings, numbers_array, slip_mode
 
 #: The methods ``simulate_many`` runs (the loops in C).
 METHODS = ("radau", "dopri5", "dop853", "rk4")
@@ -122,7 +122,7 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   method: str = "radau", rtol: float | None = None, atol: float | None = None, t_eval=None,
                   h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float = False,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
-                  time_limit: float | None = None) -> BatchResult:
+                  time_limit: float | None = None, mu=None, slip: str = "stop") -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
     start = perf_counter()
     if method not in METHODS:
@@ -138,7 +138,9 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
         raise RunArgumentError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
                                "the scene with outputs=(...) naming the ones you need")
 
-    n_runs = _count(model, x0, params, u)
+    n_runs = _count(model, x0, params, u, mu)
+    MU = friction.per_run(model, mu, n_runs)
+    s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n_runs)
     P, pdict = _parameters(model, params, n_runs)
     sched, U = _inputs(model, u, n_runs, method, s.t_eval)
@@ -151,10 +153,11 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
     res = _integrate(model, s, X0, P, sched, dense, evaluate, threads)
     status = np.where(res["status"] == res["ok_code"], 0, res["status"]).astype(np.int64)
     if checks and n_runs:
-        _check(model, s, res, status, dense, own_start=x0 is None)
-    errors = _errors(model, s, status, X0, x0 is None, P, U, sched)
+        _check(model, s, res, status, dense, own_start=x0 is None,
+               mu=MU if s.slip == "stop" else None)
+    errors = _errors(model, s, status, X0, x0 is None, P, U, sched, MU)
     return _result(model, s, res, status, errors, dense, X0=X0, pdict=pdict,
-                   wall=perf_counter() - start)
+                   wall=perf_counter() - start, mu=MU)
 
 
 def _threads(threads) -> int:
@@ -167,9 +170,11 @@ def _threads(threads) -> int:
     return threads
 
 
-def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, own_start: bool) -> None:
+def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, own_start: bool,
+           mu: np.ndarray | None = None) -> None:
     """Mark in ``status`` the runs whose initial state the checks refuse (``REFUSED``) and those
-    with an event along their output samples (``EVENT``), as ``simulate`` checks them."""
+    with an event along their output samples (``EVENT``: with ``mu`` (``(N, n_contacts)``)
+    a force outside its friction cone among them), as ``simulate`` checks them."""
     refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own_start)
     started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
     status[refused & started] = REFUSED  # simulate refuses before it integrates
@@ -178,10 +183,12 @@ def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, ow
         Y0 = res.get("Y0")
         ys = outputs_.by_name(model, Y if dense else np.stack([Y0, Y], axis=1))
         hit = ~checks_.trajectory_clean(model, s.t_eval, ys, initial=outputs_.by_name(model, Y0))
+        if mu is not None:
+            hit |= ~friction.clean(model, ys, mu)
         status[hit & (status == 0)] = EVENT
 
 
-def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched) -> np.ndarray:
+def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched, mu=None) -> np.ndarray:
     """Per run: ``""``, or the message of the named error ``simulate`` raises for it."""
     errors = np.full(len(status), "", dtype=object)
     for i in np.flatnonzero(status != 0):
@@ -190,11 +197,13 @@ def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched) -> np.nda
                          "before this run finished (raise time_limit, or run fewer at a time)")
             continue
         u = sched if sched is not None else (None if U is None else U[i])
-        errors[i] = _message(model, s, X0[i], own_start, P[i], u, int(status[i]))
+        si = s if mu is None else replace(s, mu=mu[i])
+        errors[i] = _message(model, si, X0[i], own_start, P[i], u, int(status[i]))
     return errors
 
 
-def _result(model, s: RunSettings, res, status, errors, dense, *, X0, pdict, wall) -> BatchResult:
+def _result(model, s: RunSettings, res, status, errors, dense, *, X0, pdict, wall,
+            mu=None) -> BatchResult:
     """The ``BatchResult``: the failed runs' rows NaN, the first output time dropped where the
     caller's ``t_eval`` did not hold it."""
     X, Y = res["X"], res.get("Y")
@@ -205,6 +214,8 @@ def _result(model, s: RunSettings, res, status, errors, dense, *, X0, pdict, wal
     if s.outputs and Y is not None:
         Y[bad] = np.nan
         outs = outputs_.by_name(model, Y, shown=True)
+        if mu is not None:
+            outs.update(friction.quantities(model, outputs_.by_name(model, Y), mu))
     t_out, x_all = s.t_eval, (X if dense else None)
     if dense and s.drop_first:
         t_out, x_all = s.t_eval[1:], X[:, 1:]
@@ -216,7 +227,7 @@ def _result(model, s: RunSettings, res, status, errors, dense, *, X0, pdict, wal
                        x=x_all, outputs=outs, stats=stats, wall_time=wall)
 
 
-def _count(model, x0, params, u) -> int:
+def _count(model, x0, params, u, mu=None) -> int:
     """N: the rows of ``x0`` (2-D), of the parameters' arrays and of a per-run ``u``, which
     must agree (1 when everything is shared)."""
     sizes = {}
@@ -230,6 +241,8 @@ def _count(model, x0, params, u) -> int:
                                    "run (shape (N,))")
     if u is not None and not hasattr(u, "segments") and np.ndim(u) == 2:
         sizes["u"] = np.shape(u)[0]
+    if mu is not None and not hasattr(mu, "per_contact") and np.ndim(mu) >= 1:
+        sizes["mu"] = np.shape(mu)[0]
     if len(set(sizes.values())) > 1:
         raise RunArgumentError("simulate_many: the number of runs differs between "
                                + ", ".join(f"{k} ({v} rows)" for k, v in sizes.items())

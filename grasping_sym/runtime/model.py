@@ -16,6 +16,7 @@ import numpy as np
 
 from grasping_sym.errors import RunArgumentError
 from grasping_sym.runtime import batch, external, fastpath, parameters, portable
+from grasping_sym.runtime import friction as friction_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
 from grasping_sym.runtime import start as start_
@@ -27,6 +28,7 @@ from grasping_sym.runtime.settings import (  # noqa: F401 - their old home (cli,
     flags,
     real,
     run_settings,
+    slip_mode,
     tolerances,
 )
 from grasping_sym.store import files as stored
@@ -54,11 +56,14 @@ class Model:
     """
 
     def __init__(self, directory: Path, manifest: dict, library_path: Path, start: dict,
-                 scene=None):
+                 scene=None, friction=None):
         self.directory = Path(directory)
         #: the scene the model was built from (``gs.build``), or None (``gs.load``): kept
         #: for what draws a run, never read by the runtime
         self.scene = scene
+        #: the contacts' friction law (``gs.contact.Coulomb``, from the scene's ``friction``),
+        #: the default of ``simulate``'s ``mu``; None: no friction limit
+        self.friction = friction
         self.manifest = manifest
         self.start = start
         self.name: str = manifest["name"]
@@ -258,7 +263,8 @@ class Model:
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
                  outputs: bool = True, checks: bool = True,
                  project: bool | float = False,
-                 time_limit: float | None = None, u=None) -> SimulationResult:
+                 time_limit: float | None = None, u=None, mu=None,
+                 slip: str = "stop") -> SimulationResult:
         """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
 
         Parameters
@@ -339,6 +345,19 @@ class Model:
             ``kappa_sum * |Om| <= 1e-3`` means that a relative rotation of 1 mrad moves the
             contact point by the size of the whole scene: the contours nearly osculate and
             the contact point is not well defined.
+        mu
+            Coulomb's friction coefficient at the contacts: one number, one per contact, or a
+            ``gs.contact.coulomb(...)`` (default: the scene's ``friction``; None there: no
+            limit, the contacts roll whatever force they need). With a ``mu`` the outputs gain
+            ``normal_force{i}``, ``tangential_force{i}``, ``cone_ratio{i}`` (``|F_t|/f``) and
+            ``cone_margin{i}`` (``mu f - |F_t|``, N) for every contact ``i`` = 1, 2, ..., and
+            the checks stop a run whose force leaves a cone with ``FrictionConeError``, at the
+            time where the margin reaches 0, located between the output samples by
+            integrating again (``runtime.events``). ``math.inf``: no limit.
+        slip
+            With ``mu``: ``"stop"`` (default) raises ``FrictionConeError`` where a force leaves
+            its cone; ``"record"`` lets the rolling model run on and only shows the cone in the
+            outputs (where the cone would have been left: ``cone_margin{i} <= 0``).
         project
             ``True`` (or a tolerance in m, default ``projection.PROJECT_TOL`` = 1e-13): after
             every accepted step of 'radau', 'dopri5', 'dop853' or 'rk4' (and at every output between
@@ -356,13 +375,16 @@ class Model:
             The contact point reached the end of a contour's domain.
         ContactOpenedError
             The normal force ``f`` reached 0 (``err.t``, ``err.force``): the contact opens.
+        FrictionConeError
+            With ``mu``: a contact's ``|F_t|/f`` reached ``mu`` (``err.t``, ``err.contact``,
+            ``err.normal``, ``err.tangential``): the contact would slip.
         RelativeCurvatureError
             ``kappa0 + kappa1`` fell to its threshold (``err.t``, ``err.kappa_sum``).
         InconsistentInitialStateError
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
         short = (t_eval is not None and params is None and u is None and time_limit is None
-                 and (not outputs or not self.columns))
+                 and (not outputs or not self.columns) and mu is None and self.friction is None and slip == "stop")
         plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks) if short else None
         if plan_key is not None:  # runtime.fastpath: settings a previous call accepted, straight to C
             plan = self.short_way.plans.get(plan_key)
@@ -373,6 +395,7 @@ class Model:
         s = RunSettings.check(self, t_final, method=method, rtol=rtol, atol=atol, t_eval=t_eval,
                               h=h, max_steps=max_steps, project=project, outputs=outputs,
                               checks=checks, time_limit=time_limit)
+        s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
         x0, own_start = run_.start_state(self, x0)
         res = run_.run(self, s, x0, own_start, self.params(params), u)
         if short:  # the settings and x0 passed: later calls may take the short way
@@ -385,7 +408,7 @@ class Model:
                       rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
                       max_steps: int = 1_000_000, project: bool | float = False,
                       outputs: bool = False, checks: bool = True, threads: int | None = None,
-                      time_limit: float | None = None):
+                      time_limit: float | None = None, mu=None, slip: str = "stop"):
         """Many runs in one call: N simulations over a pool of threads in C, the GIL released
         (``runtime.batch``); returns a ``BatchResult``.
 
@@ -416,11 +439,16 @@ class Model:
             evaluated and the events along them checked as ``simulate`` does either way.
         threads
             Threads to run on (default: every core this process may use).
+        mu
+            As for ``simulate``: one value for every run, or one per run (``(N,)``, or
+            ``(N, n_contacts)``); the runs that leave a cone get status ``-11`` (an event) and
+            the ``FrictionConeError`` message, or with ``slip="record"`` roll on (the cone's
+            outputs come with ``outputs=True``).
         """
         return batch.simulate_many(self, t_final, x0=x0, params=params, u=u, method=method,
                                    rtol=rtol, atol=atol, t_eval=t_eval, h=h, max_steps=max_steps,
                                    project=project, outputs=outputs, checks=checks,
-                                   threads=threads, time_limit=time_limit)
+                                   threads=threads, time_limit=time_limit, mu=mu, slip=slip)
 
     # ------------------------------------------------------------------ inputs
     def with_inputs(self, p, a, b=None) -> np.ndarray:

@@ -12,7 +12,7 @@ import numpy as np
 
 from grasping_sym.errors import ContactLeftContourError, IntegratorError, RunArgumentError
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import failures, integrators
+from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime.inputs import as_schedule
 from grasping_sym.runtime.result import SimulationResult
@@ -61,20 +61,54 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
     t, X, stats = _segments(model, s, segments, sched, x0, p, start)
     # the checks read the compiled outputs whether or not the result shows them; a run
     # that returns none and has no event (checks.clean, on the watched columns) needs no more
-    quiet = s.checks and not s.outputs and sched is None and checks_.clean(model, t, X, p)
+    quiet = s.checks and not s.outputs and sched is None and s.mu is None \
+        and checks_.clean(model, t, X, p)
     outs = outputs_.along(model, t, X, p, sched) if (s.outputs or s.checks and not quiet) \
         and model.columns else {}
     if s.checks and outs:
         event = checks_.trajectory_event(model, t, X, outs, start)
+        if s.mu is not None and s.slip == "stop":
+            event = cone_event(model, s, sched, p, t, X, outs, event)
         if event is not None:
             raise event
-    outs = {k: outs[k] for k in model.output_names} if s.outputs and outs else {}
+    cone = friction.quantities(model, outs, s.mu) if s.outputs and outs and s.mu is not None else {}
+    outs = {**{k: outs[k] for k in model.output_names}, **cone} if s.outputs and outs else {}
     if s.drop_first:
         t, X = t[1:], X[1:]
         outs = {k: v[1:].copy() for k, v in outs.items()}
     pdict = dict(zip(model.param_names, [] if p is None else map(float, p)))
     return SimulationResult(t=t, x=X, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene)
+
+
+def cone_event(model, s: RunSettings, sched, p, t, X, outs, event):
+    """The earlier of ``event`` (another check's, or None) and the first exit of a contact's
+    force from its friction cone along the samples (``runtime.friction``), that one located
+    between the samples around it (``runtime.events``)."""
+    hit = friction.first_exit(model, t, outs, s.mu)
+    if hit is None:
+        return event
+    i, c = hit
+    if event is not None and i and event.t < t[i - 1]:
+        return event
+    if i == 0:
+        y = {k: float(v[0]) for k, v in outs.items()}
+        cone = friction.cone_error(model, float(t[0]), X[0], y, s.mu, c, "at the start")
+    else:
+        found = events.locate(model, s, sched, p, float(t[i - 1]), X[i - 1], float(t[i]),
+                              friction.witness(model, s.mu, c))
+        if found is not None:
+            tc, xc = found
+            how = f"located between the outputs at {t[i - 1]:.6g} and {t[i]:.6g} s"
+        else:  # not reproduced by the second integration: the samples' linear estimate
+            m = friction.margins(model, {k: v[i - 1:i + 1] for k, v in outs.items()}, s.mu)[:, c]
+            frac = m[0] / (m[0] - m[1]) if np.all(np.isfinite(m)) and m[0] != m[1] else 1.0
+            tc, xc = float(t[i - 1] + frac * (t[i] - t[i - 1])), X[i - 1]
+            how = "interpolated between the outputs (state at the last one before)"
+        y = outputs_.along(model, np.array([tc]), np.asarray(xc)[None, :], p, sched)
+        cone = friction.cone_error(model, tc, xc, {k: float(v[0]) for k, v in y.items()},
+                                   s.mu, c, how)
+    return cone if event is None or cone.t <= event.t else event
 
 
 def _segments(model, s: RunSettings, segments, sched, x0, p, start):

@@ -61,6 +61,12 @@ class RunSettings:
         ``projection.settings``'s ``(mask, tolerance)`` (``(None, tol)`` without projection).
     outputs, checks
         ``simulate``'s switches.
+    mu
+        The friction coefficient of every contact (``runtime.friction.resolve``), None
+        without a friction limit.
+    slip
+        What a force outside its cone does: ``"stop"`` the run (``FrictionConeError``) or
+        ``"record"`` it (the run goes on rolling; the outputs show the cone).
     """
 
     method: str
@@ -75,6 +81,8 @@ class RunSettings:
     proj: tuple
     outputs: bool
     checks: bool
+    mu: np.ndarray | None = None
+    slip: str = "stop"
 
     @classmethod
     def check(cls, model, t_final, *, method: str, rtol, atol, t_eval, h, max_steps: int,
@@ -91,6 +99,19 @@ class RunSettings:
         return cls(method=method, t_final=t_final, rtol=float(rtol), atol=float(atol),
                    h=float(h) if method == "rk4" else h, max_steps=max_steps, time_limit=time_limit, t_eval=grid,
                    drop_first=drop_first, proj=proj, outputs=outputs, checks=checks)
+
+
+#: What ``simulate``'s ``slip`` may be.
+SLIP = ("stop", "record")
+
+
+def slip_mode(slip) -> str:
+    """``slip`` checked: ``"stop"`` or ``"record"``."""
+    if slip not in SLIP:
+        raise RunArgumentError(f"slip = {slip!r:.40}: choose 'stop' (a force leaving its friction cone "
+                               "stops the run with FrictionConeError) or 'record' (the run rolls on, "
+                               "the outputs show the cone)")
+    return slip
 
 
 def tolerances(method: str, rtol, atol) -> tuple:
