@@ -171,11 +171,12 @@ _SCRIPT = textwrap.dedent("""
 
 def _run(scenario: str, ignore: bool = False) -> list[dict]:
     def preexec():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        # the child's SIGINT as a shell would give it: ignored (nohup) or at its default,
+        # whatever disposition this test worker holds (one the tests before it left)
+        signal.signal(signal.SIGINT, signal.SIG_IGN if ignore else signal.SIG_DFL)
 
     out = subprocess.run([sys.executable, "-c", _SCRIPT, scenario], capture_output=True,
-                         text=True, timeout=180, env=dict(os.environ),
-                         preexec_fn=preexec if ignore else None)
+                         text=True, timeout=180, env=dict(os.environ), preexec_fn=preexec)
     assert out.returncode == 0, (out.returncode, out.stderr[-3000:])
     return json.loads(out.stdout.strip().splitlines()[-1])
 

@@ -137,6 +137,13 @@ def test_time_limit_stops_sundials_in_another_thread(slow_model, method):
     assert time.perf_counter() - t0 < 1.5
 
 
+def _default_sigint():
+    """The child's SIGINT at its default, as a shell starts it, whatever disposition this
+    test worker holds."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 _CTRL_C = """
 import json, os, signal, sys, threading, time
 import grasping_sym as gs
@@ -170,7 +177,8 @@ except KeyboardInterrupt:
 def test_ctrl_c_stops_every_method_within_a_tenth_of_a_second(slow_model, method):
     kw = {} if method == "simulate_many" else _long(method)
     out = subprocess.run([sys.executable, "-c", textwrap.dedent(_CTRL_C), method,
-                          json.dumps(kw)], capture_output=True, text=True, timeout=120)
+                          json.dumps(kw)], capture_output=True, text=True, timeout=120,
+                         preexec_fn=_default_sigint)
     res = json.loads(out.stdout.strip().splitlines()[-1])
     assert res["outcome"] == "KeyboardInterrupt", out.stderr[-1000:]
     assert res["delay"] < 0.1, res
@@ -289,14 +297,14 @@ def test_every_contact_is_compiled_for_the_checks_whatever_the_scene_shows():
     from grasping_sym.pipeline import with_check_outputs
 
     scene, added = with_check_outputs(gs.scenes.paper2d(outputs=()))
-    assert added == ("Q", "R", "f", "kappa_sum") and scene.outputs == added
+    assert added == ("Q", "R", "f", "lam", "kappa_sum") and scene.outputs == added
     assert with_check_outputs(gs.scenes.paper2d())[1] == ()  # the default shows them all
     base = gs.scenes.paper3d()
     third = dataclasses.replace(base.fingers[0], chain=dataclasses.replace(chains.finger1(), name="3"))
     three = gs.scenes.paper3d(name="three3d", fingers=(*base.fingers, third), dq0=None,
                               outputs=("kinetic_energy",))
     scene, added = with_check_outputs(three)
-    assert {"f3", "krel_min3", "constraint_residual"} <= set(added)
+    assert {"f3", "lam3", "eta3", "krel_min3", "constraint_residual"} <= set(added)
     assert scene.outputs == ("kinetic_energy", *added)
     paper = with_check_outputs(gs.scenes.paper3d(formulation="paper", outputs=()))[1]
     assert {"frame_denominator1", "frame_denominator2"} <= set(paper)
