@@ -158,3 +158,11 @@ def test_casadi_cone_margin_matches_the_runs_cone(paper3d):
         want = (mu * res[f"normal_force{i}"][k]) ** 2 - res[f"tangential_force{i}"][k] ** 2
         np.testing.assert_allclose(margin[i - 1], want, rtol=1e-10)
         assert np.sign(margin[i - 1]) == np.sign(res[f"cone_margin{i}"][k])
+
+
+def test_the_cone_figure_shades_where_the_rolling_run_would_slip(paper2d, tmp_path):
+    res = paper2d.simulate(0.3, mu=0.2, slip="record")
+    out = gs.viz.cone(res, tmp_path / "cone.png")
+    assert out.stat().st_size > 10_000
+    with pytest.raises(ValueError, match="no friction-cone outputs"):
+        gs.viz.cone(paper2d.simulate(0.01), tmp_path / "none.png")
