@@ -247,3 +247,22 @@ class InputScheduleError(GraspingSymError, ValueError):
     """A ``gs.inputs.Schedule`` (or the table it is made from) is not one: knot times not finite
     and strictly increasing, a number of rows that is not one per segment, non-finite values,
     or a number of inputs that is not the model's (the message names the field and its shape)."""
+
+
+class ContactModeError(IntegratorError):
+    """A switch of contact modes has no consistent answer (``runtime.modes``); the run stops
+    at ``t`` (s), state ``x``, with the numbers in the message: never a guess."""
+
+
+class PainleveError(ContactModeError):
+    """Sliding with no or several consistent normal forces: the normal row's coefficient
+    ``n . K (n - mu d)`` (``painleve``, 1/kg: the normal's effective inverse mass corrected by
+    the friction direction) fell to 0 or below."""
+
+
+class ChatteringError(ContactModeError):
+    """More than ``max_switches`` switches within ``window`` seconds (a Zeno run)."""
+
+
+class EventLocationError(ContactModeError):
+    """An event seen between two output samples could not be located by integrating again."""

@@ -13,7 +13,7 @@ import hashlib
 import casadi as ca
 
 from grasping_sym.assemble.functions import FUNCTION_OPTIONS
-from grasping_sym.derive.quantities import grasp3d_quantities, planar_quantities
+from grasping_sym.derive.quantities import body_quantities, grasp3d_quantities, planar_quantities
 from grasping_sym.errors import ControllerError
 from grasping_sym.model import kinds
 from grasping_sym.model.control import PAPER
@@ -24,7 +24,8 @@ __all__ = ["ControllerFunction", "controller_function", "controller_key", "contr
 
 
 #: kind -> (its quantities, ``derive.quantities``; the paper's law of its papers)
-_KINDS = {"planar": (planar_quantities, paper2d), "grasp3d": (grasp3d_quantities, paper3d)}
+_KINDS = {"planar": (planar_quantities, paper2d), "grasp3d": (grasp3d_quantities, paper3d),
+          "body": (body_quantities, None)}
 
 
 def controller_torques(scene, t, x, p) -> tuple[ca.SX, bool, bool]:
@@ -36,7 +37,7 @@ def controller_torques(scene, t, x, p) -> tuple[ca.SX, bool, bool]:
     if law == PAPER:
         law = paper_law()
     cols = law.torques(m) if law is not None else [ca.SX.zeros(dq.numel(), 1) for dq in m.dq]
-    tau = ca.vertcat(*cols)
+    tau = ca.vertcat(*cols) if cols else ca.SX(0, 1)
     known = {s.element_hash() for s in ca.symvar(ca.vertcat(t, x, p))}
     free = [s for s in ca.symvar(tau) if s.element_hash() not in known]
     if free:

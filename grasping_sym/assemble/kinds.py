@@ -22,7 +22,7 @@ import numpy as np
 
 from grasping_sym.assemble import scene_functions
 from grasping_sym.assemble.functions import sympy_op_counts
-from grasping_sym.derive import finger_templates, start3d
+from grasping_sym.derive import body_plane, finger_templates, start3d
 from grasping_sym.derive.grasp3d import finger_function
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.model import kinds
@@ -65,6 +65,15 @@ def _grasp3d_templates(scene) -> list[tuple[str, str, object]]:
              lambda chain=f.chain: finger_function(chain, g)) for f in scene.fingers]
 
 
+def _body_functions(scene, progress=None, layers: bool = True):
+    return scene_functions.body_functions(scene, progress)
+
+
+def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    x0, info = body_plane.start_state(scene)
+    return x0, {}, info
+
+
 #: kind name -> its row
 KINDS: dict[str, Kind] = {
     "planar": Kind(functions=_planar_functions, solve_start=_planar_start,
@@ -72,6 +81,8 @@ KINDS: dict[str, Kind] = {
                    sympy_op_counts=lambda scene: sympy_op_counts(derive_planar(scene))),
     "grasp3d": Kind(functions=_grasp3d_functions, solve_start=_grasp3d_start,
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
+    "body": Kind(functions=_body_functions, solve_start=_body_start,
+                 templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
 }
 
 

@@ -31,6 +31,7 @@ from grasping_sym.assemble.structure import (
 )
 from grasping_sym.assemble.structure3d import Grasp3DStructureSpec, structure3d_functions
 from grasping_sym.assemble.structure_cache import StructureRecord
+from grasping_sym.derive.body_plane import derive_body_plane
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.derive.planar import has_gravity, parameter_values
 from grasping_sym.emit.casadi_model import CasadiModel
@@ -189,3 +190,16 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
                   outputs_time=system.reads_time)
     t2 = time.perf_counter()
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": t2 - t1})
+
+
+def body_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A body on a plane (``model.body``): its three modes in one piece of SX
+    (``derive.body_plane``), the mode a run-time parameter; with the generated Jacobian."""
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    say(f"deriving {scene.name} (a body on a plane, three contact modes; CasADi)")
+    d = derive_body_plane(scene)
+    t1 = time.perf_counter()
+    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
+                  scene.name, jacobian=True)
+    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})

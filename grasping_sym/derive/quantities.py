@@ -179,3 +179,8 @@ def grasp3d_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, 
         pivot = ca.SX(ca.DM(scene.position))
     return Quantities(t=t, q=q, dq=dq, tip=tip, J=J, gravity_torque=grav, params=params,
                       objects=objects, pivot=pivot)
+
+
+def body_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, ...]) -> Quantities:
+    """A body on a plane (``model.body``): no joints, nothing for a law to drive."""
+    return Quantities(t=t, q=[], dq=[], tip=[], J=[], gravity_torque=[], params={}, objects={})

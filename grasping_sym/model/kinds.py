@@ -14,6 +14,7 @@ from grasping_sym.errors import InvalidSceneError
 KINDS: dict[str, str] = {
     "planar": "2D: planar two-joint fingers rolling on an object pivoted at a point (model.planar)",
     "grasp3d": "3D: spatial finger chains grasping an object with smooth surfaces (model.grasp3d)",
+    "body": "3D: a free body on a plane of the world, rolling, sliding or separated (model.body)",
 }
 
 

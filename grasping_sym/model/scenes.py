@@ -9,6 +9,7 @@ import numpy as np
 from grasping_sym.geometry import library, surface_library
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model import chains
+from grasping_sym.model.body import BodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.model.inertia import solid_ellipsoid_inertia
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
@@ -172,3 +173,32 @@ def _axis_angle(axis, angle: float) -> tuple:
 
 
 BUILTIN.update({"paper3d": paper3d, "pivot3d": pivot3d})
+
+
+def body_on_plane(surface, *, mass: float, inertia, name: str = "body", **kwargs) -> "BodyScene":
+    """A free rigid body with ``surface`` (body frame, centre of mass at its origin) on a fixed
+    plane of the world (``model.body.BodyScene``: ``plane_point``, ``plane_normal``,
+    ``gravity``, the start ``position``, ``rotation``, ``velocity``, ``omega``, ``support``,
+    ``start``, ``gain``, ``friction``)."""
+    return BodyScene(name=name, surface=surface, mass=mass, inertia=inertia, **kwargs)
+
+
+def sphere_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 0.3, *,
+                      name: str = "sphere_incline", **kwargs) -> "BodyScene":
+    """A uniform solid sphere on a plane inclined by ``incline`` rad about the world x axis
+    (its normal ``(0, -sin b, cos b)``; downhill is ``-(0, cos b, sin b)``), gravity ``-z``.
+    The sphere's chart is turned so that its pole points along the world x axis: the contact
+    starts on the chart's equator at ``(u, v) = (0, 0)`` and a roll or slide downhill moves it
+    along the equator."""
+    b = float(incline)
+    n = (0.0, -math.sin(b), math.cos(b))
+    # body frame: the chart's equator (v = 0) through the contact, the roll along it
+    Rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(b), -math.sin(b)], [0.0, math.sin(b), math.cos(b)]])
+    Rchart = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # body z (pole) along world x
+    rotation = Rx @ Rchart
+    inertia = 0.4 * mass * radius**2
+    defaults = dict(plane_normal=n, gravity=(0.0, 0.0, -9.81), rotation=rotation,
+                    support=(0.0, 0.0))
+    defaults.update(kwargs)
+    return BodyScene(name=name, surface=surface_library.sphere(radius, lon=(-3 * math.pi, 3 * math.pi)),
+                     mass=mass, inertia=(inertia, inertia, inertia), **defaults)

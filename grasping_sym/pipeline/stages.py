@@ -181,6 +181,8 @@ def write_start(directory: Path, record: dict) -> None:
 def _constraints_entry(cm, state_names) -> dict:
     """The manifest's ``constraints``: the names of C and the states the projection changes."""
     info = cm.constraint_info
+    if not info:  # a model with no constraints (a body on a plane: its modes have their own)
+        return {"names": [], "position_states": [], "velocity_states": []}
     return {"names": list(info["names"]),
             "position_states": [state_names[i] for i in info["position_states"]],
             "velocity_states": [state_names[i] for i in info["velocity_states"]]}

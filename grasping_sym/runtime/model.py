@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym.errors import RunArgumentError
-from grasping_sym.runtime import batch, external, fastpath, parameters, portable
+from grasping_sym.runtime import batch, external, fastpath, modes, parameters, portable
 from grasping_sym.runtime import friction as friction_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -384,7 +384,8 @@ class Model:
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
         short = (t_eval is not None and params is None and u is None and time_limit is None
-                 and (not outputs or not self.columns) and mu is None and self.friction is None and slip == "stop")
+                 and (not outputs or not self.columns) and mu is None and self.friction is None and slip == "stop"
+                 and not self.manifest.get("modes"))
         plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks) if short else None
         if plan_key is not None:  # runtime.fastpath: settings a previous call accepted, straight to C
             plan = self.short_way.plans.get(plan_key)
@@ -395,6 +396,9 @@ class Model:
         s = RunSettings.check(self, t_final, method=method, rtol=rtol, atol=atol, t_eval=t_eval,
                               h=h, max_steps=max_steps, project=project, outputs=outputs,
                               checks=checks, time_limit=time_limit)
+        if self.manifest.get("modes"):  # contact that can change: runtime.modes
+            x0, _ = run_.start_state(self, x0)
+            return modes.run(self, s, x0, mu)
         s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
         x0, own_start = run_.start_state(self, x0)
         res = run_.run(self, s, x0, own_start, self.params(params), u)

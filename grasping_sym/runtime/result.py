@@ -42,6 +42,14 @@ class SimulationResult:
     scene
         The scene of the model that ran it when that model was made by ``gs.build`` (what
         ``gs.viz.animate`` and ``gs.viz.view`` draw by default), else None.
+    events
+        A model with contact modes (``runtime.modes``): every switch, in time order, a dict
+        with ``t``, ``contact``, ``from``, ``to``, ``witness`` (what crossed zero), ``value``
+        (its value at the located time) and ``reset`` (the largest speed change the switch
+        made, m/s); empty otherwise.
+    modes
+        With contact modes: the contact's mode at each output time (``"rolling"``,
+        ``"sliding"``, ``"separated"``), else None.
     """
 
     t: np.ndarray
@@ -52,6 +60,8 @@ class SimulationResult:
     stats: dict = field(default_factory=dict)
     params: dict[str, float] = field(default_factory=dict)
     scene: object = field(default=None, repr=False, compare=False)
+    events: list = field(default_factory=list, repr=False, compare=False)
+    modes: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # shapes only, every run makes one: one row per time, one column per state name, one

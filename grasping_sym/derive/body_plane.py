@@ -1,0 +1,163 @@
+"""A free rigid body on a plane of the world, in its three contact modes (``model.body``;
+``docs/conventions.md`` section 7, MODELS.md section 5), as CasADi SX.
+
+With the contact force ``F`` (world, on the body at its support point ``r_c = p + R S(u, v)``):
+
+    v' = g + F / m,   H omega' + omega x H omega = S x R^T F,   quat' = N(quat) omega
+
+and the support point's coordinates kept where the body's normal is ``-n``
+(``d/dt (R N(u, v)) = -gain (R N + n)``, solved on the tangent plane through the Weingarten map).
+The contact point's velocity is ``v_c = v + R (omega x S)``; the gap ``g = n . (r_c - w0)``
+has ``g' = n . v_c``. Along the motion ``d/dt v_c = K F + b`` with ``K`` the contact's inverse
+effective mass (``1/m I - R [S]x H^-1 [S]x R^T``, from CasADi's Jacobian of the expression) and
+``b`` the rest. The modes choose ``F``:
+
+- rolling (mode 0): ``d/dt v_c = -2 gain v_c - gain^2 g n`` (three rows), ``F = K^-1 (...)``;
+- sliding (mode 1): ``F = f (n - mu d)``, ``d = v_t / |v_t|`` while ``v_t . slip > 0``, else
+  the parameter ``slip`` (a slide from rest of the slip; past its stop, the continuation whose
+  ``v_t . slip`` crosses 0), ``f`` from the normal row; its coefficient
+  ``n . K (n - mu d)`` (``painleve``) must stay > 0;
+- separated (mode 2): ``F = 0``.
+
+The rolling solution's forces are outputs in every mode (the rolling-consistency test of a
+stop).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from grasping_sym.derive.bodies3d import object_rotation, surface_sx
+from grasping_sym.errors import InvalidSceneError
+
+#: Floor of ``|v_t|`` (m/s) in the slip's direction ``v_t / |v_t|`` (used only where
+#: ``v_t . slip > 0``).
+SLIP_ZERO = 1e-300
+
+
+def derive_body_plane(scene) -> dict:
+    """``{"x", "p", "xdot", "outputs", "constraint"}`` of a ``model.body.BodyScene``."""
+    x = ca.SX.sym("x", 15)
+    p = ca.SX.sym("p", len(scene.p_names))
+    mode, mu, slip = p[0], p[1], p[2:5]
+    pos, quat, vel, om, uv = x[0:3], x[3:7], x[7:10], x[10:13], x[13:15]
+    m = float(scene.mass)
+    H = ca.DM(np.asarray(scene.inertia))
+    Hinv = ca.DM(np.linalg.inv(np.asarray(scene.inertia)))
+    n = ca.DM(scene.plane_normal)
+    w0 = ca.DM(scene.plane_point)
+    g_vec = ca.DM(scene.gravity)
+    gain = float(scene.gain)
+
+    R, quat_dot, _ = object_rotation(quat, om)
+    s = surface_sx(scene.surface, uv[0], uv[1], extra=True)
+    S, N, Tm = s["S"], s["n"], s["Tm"]
+    N_uv = ca.jacobian(N, uv)
+    # the support point: d/dt (R N) = R (om x N + N_uv uv') = -gain (R N + n)
+    rhs_uv = -ca.cross(om, N) - gain * (N + R.T @ n)
+    uv_dot = ca.solve(Tm.T @ N_uv, Tm.T @ rhs_uv)
+
+    r_c = pos + R @ S
+    v_c = vel + R @ ca.cross(om, S)
+    gap = ca.dot(n, r_c - w0)
+    vn = ca.dot(n, v_c)
+    v_t = v_c - vn * n
+
+    F = ca.SX.sym("F", 3)
+    om_dot_F = Hinv @ (ca.cross(S, R.T @ F) - ca.cross(om, H @ om))
+    vel_dot_F = g_vec + F / m
+    acc = vel_dot_F + R @ (ca.cross(om_dot_F, S) + ca.cross(om, ca.cross(om, S))) \
+        + R @ ca.cross(om, Tm @ uv_dot)
+    K = ca.jacobian(acc, F)
+    b = ca.substitute(acc, F, ca.DM.zeros(3))
+
+    # rolling: all three rows
+    target = -2 * gain * v_c - gain**2 * gap * n
+    F_roll = ca.solve(K, target - b)
+    # sliding: the normal row, Coulomb's force along the slip
+    speed = ca.norm_2(v_t)
+    # the slip's direction; past a stop (v_t . slip <= 0) and from rest of the slip, the
+    # parameter's: the slide's continuation along it, where the stop's witness v_t . slip
+    # crosses 0 with the slope it had (what locating the stop integrates)
+    d = ca.if_else(ca.dot(v_t, slip) > 0, v_t / ca.fmax(speed, SLIP_ZERO), slip)
+    dirn = n - mu * d
+    painleve = ca.dot(n, K @ dirn)
+    f_slide = (-2 * gain * vn - gain**2 * gap - ca.dot(n, b)) / painleve
+    F_slide = f_slide * dirn
+    F_act = ca.if_else(mode < 0.5, F_roll, ca.if_else(mode < 1.5, F_slide, ca.DM.zeros(3)))
+
+    vel_dot = ca.substitute(vel_dot_F, F, F_act)
+    om_dot = ca.substitute(om_dot_F, F, F_act)
+    xdot = ca.vertcat(vel, quat_dot, vel_dot, om_dot, uv_dot)
+
+    f_act = ca.dot(n, F_act)
+    Ft = F_act - f_act * n
+    f_roll = ca.dot(n, F_roll)
+    Ft_roll = F_roll - f_roll * n
+    ft = ca.norm_2(Ft)
+    kinetic = 0.5 * m * ca.dot(vel, vel) + 0.5 * ca.dot(om, H @ om)
+    potential = -m * ca.dot(g_vec, pos)
+    out = {"gap": gap, "normal_speed": vn, "normal_force": f_act, "tangential_force": ft,
+           "cone_ratio": ft / ca.fmax(f_act, 1e-300),
+           "slip_speed": speed,
+           "rolling_normal_force": f_roll, "rolling_tangential_force": ca.norm_2(Ft_roll),
+           "painleve": painleve, "kinetic_energy": kinetic, "potential_energy": potential,
+           "energy": kinetic + potential}
+    for k, c in enumerate("xyz"):
+        out[f"vt_{c}"] = v_t[k]
+        out[f"Ft_{c}"] = Ft[k]
+        out[f"rolling_Ft_{c}"] = Ft_roll[k]
+        out[f"rc_{c}"] = (R @ S)[k]
+        out[f"vc_{c}"] = v_c[k]
+    for i in range(3):
+        for j in range(3):
+            out[f"K_{i}{j}"] = K[i, j]
+    return {"x": x, "p": p, "xdot": xdot, "outputs": out}
+
+
+def start_state(scene) -> tuple[np.ndarray, dict]:
+    """The body's start and what was solved: the support point ``(u, v)`` where its normal is
+    ``-n`` (Newton from ``scene.support``), the body put on the plane (``start="contact"``:
+    moved along ``n``, the contact point's normal speed removed)."""
+    R0 = np.asarray(scene.rotation, float)
+    n = np.asarray(scene.plane_normal, float)
+    uv = ca.SX.sym("uv", 2)
+    s = surface_sx(scene.surface, uv[0], uv[1], extra=True)
+    resid = s["Tm"].T @ (s["n"] + ca.DM(R0.T @ n))
+    solver = ca.rootfinder("support", "newton", ca.Function("r", [uv], [resid]),
+                           {"abstol": 1e-15, "max_iter": 100})
+    uv0 = np.ravel(solver(ca.DM(scene.support)).full())
+    S0, N0 = (np.ravel(v.full()) for v in ca.Function("geo", [uv], [s["S"], s["n"]])(uv0))
+    if not np.dot(R0 @ N0, n) < -1 + 1e-12:
+        raise InvalidSceneError([f"no support point near support = {scene.support}: the normal found "
+                                 f"at (u, v) = {tuple(uv0)} faces {R0 @ N0}, not -plane_normal; give "
+                                 "a guess (support=(u, v)) where the surface faces the plane"])
+    pos = np.asarray(scene.position, float)
+    om = np.asarray(scene.omega, float)
+    vel = np.asarray(scene.velocity, float)
+    if scene.start == "contact":
+        pos = pos - np.dot(n, pos + R0 @ S0 - np.asarray(scene.plane_point)) * n
+        vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0)) * n
+    x0 = np.concatenate([pos, quaternion_of(R0), vel, om, uv0])
+    return x0, {"support": [float(v) for v in uv0]}
+
+
+def quaternion_of(R: np.ndarray) -> np.ndarray:
+    """The unit quaternion (w first, w >= 0) of the rotation ``R`` (Shepperd's method)."""
+    tr = np.trace(R)
+    if tr > 0:
+        w = 0.5 * np.sqrt(1 + tr)
+        q = [w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w),
+             (R[1, 0] - R[0, 1]) / (4 * w)]
+    else:
+        i = int(np.argmax(np.diag(R)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        r = np.sqrt(1 + R[i, i] - R[j, j] - R[k, k])
+        q = [0.0] * 4
+        q[0] = (R[k, j] - R[j, k]) / (2 * r)
+        q[1 + i] = 0.5 * r
+        q[1 + j] = (R[j, i] + R[i, j]) / (2 * r)
+        q[1 + k] = (R[k, i] + R[i, k]) / (2 * r)
+        if q[0] < 0:
+            q = [-v for v in q]
+    return np.array(q)

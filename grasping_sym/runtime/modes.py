@@ -1,0 +1,352 @@
+"""Contact that can change: a run of a model with contact modes, switching at located events.
+
+A model with modes (a body on a plane, ``model.body``; the manifest's ``modes``) is compiled
+once with its mode a run-time parameter (0 rolling, 1 sliding, 2 separated) and the slip
+direction at the start of a slide (``slip_x``, ``slip_y``, ``slip_z``). A run integrates one
+segment per mode by the C Radau loop; along each segment the mode's witnesses are watched at
+the output samples and the first sign change is located between the samples by integrating
+again (``runtime.events``), where the run switches (``docs/conventions.md`` section 7):
+
+- rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
+  equations accelerate it (the fixed point of ``d -> a_t(d)/|a_t(d)|`` from
+  ``-F_t/|F_t|``); ``f`` reaching 0 -> separated;
+- sliding: ``f`` reaching 0 -> separated; the slip velocity along its direction at the
+  sample before, ``v_t . d``, reaching 0 -> the slip stopped: the contact velocity is set to
+  0 (a reset, recorded) and the run rolls if rolling is consistent there (``|F_t| <= mu f``
+  in the rolling solution, ``f > 0``), else slides on in the direction the equations give;
+- separated: the gap reaching 0 while approaching -> an impact: Newton's restitution ``e``
+  along the normal and Coulomb friction on the impulse (stick if the impulse that stops the
+  tangential motion lies in the cone, else slide with the impulse on the cone's edge along
+  the incoming slip), then separated again (bouncing) or in contact.
+
+Every switch is recorded in ``res.events``; ``res.modes`` holds the mode at each output time.
+Cases with no consistent answer stop by name (``errors.ContactModeError``): Painleve (the
+sliding normal row's coefficient ``painleve`` <= 0), chattering (more than ``MAX_SWITCHES``
+switches within ``SWITCH_WINDOW`` s), an event that cannot be located.
+"""
+from __future__ import annotations
+
+import math
+from time import perf_counter
+
+import numpy as np
+
+from grasping_sym.contact import Coulomb
+from grasping_sym.errors import ChatteringError, EventLocationError, PainleveError, RunArgumentError
+from grasping_sym.runtime import events, integrators
+from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime.result import SimulationResult
+
+ROLLING, SLIDING, SEPARATED = 0, 1, 2
+NAMES = ("rolling", "sliding", "separated")
+#: Gap (m) within which a start counts as in contact.
+CONTACT_GAP = 1e-9
+#: Slip speed (m/s) at or below which a contact counts as at rest of the slip (rolling if
+#: consistent): the round-off of a contact velocity that a reset set to 0.
+SLIP_SPEED = 1e-10
+#: Most switches within ``SWITCH_WINDOW`` seconds before a run stops as chattering.
+MAX_SWITCHES = 50
+SWITCH_WINDOW = 1e-3
+#: An impact slower than this (m/s, normal approach) is plastic whatever ``e``: the bounces
+#: of a body coming to rest would otherwise accumulate (Zeno).
+REST_SPEED = 1e-3
+
+
+def friction_law(model, mu) -> tuple[float, float]:
+    """``(mu, e)`` of a run: ``mu`` (a number or a ``Coulomb``) else the model's law; no law at
+    all: ``mu = inf`` (the contact never slides), ``e = 0``."""
+    law = model.friction if mu is None else mu
+    if law is None:
+        return math.inf, 0.0
+    if isinstance(law, Coulomb):
+        return float(law.per_contact(1)[0]), float(law.e)
+    if isinstance(law, (bool, np.bool_)) or not isinstance(law, (int, float, np.floating, np.integer)):
+        raise RunArgumentError(f"mu = {law!r:.40} must be a number >= 0 or gs.contact.coulomb(mu, e)")
+    mu_ = float(law)
+    if not mu_ >= 0:
+        raise RunArgumentError(f"mu = {law!r} must be a number >= 0 (math.inf: never slides)")
+    e = float(model.friction.e) if isinstance(model.friction, Coulomb) else 0.0
+    return mu_, e
+
+
+class _Run:
+    """One run's state: the model, its settings, the parameters per mode."""
+
+    def __init__(self, model, s, mu: float, e: float):
+        self.model, self.s, self.mu, self.e = model, s, mu, e
+        names = model.p_names
+        self.p = np.array(model.default_params, dtype=float)
+        self.i_mode, self.i_mu = names.index("mode"), names.index("mu")
+        self.i_slip = names.index("slip_x")
+        self.p[self.i_mu] = min(mu, 1e300)
+        info = model.manifest["body"]
+        self.m = float(info["mass"])
+        self.H = np.array(info["inertia"], dtype=float)
+        self.Hinv = np.linalg.inv(self.H)
+        self.n = np.array(info["plane_normal"], dtype=float)
+        self.events: list[dict] = []
+        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0}
+
+    def params(self, mode: int, slip=None) -> np.ndarray:
+        p = self.p.copy()
+        p[self.i_mode] = float(mode)
+        if slip is not None:
+            p[self.i_slip:self.i_slip + 3] = slip
+        return p
+
+    def outputs(self, x: np.ndarray, p: np.ndarray) -> dict[str, float]:
+        return outputs_.at(self.model, x, p)
+
+    # ------------------------------------------------------------------ what a mode is
+    def slip_direction(self, y: dict) -> np.ndarray:
+        """The direction a slide starts in from rest of the slip (module docstring)."""
+        n = self.n
+        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
+        F_roll = y["rolling_normal_force"] * n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
+        ft = F_roll - np.dot(F_roll, n) * n
+        d = -ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.cross(n, [1.0, 0.0, 0.0])
+        target = np.zeros(3)  # at v_c = 0 and gap = 0 the rolling acceleration is 0
+        for _ in range(50):
+            dirn = n - self.mu * d
+            f = np.dot(n, K @ F_roll) / np.dot(n, K @ dirn)
+            a = K @ (f * dirn - F_roll) + target
+            a_t = a - np.dot(a, n) * n
+            nd = a_t / np.linalg.norm(a_t)
+            if np.linalg.norm(nd - d) < 1e-15:
+                break
+            d = nd
+        return d
+
+    def contact_start(self, y: dict) -> tuple[int, np.ndarray | None]:
+        """The mode and slip direction of a state in contact: sliding along the slip when the
+        contact point slips, else ``contact_mode`` (from rest of the slip)."""
+        vt = np.array([y[f"vt_{c}"] for c in "xyz"])
+        if np.linalg.norm(vt) > SLIP_SPEED and y["rolling_normal_force"] > 0:
+            return SLIDING, vt / np.linalg.norm(vt)
+        mode = self.contact_mode(y)
+        return mode, (self.slip_direction(y) if mode == SLIDING else None)
+
+    def contact_mode(self, y: dict) -> int:
+        """Rolling if it is consistent at a state in contact at rest of the slip, else sliding
+        (``f > 0``), else separated."""
+        f, ft = y["rolling_normal_force"], y["rolling_tangential_force"]
+        if not f > 0:
+            return SEPARATED
+        return ROLLING if ft <= self.mu * f else SLIDING
+
+    def witnesses(self, mode: int, slip):
+        """``(name, function of one state's outputs)`` of the events of ``mode`` (``slip``:
+        the slide's direction parameter: the stop is where ``v_t . slip`` reaches 0)."""
+        if mode == ROLLING:
+            return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]),
+                    ("normal_force", lambda y: y["normal_force"])]
+        if mode == SLIDING:
+            d = np.asarray(slip, dtype=float)
+            return [("normal_force", lambda y: y["normal_force"]),
+                    ("slip", lambda y: float(np.dot(d, [y["vt_x"], y["vt_y"], y["vt_z"]]))),
+                    ("painleve", lambda y: y["painleve"])]
+        return [("gap", lambda y: y["gap"])]
+
+    # ------------------------------------------------------------------ the maps at a switch
+    def _apply(self, x: np.ndarray, P: np.ndarray, rc: np.ndarray) -> np.ndarray:
+        """``x`` after the impulse ``P`` (N s, world) at the contact point ``rc`` (world,
+        from the centre)."""
+        x = x.copy()
+        q = x[3:7]
+        R = _rotation(q)
+        x[7:10] += P / self.m
+        x[10:13] += self.Hinv @ np.cross(R.T @ rc, R.T @ P)
+        return x
+
+    def stop_slip(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float]:
+        """The contact velocity set to 0 (the impulse that does it); the largest change."""
+        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
+        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
+        rc = np.array([y[f"rc_{c}"] for c in "xyz"])
+        P = np.linalg.solve(K, -vc)
+        return self._apply(x, P, rc), float(np.max(np.abs(vc)))
+
+    def impact(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float, bool]:
+        """Newton's restitution and Coulomb friction on the impulse (module docstring):
+        ``(x after, largest speed change, stuck, bounced)``: a bounce when ``e > 0`` and the
+        approach is faster than ``REST_SPEED``."""
+        n, mu = self.n, self.mu
+        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
+        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
+        rc = np.array([y[f"rc_{c}"] for c in "xyz"])
+        vn = float(np.dot(n, vc))
+        e = self.e if -vn > REST_SPEED else 0.0
+        target = -e * vn * n
+        P = np.linalg.solve(K, target - vc)
+        Pn = float(np.dot(P, n))
+        Pt = P - Pn * n
+        vt = vc - vn * n
+        stuck = np.linalg.norm(Pt) <= mu * Pn or np.linalg.norm(vt) <= SLIP_SPEED
+        if not stuck:
+            vt = vc - vn * n
+            d = vt / np.linalg.norm(vt)
+            Pn = -(1 + e) * vn / float(np.dot(n, K @ (n - mu * d)))
+            P = Pn * (n - mu * d)
+        after = self._apply(x, P, rc)
+        return after, float(np.max(np.abs(K @ P))), bool(stuck), e > 0
+
+
+def _rotation(q: np.ndarray) -> np.ndarray:
+    """The rotation of a (not necessarily unit) quaternion, homogeneous form."""
+    w, v = q[0], q[1:4]
+    s = float(np.dot(q, q))
+    return ((w * w - v @ v) * np.eye(3) + 2 * np.outer(v, v) + 2 * w * np.array(
+        [[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])) / s
+
+
+def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
+    """``Model.simulate`` of a model with modes (module docstring)."""
+    start = perf_counter()
+    if s.method != "radau":
+        raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs 'radau' (its "
+                               "switches are located by integrating again with it)")
+    mu, e = friction_law(model, mu_arg)
+    r = _Run(model, s, mu, e)
+    t_eval = s.t_eval
+    y = r.outputs(x0, r.params(ROLLING))
+    if abs(y["gap"]) <= CONTACT_GAP:
+        mode, slip = r.contact_start(y)
+    elif y["gap"] > 0:
+        mode, slip = SEPARATED, None
+    else:
+        raise RunArgumentError(f"x0 penetrates the plane: gap = {y['gap']:.6g} m < 0; start on it "
+                               "(start='contact') or above it")
+    rows_t, rows_x, rows_mode, rows_p = [], [], [], []
+    t_now, x_now = 0.0, np.asarray(x0, dtype=float)
+    last_t = -math.inf
+    recent: list[float] = []
+    while True:
+        p = r.params(mode, slip)
+        if mode == SLIDING and r.outputs(x_now, p)["painleve"] <= 0:
+            _painleve(model, t_now, x_now, r.outputs(x_now, p), mu)
+        grid = np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]])
+        if len(grid) < 2:
+            break
+        t, X, st = integrators.c_loop(model, "radau", x_now, grid, p, rtol=s.rtol, atol=s.atol,
+                                      max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+        r.stats["n_steps"] += int(st.get("n_steps", 0))
+        r.stats["n_rhs"] += int(st.get("n_rhs", 0))
+        r.stats["segments"] += 1
+        Y = outputs_.at_rows(model, X, p)
+        found = _first_event(r, mode, slip, t, X, Y, p)
+        keep = len(t) if found is None else found[0]
+        on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
+        rows_t.append(t[:keep][on_grid])
+        rows_x.append(X[:keep][on_grid])
+        rows_mode.append(np.full(int(on_grid.sum()), mode))
+        rows_p.append(np.tile(p, (int(on_grid.sum()), 1)))
+        if on_grid.any():
+            last_t = float(t[:keep][on_grid][-1])
+        if found is None:
+            break
+        _, t_ev, x_ev, name, value = found
+        recent = [tt for tt in recent if tt > t_ev - SWITCH_WINDOW] + [t_ev]
+        if len(recent) > MAX_SWITCHES:
+            raise ChatteringError(t_ev, x_ev, f"{len(recent)} switches of contact modes within "
+                                  f"{SWITCH_WINDOW:g} s up to t = {t_ev:.9g} s (a Zeno run): the "
+                                  "contact chatters; give a plastic impact (e = 0) or a larger "
+                                  "friction coefficient", model.state_names)
+        mode_before = mode
+        mode, slip, x_now, reset = _switch(r, mode, name, t_ev, x_ev)
+        r.events.append({"t": t_ev, "contact": 1, "from": NAMES[mode_before], "to": NAMES[mode],
+                         "witness": name, "value": value, "reset": reset})
+        t_now = t_ev
+    t_all = np.concatenate(rows_t)
+    X_all = np.concatenate(rows_x)
+    modes_all = np.concatenate(rows_mode)
+    outs = {}
+    if s.outputs:
+        P_all = np.concatenate(rows_p)
+        Y = np.array([outputs_.row(model, x, pp) for x, pp in zip(X_all, P_all)]) if len(X_all) \
+            else np.zeros((0, len(model.columns)))
+        outs = {k: Y[:, i].copy() for i, k in enumerate(model.columns) if k in model.output_names}
+    if s.drop_first and len(t_all) and t_all[0] == 0.0:
+        t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
+        outs = {k: v[1:] for k, v in outs.items()}
+    stats = {**r.stats, "n_events": len(r.events), "wall_time": perf_counter() - start}
+    pdict = {"mu": mu, "e": e}
+    return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
+                            method="radau", stats=stats, params=pdict, scene=model.scene,
+                            events=r.events, modes=np.array([NAMES[m] for m in modes_all]))
+
+
+def _first_event(r: _Run, mode: int, slip, t, X, Y, p):
+    """``(samples to keep, t, x, witness, value)`` of the first event along the segment's
+    samples, located; None if none."""
+    cols = {k: i for i, k in enumerate(r.model.columns)}
+    values = {k: Y[k] for k in r.model.columns}
+    n = len(t)
+    if mode == SEPARATED:
+        gap = values["gap"]
+        bad = np.flatnonzero(~(gap > 0) & (values["normal_speed"] < 0))
+        bad = bad[bad > 0]
+        cands = [("gap", int(bad[0]))] if bad.size else []
+    else:
+        cands = []
+        ws = r.witnesses(mode, slip)
+        for i in range(1, n):
+            y0 = {k: float(values[k][i - 1]) for k in cols}
+            y1 = {k: float(values[k][i]) for k in cols}
+            for name, w in ws:
+                if w(y0) > 0 and not w(y1) > 0:
+                    cands.append((name, i))
+            if cands:
+                break
+    if not cands:
+        return None
+    i = min(k for _, k in cands)
+    y0 = {k: float(values[k][i - 1]) for k in cols}
+    best = None
+    for name, w in r.witnesses(mode, slip):
+        if mode != SEPARATED and not (w(y0) > 0 and not w({k: float(values[k][i]) for k in cols}) > 0):
+            continue
+        found = events.locate(r.model, r.s, None, p, float(t[i - 1]), X[i - 1], float(t[i]), w)
+        if found is None:
+            raise EventLocationError(float(t[i]), X[i], f"the {name} witness changes sign between the "
+                                     f"outputs at {t[i - 1]:.9g} and {t[i]:.9g} s, but integrating "
+                                     "again does not find where: give a denser t_eval or tighter "
+                                     "tolerances", r.model.state_names)
+        tc, xc = found
+        if best is None or tc < best[1]:
+            best = (i, tc, xc, name, float(w(r.outputs(xc, p))))
+    return best
+
+
+def _switch(r: _Run, mode: int, name: str, t: float, x: np.ndarray):
+    """``(new mode, slip direction, state after, reset)`` at an event of ``mode``."""
+    if name == "painleve":
+        _painleve(r.model, t, x, r.outputs(x, r.params(SLIDING)), r.mu)
+    if name == "normal_force":
+        return SEPARATED, None, x, 0.0
+    if name == "cone":
+        y = r.outputs(x, r.params(ROLLING))
+        return SLIDING, r.slip_direction(y), x, 0.0
+    if name == "slip":
+        y = r.outputs(x, r.params(ROLLING))
+        x2, reset = r.stop_slip(x, y)
+        y2 = r.outputs(x2, r.params(ROLLING))
+        new = r.contact_mode(y2)
+        return new, (r.slip_direction(y2) if new == SLIDING else None), x2, reset
+    # an impact
+    y = r.outputs(x, r.params(ROLLING))
+    x2, reset, stuck, bounced = r.impact(x, y)
+    y2 = r.outputs(x2, r.params(ROLLING))
+    if bounced:  # restitution: it leaves the plane again
+        return SEPARATED, None, x2, reset
+    if stuck:
+        new = r.contact_mode(y2)
+        return new, (r.slip_direction(y2) if new == SLIDING else None), x2, reset
+    new, slip = r.contact_start(y2)
+    return new, slip, x2, reset
+
+
+def _painleve(model, t, x, y, mu):
+    raise PainleveError(t, x, f"sliding with mu = {mu:g} has no consistent normal force (or several): "
+                        f"the normal row's coefficient n . K (n - mu d) = {y['painleve']:.6g} 1/kg <= 0 "
+                        "(Painleve's paradox); the rigid model has no answer here: lower mu, or "
+                        "model the contact's compliance", model.state_names)
