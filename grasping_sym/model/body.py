@@ -166,7 +166,7 @@ class BodyScene:
         """The kind, and that ``simulate`` runs the modes (``runtime.modes``)."""
         return {"kind": "body", "modes": list(MODES),
                 "body": {"mass": float(self.mass), "inertia": [list(r) for r in self.inertia],
-                         "plane_normal": list(self.plane_normal)},
+                         "plane_normal": list(self.plane_normal), "gain": float(self.gain)},
                 "param_rules": {"mu": "nonnegative"}}
 
     def bounds(self) -> tuple[list, list]:

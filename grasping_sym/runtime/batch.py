@@ -125,6 +125,9 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   time_limit: float | None = None, mu=None, slip: str = "stop") -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
     start = perf_counter()
+    if model.manifest.get("modes"):
+        raise RunArgumentError(f"model {model.name!r} has contact modes (runtime.modes): simulate_many "
+                               "does not switch modes yet; loop over model.simulate(...)")
     if method not in METHODS:
         raise RunArgumentError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
                                "(cvodes and idas run through CasADi one at a time: loop over simulate)")

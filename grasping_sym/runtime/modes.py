@@ -32,7 +32,13 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.contact import Coulomb
-from grasping_sym.errors import ChatteringError, EventLocationError, PainleveError, RunArgumentError
+from grasping_sym.errors import (
+    ChatteringError,
+    ContactModeError,
+    EventLocationError,
+    PainleveError,
+    RunArgumentError,
+)
 from grasping_sym.runtime import events, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime.result import SimulationResult
@@ -84,6 +90,7 @@ class _Run:
         self.H = np.array(info["inertia"], dtype=float)
         self.Hinv = np.linalg.inv(self.H)
         self.n = np.array(info["plane_normal"], dtype=float)
+        self.gain = float(info["gain"])
         self.events: list[dict] = []
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0}
 
@@ -111,28 +118,54 @@ class _Run:
             f = np.dot(n, K @ F_roll) / np.dot(n, K @ dirn)
             a = K @ (f * dirn - F_roll) + target
             a_t = a - np.dot(a, n) * n
+            if not np.linalg.norm(a_t) > 1e-12 * max(np.linalg.norm(a), 1.0):
+                break  # on the cone's edge: no slip acceleration, keep the direction
             nd = a_t / np.linalg.norm(a_t)
             if np.linalg.norm(nd - d) < 1e-15:
                 break
             d = nd
         return d
 
-    def contact_start(self, y: dict) -> tuple[int, np.ndarray | None]:
-        """The mode and slip direction of a state in contact: sliding along the slip when the
-        contact point slips, else ``contact_mode`` (from rest of the slip)."""
+    def contact_start(self, t: float, x: np.ndarray, y: dict) -> tuple[int, np.ndarray | None]:
+        """The mode of a state in contact (gap and normal speed 0; ``y`` its outputs with the
+        rolling parameters) and its slip direction: a slipping contact slides if its sliding
+        normal force is > 0; one at rest of the slip rolls if rolling is consistent
+        (``f > 0``, ``|F_t| <= mu f``), else slides where the sliding equations take it if
+        that is consistent; a contact that can do neither separates if its free normal
+        acceleration is >= 0. Otherwise there is no consistent mode: a named error."""
         vt = np.array([y[f"vt_{c}"] for c in "xyz"])
-        if np.linalg.norm(vt) > SLIP_SPEED and y["rolling_normal_force"] > 0:
-            return SLIDING, vt / np.linalg.norm(vt)
-        mode = self.contact_mode(y)
-        return mode, (self.slip_direction(y) if mode == SLIDING else None)
-
-    def contact_mode(self, y: dict) -> int:
-        """Rolling if it is consistent at a state in contact at rest of the slip, else sliding
-        (``f > 0``), else separated."""
         f, ft = y["rolling_normal_force"], y["rolling_tangential_force"]
-        if not f > 0:
-            return SEPARATED
-        return ROLLING if ft <= self.mu * f else SLIDING
+        if np.linalg.norm(vt) > SLIP_SPEED:
+            return self._slide_or_leave(t, x, y, vt / np.linalg.norm(vt))
+        if f > 0 and ft <= self.mu * f:
+            return ROLLING, None
+        if f > 0:
+            return self._slide_or_leave(t, x, y, self.slip_direction(y))
+        return self._slide_or_leave(t, x, y, None)
+
+    def _slide_or_leave(self, t, x, y, d):
+        if d is not None:
+            ys = self.outputs(x, self.params(SLIDING, d))
+            if not ys["painleve"] > 0:
+                _painleve(self.model, t, x, ys, self.mu)
+            if ys["normal_force"] > 0:
+                return SLIDING, d
+        if self.free_normal_acceleration(y) >= 0:
+            return SEPARATED, None
+        raise ContactModeError(t, x, "no contact mode is consistent: rolling needs f = "
+                               f"{y['rolling_normal_force']:.6g} N <= 0 or more friction than mu = "
+                               f"{self.mu:g}, sliding a normal force <= 0, and the free body would "
+                               "accelerate into the plane; the rigid model has no answer here",
+                               self.model.state_names)
+
+    def free_normal_acceleration(self, y: dict) -> float:
+        """The contact's normal acceleration with no contact force (m/s^2)."""
+        n = self.n
+        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
+        F_roll = y["rolling_normal_force"] * n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
+        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
+        target = -2 * self.gain * vc - self.gain**2 * y["gap"] * n
+        return float(np.dot(n, target - K @ F_roll))
 
     def witnesses(self, mode: int, slip):
         """``(name, function of one state's outputs)`` of the events of ``mode`` (``slip``:
@@ -210,7 +243,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
     t_eval = s.t_eval
     y = r.outputs(x0, r.params(ROLLING))
     if abs(y["gap"]) <= CONTACT_GAP:
-        mode, slip = r.contact_start(y)
+        mode, slip = r.contact_start(0.0, x0, y)
     elif y["gap"] > 0:
         mode, slip = SEPARATED, None
     else:
@@ -330,18 +363,15 @@ def _switch(r: _Run, mode: int, name: str, t: float, x: np.ndarray):
         y = r.outputs(x, r.params(ROLLING))
         x2, reset = r.stop_slip(x, y)
         y2 = r.outputs(x2, r.params(ROLLING))
-        new = r.contact_mode(y2)
-        return new, (r.slip_direction(y2) if new == SLIDING else None), x2, reset
+        new, slip = r.contact_start(t, x2, y2)
+        return new, slip, x2, reset
     # an impact
     y = r.outputs(x, r.params(ROLLING))
-    x2, reset, stuck, bounced = r.impact(x, y)
+    x2, reset, _, bounced = r.impact(x, y)
     y2 = r.outputs(x2, r.params(ROLLING))
     if bounced:  # restitution: it leaves the plane again
         return SEPARATED, None, x2, reset
-    if stuck:
-        new = r.contact_mode(y2)
-        return new, (r.slip_direction(y2) if new == SLIDING else None), x2, reset
-    new, slip = r.contact_start(y2)
+    new, slip = r.contact_start(t, x2, y2)
     return new, slip, x2, reset
 
 

@@ -1,0 +1,143 @@
+"""Contact that can change (issue 27): a free body on a plane of the world, rolling, sliding,
+separated, with impacts, against closed-form answers for a uniform solid sphere (MODELS.md
+section 5: an incline's rolling/sliding threshold ``tan b <= (7/2) mu``, accelerations
+``(5/7) g sin b`` and ``g (sin b - mu cos b)``, spin growth ``(5/2) mu g cos b / r``; a
+launched slide that stops at ``t = 2 v0 / (7 mu g)`` with ``v = (5/7) v0``; a drop and its
+bounces), and the cases with no consistent answer stopping by name."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import grasping_sym as gs
+from grasping_sym.errors import ChatteringError, PainleveError
+from grasping_sym.geometry import surface_library
+from grasping_sym.runtime import modes
+
+G, R, M = 9.81, 0.05, 0.1
+TIGHT = dict(rtol=1e-10, atol=1e-12)
+
+
+@pytest.fixture(scope="module", params=[0.2, 0.5, 0.8], ids=lambda b: f"incline{b}")
+def incline(request):
+    b = request.param
+    return b, gs.build(gs.scenes.sphere_on_incline(R, M, b, name=f"incline{int(b * 10)}"))
+
+
+@pytest.fixture(scope="module")
+def flat():
+    return gs.build(gs.scenes.sphere_on_incline(R, M, 0.0, name="flat"))
+
+
+def _downhill(b):
+    return -np.array([0.0, math.cos(b), math.sin(b)])
+
+
+def test_a_sphere_rolls_down_an_incline_at_five_sevenths_g_sin_b(incline):
+    b, model = incline
+    mu = 1.2 * math.tan(b) / 3.5
+    res = model.simulate(0.1, mu=mu, **TIGHT)
+    assert set(res.modes) == {"rolling"} and not res.events
+    a = res.x[-1, 7:10] @ _downhill(b) / 0.1
+    assert abs(a / (5 / 7 * G * math.sin(b)) - 1) < 1e-9
+    assert abs(res["normal_force"][-1] / (M * G * math.cos(b)) - 1) < 1e-9
+    assert abs(res["gap"]).max() < 1e-12
+
+
+def test_a_sphere_slides_down_a_steeper_incline_and_spins_up(incline):
+    b, model = incline
+    mu = 0.8 * math.tan(b) / 3.5
+    res = model.simulate(0.1, mu=mu, **TIGHT)
+    assert set(res.modes) == {"sliding"} and not res.events
+    a = res.x[-1, 7:10] @ _downhill(b) / 0.1
+    assert abs(a / (G * (math.sin(b) - mu * math.cos(b))) - 1) < 1e-9
+    spin = abs(res.x[-1, 12]) / 0.1   # about the body's z axis: the world's x axis here
+    assert abs(spin / (2.5 * mu * G * math.cos(b) / R) - 1) < 1e-9
+
+
+def test_the_rolling_sliding_threshold_is_tan_b_over_seven_halves(incline):
+    b, model = incline
+    lo, hi = 0.5 * math.tan(b) / 3.5, 2.0 * math.tan(b) / 3.5     # sliding at lo, rolling at hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        rolls = model.simulate(1e-4, mu=mid, t_eval=[0.0, 1e-4]).modes[0] == "rolling"
+        lo, hi = (lo, mid) if rolls else (mid, hi)
+    b_threshold = math.atan(3.5 * hi)
+    assert abs(b_threshold - b) < 1e-9
+
+
+def test_a_launched_slide_stops_and_rolls_at_the_closed_form_time(flat):
+    mu, v0 = 0.2, 1.0
+    model = flat
+    x0 = model.initial_state()
+    x0[7:10] = [0.0, -v0, 0.0]        # sliding, no spin
+    res = model.simulate(0.3, x0=x0, mu=mu, **TIGHT)
+    (stop,) = res.events
+    assert (stop["from"], stop["to"], stop["witness"]) == ("sliding", "rolling", "slip")
+    assert abs(stop["t"] - 2 * v0 / (7 * mu * G)) < 1e-9
+    assert stop["reset"] < 1e-9
+    v_end = -res.x[-1, 8]
+    assert abs(v_end / (5 / 7 * v0) - 1) < 1e-9
+    assert abs(res.x[-1, 12] * R / v_end - 1) < 1e-9     # rolling: v = omega r
+
+
+def test_a_dropped_sphere_lands_at_the_free_fall_time_and_stays(flat):
+    model = flat
+    h = 0.1
+    x0 = model.initial_state()
+    x0[2] = R + h
+    res = model.simulate(0.3, x0=x0, mu=gs.contact.coulomb(0.5, e=0.0), **TIGHT)
+    impact = res.events[0]
+    assert (impact["from"], impact["witness"], impact["to"]) == ("separated", "gap", "rolling")
+    assert abs(impact["t"] - math.sqrt(2 * h / G)) < 1e-9
+    assert res["gap"].min() > -1e-12
+    flight = res.t < impact["t"]
+    assert np.ptp(res["energy"][flight]) < 1e-9 * res["energy"][0]   # conserved in flight
+    after = ~flight
+    assert np.abs(res["normal_speed"][after]).max() < 1e-12
+    assert abs(res["energy"][-1] - M * G * R) < 1e-12                 # at rest on the table
+
+
+def test_bounces_lose_energy_at_every_impact_and_come_to_rest(flat):
+    model = flat
+    h, e = 0.1, 0.5
+    x0 = model.initial_state()
+    x0[2] = R + h
+    res = model.simulate(0.6, x0=x0, mu=gs.contact.coulomb(0.5, e=e), **TIGHT)
+    impacts = [ev for ev in res.events if ev["witness"] == "gap"]
+    assert len(impacts) > 3
+    t1 = math.sqrt(2 * h / G)
+    assert abs(impacts[1]["t"] - (t1 + 2 * e * G * t1 / G)) < 1e-9   # the rebound at e v1
+    energy = res["energy"]
+    assert np.all(np.diff(energy) <= 1e-9 * energy[0])                # never increases
+    assert res.modes[-1] == "rolling" and abs(res.x[-1, 9]) < 1e-9
+
+
+def test_painleve_stops_by_name():
+    a, c, th = 0.1, 0.01, 0.6
+    rot = np.array([[math.cos(th), 0, -math.sin(th)], [0, 1, 0], [math.sin(th), 0, math.cos(th)]])
+    inertia = (M * 2 * c * c / 5, M * (a * a + c * c) / 5, M * (a * a + c * c) / 5)
+    scene = gs.scenes.body_on_plane(surface_library.ellipsoid(a, c, c, lon=(-2 * math.pi, 2 * math.pi)),
+                                    mass=M, inertia=inertia, rotation=rot, support=(math.pi, -0.5),
+                                    velocity=(-1.0, 0.0, 0.0), name="rod")
+    with pytest.raises(PainleveError, match="Painleve"):
+        gs.build(scene).simulate(0.05, mu=3.0)
+
+
+def test_chattering_stops_by_name(flat, monkeypatch):
+    monkeypatch.setattr(modes, "MAX_SWITCHES", 4)
+    monkeypatch.setattr(modes, "SWITCH_WINDOW", 1.0)
+    x0 = flat.initial_state()
+    x0[2] = R + 0.1
+    with pytest.raises(ChatteringError, match="switches of contact modes"):
+        flat.simulate(0.6, x0=x0, mu=gs.contact.coulomb(0.5, e=0.5))
+
+
+def test_many_runs_of_a_model_with_modes_are_refused_by_name(flat):
+    from grasping_sym.errors import RunArgumentError
+    with pytest.raises(RunArgumentError, match="does not switch modes yet"):
+        flat.simulate_many(0.1, mu=np.array([0.1, 0.2]))
+    with pytest.raises(RunArgumentError, match="runs 'radau'"):
+        flat.simulate(0.1, method="dopri5")
