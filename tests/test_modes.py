@@ -68,12 +68,14 @@ def test_the_rolling_sliding_threshold_is_tan_b_over_seven_halves(incline):
     assert abs(b_threshold - b) < 1e-9
 
 
-def test_a_launched_slide_stops_and_rolls_at_the_closed_form_time(flat):
+@pytest.mark.parametrize("method", ["radau", "dop853"])
+def test_a_launched_slide_stops_and_rolls_at_the_closed_form_time(flat, method):
     mu, v0 = 0.2, 1.0
     model = flat
     x0 = model.initial_state()
     x0[7:10] = [0.0, -v0, 0.0]        # sliding, no spin
-    res = model.simulate(0.3, x0=x0, mu=mu, **TIGHT)
+    tol = TIGHT if method == "radau" else dict(rtol=1e-12, atol=1e-14)
+    res = model.simulate(0.3, x0=x0, mu=mu, method=method, **tol)
     (stop,) = res.events
     assert (stop["from"], stop["to"], stop["witness"]) == ("sliding", "rolling", "slip")
     assert abs(stop["t"] - 2 * v0 / (7 * mu * G)) < 1e-9
@@ -139,5 +141,15 @@ def test_many_runs_of_a_model_with_modes_are_refused_by_name(flat):
     from grasping_sym.errors import RunArgumentError
     with pytest.raises(RunArgumentError, match="does not switch modes yet"):
         flat.simulate_many(0.1, mu=np.array([0.1, 0.2]))
-    with pytest.raises(RunArgumentError, match="runs 'radau'"):
-        flat.simulate(0.1, method="dopri5")
+    with pytest.raises(RunArgumentError, match="runs one of"):
+        flat.simulate(0.1, method="rk4")
+
+
+def test_the_modes_figure_draws_the_bands_and_refuses_a_run_without_modes(flat, tmp_path):
+    x0 = flat.initial_state()
+    x0[2] = R + 0.02
+    res = flat.simulate(0.3, x0=x0, mu=gs.contact.coulomb(0.5, e=0.5))
+    assert gs.viz.modes(res, tmp_path / "modes.png").stat().st_size > 10_000
+    plain = gs.build(gs.scenes.paper2d()).simulate(0.01)
+    with pytest.raises(ValueError, match="no contact modes"):
+        gs.viz.modes(plain, tmp_path / "none.png")

@@ -3,9 +3,10 @@
 A model with modes (a body on a plane, ``model.body``; the manifest's ``modes``) is compiled
 once with its mode a run-time parameter (0 rolling, 1 sliding, 2 separated) and the slip
 direction at the start of a slide (``slip_x``, ``slip_y``, ``slip_z``). A run integrates one
-segment per mode by the C Radau loop; along each segment the mode's witnesses are watched at
-the output samples and the first sign change is located between the samples by integrating
-again (``runtime.events``), where the run switches (``docs/conventions.md`` section 7):
+segment per mode by the run's C loop (``METHODS``: radau, dopri5, dop853); along each segment
+the mode's witnesses are watched at the output samples and the first sign change is located
+between the samples by integrating again (``runtime.events``), where the run switches
+(``docs/conventions.md`` section 7):
 
 - rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
   equations accelerate it (the fixed point of ``d -> a_t(d)/|a_t(d)|`` from
@@ -44,6 +45,8 @@ from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime.result import SimulationResult
 
 ROLLING, SLIDING, SEPARATED = 0, 1, 2
+#: The methods a run with modes takes: the adaptive loops in C (implicit and explicit).
+METHODS = ("radau", "dopri5", "dop853")
 NAMES = ("rolling", "sliding", "separated")
 #: Gap (m) within which a start counts as in contact.
 CONTACT_GAP = 1e-9
@@ -235,9 +238,10 @@ def _rotation(q: np.ndarray) -> np.ndarray:
 def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
     """``Model.simulate`` of a model with modes (module docstring)."""
     start = perf_counter()
-    if s.method != "radau":
-        raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs 'radau' (its "
-                               "switches are located by integrating again with it)")
+    if s.method not in METHODS:
+        raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs one of {METHODS} "
+                               "(the loops in C, with which its switches are located by integrating "
+                               "again)")
     mu, e = friction_law(model, mu_arg)
     r = _Run(model, s, mu, e)
     t_eval = s.t_eval
@@ -260,7 +264,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
         grid = np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]])
         if len(grid) < 2:
             break
-        t, X, st = integrators.c_loop(model, "radau", x_now, grid, p, rtol=s.rtol, atol=s.atol,
+        t, X, st = integrators.c_loop(model, s.method, x_now, grid, p, rtol=s.rtol, atol=s.atol,
                                       max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
@@ -304,7 +308,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
     stats = {**r.stats, "n_events": len(r.events), "wall_time": perf_counter() - start}
     pdict = {"mu": mu, "e": e}
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
-                            method="radau", stats=stats, params=pdict, scene=model.scene,
+                            method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=np.array([NAMES[m] for m in modes_all]))
 
 

@@ -5,6 +5,7 @@ loaded one.
 >>> gs.viz.animate(res, "motion.gif", fps=10)     # 2D and 3D
 >>> gs.viz.view(res, "grasp.html")                # 3D: one self-contained page
 >>> gs.viz.cone(res, "cone.png")                  # a run with mu: |F_t|/f against mu
+>>> gs.viz.modes(res, "modes.png")                # a run with contact modes: bands, switches
 """
 from __future__ import annotations
 
@@ -13,10 +14,11 @@ from pathlib import Path
 from grasping_sym.viz.animation import animate as _animate
 from grasping_sym.viz.cone import cone_figure as cone
 from grasping_sym.viz.kinds import summary_lines, write_figures
+from grasping_sym.viz.modes import modes_figure as modes
 from grasping_sym.viz.options import known_options
 from grasping_sym.viz.viewer import write_viewer
 
-__all__ = ["animate", "cone", "summary_lines", "view", "write_figures"]
+__all__ = ["animate", "cone", "modes", "summary_lines", "view", "write_figures"]
 
 
 def animate(result, path: Path | str, scene=None, **options) -> Path:
