@@ -1,7 +1,7 @@
 """The short way through ``Model.simulate`` for the calls a loop makes again and again.
 
 A call with output times given, no outputs, no inputs, no run-time parameters given and no time
-limit, whose settings (method, tolerances, ``max_steps``, ``project``, ``checks``) a previous
+limit, whose settings (method, tolerances, ``max_steps``, ``project``, ``checks``, ``mu``) a previous
 call of the full path accepted, goes straight to the C loop (``gs_radau5`` / ``gs_dopri5`` / ``gs_dop853``
 through the library's CPython extension): the settings were validated then and are kept here as
 a *plan*; the initial checks of an ``x0`` (a pure function of ``x0`` and ``p``) are
@@ -18,7 +18,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import interrupt
+from grasping_sym.runtime import friction, interrupt
 from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings
@@ -46,7 +46,7 @@ class Plan:
     """What the full path decided for one set of settings (a ``runtime.settings.RunSettings``)."""
 
     __slots__ = ("method", "code", "rtol", "atol", "max_steps", "nstiff", "mask", "proj_tol",
-                 "checks", "projected")
+                 "checks", "projected", "mu")
 
     def __init__(self, s: RunSettings):
         self.method, self.code = s.method, ADAPTIVE_CODES[s.method]
@@ -55,12 +55,14 @@ class Plan:
         self.mask, self.proj_tol = s.proj
         self.projected = self.mask is not None
         self.checks = bool(s.checks)
+        self.mu = s.mu  # each contact's friction coefficient, checked on the samples (or None)
 
 
-def key(method, rtol, atol, max_steps, project, checks):
-    """The settings' key of a plan (None when one of them cannot be a key)."""
+def key(method, rtol, atol, max_steps, project, checks, mu=None, friction=None):
+    """The settings' key of a plan (None when one of them cannot be a key): with the run's
+    ``mu`` and the model's friction law, which the plan's cone check reads."""
     try:
-        k = (method, rtol, atol, max_steps, project, checks)
+        k = (method, rtol, atol, max_steps, project, checks, mu, friction)
         hash(k)
     except TypeError:
         return None
@@ -120,6 +122,8 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     if plan.checks and model.columns and not checks_.clean(
             model, t, out[:m], model.default_params if model.p_names else None):
         return None  # an event along the run: the full way raises it, named
+    if plan.checks and plan.mu is not None and not friction.inside(model, out[:m], plan.mu):
+        return None  # a force leaves its cone: the full way locates it and names it
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
                             model.scene)

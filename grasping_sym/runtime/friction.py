@@ -136,11 +136,13 @@ def quantities(model, outs: dict, mu: np.ndarray) -> dict[str, np.ndarray]:
         if m.ndim and f.ndim > 1:
             m = m.reshape(-1, *([1] * (f.ndim - 1)))
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(f > 0, ft / np.where(f > 0, f, 1.0), np.inf)
+            ratio = ft / f
+        ratio[~(f > 0)] = np.inf
         out[f"normal_force{i + 1}"] = f.copy()
         out[f"tangential_force{i + 1}"] = ft
         out[f"cone_ratio{i + 1}"] = ratio
-        out[f"cone_margin{i + 1}"] = np.where(np.isinf(m), np.inf, m * f - ft)
+        out[f"cone_margin{i + 1}"] = m * f - ft if np.all(np.isfinite(m)) else \
+            np.where(np.isinf(m), np.inf, m * f - ft)
     return out
 
 
@@ -168,11 +170,10 @@ def witness(model, mu: np.ndarray, contact: int):
     return margin
 
 
-def first_exit(model, t: np.ndarray, outs: dict, mu: np.ndarray):
-    """The first output sample where a contact's margin is <= 0 (NaN counts): ``(sample,
-    contact)`` (0-based), None if none."""
-    M = margins(model, outs, mu)
-    bad = ~(M > 0)
+def first_exit(margins: np.ndarray):
+    """The first sample where a contact's margin (``(samples, contacts)``) is <= 0 (NaN
+    counts): ``(sample, contact)`` (0-based), None if none."""
+    bad = ~(margins > 0)
     rows = np.flatnonzero(bad.any(axis=1))
     if not rows.size:
         return None
@@ -202,3 +203,19 @@ def cone_error(model, t: float, x, y: dict, mu: np.ndarray, contact: int, locate
         "squeeze harder (fd) or move more gently; or pass mu=math.inf (or checks=False) to "
         "integrate the rolling model on regardless",
         model.state_names, contact=contact + 1, mu=m, normal=f, tangential=ft)
+
+
+def inside(model, X: np.ndarray, mu: np.ndarray) -> bool:
+    """True when every contact's force is strictly inside its cone at every row of ``X`` (the
+    compiled outputs at the model's own run-time parameters): the short way's check
+    (``runtime.fastpath``, a few microseconds); False sends the run the full way, which names
+    the event."""
+    idx = getattr(model, "_friction_columns", None)
+    if idx is None:
+        cols = {k: i for i, k in enumerate(model.columns)}
+        found = contacts(model)
+        idx = model._friction_columns = (np.array([cols[f] for f, _ in found]),
+                                          np.array([[cols[k] for k in tang] for _, tang in found]))
+    Y = model.library.outputs_batch(X, model.default_params if model.p_names else None)
+    T = Y[:, idx[1]]
+    return bool((mu * Y[:, idx[0]] > np.sqrt((T * T).sum(axis=2))).all())

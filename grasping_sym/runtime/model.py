@@ -384,9 +384,9 @@ class Model:
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
         short = (t_eval is not None and params is None and u is None and time_limit is None
-                 and (not outputs or not self.columns) and mu is None and self.friction is None and slip == "stop"
-                 and not self.manifest.get("modes"))
-        plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks) if short else None
+                 and (not outputs or not self.columns) and slip == "stop" and not self.manifest.get("modes"))
+        plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks, mu, self.friction) \
+            if short else None
         if plan_key is not None:  # runtime.fastpath: settings a previous call accepted, straight to C
             plan = self.short_way.plans.get(plan_key)
             if plan is not None and type(t_final) in (float, int):

@@ -65,13 +65,13 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
         and checks_.clean(model, t, X, p)
     outs = outputs_.along(model, t, X, p, sched) if (s.outputs or s.checks and not quiet) \
         and model.columns else {}
+    cone = friction.quantities(model, outs, s.mu) if outs and s.mu is not None else {}
     if s.checks and outs:
         event = checks_.trajectory_event(model, t, X, outs, start)
-        if s.mu is not None and s.slip == "stop":
-            event = cone_event(model, s, sched, p, t, X, outs, event)
+        if cone and s.slip == "stop":
+            event = cone_event(model, s, sched, p, t, X, outs, cone, event)
         if event is not None:
             raise event
-    cone = friction.quantities(model, outs, s.mu) if s.outputs and outs and s.mu is not None else {}
     outs = {**{k: outs[k] for k in model.output_names}, **cone} if s.outputs and outs else {}
     if s.drop_first:
         t, X = t[1:], X[1:]
@@ -81,11 +81,12 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
                             method=s.method, stats=stats, params=pdict, scene=model.scene)
 
 
-def cone_event(model, s: RunSettings, sched, p, t, X, outs, event):
+def cone_event(model, s: RunSettings, sched, p, t, X, outs, cone, event):
     """The earlier of ``event`` (another check's, or None) and the first exit of a contact's
     force from its friction cone along the samples (``runtime.friction``), that one located
-    between the samples around it (``runtime.events``)."""
-    hit = friction.first_exit(model, t, outs, s.mu)
+    between the samples around it (``runtime.events``); ``cone``: ``friction.quantities``."""
+    margins = np.column_stack([v for k, v in cone.items() if k.startswith("cone_margin")])
+    hit = friction.first_exit(margins)
     if hit is None:
         return event
     i, c = hit
@@ -101,7 +102,7 @@ def cone_event(model, s: RunSettings, sched, p, t, X, outs, event):
             tc, xc = found
             how = f"located between the outputs at {t[i - 1]:.6g} and {t[i]:.6g} s"
         else:  # not reproduced by the second integration: the samples' linear estimate
-            m = friction.margins(model, {k: v[i - 1:i + 1] for k, v in outs.items()}, s.mu)[:, c]
+            m = margins[i - 1:i + 1, c]
             frac = m[0] / (m[0] - m[1]) if np.all(np.isfinite(m)) and m[0] != m[1] else 1.0
             tc, xc = float(t[i - 1] + frac * (t[i] - t[i - 1])), X[i - 1]
             how = "interpolated between the outputs (state at the last one before)"
