@@ -1,0 +1,127 @@
+"""The figures of friction and contact modes (issue 27).
+
+    python -m benchmarks.friction        # writes benchmarks/results/friction.md and friction.json
+
+- what the friction cone's check costs a rolling run: paper2d and paper3d, ``simulate(3.0)``
+  with every default, and the short no-outputs run, with and without ``mu`` (same run: the
+  ratio is the figure);
+- what a switch of contact modes costs: a sphere dropped on a table with ``e = 0.5`` (its
+  bounces, then rolling) against the same sphere resting on the table for as long, per switch;
+- a drop and settle in 3D: wall time per simulated second, with every default;
+- ensembles over ``mu``: paper2d, ``simulate_many`` on one thread at rtol 1e-8 with the cone
+  checked at 301 output times, runs per second, and the final-state error of every run that
+  held against a reference at rtol 1e-12.
+
+Every ratio's baseline is measured in the same run.
+"""
+from __future__ import annotations
+
+import json
+import platform
+from pathlib import Path
+
+import numpy as np
+
+import grasping_sym as gs
+from benchmarks.timing import best_per_call
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def cone_check_cost() -> dict:
+    out = {}
+    for name, scene, mu in (("paper2d", gs.scenes.paper2d(), 0.5), ("paper3d", gs.scenes.paper3d(), 0.5)):
+        model = gs.build(scene)
+        cases = {
+            "defaults": (lambda m=model: m.simulate(3.0), lambda m=model, mu=mu: m.simulate(3.0, mu=mu)),
+            "no_outputs": (lambda m=model: m.simulate(3.0, t_eval=[0.0, 3.0], outputs=False),
+                           lambda m=model, mu=mu: m.simulate(3.0, t_eval=[0.0, 3.0], outputs=False, mu=mu)),
+        }
+        for case, (plain, cone) in cases.items():
+            t0 = best_per_call(plain, number=3, repeat=7)
+            t1 = best_per_call(cone, number=3, repeat=7)
+            out[f"{name}/{case}"] = {"without_mu_s": t0, "with_mu_s": t1, "ratio": t1 / t0}
+    return out
+
+
+def switches() -> dict:
+    flat = gs.build(gs.scenes.sphere_on_incline(incline=0.0, name="bench_flat"))
+    law = gs.contact.coulomb(0.5, e=0.5)
+    rest = flat.initial_state()
+    drop = rest.copy()
+    drop[2] += 0.1
+    t_end = 1.0
+    res = flat.simulate(t_end, x0=drop, mu=law)
+    n = len(res.events)
+    t_drop = best_per_call(lambda: flat.simulate(t_end, x0=drop, mu=law), number=1, repeat=7)
+    t_rest = best_per_call(lambda: flat.simulate(t_end, x0=rest, mu=law), number=1, repeat=7)
+    return {"switches": n, "drop_s": t_drop, "rest_s": t_rest,
+            "per_switch_us": 1e6 * (t_drop - t_rest) / n,
+            "drop_ms_per_simulated_s": 1e3 * t_drop / t_end,
+            "settled": bool(res.modes[-1] == "rolling" and abs(res.x[-1, 9]) < 1e-9)}
+
+
+def ensembles(n: int = 2000) -> dict:
+    """paper2d's fastest setting at final-state error <= 1e-8 (README: radau with projection,
+    no Baumgarte; rtol 1e-5 here) over ``n`` values of mu that hold, without mu and with the cone
+    checked at 31 and 301 output times; and the default scene at rtol 1e-8 with a range of mu
+    where most runs slip (each slipping run is run again alone for its located message)."""
+    out = {}
+    fast = gs.build(gs.scenes.paper2d(gf=0.0, gl=0.0, wf=0.0, wl=0.0))
+    ref = fast.simulate(3.0, rtol=1e-12, atol=1e-14, t_eval=[0.0, 3.0], outputs=False, project=True,
+                        method="dop853").x[-1]
+    x0 = np.tile(fast.initial_state(), (n, 1))
+    base = dict(x0=x0, rtol=1e-5, atol=1e-7, project=True, threads=1)
+    mus = np.linspace(0.3, 0.6, n)
+    for label, kw in (("no mu", {}), ("mu, final state", {"mu": mus}),
+                      ("mu, 31 output times", {"mu": mus, "t_eval": np.linspace(0.0, 3.0, 31)}),
+                      ("mu, 301 output times", {"mu": mus, "t_eval": np.linspace(0.0, 3.0, 301)})):
+        batch = fast.simulate_many(3.0, **base, **kw)
+        wall = best_per_call(lambda kw=kw: fast.simulate_many(3.0, **base, **kw), number=1, repeat=5)
+        out[f"fast/{label}"] = {"runs_per_s_one_thread": n / wall, "held": int((batch.status == 0).sum()),
+                                "max_final_error": float(np.abs(batch.x_final - ref).max())}
+    model = gs.build(gs.scenes.paper2d())
+    mixed = np.linspace(0.05, 0.6, n // 4)
+    kw = dict(mu=mixed, rtol=1e-8, atol=1e-10, t_eval=np.linspace(0.0, 3.0, 301), threads=1)
+    batch = model.simulate_many(3.0, **kw)
+    wall = best_per_call(lambda: model.simulate_many(3.0, **kw), number=1, repeat=3)
+    out["default scene, mixed"] = {"runs": len(mixed), "runs_per_s_one_thread": len(mixed) / wall,
+                                   "held": int((batch.status == 0).sum()),
+                                   "slipped": int((batch.status == -11).sum())}
+    return out
+
+
+def main() -> dict:
+    out = {"machine": platform.processor() or platform.machine(), "cone_check": cone_check_cost(),
+           "switches": switches(), "ensembles": ensembles()}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "friction.json").write_text(json.dumps(out, indent=1))
+    c, s, e = out["cone_check"], out["switches"], out["ensembles"]
+    lines = ["# Friction and contact modes (issue 27)", "",
+             "`python -m benchmarks.friction`; every ratio against a baseline of the same run.", "",
+             "## The friction cone's check on a rolling run", "",
+             "| run | without mu (ms) | with mu (ms) | ratio |", "|---|---|---|---|"]
+    for k, v in c.items():
+        lines.append(f"| {k} | {1e3 * v['without_mu_s']:.3f} | {1e3 * v['with_mu_s']:.3f} | {v['ratio']:.2f} |")
+    lines += ["", "## Switches of contact modes (a sphere dropped 10 cm on a table, e = 0.5, 1 s)", "",
+              f"- {s['switches']} switches; the run {1e3 * s['drop_s']:.2f} ms, the sphere resting "
+              f"as long {1e3 * s['rest_s']:.2f} ms: {s['per_switch_us']:.0f} µs per switch",
+              f"- drop and settle: {s['drop_ms_per_simulated_s']:.1f} ms per simulated second "
+              f"(settled: {s['settled']})", "",
+              "## Ensembles over mu (paper2d, simulate_many, one thread)", "",
+              "| run | runs/s | held | max final-state error vs rtol 1e-12 |", "|---|---|---|---|"]
+    for k, v in e.items():
+        if k.startswith("fast/"):
+            lines.append(f"| radau + projection, no Baumgarte, rtol 1e-5: {k[5:]} | "
+                         f"{v['runs_per_s_one_thread']:.0f} | {v['held']} | {v['max_final_error']:.1e} |")
+    d = e["default scene, mixed"]
+    lines += ["", f"- the default scene (Baumgarte), rtol 1e-8, 301 output times, mu from 0.05 to 0.6: "
+              f"{d['runs_per_s_one_thread']:.0f} runs/s; {d['held']} held, {d['slipped']} stopped with "
+              "FrictionConeError (each run again alone for its located message)", ""]
+    (RESULTS / "friction.md").write_text("\n".join(lines))
+    print("\n".join(lines))
+    return out
+
+
+if __name__ == "__main__":
+    main()
