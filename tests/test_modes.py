@@ -150,6 +150,23 @@ def test_the_modes_figure_draws_the_bands_and_refuses_a_run_without_modes(flat, 
     x0[2] = R + 0.02
     res = flat.simulate(0.3, x0=x0, mu=gs.contact.coulomb(0.5, e=0.5))
     assert gs.viz.modes(res, tmp_path / "modes.png").stat().st_size > 10_000
-    plain = gs.build(gs.scenes.paper2d()).simulate(0.01)
+    plain = gs.SimulationResult(res.t, res.x, res.state_names, {}, "radau")   # no modes recorded
     with pytest.raises(ValueError, match="no contact modes"):
         gs.viz.modes(plain, tmp_path / "none.png")
+
+
+def test_a_ball_on_a_turntable_circles_at_two_sevenths_of_its_rate():
+    """A uniform ball rolling on a plane turning at Omega about its normal (a driven surface of
+    the world): its centre's velocity turns at (2/7) Omega at constant speed (no slip:
+    (1 + m r^2 / I) x'' = Omega z x x')."""
+    omega, r0 = 2.0, np.array([0.1, 0.0, 0.0])
+    chart = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])   # sphere_on_incline's, b = 0
+    v0 = np.cross([0.0, 0.0, omega], r0)           # carried along with the table
+    scene = gs.scenes.sphere_on_incline(R, M, 0.0, plane_spin=omega, position=tuple(r0),
+                                        velocity=tuple(v0), omega=tuple(chart.T @ [0.0, 0.0, omega]),
+                                        friction=gs.contact.coulomb(0.5), name="turntable")
+    res = gs.build(scene).simulate(1.0, **TIGHT)
+    assert set(res.modes) == {"rolling"} and not res.events
+    a = 2 / 7 * omega * 1.0
+    turned = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]]) @ v0
+    assert np.abs(res.x[-1, 7:10] - turned).max() < 1e-9 * np.linalg.norm(v0)

@@ -7,8 +7,9 @@ With the contact force ``F`` (world, on the body at its support point ``r_c = p 
 
 and the support point's coordinates kept where the body's normal is ``-n``
 (``d/dt (R N(u, v)) = -gain (R N + n)``, solved on the tangent plane through the Weingarten map).
-The contact point's velocity is ``v_c = v + R (omega x S)``; the gap ``g = n . (r_c - w0)``
-has ``g' = n . v_c``. Along the motion ``d/dt v_c = K F + b`` with ``K`` the contact's inverse
+The contact point's velocity is ``v_c = v + R (omega x S)``, relative to the plane's material
+point there (a turntable, ``plane_spin``: minus ``Omega n x (r_c - w0)``); the gap
+``g = n . (r_c - w0)`` has ``g' = n . v_c``. Along the motion ``d/dt v_c = K F + b`` with ``K`` the contact's inverse
 effective mass (``1/m I - R [S]x H^-1 [S]x R^T``, from CasADi's Jacobian of the expression) and
 ``b`` the rest. The modes choose ``F``:
 
@@ -59,6 +60,10 @@ def derive_body_plane(scene) -> dict:
 
     r_c = pos + R @ S
     v_c = vel + R @ ca.cross(om, S)
+    spin = float(scene.plane_spin)
+    if spin:  # a turntable: the plane turns about its normal through w0 at spin rad/s
+        W = spin * n
+        v_c = v_c - ca.cross(W, r_c - w0)   # relative to the plane's material point
     gap = ca.dot(n, r_c - w0)
     vn = ca.dot(n, v_c)
     v_t = v_c - vn * n
@@ -68,6 +73,8 @@ def derive_body_plane(scene) -> dict:
     vel_dot_F = g_vec + F / m
     acc = vel_dot_F + R @ (ca.cross(om_dot_F, S) + ca.cross(om, ca.cross(om, S))) \
         + R @ ca.cross(om, Tm @ uv_dot)
+    if spin:  # minus the plane's velocity's rate along the moving contact point
+        acc = acc - ca.cross(W, vel + R @ ca.cross(om, S) + R @ (Tm @ uv_dot))
     K = ca.jacobian(acc, F)
     b = ca.substitute(acc, F, ca.DM.zeros(3))
 

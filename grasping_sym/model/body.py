@@ -51,7 +51,8 @@ def _vec(v) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class BodyScene:
-    """A free body on a plane of the world (module docstring). ``rotation``: the body's
+    """A free body on a plane of the world (module docstring). ``plane_spin`` (rad/s): the
+    plane turns about its normal through ``plane_point`` (a turntable). ``rotation``: the body's
     orientation at the start (world from body); ``position``: its centre's start, moved along
     the plane's normal onto the plane when ``start="contact"``; ``velocity``, ``omega`` (body
     frame): its speeds at the start (in contact, the normal speed of the contact point is
@@ -64,6 +65,7 @@ class BodyScene:
     inertia: tuple
     plane_point: tuple[float, float, float] = (0.0, 0.0, 0.0)
     plane_normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    plane_spin: float = 0.0
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotation: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
@@ -122,6 +124,8 @@ class BodyScene:
         if self.start not in ("contact", "as given"):
             p.append(f"start = {self.start!r}: choose 'contact' (the body put on the plane) or "
                      "'as given' (where position says, e.g. above the plane)")
+        if not _number(self.plane_spin):
+            p.append(f"plane_spin = {self.plane_spin!r} must be a finite number (rad/s; 0: a fixed plane)")
         if not (_number(self.gain) and self.gain > 0):
             p.append(f"gain = {self.gain!r} must be a finite number > 0 (1/s)")
         if self.controller is not None or self.inputs is not None:
@@ -156,7 +160,8 @@ class BodyScene:
     def code_key(self) -> str:
         return "\n".join(["body-v1", self.name, self.surface.key(), repr(self.mass),
                           repr(self.inertia), repr(self.plane_point), repr(self.plane_normal),
-                          repr(self.gravity), repr(self.gain), ",".join(self.outputs)])
+                          repr(self.gravity), repr(self.gain), ",".join(self.outputs),
+                          f"spin={self.plane_spin!r}"])
 
     def key(self) -> str:
         return "\n".join([self.code_key(), repr(self.position), repr(self.rotation),
