@@ -20,7 +20,7 @@ G, R, M = 9.81, 0.05, 0.1
 TIGHT = dict(rtol=1e-10, atol=1e-12)
 
 
-@pytest.fixture(scope="module", params=[0.2, 0.5, 0.8], ids=lambda b: f"incline{b}")
+@pytest.fixture(scope="module", params=[0.3, 0.8], ids=lambda b: f"incline{b}")
 def incline(request):
     b = request.param
     return b, gs.build(gs.scenes.sphere_on_incline(R, M, b, name=f"incline{int(b * 10)}"))
@@ -170,3 +170,14 @@ def test_a_ball_on_a_turntable_circles_at_two_sevenths_of_its_rate():
     a = 2 / 7 * omega * 1.0
     turned = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]]) @ v0
     assert np.abs(res.x[-1, 7:10] - turned).max() < 1e-9 * np.linalg.norm(v0)
+
+
+def test_a_drop_is_animated_and_its_modes_drawn(flat, tmp_path):
+    x0 = flat.initial_state()
+    x0[2] = R + 0.02
+    res = flat.simulate(0.3, x0=x0, mu=gs.contact.coulomb(0.5, e=0.5))
+    gif = gs.viz.animate(res, tmp_path / "drop.gif", fps=10)
+    assert gif.stat().st_size > 10_000
+    (png,) = gs.viz.write_figures(res.scene, res, tmp_path)
+    assert png.name.endswith("_modes.png") and png.stat().st_size > 10_000
+    assert "switches of contact modes" in gs.viz.summary_lines(res.scene, res)[0]
