@@ -20,6 +20,7 @@ from scipy.optimize import brentq
 from grasping_sym.errors import IntegratorError
 from grasping_sym.runtime import integrators
 from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime.parameters import complete
 
 #: Absolute tolerance (s) of the located time.
 TIME_TOL = 1e-14
@@ -55,9 +56,16 @@ def locate(model, s, sched, p, t0: float, x0: np.ndarray, t1: float,
             cache[t] = state_at(model, s, sched, p, t0, x0, t)
         return cache[t]
 
+    plain = sched is None and not model.manifest.get("outputs_time")
+    p_full = complete(model, p) if plain else None
+
     def g(t: float) -> float:
-        y = outputs_.along(model, np.array([t]), x_at(t)[None, :], p, sched)
-        v = witness({k: float(col[0]) for k, col in y.items()})
+        if plain:  # one compiled call, no arrays by name
+            y = dict(zip(model.columns, model.library.outputs(x_at(t), p_full).tolist()))
+        else:
+            y = {k: float(col[0]) for k, col in
+                 outputs_.along(model, np.array([t]), x_at(t)[None, :], p, sched).items()}
+        v = witness(y)
         return v if math.isfinite(v) else -1e300  # a NaN (blow-up): past the event
 
     try:

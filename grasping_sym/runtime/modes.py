@@ -95,7 +95,8 @@ class _Run:
         self.n = np.array(info["plane_normal"], dtype=float)
         self.gain = float(info["gain"])
         self.events: list[dict] = []
-        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0}
+        #: ``switch_time``: seconds spent locating the switches and making them
+        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
 
     def params(self, mode: int, slip=None) -> np.ndarray:
         p = self.p.copy()
@@ -171,15 +172,16 @@ class _Run:
         return float(np.dot(n, target - K @ F_roll))
 
     def witnesses(self, mode: int, slip):
-        """``(name, function of one state's outputs)`` of the events of ``mode`` (``slip``:
-        the slide's direction parameter: the stop is where ``v_t . slip`` reaches 0)."""
+        """``(name, function of the outputs)`` of the events of ``mode``, elementwise (one
+        state's outputs or every sample's) (``slip``: the slide's direction parameter: the
+        stop is where ``v_t . slip`` reaches 0)."""
         if mode == ROLLING:
             return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]),
                     ("normal_force", lambda y: y["normal_force"])]
         if mode == SLIDING:
             d = np.asarray(slip, dtype=float)
             return [("normal_force", lambda y: y["normal_force"]),
-                    ("slip", lambda y: float(np.dot(d, [y["vt_x"], y["vt_y"], y["vt_z"]]))),
+                    ("slip", lambda y: d[0] * y["vt_x"] + d[1] * y["vt_y"] + d[2] * y["vt_z"]),
                     ("painleve", lambda y: y["painleve"])]
         return [("gap", lambda y: y["gap"])]
 
@@ -270,6 +272,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
         r.stats["segments"] += 1
         Y = outputs_.at_rows(model, X, p)
+        t_look = perf_counter()
         found = _first_event(r, mode, slip, t, X, Y, p)
         keep = len(t) if found is None else found[0]
         on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
@@ -290,6 +293,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
                                   "friction coefficient", model.state_names)
         mode_before = mode
         mode, slip, x_now, reset = _switch(r, mode, name, t_ev, x_ev)
+        r.stats["switch_time"] += perf_counter() - t_look
         r.events.append({"t": t_ev, "contact": 1, "from": NAMES[mode_before], "to": NAMES[mode],
                          "witness": name, "value": value, "reset": reset})
         t_now = t_ev
@@ -317,23 +321,18 @@ def _first_event(r: _Run, mode: int, slip, t, X, Y, p):
     samples, located; None if none."""
     cols = {k: i for i, k in enumerate(r.model.columns)}
     values = {k: Y[k] for k in r.model.columns}
-    n = len(t)
     if mode == SEPARATED:
         gap = values["gap"]
         bad = np.flatnonzero(~(gap > 0) & (values["normal_speed"] < 0))
         bad = bad[bad > 0]
         cands = [("gap", int(bad[0]))] if bad.size else []
-    else:
+    else:  # the witnesses on every sample at once (they are elementwise in the outputs)
         cands = []
-        ws = r.witnesses(mode, slip)
-        for i in range(1, n):
-            y0 = {k: float(values[k][i - 1]) for k in cols}
-            y1 = {k: float(values[k][i]) for k in cols}
-            for name, w in ws:
-                if w(y0) > 0 and not w(y1) > 0:
-                    cands.append((name, i))
-            if cands:
-                break
+        for name, w in r.witnesses(mode, slip):
+            W = np.asarray(w(values), dtype=float)
+            cross = np.flatnonzero((W[:-1] > 0) & ~(W[1:] > 0))
+            if cross.size:
+                cands.append((name, int(cross[0]) + 1))
     if not cands:
         return None
     i = min(k for _, k in cands)
