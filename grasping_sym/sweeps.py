@@ -5,7 +5,9 @@
 store="sweep.zarr")`` runs every point of the grid and returns an ``xarray.Dataset`` with one
 dimension per grid name.
 
-- **Grid names**: run-time parameters (``model.param_names``) and the start's run-time values
+- **Grid names**: ``mu`` (the contacts' friction coefficient) and, for a model with contact
+  modes, ``e`` (the restitution at impacts); run-time parameters (``model.param_names``) and
+  the start's run-time values
   (``model.start_params``); ``<state>_0``, a starting pose value (``q1_0``, ``theta_0``: the
   start solved with that state held, as ``Model.with_start``, no rebuild); the inputs
   (``u1``, ...: constant torques of a model with inputs). A mapping of names to 1-D values is
@@ -169,6 +171,8 @@ def _roles(model, names) -> dict[str, tuple[str, str]]:
             roles[k] = ("input", k)
         elif k == "mu":
             roles[k] = ("mu", k)
+        elif k == "e" and model.manifest.get("modes"):
+            roles[k] = ("e", k)
         else:
             problems.append(k)
     if problems:
@@ -178,7 +182,8 @@ def _roles(model, names) -> dict[str, tuple[str, str]]:
             f"{list(model.start_params)}, starting poses "
             f"{[s + '_0' for s in model.state_names[:len(model.state_names) // 2]]}..."
             + (f", inputs {list(model.input_names)}" if model.input_names else "")
-            + ", or mu (the friction coefficient of every contact)")
+            + ", or mu (the friction coefficient of every contact)"
+            + (", e (the restitution at impacts)" if model.manifest.get("modes") else ""))
     return roles
 
 
@@ -188,7 +193,7 @@ def _check_values(model, g: Grid, roles) -> None:
     rules = model.manifest.get("param_rules", {})
     for k, ax in zip(g.names, g.axes):
         rule = rules.get(k, "finite") if roles[k][0] == "param" else \
-            "nonnegative" if roles[k][0] == "mu" else "finite"
+            "nonnegative" if roles[k][0] in ("mu", "e") else "finite"
         bad = (ax <= 0) if rule == "positive" else (ax < 0) if rule == "nonnegative" else np.zeros(len(ax), bool)
         if bad.any():
             raise ValueError(f"grid[{k!r}] has {float(ax[bad][0])!r}: {k} must be "
@@ -260,8 +265,9 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
                 u[:, model.input_names.index(k)] = v
     measures = task["measures"]
     settings = _per_run_mu(task["settings"], n)
-    if "mu" in vals:
-        settings["mu"] = vals["mu"]
+    for k in ("mu", "e"):
+        if k in vals:
+            settings[k] = vals[k]
     cone = _cone_names(model)
     sliding = any(kind in ("first_slip", "held") or q in cone for _, kind, q in measures)
     if sliding:  # the measures of the cone read the whole rolling run: it goes on past a slip
@@ -413,7 +419,10 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
         raise ValueError(f"settle_tol = {settle_tol!r} must be a number > 0")
     roles = _roles(model, g.names)
     _check_values(model, g, roles)
-    fixed = friction.resolve(model, mu)
+    if model.manifest.get("modes"):  # one contact; simulate checks the value
+        fixed = None if mu is None else [float(mu)]
+    else:
+        fixed = friction.resolve(model, mu)
     with_mu = fixed is not None or "mu" in g.names
     task = {"grid": g, "roles": roles, "t_final": float(t_final),
             "measures": _measures(model, tuple(outputs), tuple(measures), with_mu),
@@ -463,7 +472,10 @@ def _check_settings(model, task) -> None:
 def _per_run_mu(settings: dict, n: int) -> dict:
     """The settings with the sweep's one friction coefficient per contact as ``(n, contacts)``."""
     mu = settings.get("mu")
-    return settings if mu is None else {**settings, "mu": np.tile(np.asarray(mu, float), (n, 1))}
+    if mu is None:
+        return settings
+    arr = np.tile(np.asarray(mu, float), (n, 1))
+    return {**settings, "mu": arr[:, 0] if arr.shape[1] == 1 else arr}
 
 
 def _key(model, task, variables, chunk) -> str:

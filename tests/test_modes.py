@@ -137,12 +137,34 @@ def test_chattering_stops_by_name(flat, monkeypatch):
         flat.simulate(0.6, x0=x0, mu=gs.contact.coulomb(0.5, e=0.5))
 
 
-def test_many_runs_of_a_model_with_modes_are_refused_by_name(flat):
+def test_many_runs_carry_mu_and_e_and_equal_single_runs(flat, tmp_path):
+    x0 = flat.initial_state()
+    x0[2] = R + 0.1
+    grid = np.linspace(0.0, 0.5, 51)
+    es = np.array([0.0, 0.3, 0.6])
+    batch = flat.simulate_many(0.5, x0=x0, mu=0.5, e=es, t_eval=grid, outputs=True)
+    assert batch.ok.all() and len(batch.events[0]) == 1 and len(batch.events[1]) > 1
+    for i, e in enumerate(es):
+        single = flat.simulate(0.5, x0=x0, mu=0.5, e=e, t_eval=grid)
+        np.testing.assert_array_equal(batch.x[i], single.x)
+        assert batch.events[i] == single.events
+    # a sweep over e of the same drop: the highest rebound speed is e times the impact's
+    drop = gs.build(gs.scenes.sphere_on_incline(R, M, 0.0, position=(0.0, 0.0, R + 0.1),
+                                                start="as given", name="drop"))
+    ds = gs.sweep(drop, {"e": [0.3, 0.6]}, 0.4, store=tmp_path / "e.zarr", mu=0.5,
+                  measures=["max:vz"], samples=4001, progress=False)
+    v1 = math.sqrt(2 * G * 0.1)
+    np.testing.assert_allclose(ds["max_vz"].values, [0.3 * v1, 0.6 * v1], rtol=2e-3)
+
+
+def test_bad_run_arguments_of_modes_are_refused_by_name(flat):
     from grasping_sym.errors import RunArgumentError
-    with pytest.raises(RunArgumentError, match="does not switch modes yet"):
-        flat.simulate_many(0.1, mu=np.array([0.1, 0.2]))
     with pytest.raises(RunArgumentError, match="runs one of"):
         flat.simulate(0.1, method="rk4")
+    with pytest.raises(RunArgumentError, match=r"e = 1.5 must be a number in \[0, 1\]"):
+        flat.simulate(0.1, e=1.5)
+    with pytest.raises(RunArgumentError, match="no impacts"):
+        gs.build(gs.scenes.paper2d()).simulate(0.01, e=0.3)
 
 
 def test_the_modes_figure_draws_the_bands_and_refuses_a_run_without_modes(flat, tmp_path):

@@ -21,7 +21,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError
-from grasping_sym.runtime import c_loops, friction
+from grasping_sym.runtime import c_loops, friction, modes
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -66,6 +66,8 @@ class BatchResult:
         Per-run integrator counters (name -> ``(N,)``), as ``simulate``'s ``stats``.
     wall_time
         Seconds for the whole call.
+    events
+        A model with contact modes: each run's switches (``SimulationResult.events``); else None.
     """
 
     x_final: np.ndarray
@@ -80,6 +82,7 @@ class BatchResult:
     outputs: dict[str, np.ndarray] = field(default_factory=dict)
     stats: dict[str, np.ndarray] = field(default_factory=dict)
     wall_time: float = 0.0
+    events: list | None = None
 
     @property
     def ok(self) -> np.ndarray:
@@ -122,12 +125,9 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   method: str = "radau", rtol: float | None = None, atol: float | None = None, t_eval=None,
                   h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float = False,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
-                  time_limit: float | None = None, mu=None, slip: str = "stop") -> BatchResult:
+                  time_limit: float | None = None, mu=None, slip: str = "stop", e=None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
     start = perf_counter()
-    if model.manifest.get("modes"):
-        raise RunArgumentError(f"model {model.name!r} has contact modes (runtime.modes): simulate_many "
-                               "does not switch modes yet; loop over model.simulate(...)")
     if method not in METHODS:
         raise RunArgumentError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "
                                "(cvodes and idas run through CasADi one at a time: loop over simulate)")
@@ -137,6 +137,11 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                           time_limit=time_limit)
     threads = _threads(threads)
     dense = t_eval is not None
+    if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
+        return _with_modes(model, s, t_final, x0, mu, e, dense, start)
+    if e is not None:
+        raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
+                               "restitution applies to a model with modes (gs.scenes.body_on_plane)")
     if outputs and not model.output_names:
         raise RunArgumentError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
                                "the scene with outputs=(...) naming the ones you need")
@@ -161,6 +166,24 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
     errors = _errors(model, s, status, X0, x0 is None, P, U, sched, MU)
     return _result(model, s, res, status, errors, dense, X0=X0, pdict=pdict,
                    wall=perf_counter() - start, mu=MU)
+
+
+def _with_modes(model, s: RunSettings, t_final, x0, mu, e, dense: bool, start: float) -> BatchResult:
+    """``simulate_many`` of a model with contact modes: ``modes.run_many``."""
+    sizes = {len(v) for v in (mu, e) if v is not None and not hasattr(v, "per_contact") and np.ndim(v) >= 1}
+    if x0 is not None and np.ndim(x0) == 2:
+        sizes.add(len(x0))
+    if len(sizes) > 1:
+        raise RunArgumentError(f"simulate_many: x0, mu and e give different numbers of runs {sorted(sizes)}: "
+                               "give every per-run array the same length N")
+    n = sizes.pop() if sizes else 1
+    X0 = _initial_states(model, x0, n)
+    got = modes.run_many(model, s, X0, mu, e)
+    t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
+    return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
+                       state_names=model.state_names, method=s.method, x0=X0, params=got["params"],
+                       x=got["x"], outputs=got["outputs"], wall_time=perf_counter() - start,
+                       events=got["events"])
 
 
 def _threads(threads) -> int:

@@ -264,7 +264,7 @@ class Model:
                  outputs: bool = True, checks: bool = True,
                  project: bool | float = False,
                  time_limit: float | None = None, u=None, mu=None,
-                 slip: str = "stop") -> SimulationResult:
+                 slip: str = "stop", e=None) -> SimulationResult:
         """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
 
         Parameters
@@ -354,6 +354,9 @@ class Model:
             the checks stop a run whose force leaves a cone with ``FrictionConeError``, at the
             time where the margin reaches 0, located between the output samples by
             integrating again (``runtime.events``). ``math.inf``: no limit.
+        e
+            Newton's restitution at impacts, in [0, 1], for a model with contact modes
+            (``gs.scenes.body_on_plane``; default the scene's law's); refused for others.
         slip
             With ``mu``: ``"stop"`` (default) raises ``FrictionConeError`` where a force leaves
             its cone; ``"record"`` lets the rolling model run on and only shows the cone in the
@@ -398,7 +401,10 @@ class Model:
                               checks=checks, time_limit=time_limit)
         if self.manifest.get("modes"):  # contact that can change: runtime.modes
             x0, _ = run_.start_state(self, x0)
-            return modes.run(self, s, x0, mu)
+            return modes.run(self, s, x0, mu, e)
+        if e is not None:
+            raise RunArgumentError(f"e given, but model {self.name!r} has no impacts (no contact modes): "
+                                   "restitution applies to a model with modes (gs.scenes.body_on_plane)")
         s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
         x0, own_start = run_.start_state(self, x0)
         res = run_.run(self, s, x0, own_start, self.params(params), u)
@@ -412,7 +418,7 @@ class Model:
                       rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
                       max_steps: int = 1_000_000, project: bool | float = False,
                       outputs: bool = False, checks: bool = True, threads: int | None = None,
-                      time_limit: float | None = None, mu=None, slip: str = "stop"):
+                      time_limit: float | None = None, mu=None, slip: str = "stop", e=None):
         """Many runs in one call: N simulations over a pool of threads in C, the GIL released
         (``runtime.batch``); returns a ``BatchResult``.
 
@@ -447,12 +453,14 @@ class Model:
             As for ``simulate``: one value for every run, or one per run (``(N,)``, or
             ``(N, n_contacts)``); the runs that leave a cone get status ``-11`` (an event) and
             the ``FrictionConeError`` message, or with ``slip="record"`` roll on (the cone's
-            outputs come with ``outputs=True``).
+            outputs come with ``outputs=True``). A model with contact modes runs each run by
+            ``simulate``'s code in turn (``mu`` and ``e`` one value or one per run), its
+            switches in ``events``.
         """
         return batch.simulate_many(self, t_final, x0=x0, params=params, u=u, method=method,
                                    rtol=rtol, atol=atol, t_eval=t_eval, h=h, max_steps=max_steps,
                                    project=project, outputs=outputs, checks=checks,
-                                   threads=threads, time_limit=time_limit, mu=mu, slip=slip)
+                                   threads=threads, time_limit=time_limit, mu=mu, slip=slip, e=e)
 
     # ------------------------------------------------------------------ inputs
     def with_inputs(self, p, a, b=None) -> np.ndarray:

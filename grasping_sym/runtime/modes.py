@@ -35,8 +35,10 @@ import numpy as np
 from grasping_sym.contact import Coulomb
 from grasping_sym.errors import (
     ChatteringError,
+    ContactLeftContourError,
     ContactModeError,
     EventLocationError,
+    GraspingSymError,
     PainleveError,
     RunArgumentError,
 )
@@ -61,21 +63,28 @@ SWITCH_WINDOW = 1e-3
 REST_SPEED = 1e-3
 
 
-def friction_law(model, mu) -> tuple[float, float]:
-    """``(mu, e)`` of a run: ``mu`` (a number or a ``Coulomb``) else the model's law; no law at
-    all: ``mu = inf`` (the contact never slides), ``e = 0``."""
+def friction_law(model, mu, e=None) -> tuple[float, float]:
+    """``(mu, e)`` of a run: ``mu`` (a number or a ``Coulomb``) else the model's law, ``e``
+    (a number in [0, 1]) else the law's; no law at all: ``mu = inf`` (the contact never
+    slides), ``e = 0``."""
     law = model.friction if mu is None else mu
     if law is None:
-        return math.inf, 0.0
-    if isinstance(law, Coulomb):
-        return float(law.per_contact(1)[0]), float(law.e)
-    if isinstance(law, (bool, np.bool_)) or not isinstance(law, (int, float, np.floating, np.integer)):
-        raise RunArgumentError(f"mu = {law!r:.40} must be a number >= 0 or gs.contact.coulomb(mu, e)")
-    mu_ = float(law)
-    if not mu_ >= 0:
-        raise RunArgumentError(f"mu = {law!r} must be a number >= 0 (math.inf: never slides)")
-    e = float(model.friction.e) if isinstance(model.friction, Coulomb) else 0.0
-    return mu_, e
+        mu_, e_law = math.inf, 0.0
+    elif isinstance(law, Coulomb):
+        mu_, e_law = float(law.per_contact(1)[0]), float(law.e)
+    else:
+        if isinstance(law, (bool, np.bool_)) or not isinstance(law, (int, float, np.floating, np.integer)):
+            raise RunArgumentError(f"mu = {law!r:.40} must be a number >= 0 or gs.contact.coulomb(mu, e)")
+        mu_ = float(law)
+        if not mu_ >= 0:
+            raise RunArgumentError(f"mu = {law!r} must be a number >= 0 (math.inf: never slides)")
+        e_law = float(model.friction.e) if isinstance(model.friction, Coulomb) else 0.0
+    if e is None:
+        return mu_, e_law
+    if isinstance(e, (bool, np.bool_)) or not isinstance(e, (int, float, np.floating, np.integer)) \
+            or not 0 <= float(e) <= 1:
+        raise RunArgumentError(f"e = {e!r:.40} must be a number in [0, 1] (Newton's restitution)")
+    return mu_, float(e)
 
 
 class _Run:
@@ -237,14 +246,14 @@ def _rotation(q: np.ndarray) -> np.ndarray:
         [[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])) / s
 
 
-def run(model, s, x0: np.ndarray, mu_arg=None) -> SimulationResult:
+def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
     """``Model.simulate`` of a model with modes (module docstring)."""
     start = perf_counter()
     if s.method not in METHODS:
         raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs one of {METHODS} "
                                "(the loops in C, with which its switches are located by integrating "
                                "again)")
-    mu, e = friction_law(model, mu_arg)
+    mu, e = friction_law(model, mu_arg, e_arg)
     r = _Run(model, s, mu, e)
     t_eval = s.t_eval
     y = r.outputs(x0, r.params(ROLLING))
@@ -383,3 +392,49 @@ def _painleve(model, t, x, y, mu):
                         f"the normal row's coefficient n . K (n - mu d) = {y['painleve']:.6g} 1/kg <= 0 "
                         "(Painleve's paradox); the rigid model has no answer here: lower mu, or "
                         "model the contact's compliance", model.state_names)
+
+
+def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
+    """``simulate_many`` of a model with modes: each run by ``run`` in turn (``mu``, ``e``:
+    None, one value, or one per run); a run that stops by name is recorded, the others go on.
+    Returns the pieces of a ``runtime.batch.BatchResult``."""
+    n = len(X0)
+    mus = _per_run("mu", mu, n)
+    es = _per_run("e", e, n)
+    dense = not (len(s.t_eval) == 2 and s.t_eval[0] == 0.0)
+    m = len(s.t_eval) - (1 if s.drop_first else 0)
+    x_final = np.full((n, len(model.state_names)), np.nan)
+    X = np.full((n, m, len(model.state_names)), np.nan)
+    outs = {k: np.full((n, m), np.nan) for k in model.output_names} if s.outputs else {}
+    status = np.zeros(n, dtype=np.int64)
+    errors = np.full(n, "", dtype=object)
+    events: list = [[] for _ in range(n)]
+    for i in range(n):
+        try:
+            res = run(model, s, X0[i], mus[i], es[i])
+        except (GraspingSymError, ValueError) as exc:
+            status[i] = -11 if isinstance(exc, ContactModeError) else \
+                -2 if isinstance(exc, ContactLeftContourError) else \
+                -10 if isinstance(exc, ValueError) else -3
+            errors[i] = f"{type(exc).__name__}: {exc}"
+            continue
+        x_final[i] = res.x[-1]
+        X[i] = res.x
+        for k in outs:
+            outs[k][i] = res.outputs[k]
+        events[i] = res.events
+    return {"x_final": x_final, "x": X if dense else None, "status": status, "errors": errors,
+            "outputs": outs if dense else {k: v[:, -1] for k, v in outs.items()},
+            "params": {"mu": np.array([friction_law(model, mu_i, e_i)[0] for mu_i, e_i in zip(mus, es)]),
+                       "e": np.array([friction_law(model, mu_i, e_i)[1] for mu_i, e_i in zip(mus, es)])},
+            "events": events}
+
+
+def _per_run(name: str, value, n: int) -> list:
+    """None or one value for every run, or an array of ``n``: one per run."""
+    if value is None or isinstance(value, Coulomb) or np.ndim(value) == 0:
+        return [value] * n
+    arr = np.asarray(value)
+    if arr.shape != (n,):
+        raise RunArgumentError(f"{name} has shape {arr.shape}: give one value, or one per run ({n},)")
+    return [float(v) for v in arr]
