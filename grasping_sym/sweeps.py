@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, SweepStoreBusyError, SweepStoreError
-from grasping_sym.runtime import friction
+from grasping_sym.runtime import friction, modes
 from grasping_sym.runtime.batch import default_threads
 from grasping_sym.runtime.model import Model
 from grasping_sym.runtime.start import start_point
@@ -163,16 +163,16 @@ def _roles(model, names) -> dict[str, tuple[str, str]]:
     """Each grid name's role: ("param", name), ("start", state) or ("input", name)."""
     roles, problems = {}, []
     for k in names:
-        if k in model.param_names or k in model.start_params:
+        if k == "mu":  # the friction law's, before a body's own run-time parameter of that name
+            roles[k] = ("mu", k)
+        elif k == "e" and model.manifest.get("modes"):
+            roles[k] = ("e", k)
+        elif k in model.param_names or k in model.start_params:
             roles[k] = ("param", k)
         elif k.endswith("_0") and k[:-2] in model.state_names:
             roles[k] = ("start", k[:-2])
         elif k in model.input_names:
             roles[k] = ("input", k)
-        elif k == "mu":
-            roles[k] = ("mu", k)
-        elif k == "e" and model.manifest.get("modes"):
-            roles[k] = ("e", k)
         else:
             problems.append(k)
     if problems:
@@ -220,6 +220,9 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
     for m in measures:
         kind, _, q = m.partition(":")
         if m == "held":
+            if not with_mu or model.manifest.get("modes"):
+                problems.append(m)
+                continue
             out.append(("held", "held", ""))
         elif kind == "first_slip" and q.isdigit() and 1 <= int(q) <= n_contacts:
             out.append((f"first_slip_{q}", "first_slip", q))
@@ -231,7 +234,8 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
         raise ValueError(f"sweep: {problems} are not outputs of {model.name!r} "
                          f"({list(model.output_names)}) or measures 'min:Q', 'max:Q', 'settle:Q' "
                          f"of a state or output Q (with mu also of {list(cone[:n_contacts * 4])}), "
-                         f"'first_slip:i' (contact i = 1..{n_contacts}, with mu) or 'held'")
+                         f"'first_slip:i' (contact i = 1..{n_contacts}, with mu) or 'held' (with mu, "
+                         "for grasp scenes)")
     if not with_mu and any(kind == "first_slip" for _, kind, _ in out):
         raise ValueError("sweep: 'first_slip:i' needs a friction coefficient: give mu=... (or a grid "
                          "axis 'mu'), or build the scene with friction=gs.contact.coulomb(mu)")
@@ -272,7 +276,9 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
     sliding = any(kind in ("first_slip", "held") or q in cone for _, kind, q in measures)
     if sliding:  # the measures of the cone read the whole rolling run: it goes on past a slip
         settings["slip"] = "record"
-    dense = any(kind != "final" for _, kind, _ in measures)
+    # the cone is checked at the output times: with a friction coefficient, always on samples
+    dense = any(kind != "final" for _, kind, _ in measures) or (
+        settings.get("mu") is not None and settings.get("checks", True) and not model.manifest.get("modes"))
     t_eval = np.linspace(0.0, task["t_final"], task["samples"]) if dense else None
     batch = model.simulate_many(task["t_final"], x0=x0, params=params or None, u=u, t_eval=t_eval,
                                 outputs=(bool(model.output_names) or sliding) and any(
@@ -420,7 +426,7 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
     roles = _roles(model, g.names)
     _check_values(model, g, roles)
     if model.manifest.get("modes"):  # one contact; simulate checks the value
-        fixed = None if mu is None else [float(mu)]
+        fixed = None if mu is None else [modes.friction_law(model, mu)[0]]
     else:
         fixed = friction.resolve(model, mu)
     with_mu = fixed is not None or "mu" in g.names
@@ -429,7 +435,8 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
             "samples": int(samples), "settle_tol": float(settle_tol),
             "settings": dict(method=method, rtol=rtol, atol=atol, project=project,
                              max_steps=max_steps, checks=checks, threads=1,
-                             mu=None if fixed is None else [min(float(m), 1e300) for m in fixed])}
+                             mu=None if fixed is None else [None if m == math.inf else float(m)
+                                                           for m in fixed])}
     _check_settings(model, task)  # bad settings are named here, before any task is sent
     chunk = int(chunk or default_chunk(g.size, client))
     variables = [*model.state_names, *(v for v, _, _ in task["measures"])]
@@ -474,7 +481,7 @@ def _per_run_mu(settings: dict, n: int) -> dict:
     mu = settings.get("mu")
     if mu is None:
         return settings
-    arr = np.tile(np.asarray(mu, float), (n, 1))
+    arr = np.tile(np.array([math.inf if m is None else m for m in mu], float), (n, 1))
     return {**settings, "mu": arr[:, 0] if arr.shape[1] == 1 else arr}
 
 
@@ -482,6 +489,7 @@ def _key(model, task, variables, chunk) -> str:
     spec = {"model": model.manifest["hash"], "start": model.start["key"], "grid": task["grid"].spec(),
             "t_final": task["t_final"], "measures": task["measures"], "samples": task["samples"],
             "settle_tol": task["settle_tol"], "variables": variables, "chunk": chunk,
+            "friction": repr(model.friction),
             "settings": {k: v for k, v in task["settings"].items() if k != "threads"}}
     return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()
 

@@ -166,3 +166,22 @@ def test_the_cone_figure_shades_where_the_rolling_run_would_slip(paper2d, tmp_pa
     assert out.stat().st_size > 10_000
     with pytest.raises(ValueError, match="no friction-cone outputs"):
         gs.viz.cone(paper2d.simulate(0.01), tmp_path / "none.png")
+
+
+def test_a_tuple_is_one_mu_per_contact_for_every_run_and_a_batch_needs_output_times(paper3d):
+    grid = np.linspace(0.0, 0.06, 61)
+    batch = paper3d.simulate_many(0.06, x0=np.tile(paper3d.initial_state(), (2, 1)), mu=(0.5, 0.08),
+                                  t_eval=grid)
+    with pytest.raises(FrictionConeError) as info:
+        paper3d.simulate(0.06, mu=(0.5, 0.08), t_eval=grid)
+    assert batch.errors.tolist() == [f"FrictionConeError: {info.value}"] * 2
+    with pytest.raises(RunArgumentError, match="no t_eval"):
+        paper3d.simulate_many(0.06, mu=0.3)
+
+
+def test_a_model_started_elsewhere_keeps_its_friction_law():
+    model = gs.build(gs.scenes.paper2d(friction=gs.contact.coulomb(mu=0.2)))
+    moved = model.with_start(q1=0.55)
+    assert moved.friction == model.friction
+    with pytest.raises(FrictionConeError):
+        moved.simulate(0.3)

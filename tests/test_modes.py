@@ -203,3 +203,47 @@ def test_a_drop_is_animated_and_its_modes_drawn(flat, tmp_path):
     (png,) = gs.viz.write_figures(res.scene, res, tmp_path)
     assert png.name.endswith("_modes.png") and png.stat().st_size > 10_000
     assert "switches of contact modes" in gs.viz.summary_lines(res.scene, res)[0]
+
+
+def test_a_slide_that_turns_past_ninety_degrees_goes_on_sliding():
+    """Launched uphill and sideways on a steep incline, the slip turns by more than 90 degrees
+    while it is fast: no stop (no reset), and friction only takes energy away."""
+    b = 0.3
+    model = gs.build(gs.scenes.sphere_on_incline(R, M, b, name="incline3"))
+    x0 = model.initial_state()
+    x0[7:10] = 0.6 * np.array([0.0, math.cos(b), math.sin(b)]) + [0.2, 0.0, 0.0]
+    res = model.simulate(0.3, x0=x0, mu=0.05, **TIGHT)
+    v = res.x[:, 7:10]
+    assert v[0] @ v[-1] < 0                                  # turned past 90 degrees
+    assert not res.events and set(res.modes) == {"sliding"}
+    assert res["slip_speed"].min() > 0.05
+    assert np.diff(res["energy"]).max() < 0
+
+
+def test_a_tilted_ellipsoid_dropped_on_a_table_never_gains_energy():
+    """An elongated body (an inverse inertia at the contact that couples the normal and the
+    tangential directions) dropped tilted: bounces, slides and rolls; its energy never
+    increases and it never sinks into the table."""
+    a, c, th = 0.04, 0.02, 0.5
+    tilt = np.array([[math.cos(th), 0, -math.sin(th)], [0, 1, 0], [math.sin(th), 0, math.cos(th)]])
+    chart = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])   # poles along y: it rocks about y
+    inertia = (M * 2 * c * c / 5, M * (a * a + c * c) / 5, M * (a * a + c * c) / 5)
+    surface = surface_library.ellipsoid(a, c, c, rotation=chart, lon=(-8 * math.pi, 8 * math.pi))
+    model = gs.build(gs.scenes.body_on_plane(surface, mass=M, inertia=inertia, rotation=tilt,
+                                             support=(math.pi, 0.0), position=(0.0, 0.0, 0.1),
+                                             start="as given", name="ellipsoid_drop"))
+    for mu, e in ((0.5, 0.0), (0.2, 0.5), (1.0, 0.3)):
+        res = model.simulate(0.4, mu=mu, e=e, **TIGHT)
+        assert res.events and res.events[0]["witness"] == "gap"
+        energy = res["energy"]
+        assert np.diff(energy).max() < 1e-10 * energy[0], (mu, e)
+        assert res["gap"].min() > -1e-12, (mu, e)
+
+
+def test_a_sweep_over_mu_finds_the_incline_threshold(tmp_path):
+    b = 0.3
+    model = gs.build(gs.scenes.sphere_on_incline(R, M, b, name="incline3"))
+    ds = gs.sweep(model, {"mu": [0.05, 0.2]}, 0.05, store=tmp_path / "mu.zarr",
+                  measures=["max:slip_speed"], progress=False)
+    slides, rolls = ds["max_slip_speed"].values          # threshold tan(0.3) / 3.5 = 0.088
+    assert slides > 0.01 and rolls < 1e-9

@@ -138,6 +138,7 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
     threads = _threads(threads)
     dense = t_eval is not None
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
+        modes.refuse_unused(params=params, u=u, slip=slip)
         return _with_modes(model, s, t_final, x0, mu, e, dense, start)
     if e is not None:
         raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
@@ -146,8 +147,12 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
         raise RunArgumentError(f"outputs=True, but model {model.name!r} was built with no outputs: build "
                                "the scene with outputs=(...) naming the ones you need")
 
-    n_runs = _count(model, x0, params, u, mu)
+    n_runs = _count(model, x0, params, u, None if isinstance(mu, tuple) else mu)
     MU = friction.per_run(model, mu, n_runs)
+    if MU is not None and checks and not dense:
+        raise RunArgumentError("mu given with checks, but no t_eval: the friction cone is checked at the "
+                               "output times, and without t_eval a batch keeps only the start and the "
+                               "end; give t_eval (e.g. np.linspace(0, t_final, 301)), or checks=False")
     s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n_runs)
     P, pdict = _parameters(model, params, n_runs)

@@ -66,7 +66,7 @@ def locate(model, s, sched, p, t0: float, x0: np.ndarray, t1: float,
             y = {k: float(col[0]) for k, col in
                  outputs_.along(model, np.array([t]), x_at(t)[None, :], p, sched).items()}
         v = witness(y)
-        return v if math.isfinite(v) else -1e300  # a NaN (blow-up): past the event
+        return -1e300 if math.isnan(v) else v  # a NaN (blow-up): past the event
 
     try:
         if not g(t0) > 0:

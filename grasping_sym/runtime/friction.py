@@ -94,9 +94,10 @@ def _numbers(mu, n: int) -> tuple[float, ...]:
 
 
 def per_run(model, mu, n_runs: int) -> np.ndarray | None:
-    """``simulate_many``'s ``mu``: None, one value for every run (as ``resolve`` takes it) or
-    one per run (``(N,)``, or ``(N, n_contacts)``); ``(N, n_contacts)`` or None."""
-    if mu is None or isinstance(mu, (Coulomb, numbers.Real)) or np.ndim(mu) == 0:
+    """``simulate_many``'s ``mu``: None, one value for every run as ``resolve`` takes it (a
+    number, a tuple with one per contact, a ``Coulomb``), or one per run (an array ``(N,)``, or
+    ``(N, n_contacts)``); ``(N, n_contacts)`` or None."""
+    if mu is None or isinstance(mu, (Coulomb, numbers.Real, tuple)) or np.ndim(mu) == 0:
         one = resolve(model, mu)
         return None if one is None else np.tile(one, (n_runs, 1))
     arr = np.asarray(mu)

@@ -185,7 +185,8 @@ class Model:
         ``new.start["info"]["branch"]``; ``branch`` as for ``initial_state``."""
         record = start_.start_record(self, values, branch)
         start_.store(self, record)
-        model = Model(self.directory, self.manifest, self.library_path, record)
+        model = Model(self.directory, self.manifest, self.library_path, record, self.scene,
+                      self.friction)
         model.build_info = {"source": "run-time start", "from": self.start["key"]}
         return model
 
@@ -400,6 +401,7 @@ class Model:
                               h=h, max_steps=max_steps, project=project, outputs=outputs,
                               checks=checks, time_limit=time_limit)
         if self.manifest.get("modes"):  # contact that can change: runtime.modes
+            modes.refuse_unused(params=params, u=u, slip=slip)
             x0, _ = run_.start_state(self, x0)
             return modes.run(self, s, x0, mu, e)
         if e is not None:

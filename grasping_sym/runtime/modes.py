@@ -11,8 +11,9 @@ between the samples by integrating again (``runtime.events``), where the run swi
 - rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
   equations accelerate it (the fixed point of ``d -> a_t(d)/|a_t(d)|`` from
   ``-F_t/|F_t|``); ``f`` reaching 0 -> separated;
-- sliding: ``f`` reaching 0 -> separated; the slip velocity along its direction at the
-  sample before, ``v_t . d``, reaching 0 -> the slip stopped: the contact velocity is set to
+- sliding: ``f`` reaching 0 -> separated; the slip velocity along its direction ``d`` at the
+  slide's start, ``v_t . d``, reaching 0 -> the slip stopped if ``|v_t| <= STOP_SPEED`` there
+  (else it turned past 90 degrees: the slide goes on along the new ``v_t``, no switch): the contact velocity is set to
   0 (a reset, recorded) and the run rolls if rolling is consistent there (``|F_t| <= mu f``
   in the rolling solution, ``f > 0``), else slides on in the direction the equations give;
 - separated: the gap reaching 0 while approaching -> an impact: Newton's restitution ``e``
@@ -39,10 +40,11 @@ from grasping_sym.errors import (
     ContactModeError,
     EventLocationError,
     GraspingSymError,
+    IntegratorError,
     PainleveError,
     RunArgumentError,
 )
-from grasping_sym.runtime import events, integrators
+from grasping_sym.runtime import events, failures, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime.result import SimulationResult
 
@@ -55,6 +57,9 @@ CONTACT_GAP = 1e-9
 #: Slip speed (m/s) at or below which a contact counts as at rest of the slip (rolling if
 #: consistent): the round-off of a contact velocity that a reset set to 0.
 SLIP_SPEED = 1e-10
+#: Slip speed (m/s) at the located zero of ``v_t . slip`` above which the slip did not stop but
+#: turned past 90 degrees from ``slip``: the slide goes on, re-aimed (no switch, no reset).
+STOP_SPEED = 1e-6
 #: Most switches within ``SWITCH_WINDOW`` seconds before a run stops as chattering.
 MAX_SWITCHES = 50
 SWITCH_WINDOW = 1e-3
@@ -150,7 +155,7 @@ class _Run:
         f, ft = y["rolling_normal_force"], y["rolling_tangential_force"]
         if np.linalg.norm(vt) > SLIP_SPEED:
             return self._slide_or_leave(t, x, y, vt / np.linalg.norm(vt))
-        if f > 0 and ft <= self.mu * f:
+        if f > 0 and (ft < self.mu * f or self.mu == math.inf):
             return ROLLING, None
         if f > 0:
             return self._slide_or_leave(t, x, y, self.slip_direction(y))
@@ -185,8 +190,10 @@ class _Run:
         state's outputs or every sample's) (``slip``: the slide's direction parameter: the
         stop is where ``v_t . slip`` reaches 0)."""
         if mode == ROLLING:
-            return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]),
-                    ("normal_force", lambda y: y["normal_force"])]
+            lift = [("normal_force", lambda y: y["normal_force"])]
+            if self.mu == math.inf:  # no friction limit: no cone to leave
+                return lift
+            return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]), *lift]
         if mode == SLIDING:
             d = np.asarray(slip, dtype=float)
             return [("normal_force", lambda y: y["normal_force"]),
@@ -213,7 +220,7 @@ class _Run:
         P = np.linalg.solve(K, -vc)
         return self._apply(x, P, rc), float(np.max(np.abs(vc)))
 
-    def impact(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (module docstring):
         ``(x after, largest speed change, stuck, bounced)``: a bounce when ``e > 0`` and the
         approach is faster than ``REST_SPEED``."""
@@ -228,14 +235,35 @@ class _Run:
         Pn = float(np.dot(P, n))
         Pt = P - Pn * n
         vt = vc - vn * n
-        stuck = np.linalg.norm(Pt) <= mu * Pn or np.linalg.norm(vt) <= SLIP_SPEED
-        if not stuck:
-            vt = vc - vn * n
-            d = vt / np.linalg.norm(vt)
-            Pn = -(1 + e) * vn / float(np.dot(n, K @ (n - mu * d)))
+        stuck = bool(np.linalg.norm(Pt) <= mu * Pn)
+        if not stuck:  # on the cone's edge, against the slip
+            if np.linalg.norm(vt) > SLIP_SPEED:
+                d = vt / np.linalg.norm(vt)
+            else:  # no incoming slip: the slip the frictionless impulse would make
+                after0 = vc + K @ n * (-(1 + e) * vn / float(n @ K @ n))
+                a_t = after0 - np.dot(after0, n) * n
+                d = a_t / np.linalg.norm(a_t) if np.linalg.norm(a_t) > 0 else -Pt / np.linalg.norm(Pt)
+            denominator = float(np.dot(n, K @ (n - mu * d)))
+            if not denominator > 0:
+                raise PainleveError(t, x, f"an impact with mu = {mu:g} has no consistent impulse: "
+                                    f"n . K (n - mu d) = {denominator:.6g} 1/kg <= 0 (Painleve's "
+                                    "paradox at an impact); the rigid model has no answer here",
+                                    self.model.state_names)
+            Pn = -(1 + e) * vn / denominator
             P = Pn * (n - mu * d)
         after = self._apply(x, P, rc)
         return after, float(np.max(np.abs(K @ P))), bool(stuck), e > 0
+
+
+def refuse_unused(*, params, u, slip) -> None:
+    """Refuse by name what a run with modes does not read (it would be ignored silently)."""
+    given = [k for k, v in (("params", params), ("u", u)) if v is not None]
+    if slip != "stop":
+        given.append("slip")
+    if given:
+        raise RunArgumentError(f"{', '.join(given)} given, but a model with contact modes takes none: "
+                               "its mode and slip direction are its own, its friction is mu= and e= "
+                               "(or the scene's law), and it has no inputs")
 
 
 def _rotation(q: np.ndarray) -> np.ndarray:
@@ -275,8 +303,11 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         grid = np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]])
         if len(grid) < 2:
             break
-        t, X, st = integrators.c_loop(model, s.method, x_now, grid, p, rtol=s.rtol, atol=s.atol,
-                                      max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+        try:
+            t, X, st = integrators.c_loop(model, s.method, x_now, grid, p, rtol=s.rtol, atol=s.atol,
+                                          max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+        except IntegratorError as exc:  # named as simulate names it (a contact off its chart)
+            raise failures.classify(model, exc) from None
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
         r.stats["segments"] += 1
@@ -303,8 +334,9 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         mode_before = mode
         mode, slip, x_now, reset = _switch(r, mode, name, t_ev, x_ev)
         r.stats["switch_time"] += perf_counter() - t_look
-        r.events.append({"t": t_ev, "contact": 1, "from": NAMES[mode_before], "to": NAMES[mode],
-                         "witness": name, "value": value, "reset": reset})
+        if reset is not None:  # None: a slide re-aimed, no switch
+            r.events.append({"t": t_ev, "contact": 1, "from": NAMES[mode_before], "to": NAMES[mode],
+                             "witness": name, "value": value, "reset": reset})
         t_now = t_ev
     t_all = np.concatenate(rows_t)
     X_all = np.concatenate(rows_x)
@@ -346,11 +378,15 @@ def _first_event(r: _Run, mode: int, slip, t, X, Y, p):
         return None
     i = min(k for _, k in cands)
     y0 = {k: float(values[k][i - 1]) for k in cols}
+    t0, x0 = float(t[i - 1]), X[i - 1]
+    if mode == SEPARATED and not y0["gap"] > 0:  # just left the plane (gap 0): from a moment on
+        t0 = t0 + 1e-6 * (float(t[i]) - t0)
+        x0 = events.state_at(r.model, r.s, None, p, float(t[i - 1]), X[i - 1], t0)
     best = None
     for name, w in r.witnesses(mode, slip):
         if mode != SEPARATED and not (w(y0) > 0 and not w({k: float(values[k][i]) for k in cols}) > 0):
             continue
-        found = events.locate(r.model, r.s, None, p, float(t[i - 1]), X[i - 1], float(t[i]), w)
+        found = events.locate(r.model, r.s, None, p, t0, x0, float(t[i]), w)
         if found is None:
             raise EventLocationError(float(t[i]), X[i], f"the {name} witness changes sign between the "
                                      f"outputs at {t[i - 1]:.9g} and {t[i]:.9g} s, but integrating "
@@ -373,13 +409,16 @@ def _switch(r: _Run, mode: int, name: str, t: float, x: np.ndarray):
         return SLIDING, r.slip_direction(y), x, 0.0
     if name == "slip":
         y = r.outputs(x, r.params(ROLLING))
+        vt = np.array([y[f"vt_{c}"] for c in "xyz"])
+        if np.linalg.norm(vt) > STOP_SPEED:  # the slip turned past 90 degrees, it did not stop
+            return SLIDING, vt / np.linalg.norm(vt), x, None
         x2, reset = r.stop_slip(x, y)
         y2 = r.outputs(x2, r.params(ROLLING))
         new, slip = r.contact_start(t, x2, y2)
         return new, slip, x2, reset
     # an impact
     y = r.outputs(x, r.params(ROLLING))
-    x2, reset, _, bounced = r.impact(x, y)
+    x2, reset, _, bounced = r.impact(t, x, y)
     y2 = r.outputs(x2, r.params(ROLLING))
     if bounced:  # restitution: it leaves the plane again
         return SEPARATED, None, x2, reset
