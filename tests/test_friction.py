@@ -135,6 +135,11 @@ def test_bad_mu_is_refused_by_name(paper2d, mu, words):
         paper2d.simulate(0.01, mu=mu)
 
 
+def test_restitution_is_refused_where_nothing_can_impact(paper2d):
+    with pytest.raises(RunArgumentError, match="no impacts"):
+        paper2d.simulate(0.01, e=0.3)
+
+
 def test_bad_friction_laws_are_refused_by_name():
     with pytest.raises(InvalidSceneError, match="must be a number >= 0"):
         gs.contact.coulomb(mu=-1)

@@ -163,8 +163,8 @@ def test_bad_run_arguments_of_modes_are_refused_by_name(flat):
         flat.simulate(0.1, method="rk4")
     with pytest.raises(RunArgumentError, match=r"e = 1.5 must be a number in \[0, 1\]"):
         flat.simulate(0.1, e=1.5)
-    with pytest.raises(RunArgumentError, match="no impacts"):
-        gs.build(gs.scenes.paper2d()).simulate(0.01, e=0.3)
+    with pytest.raises(RunArgumentError, match="takes none"):
+        flat.simulate(0.1, params={"mu": 0.3})
 
 
 def test_the_modes_figure_draws_the_bands_and_refuses_a_run_without_modes(flat, tmp_path):
