@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 from grasping_sym.errors import ViewOptionError
 from grasping_sym.geometry.values import as_real
 from grasping_sym.model import kinds
-from grasping_sym.viz import body
+from grasping_sym.viz.body import frames as body_frames
 from grasping_sym.viz.options import check_scene
 from grasping_sym.viz.plots import draw_scene, motion_limits
 from grasping_sym.viz.plots3d import (
@@ -180,4 +180,4 @@ def _frames_3d(fig, scene, result, rows):
 
 
 #: kind of scene (``model.kinds``) -> how its frames are drawn
-_FRAMES = {"planar": _frames_2d, "grasp3d": _frames_3d, "body": body.frames}
+_FRAMES = {"planar": _frames_2d, "grasp3d": _frames_3d, "body": body_frames}

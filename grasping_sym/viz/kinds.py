@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from grasping_sym.model import kinds
-from grasping_sym.viz import body
+from grasping_sym.viz.body import summary_lines as body_summary
+from grasping_sym.viz.body import write_figures as body_figures
 from grasping_sym.viz.plots import write_figures as planar_figures
 from grasping_sym.viz.plots3d import summary_lines as summary_lines3d
 from grasping_sym.viz.plots3d import write_figures3d
@@ -14,7 +15,7 @@ from grasping_sym.viz.plots3d import write_figures3d
 KINDS = {
     "planar": (planar_figures, lambda scene, result: []),
     "grasp3d": (write_figures3d, summary_lines3d),
-    "body": (body.write_figures, body.summary_lines),
+    "body": (body_figures, body_summary),
 }
 
 
