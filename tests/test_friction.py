@@ -190,3 +190,10 @@ def test_a_model_started_elsewhere_keeps_its_friction_law():
     assert moved.friction == model.friction
     with pytest.raises(FrictionConeError):
         moved.simulate(0.3)
+
+
+def test_a_contact_that_pulls_from_the_start_opens_rather_than_slips():
+    from grasping_sym.errors import ContactOpenedError
+    model = gs.build(gs.scenes.paper2d(inputs="torques"))
+    with pytest.raises(ContactOpenedError):
+        model.simulate(0.1, u=[0.0, 0.05], mu=0.3)

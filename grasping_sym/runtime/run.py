@@ -109,7 +109,9 @@ def cone_event(model, s: RunSettings, sched, p, t, X, outs, cone, event):
         y = outputs_.along(model, np.array([tc]), np.asarray(xc)[None, :], p, sched)
         cone = friction.cone_error(model, tc, xc, {k: float(v[0]) for k, v in y.items()},
                                    s.mu, c, how)
-    return cone if event is None or cone.t <= event.t else event
+    # a tie with the normal force's zero (a start with f <= 0): the contact opens, a cone of a
+    # force that pulls means nothing
+    return cone if event is None or cone.t < event.t else event
 
 
 def _segments(model, s: RunSettings, segments, sched, x0, p, start):
