@@ -207,7 +207,7 @@ class _Run:
         from the centre)."""
         x = x.copy()
         q = x[3:7]
-        R = _rotation(q)
+        R = rotation(q)
         x[7:10] += P / self.m
         x[10:13] += self.Hinv @ np.cross(R.T @ rc, R.T @ P)
         return x
@@ -266,8 +266,9 @@ def refuse_unused(*, params, u, slip) -> None:
                                "(or the scene's law), and it has no inputs")
 
 
-def _rotation(q: np.ndarray) -> np.ndarray:
-    """The rotation of a (not necessarily unit) quaternion, homogeneous form."""
+def rotation(q: np.ndarray) -> np.ndarray:
+    """The rotation of a (not necessarily unit) quaternion ``(w, x, y, z)``, in the homogeneous
+    form the compiled model uses (``derive.bodies3d.object_rotation``)."""
     w, v = q[0], q[1:4]
     s = float(np.dot(q, q))
     return ((w * w - v @ v) * np.eye(3) + 2 * np.outer(v, v) + 2 * w * np.array(

@@ -6,19 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
+from grasping_sym.runtime.modes import rotation
 from grasping_sym.viz.modes import modes_figure
 from grasping_sym.viz.plots3d import _equal_box, surface_mesh
 
 #: Samples per side of the body's drawn mesh.
 MESH = 24
-
-
-def rotation(q: np.ndarray) -> np.ndarray:
-    """The rotation of a (not necessarily unit) quaternion ``(w, x, y, z)``."""
-    w, v = q[0], q[1:4]
-    s = float(np.dot(q, q))
-    skew = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return ((w * w - v @ v) * np.eye(3) + 2 * np.outer(v, v) + 2 * w * skew) / s
 
 
 def frames(fig, scene, result, rows):
