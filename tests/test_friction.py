@@ -197,3 +197,9 @@ def test_a_contact_that_pulls_from_the_start_opens_rather_than_slips():
     model = gs.build(gs.scenes.paper2d(inputs="torques"))
     with pytest.raises(ContactOpenedError):
         model.simulate(0.1, u=[0.0, 0.05], mu=0.3)
+
+
+def test_held_needs_a_friction_coefficient(paper2d, tmp_path):
+    with pytest.raises(ValueError, match="'held' \\(with mu, for grasp scenes\\)"):
+        gs.sweep(paper2d, {"theta_0": [0.0]}, 0.1, store=tmp_path / "held.zarr", measures=["held"],
+                 progress=False)
