@@ -53,6 +53,7 @@ import numpy as np
 from grasping_sym.errors import GraspingSymError, SweepStoreBusyError, SweepStoreError
 from grasping_sym.runtime import friction, modes
 from grasping_sym.runtime.batch import default_threads
+from grasping_sym.runtime.checks import first_crossing
 from grasping_sym.runtime.model import Model
 from grasping_sym.runtime.start import start_point
 
@@ -316,19 +317,10 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
 
 
 def _first_crossing(t: np.ndarray, margin: np.ndarray) -> np.ndarray:
-    """Per run, the first time the cone margin reaches 0 (linear between the samples; 0 when it
-    is <= 0 at the start, ``inf`` when it never does)."""
-    out = np.full(len(margin), np.inf)
-    bad = ~(margin > 0)
-    for r in np.flatnonzero(bad.any(axis=1)):
-        i = int(np.argmax(bad[r]))
-        if i == 0:
-            out[r] = t[0]
-            continue
-        a, b = margin[r, i - 1], margin[r, i]
-        frac = a / (a - b) if np.isfinite(b) and a != b else 1.0
-        out[r] = t[i - 1] + min(max(frac, 0.0), 1.0) * (t[i] - t[i - 1])
-    return out
+    """Per run, the first time the cone margin reaches 0 (``checks.first_crossing``: linear
+    between the samples, the start when it is <= 0 there; ``inf`` when it never does)."""
+    hits = (first_crossing(t, row, 0.0) for row in margin)
+    return np.array([math.inf if h is None else h[1] for h in hits])
 
 
 def _held(model, batch, status, error) -> np.ndarray:

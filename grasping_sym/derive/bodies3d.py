@@ -12,7 +12,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import casadi as ca
+import numpy as np
 import sympy as sp
+from scipy.spatial.transform import Rotation
 
 from grasping_sym.derive.finger_templates import finger_template
 from grasping_sym.derive.spatial import (
@@ -72,6 +74,13 @@ def surface_sx(surface: ParametricSurface, u, v, extra: bool = False) -> dict[st
         out["Tm"] = ca.horzcat(tr(surface.S_u), tr(surface.S_v))
         out["II"] = tr(surface.second_fundamental_form)
     return out
+
+
+def quaternion_of(R: np.ndarray) -> np.ndarray:
+    """The unit quaternion ``(w, x, y, z)``, ``w >= 0``, of the rotation matrix ``R``."""
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    q = np.array([w, x, y, z])
+    return q if q[0] >= 0 else -q
 
 
 def object_rotation(quat: ca.SX, om: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:

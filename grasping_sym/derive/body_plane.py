@@ -28,7 +28,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from grasping_sym.derive.bodies3d import object_rotation, surface_sx
+from grasping_sym.derive.bodies3d import object_rotation, quaternion_of, surface_sx
 from grasping_sym.errors import InvalidSceneError
 
 #: Floor of ``|v_t|`` (m/s) in the slip's direction ``v_t / |v_t|`` (used only where
@@ -147,24 +147,3 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
         vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0)) * n
     x0 = np.concatenate([pos, quaternion_of(R0), vel, om, uv0])
     return x0, {"support": [float(v) for v in uv0]}
-
-
-def quaternion_of(R: np.ndarray) -> np.ndarray:
-    """The unit quaternion (w first, w >= 0) of the rotation ``R`` (Shepperd's method)."""
-    tr = np.trace(R)
-    if tr > 0:
-        w = 0.5 * np.sqrt(1 + tr)
-        q = [w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w),
-             (R[1, 0] - R[0, 1]) / (4 * w)]
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        r = np.sqrt(1 + R[i, i] - R[j, j] - R[k, k])
-        q = [0.0] * 4
-        q[0] = (R[k, j] - R[j, k]) / (2 * r)
-        q[1 + i] = 0.5 * r
-        q[1 + j] = (R[j, i] + R[i, j]) / (2 * r)
-        q[1 + k] = (R[k, i] + R[i, k]) / (2 * r)
-        if q[0] < 0:
-            q = [-v for v in q]
-    return np.array(q)

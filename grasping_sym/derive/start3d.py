@@ -26,7 +26,7 @@ import numpy as np
 import sympy as sp
 from scipy.spatial.transform import Rotation
 
-from grasping_sym.derive.bodies3d import finger_sx, surface_sx
+from grasping_sym.derive.bodies3d import finger_sx, quaternion_of, surface_sx
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import U, V
@@ -137,16 +137,10 @@ def solve_configuration(scene: GraspScene3D) -> dict:
             "R": R, "eta": eta, "residual": res, "iterations": it}
 
 
-def _quat(R: np.ndarray) -> np.ndarray:
-    x, y, z, w = Rotation.from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
-    return q if q[0] >= 0 else -q
-
-
 def regular_state(scene: GraspScene3D, conf: dict) -> np.ndarray:
     """The regular formulation's state at rest from a solved configuration."""
     nQ = len(conf["q"])
-    parts = [conf["q"], conf["pos"] if scene.free else [], _quat(conf["R"]),
+    parts = [conf["q"], conf["pos"] if scene.free else [], quaternion_of(conf["R"]),
              np.zeros(nQ + (6 if scene.free else 3)), conf["eta"].ravel()]
     return np.concatenate([np.asarray(p, float) for p in parts])
 

@@ -148,16 +148,9 @@ def quantities(model, outs: dict, mu: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def margins(model, outs: dict, mu) -> np.ndarray:
-    """``mu f - |F_t|`` per contact on the last axis (``inf`` where ``mu`` is ``inf``)."""
-    normal, tangential = forces(model, outs)
-    mu = np.asarray(mu, dtype=float)
-    cols = []
-    for i, (f, ft) in enumerate(zip(normal, tangential)):
-        m = mu[..., i]
-        if m.ndim and f.ndim > 1:
-            m = m.reshape(-1, *([1] * (f.ndim - 1)))
-        cols.append(np.where(np.isinf(m), np.inf, m * f - ft))
-    return np.stack(cols, axis=-1)
+    """``cone_margin{i}`` of ``quantities``, one contact per entry of the last axis."""
+    q = quantities(model, outs, mu)
+    return np.stack([q[f"cone_margin{i}"] for i in range(1, len(contacts(model)) + 1)], axis=-1)
 
 
 def witness(model, mu: np.ndarray, contact: int):

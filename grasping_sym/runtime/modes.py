@@ -112,6 +112,16 @@ class _Run:
         #: ``switch_time``: seconds spent locating the switches and making them
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
 
+    def contact(self, y: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """From one state's outputs: the contact's inverse effective mass ``K`` (1/kg), its
+        velocity relative to the plane ``v_c``, its point from the centre ``r_c`` (world) and
+        the rolling solution's force ``F_roll``."""
+        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
+        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
+        rc = np.array([y[f"rc_{c}"] for c in "xyz"])
+        F_roll = y["rolling_normal_force"] * self.n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
+        return K, vc, rc, F_roll
+
     def params(self, mode: int, slip=None) -> np.ndarray:
         p = self.p.copy()
         p[self.i_mode] = float(mode)
@@ -126,8 +136,7 @@ class _Run:
     def slip_direction(self, y: dict) -> np.ndarray:
         """The direction a slide starts in from rest of the slip (module docstring)."""
         n = self.n
-        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
-        F_roll = y["rolling_normal_force"] * n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
+        K, _, _, F_roll = self.contact(y)
         ft = F_roll - np.dot(F_roll, n) * n
         d = -ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.cross(n, [1.0, 0.0, 0.0])
         target = np.zeros(3)  # at v_c = 0 and gap = 0 the rolling acceleration is 0
@@ -179,9 +188,7 @@ class _Run:
     def free_normal_acceleration(self, y: dict) -> float:
         """The contact's normal acceleration with no contact force (m/s^2)."""
         n = self.n
-        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
-        F_roll = y["rolling_normal_force"] * n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
-        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
+        K, vc, _, F_roll = self.contact(y)
         target = -2 * self.gain * vc - self.gain**2 * y["gap"] * n
         return float(np.dot(n, target - K @ F_roll))
 
@@ -214,9 +221,7 @@ class _Run:
 
     def stop_slip(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float]:
         """The contact velocity set to 0 (the impulse that does it); the largest change."""
-        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
-        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
-        rc = np.array([y[f"rc_{c}"] for c in "xyz"])
+        K, vc, rc, _ = self.contact(y)
         P = np.linalg.solve(K, -vc)
         return self._apply(x, P, rc), float(np.max(np.abs(vc)))
 
@@ -225,9 +230,7 @@ class _Run:
         ``(x after, largest speed change, stuck, bounced)``: a bounce when ``e > 0`` and the
         approach is faster than ``REST_SPEED``."""
         n, mu = self.n, self.mu
-        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
-        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
-        rc = np.array([y[f"rc_{c}"] for c in "xyz"])
+        K, vc, rc, _ = self.contact(y)
         vn = float(np.dot(n, vc))
         e = self.e if -vn > REST_SPEED else 0.0
         target = -e * vn * n
