@@ -69,6 +69,15 @@ def _body_functions(scene, progress=None, layers: bool = True):
     return scene_functions.body_functions(scene, progress)
 
 
+def _planar_modes_functions(scene, progress=None, layers: bool = True):
+    return scene_functions.planar_modes_functions(scene, progress)
+
+
+def _planar_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    scene.validate()
+    return scene.initial_state(), scene.start_values(), {}
+
+
 def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     x0, info = body_plane.start_state(scene)
     return x0, {}, info
@@ -83,6 +92,8 @@ KINDS: dict[str, Kind] = {
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
+    "planar_modes": Kind(functions=_planar_modes_functions, solve_start=_planar_modes_start,
+                         templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
 }
 
 

@@ -34,6 +34,7 @@ from grasping_sym.assemble.structure_cache import StructureRecord
 from grasping_sym.derive.body_plane import derive_body_plane
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.derive.planar import has_gravity, parameter_values
+from grasping_sym.derive.planar_modes import derive_planar_modes
 from grasping_sym.emit.casadi_model import CasadiModel
 from grasping_sym.toolchain import library
 
@@ -202,4 +203,19 @@ def body_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     t1 = time.perf_counter()
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
                   scene.name, jacobian=True)
+    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
+
+
+def planar_modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A planar finger with contact modes (``model.planar_modes``): its three modes in one
+    piece of SX (``derive.planar_modes``), the mode a run-time parameter. No generated
+    Jacobian: its 17 869 SX instructions take gcc 19 s (the rhs 0.4 s); the integrators
+    difference the rhs (8 states)."""
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    say(f"deriving {scene.name} (a planar finger, three contact modes; SymPy, then CasADi)")
+    d = derive_planar_modes(scene, controller_torques)
+    t1 = time.perf_counter()
+    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
+                  scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"])
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})

@@ -93,24 +93,89 @@ def friction_law(model, mu, e=None) -> tuple[float, float]:
 
 
 class _Run:
-    """One run's state: the model, its settings, the parameters per mode."""
+    """One run's state: the model, its settings, the parameters per mode; what every kind of
+    model with modes shares (a subclass per kind gives its contact's geometry)."""
 
     def __init__(self, model, s, mu: float, e: float):
         self.model, self.s, self.mu, self.e = model, s, mu, e
         names = model.p_names
         self.p = np.array(model.default_params, dtype=float)
         self.i_mode, self.i_mu = names.index("mode"), names.index("mu")
-        self.i_slip = names.index("slip_x")
         self.p[self.i_mu] = min(mu, 1e300)
+        self.events: list[dict] = []
+        #: ``switch_time``: seconds spent locating the switches and making them
+        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
+
+    def params(self, mode: int, slip=None) -> np.ndarray:
+        p = self.p.copy()
+        p[self.i_mode] = float(mode)
+        if slip is not None:
+            p[self.i_slip:self.i_slip + len(slip)] = slip
+        return p
+
+    def outputs(self, x: np.ndarray, p: np.ndarray) -> dict[str, float]:
+        return outputs_.at(self.model, x, p)
+
+    def contact_start(self, t: float, x: np.ndarray, y: dict) -> tuple[int, np.ndarray | None]:
+        """The mode of a state in contact (gap and normal speed 0; ``y`` its outputs with the
+        rolling parameters) and its slip direction: a slipping contact slides if its sliding
+        normal force is > 0; one at rest of the slip rolls if rolling is consistent
+        (``f > 0``, ``|F_t| <= mu f``), else slides where the sliding equations take it if
+        that is consistent; a contact that can do neither separates if its free normal
+        acceleration is >= 0. Otherwise there is no consistent mode: a named error."""
+        vt = self.slip_velocity(y)
+        f, ft = y["rolling_normal_force"], y["rolling_tangential_force"]
+        if np.linalg.norm(vt) > SLIP_SPEED:
+            return self._slide_or_leave(t, x, y, vt / np.linalg.norm(vt))
+        if f > 0 and (ft < self.mu * f or self.mu == math.inf):
+            return ROLLING, None
+        if f > 0:
+            return self._slide_or_leave(t, x, y, self.slip_direction(x, y))
+        return self._slide_or_leave(t, x, y, None)
+
+    def _slide_or_leave(self, t, x, y, d):
+        if d is not None:
+            ys = self.outputs(x, self.params(SLIDING, d))
+            if not ys["painleve"] > 0:
+                _painleve(self.model, t, x, ys, self.mu)
+            if ys["normal_force"] > 0:
+                return SLIDING, d
+        if self.free_normal_acceleration(y) >= 0:
+            return SEPARATED, None
+        raise ContactModeError(t, x, "no contact mode is consistent: rolling needs f = "
+                               f"{y['rolling_normal_force']:.6g} N <= 0 or more friction than mu = "
+                               f"{self.mu:g}, sliding a normal force <= 0, and the free bodies would "
+                               "accelerate into each other; the rigid model has no answer here",
+                               self.model.state_names)
+
+    def witnesses(self, mode: int, slip):
+        """``(name, function of the outputs)`` of the events of ``mode``, elementwise (one
+        state's outputs or every sample's) (``slip``: the slide's direction parameter: the
+        stop is where ``v_t . slip`` reaches 0)."""
+        if mode == ROLLING:
+            lift = [("normal_force", lambda y: y["normal_force"])]
+            if self.mu == math.inf:  # no friction limit: no cone to leave
+                return lift
+            return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]), *lift]
+        if mode == SLIDING:
+            return [("normal_force", lambda y: y["normal_force"]),
+                    ("slip", self.slip_witness(np.asarray(slip, dtype=float))),
+                    ("painleve", lambda y: y["painleve"])]
+        return [("gap", lambda y: y["gap"])]
+
+
+class _BodyRun(_Run):
+    """A body on a plane (``model.body``): the contact's quantities in the world frame."""
+
+    def __init__(self, model, s, mu: float, e: float):
+        super().__init__(model, s, mu, e)
+        self.i_slip = model.p_names.index("slip_x")
         info = model.manifest["body"]
         self.m = float(info["mass"])
         self.H = np.array(info["inertia"], dtype=float)
         self.Hinv = np.linalg.inv(self.H)
         self.n = np.array(info["plane_normal"], dtype=float)
         self.gain = float(info["gain"])
-        self.events: list[dict] = []
-        #: ``switch_time``: seconds spent locating the switches and making them
-        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
 
     def contact(self, y: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """From one state's outputs: the contact's inverse effective mass ``K`` (1/kg), its
@@ -122,18 +187,18 @@ class _Run:
         F_roll = y["rolling_normal_force"] * self.n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
         return K, vc, rc, F_roll
 
-    def params(self, mode: int, slip=None) -> np.ndarray:
-        p = self.p.copy()
-        p[self.i_mode] = float(mode)
-        if slip is not None:
-            p[self.i_slip:self.i_slip + 3] = slip
-        return p
+    def slip_velocity(self, y: dict) -> np.ndarray:
+        return np.array([y[f"vt_{c}"] for c in "xyz"])
 
-    def outputs(self, x: np.ndarray, p: np.ndarray) -> dict[str, float]:
-        return outputs_.at(self.model, x, p)
+    def slip_witness(self, d: np.ndarray):
+        return lambda y: d[0] * y["vt_x"] + d[1] * y["vt_y"] + d[2] * y["vt_z"]
+
+    def apart(self, x: np.ndarray) -> np.ndarray:
+        """A body apart from the plane: its support point is the model's to keep."""
+        return np.asarray(x, dtype=float)
 
     # ------------------------------------------------------------------ what a mode is
-    def slip_direction(self, y: dict) -> np.ndarray:
+    def slip_direction(self, x: np.ndarray, y: dict) -> np.ndarray:
         """The direction a slide starts in from rest of the slip (module docstring)."""
         n = self.n
         K, _, _, F_roll = self.contact(y)
@@ -153,60 +218,12 @@ class _Run:
             d = nd
         return d
 
-    def contact_start(self, t: float, x: np.ndarray, y: dict) -> tuple[int, np.ndarray | None]:
-        """The mode of a state in contact (gap and normal speed 0; ``y`` its outputs with the
-        rolling parameters) and its slip direction: a slipping contact slides if its sliding
-        normal force is > 0; one at rest of the slip rolls if rolling is consistent
-        (``f > 0``, ``|F_t| <= mu f``), else slides where the sliding equations take it if
-        that is consistent; a contact that can do neither separates if its free normal
-        acceleration is >= 0. Otherwise there is no consistent mode: a named error."""
-        vt = np.array([y[f"vt_{c}"] for c in "xyz"])
-        f, ft = y["rolling_normal_force"], y["rolling_tangential_force"]
-        if np.linalg.norm(vt) > SLIP_SPEED:
-            return self._slide_or_leave(t, x, y, vt / np.linalg.norm(vt))
-        if f > 0 and (ft < self.mu * f or self.mu == math.inf):
-            return ROLLING, None
-        if f > 0:
-            return self._slide_or_leave(t, x, y, self.slip_direction(y))
-        return self._slide_or_leave(t, x, y, None)
-
-    def _slide_or_leave(self, t, x, y, d):
-        if d is not None:
-            ys = self.outputs(x, self.params(SLIDING, d))
-            if not ys["painleve"] > 0:
-                _painleve(self.model, t, x, ys, self.mu)
-            if ys["normal_force"] > 0:
-                return SLIDING, d
-        if self.free_normal_acceleration(y) >= 0:
-            return SEPARATED, None
-        raise ContactModeError(t, x, "no contact mode is consistent: rolling needs f = "
-                               f"{y['rolling_normal_force']:.6g} N <= 0 or more friction than mu = "
-                               f"{self.mu:g}, sliding a normal force <= 0, and the free body would "
-                               "accelerate into the plane; the rigid model has no answer here",
-                               self.model.state_names)
-
     def free_normal_acceleration(self, y: dict) -> float:
         """The contact's normal acceleration with no contact force (m/s^2)."""
         n = self.n
         K, vc, _, F_roll = self.contact(y)
         target = -2 * self.gain * vc - self.gain**2 * y["gap"] * n
         return float(np.dot(n, target - K @ F_roll))
-
-    def witnesses(self, mode: int, slip):
-        """``(name, function of the outputs)`` of the events of ``mode``, elementwise (one
-        state's outputs or every sample's) (``slip``: the slide's direction parameter: the
-        stop is where ``v_t . slip`` reaches 0)."""
-        if mode == ROLLING:
-            lift = [("normal_force", lambda y: y["normal_force"])]
-            if self.mu == math.inf:  # no friction limit: no cone to leave
-                return lift
-            return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]), *lift]
-        if mode == SLIDING:
-            d = np.asarray(slip, dtype=float)
-            return [("normal_force", lambda y: y["normal_force"]),
-                    ("slip", lambda y: d[0] * y["vt_x"] + d[1] * y["vt_y"] + d[2] * y["vt_z"]),
-                    ("painleve", lambda y: y["painleve"])]
-        return [("gap", lambda y: y["gap"])]
 
     # ------------------------------------------------------------------ the maps at a switch
     def _apply(self, x: np.ndarray, P: np.ndarray, rc: np.ndarray) -> np.ndarray:
@@ -258,6 +275,103 @@ class _Run:
         return after, float(np.max(np.abs(K @ P))), bool(stuck), e > 0
 
 
+class _PlanarRun(_Run):
+    """A planar finger (``model.planar_modes``): the contact's quantities in its own frame,
+    the normal row ``gQ`` (``gQ . v``: the rate of ``Q``, minus the gap's) and the tangent row
+    ``gR`` (``v_t = gR . v``), ``W = [gQ; gR] M^-1 [gQ; gR]^T`` (``docs/conventions.md``
+    section 8). A contact impulse ``(P_n, P_t)`` changes the speeds by
+    ``-M^-1 (P_n gQ + P_t gR)``."""
+
+    def __init__(self, model, s, mu: float, e: float):
+        super().__init__(model, s, mu, e)
+        self.i_slip = model.p_names.index("slip")
+        self.n_speeds = 3
+
+    def slip_velocity(self, y: dict) -> np.ndarray:
+        return np.array([y["vt"]])
+
+    def apart(self, x: np.ndarray) -> np.ndarray:
+        """``x`` with its contact parameters on the contours' common normal (``R = 0`` and
+        ``delta = 0``, Newton's method on ``(u0, u1)``): a start apart need not give them."""
+        x = np.array(x, dtype=float)
+        p = self.params(SEPARATED)
+
+        def G(u):
+            y = self.outputs(np.concatenate([x[:6], u]), p)
+            return np.array([y["R"], y["tangency_defect"]])
+
+        u = x[6:8].copy()
+        for _ in range(50):
+            g = G(u)
+            if np.max(np.abs(g)) < 1e-14:
+                break
+            h = 1e-7 * np.maximum(1.0, np.abs(u))
+            J = np.column_stack([(G(u + h[k] * np.eye(2)[k]) - g) / h[k] for k in range(2)])
+            u = u - np.linalg.solve(J, g)
+        if not np.max(np.abs(G(u))) < 1e-12:
+            raise RunArgumentError(f"x0 is apart, but no pair of points on a common normal was found "
+                                   f"near u0, u1 = {tuple(x[6:8])} (R, delta = {tuple(G(u))}): give "
+                                   "u0, u1 near the closest points of the contours")
+        x[6:8] = u
+        return x
+
+    def slip_witness(self, d: np.ndarray):
+        return lambda y: d[0] * y["vt"]
+
+    def slip_direction(self, x: np.ndarray, y: dict) -> np.ndarray:
+        """A slide from rest of the slip starts along the rolling solution's tangential force
+        (the friction it needs and the cone cannot give)."""
+        return np.array([1.0 if y["rolling_lam"] >= 0 else -1.0])
+
+    def free_normal_acceleration(self, y: dict) -> float:
+        return float(y["free_normal_acceleration"])
+
+    def _W(self, y: dict) -> np.ndarray:
+        return np.array([[y["W_nn"], y["W_nt"]], [y["W_nt"], y["W_tt"]]])
+
+    def _apply(self, x: np.ndarray, y: dict, P: np.ndarray) -> np.ndarray:
+        x = x.copy()
+        x[3:6] -= P[0] * np.array([y[f"Minv_gQ_{i}"] for i in range(3)]) \
+            + P[1] * np.array([y[f"Minv_gR_{i}"] for i in range(3)])
+        return x
+
+    def stop_slip(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float]:
+        """The contact's normal and slip speeds set to 0 (the impulse that does it)."""
+        Jv = np.array([y["vn_fixed"], y["vt"]])
+        return self._apply(x, y, np.linalg.solve(self._W(y), Jv)), float(np.max(np.abs(Jv)))
+
+    def impact(self, t: float, x: np.ndarray, y: dict) -> tuple[np.ndarray, float, bool, bool]:
+        """Newton's restitution and Coulomb friction on the impulse (``_BodyRun.impact``, in
+        the contact's frame); the kinetic energy must not grow (a named error otherwise)."""
+        mu, W = self.mu, self._W(y)
+        vn, vt = float(y["vn_fixed"]), float(y["vt"])
+        e = self.e if vn > REST_SPEED else 0.0
+        P = np.linalg.solve(W, np.array([(1 + e) * vn, vt]))
+        stuck = bool(abs(P[1]) <= mu * P[0])
+        if not stuck:  # on the cone's edge, against the slip
+            s = math.copysign(1.0, vt) if abs(vt) > SLIP_SPEED else math.copysign(1.0, P[1])
+            denominator = float(W[0, 0] + mu * s * W[0, 1])
+            if not denominator > 0:
+                raise PainleveError(t, x, f"an impact with mu = {mu:g} has no consistent impulse: "
+                                    f"the normal row's coefficient {denominator:.6g} <= 0 (Painleve's "
+                                    "paradox at an impact); the rigid model has no answer here",
+                                    self.model.state_names)
+            P = np.array([(1 + e) * vn / denominator, mu * s * (1 + e) * vn / denominator])
+        after = self._apply(x, y, P)
+        before_k = float(y["kinetic_energy"])
+        after_k = float(self.outputs(after, self.params(ROLLING))["kinetic_energy"])
+        if after_k > before_k * (1 + 1e-9) + 1e-15:
+            raise ContactModeError(t, x, f"the impact with mu = {mu:g}, e = {e:g} would raise the kinetic "
+                                   f"energy from {before_k:.9g} J to {after_k:.9g} J (Newton's "
+                                   "restitution with friction can); the rigid model has no answer here: "
+                                   "give e = 0", self.model.state_names)
+        return after, float(np.max(np.abs(W @ P))), stuck, e > 0
+
+
+#: the kind of a model with modes (its manifest's ``kind``) -> how its contact is run
+_RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun}
+
+
 def refuse_unused(*, params, u, slip) -> None:
     """Refuse by name what a run with modes does not read (it would be ignored silently)."""
     given = [k for k, v in (("params", params), ("u", u)) if v is not None]
@@ -286,16 +400,25 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
                                "(the loops in C, with which its switches are located by integrating "
                                "again)")
     mu, e = friction_law(model, mu_arg, e_arg)
-    r = _Run(model, s, mu, e)
+    r = _RUNS[model.manifest.get("kind", "body")](model, s, mu, e)
     t_eval = s.t_eval
     y = r.outputs(x0, r.params(ROLLING))
-    if abs(y["gap"]) <= CONTACT_GAP:
+    if y["gap"] > CONTACT_GAP:
+        x0 = r.apart(x0)
+        y = r.outputs(x0, r.params(ROLLING))
+    if abs(y["gap"]) <= CONTACT_GAP and y["normal_speed"] > STOP_SPEED:  # leaving at once
+        mode, slip = SEPARATED, None
+    elif abs(y["gap"]) <= CONTACT_GAP and y["normal_speed"] < -STOP_SPEED:  # an impact at once
+        mode, slip, x0, reset = _switch(r, SEPARATED, "gap", 0.0, np.asarray(x0, dtype=float))
+        r.events.append({"t": 0.0, "contact": 1, "from": NAMES[SEPARATED], "to": NAMES[mode],
+                         "witness": "gap", "value": float(y["gap"]), "reset": reset})
+    elif abs(y["gap"]) <= CONTACT_GAP:
         mode, slip = r.contact_start(0.0, x0, y)
     elif y["gap"] > 0:
         mode, slip = SEPARATED, None
     else:
-        raise RunArgumentError(f"x0 penetrates the plane: gap = {y['gap']:.6g} m < 0; start on it "
-                               "(start='contact') or above it")
+        raise RunArgumentError(f"x0 penetrates the contact: gap = {y['gap']:.6g} m < 0; start in "
+                               "contact (a body: start='contact'; a finger: the scene's start) or apart")
     rows_t, rows_x, rows_mode, rows_p = [], [], [], []
     t_now, x_now = 0.0, np.asarray(x0, dtype=float)
     last_t = -math.inf
@@ -410,10 +533,10 @@ def _switch(r: _Run, mode: int, name: str, t: float, x: np.ndarray):
         return SEPARATED, None, x, 0.0
     if name == "cone":
         y = r.outputs(x, r.params(ROLLING))
-        return SLIDING, r.slip_direction(y), x, 0.0
+        return SLIDING, r.slip_direction(x, y), x, 0.0
     if name == "slip":
         y = r.outputs(x, r.params(ROLLING))
-        vt = np.array([y[f"vt_{c}"] for c in "xyz"])
+        vt = r.slip_velocity(y)
         if np.linalg.norm(vt) > STOP_SPEED:  # the slip turned past 90 degrees, it did not stop
             return SLIDING, vt / np.linalg.norm(vt), x, None
         x2, reset = r.stop_slip(x, y)

@@ -1,0 +1,129 @@
+"""The 2D finger-object model in its three contact modes (``model.planar_modes``;
+``docs/conventions.md`` section 8, MODELS.md section 5), as CasADi SX.
+
+The rolling model's pieces (``derive.planar.derive_template`` with separate contact
+parameters ``u0``, ``u1``; M, h, the joint torques, ``C = (Q, R)``, the update law
+``sigma`` and the tangency defect ``delta``) are translated with the scene's concrete contours;
+the modes differ in which rows hold and how the contact parameters move. With
+``gQ = dQ/dq``, ``gR = dR/dq`` (``u`` fixed), the contact force on the system is
+``-(f gQ + lam gR)`` and the slip velocity (finger's material point relative to the
+object's, along the object's tangent) is ``v_t = gR . v``.
+
+- rolling (mode 0): the rolling model (both rows, ``u' = sigma``, Baumgarte gains ``gf, wf,
+  gl, wl``): bit for bit the equations of ``derive.planar``;
+- sliding (mode 1): the ``Q`` row only, ``lam = mu f d`` with ``d = sign(v_t)`` while
+  ``v_t slip > 0``, else the parameter ``slip`` (+-1: a slide from rest of the slip);
+  ``f`` from ``Q'' = -2 gf Q' - wf Q`` with coefficient ``painleve = Qa . M^-1 (gQ + mu d gR)``
+  (``Qa = dQ'/dv``), which must stay > 0;
+- separated (mode 2): no force.
+
+Sliding and separated move the contact parameters so that they stay the pair of points on a
+common normal (``R = 0``, ``delta = 0``): ``[dR/du; ddelta/du] u' = -[gR; ddelta/dq] v -
+TRACK_GAIN [R; delta]``; then ``-Q`` is the gap between the contours (m, > 0 apart). Rolling
+with the same state keeps both too, so a switch maps no state.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from grasping_sym.derive.planar import derive_template, has_gravity, parameter_values, torque_names
+from grasping_sym.errors import InvalidSceneError
+from grasping_sym.symbolic.contour_functions import FINGERTIP, OBJECT, leaf_expressions
+from grasping_sym.symbolic.translate import SympyToCasadi
+
+#: 1/s: the rate at which sliding and separated contact parameters return to the common
+#: normal (``R = delta = 0`` are invariants of their law; this only damps round-off).
+TRACK_GAIN = 200.0
+#: Floor of ``f`` (N) in the cone ratio's denominator.
+FORCE_FLOOR = 1e-300
+
+
+def derive_planar_modes(scene, torques) -> dict:
+    """``{"x", "p", "t", "xdot", "outputs", "reads_time"}`` of a ``model.planar_modes`` scene;
+    ``torques(scene, t, x, p) -> (tau, reads the object, reads the time)`` gives the joint
+    torques of its controller (``assemble.controller.controller_torques``)."""
+    base = scene.base
+    system = derive_template(False, has_gravity(base), 1)
+    names = scene.p_names
+    x = ca.SX.sym("x", len(scene.state_names))
+    p = ca.SX.sym("p", len(names))
+    t = ca.SX.sym("t")
+    tau, _, timed = torques(scene, t, x, p)
+    if ca.depends_on(tau, x[6:8]):
+        raise InvalidSceneError(["the controller reads the contact parameters (u0, u1): with contact "
+                                 "modes they are not one point while the contact slides or is open; "
+                                 "write the law on the joints and the object (m.q, m.dq, m.tip, ...)"])
+    values = parameter_values(base)
+    symbols = {s: x[i] for i, s in enumerate(system.state)}
+    taus = torque_names(1)
+    for s in system.params:
+        k = str(s)
+        symbols[s] = tau[taus.index(k)] if k in taus else p[names.index(k)] if k in names \
+            else ca.SX(values[k])
+    leaves = {**leaf_expressions(FINGERTIP, base.fingertip), **leaf_expressions(OBJECT, base.object)}
+    tr = SympyToCasadi(symbols, leaves)
+    mode, slip, mu = (p[names.index(k)] for k in ("mode", "slip", "mu"))
+    by_name = {str(s): symbols[s] for s in system.params}
+    gf, gl, wf, wl = (by_name[k] for k in ("gf", "gl", "wf", "wl"))
+
+    M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
+    C = tr(system.constraint)
+    sigma = tr(system.contact_rates)
+    delta = tr(system.outputs["tangency_defect"])
+    q, v, u = x[0:3], x[3:6], x[6:8]
+    Q, R = C[0], C[1]
+    gQ, gR = ca.jacobian(Q, q), ca.jacobian(R, q)
+    A = ca.vertcat(gQ, gR)
+    zero3 = ca.SX.zeros(3)
+
+    # contact parameters on the common normal (sliding, separated)
+    G = ca.vertcat(R, delta)
+    u_geo = ca.solve(ca.jacobian(G, u), -ca.jacobian(G, q) @ v - TRACK_GAIN * G)
+
+    free = ca.solve(M, F - h)
+    MinvA = ca.solve(M, A.T)
+    # rolling: the rolling model's rows (derive.system.assemble)
+    Cdot = ca.jtimes(C, x, ca.vertcat(v, zero3, sigma))
+    Ahat = ca.jacobian(Cdot, v)
+    bhat = ca.jtimes(Cdot, x, ca.vertcat(v, zero3, sigma))
+    lam_roll = ca.solve(Ahat @ MinvA, Ahat @ free + bhat + ca.vertcat(2 * gf, 2 * gl) * Cdot
+                        + ca.vertcat(wf, wl) * C)
+    a_roll = free - MinvA @ lam_roll
+    # sliding: the normal row along the common normal's motion, Coulomb's lam = mu f d
+    Qdot = ca.jtimes(Q, x, ca.vertcat(v, zero3, u_geo))
+    Qa = ca.jacobian(Qdot, v)
+    Qb = ca.jtimes(Qdot, x, ca.vertcat(v, zero3, u_geo))
+    vt = ca.mtimes(gR, v)
+    d = ca.if_else(vt * slip > 0, ca.sign(vt), slip)
+    w = MinvA @ ca.vertcat(1, mu * d)
+    painleve = ca.mtimes(Qa, w)
+    f_slide = (ca.mtimes(Qa, free) + Qb + 2 * gf * Qdot + wf * Q) / painleve
+    a_slide = free - f_slide * w
+
+    rolling, sliding = mode < 0.5, mode < 1.5
+    a = ca.if_else(rolling, a_roll, ca.if_else(sliding, a_slide, free))
+    udot = ca.if_else(rolling, sigma, u_geo)
+    f = ca.if_else(rolling, lam_roll[0], ca.if_else(sliding, f_slide, 0))
+    lam = ca.if_else(rolling, lam_roll[1], ca.if_else(sliding, mu * d * f_slide, 0))
+    xdot = ca.vertcat(v, a, udot)
+
+    W = A @ MinvA
+    kinetic = tr(system.outputs["kinetic_energy"])
+    potential = tr(system.outputs["potential_energy"])
+    outputs = {
+        "gap": -Q, "normal_speed": -Qdot, "normal_force": f, "lam": lam,
+        "tangential_force": ca.fabs(lam), "cone_ratio": ca.fabs(lam) / ca.fmax(f, FORCE_FLOOR),
+        "vt": vt, "slip_speed": ca.fabs(vt), "vt_rate": ca.jtimes(vt, x, xdot),
+        "rolling_normal_force": lam_roll[0], "rolling_lam": lam_roll[1],
+        "rolling_tangential_force": ca.fabs(lam_roll[1]), "painleve": painleve,
+        "free_normal_acceleration": -(ca.mtimes(Qa, free) + Qb),
+        "Q": Q, "R": R, "tangency_defect": delta,
+        "kinetic_energy": kinetic, "potential_energy": potential,
+        "power": ca.dot(v[1:3], tau),
+        "vn_fixed": ca.mtimes(gQ, v),
+        "W_nn": W[0, 0], "W_nt": W[0, 1], "W_tt": W[1, 1],
+    }
+    for i in range(3):
+        outputs[f"Minv_gQ_{i}"] = MinvA[i, 0]
+        outputs[f"Minv_gR_{i}"] = MinvA[i, 1]
+    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": outputs, "reads_time": timed}
