@@ -13,6 +13,10 @@ from grasping_sym.model.body import BodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.model.inertia import solid_ellipsoid_inertia
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
+from grasping_sym.model.planar_modes import PlanarModesScene, with_modes
+
+__all__ = ["BUILTIN", "PlanarModesScene", "body_on_plane", "paper2d", "paper3d", "pivot3d",
+           "planar_finger", "sphere_on_incline", "with_modes"]
 
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
     from grasping_sym.model.grasp3d import GraspScene3D

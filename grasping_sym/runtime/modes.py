@@ -335,6 +335,24 @@ class _PlanarRun(_Run):
             + P[1] * np.array([y[f"Minv_gR_{i}"] for i in range(3)])
         return x
 
+    def _sliding_impulse(self, t, x, W, vn: float, vt: float, e: float, s0: float) -> np.ndarray:
+        """The impulse on the cone's edge, ``P_t = mu s P_n``, whose slip after the impact
+        ``v_t+`` has the sign ``s`` (friction opposes the slip it leaves; Moreau's law), tried
+        along the stick impulse's sign ``s0`` first."""
+        mu = self.mu
+        for s in (s0, -s0):
+            denominator = float(W[0, 0] + mu * s * W[0, 1])
+            if not denominator > 0:
+                continue
+            Pn = (1 + e) * vn / denominator
+            vt_after = vt - Pn * (W[1, 0] + mu * s * W[1, 1])
+            if Pn >= 0 and vt_after * s >= 0:
+                return np.array([Pn, mu * s * Pn])
+        raise PainleveError(t, x, f"an impact with mu = {mu:g} has no consistent impulse: no impulse "
+                            "on the cone's edge leaves a slip it opposes with a positive normal "
+                            "row's coefficient (Painleve's paradox at an impact); the rigid model "
+                            "has no answer here", self.model.state_names)
+
     def stop_slip(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float]:
         """The contact's normal and slip speeds set to 0 (the impulse that does it)."""
         Jv = np.array([y["vn_fixed"], y["vt"]])
@@ -348,23 +366,16 @@ class _PlanarRun(_Run):
         e = self.e if vn > REST_SPEED else 0.0
         P = np.linalg.solve(W, np.array([(1 + e) * vn, vt]))
         stuck = bool(abs(P[1]) <= mu * P[0])
-        if not stuck:  # on the cone's edge, against the slip
-            s = math.copysign(1.0, vt) if abs(vt) > SLIP_SPEED else math.copysign(1.0, P[1])
-            denominator = float(W[0, 0] + mu * s * W[0, 1])
-            if not denominator > 0:
-                raise PainleveError(t, x, f"an impact with mu = {mu:g} has no consistent impulse: "
-                                    f"the normal row's coefficient {denominator:.6g} <= 0 (Painleve's "
-                                    "paradox at an impact); the rigid model has no answer here",
-                                    self.model.state_names)
-            P = np.array([(1 + e) * vn / denominator, mu * s * (1 + e) * vn / denominator])
+        if not stuck:  # on the cone's edge, against the slip after the impact (Moreau)
+            P = self._sliding_impulse(t, x, W, vn, vt, e, math.copysign(1.0, P[1]))
         after = self._apply(x, y, P)
         before_k = float(y["kinetic_energy"])
         after_k = float(self.outputs(after, self.params(ROLLING))["kinetic_energy"])
         if after_k > before_k * (1 + 1e-9) + 1e-15:
             raise ContactModeError(t, x, f"the impact with mu = {mu:g}, e = {e:g} would raise the kinetic "
                                    f"energy from {before_k:.9g} J to {after_k:.9g} J (Newton's "
-                                   "restitution with friction can); the rigid model has no answer here: "
-                                   "give e = 0", self.model.state_names)
+                                   "restitution with friction can when e > 0); the rigid model has no "
+                                   "answer here: give e = 0", self.model.state_names)
         return after, float(np.max(np.abs(W @ P))), stuck, e > 0
 
 
@@ -506,9 +517,14 @@ def _first_event(r: _Run, mode: int, slip, t, X, Y, p):
     i = min(k for _, k in cands)
     y0 = {k: float(values[k][i - 1]) for k in cols}
     t0, x0 = float(t[i - 1]), X[i - 1]
-    if mode == SEPARATED and not y0["gap"] > 0:  # just left the plane (gap 0): from a moment on
-        t0 = t0 + 1e-6 * (float(t[i]) - t0)
-        x0 = events.state_at(r.model, r.s, None, p, float(t[i - 1]), X[i - 1], t0)
+    if mode == SEPARATED and not y0["gap"] > CONTACT_GAP:  # just left the contact: from the apex
+        apex = events.locate(r.model, r.s, None, p, t0, x0, float(t[i]), lambda y: y["normal_speed"]) \
+            if y0["normal_speed"] > 0 else None
+        if apex is None or not r.outputs(apex[1], p)["gap"] > 0:
+            raise EventLocationError(float(t[i]), X[i], f"the contact left at {t0:.9g} s returns before "
+                                     f"{t[i]:.9g} s, but no time apart is found between: give a denser "
+                                     "t_eval or tighter tolerances", r.model.state_names)
+        t0, x0 = apex
     best = None
     for name, w in r.witnesses(mode, slip):
         if mode != SEPARATED and not (w(y0) > 0 and not w({k: float(values[k][i]) for k in cols}) > 0):

@@ -1,7 +1,7 @@
 """A run with contact modes over time: the modes as bands, the switches as lines.
 
-Reads ``res.modes`` and ``res.events`` (``runtime.modes``) and the outputs a body on a plane
-shows (``gap``, ``normal_force``, ``slip_speed``, ``cone_ratio``); any subset of them.
+Reads ``res.modes`` and ``res.events`` (``runtime.modes``) and the outputs every model with
+modes has (``gap``, ``normal_force``, ``slip_speed``, ``cone_ratio``); any subset of them.
 """
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def modes_figure(result, path: Path | str, *, dpi: float = 110) -> Path:
     gap, normal force, slip speed and cone ratio (the panels it has) to ``path``."""
     if result.modes is None:
         raise ValueError("the run has no contact modes: a model with modes (gs.scenes.body_on_plane, "
-                         "sphere_on_incline) records them")
+                         "sphere_on_incline, gs.scenes.with_modes(gs.scenes.paper2d())) records them")
     panels = [(k, lab) for k, lab in PANELS if k in result.outputs] or [(None, "mode")]
     fig = Figure(figsize=(7.0, 1.0 + 1.6 * len(panels)), layout="constrained")
     FigureCanvasAgg(fig)
