@@ -1,0 +1,239 @@
+"""Contact modes of a planar finger (model.planar_modes, derive.planar_modes, runtime.modes;
+docs/conventions.md section 8): checked against the rolling model, the rolling model's own cone
+event, the energy balance of a slide, the contours' geometry computed here from their
+formulas, and the laws of an impact."""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import grasping_sym as gs
+from grasping_sym.errors import FrictionConeError, InvalidSceneError, RunArgumentError
+from grasping_sym.geometry.curves import T
+from grasping_sym.model.planar import ExtraFinger
+from grasping_sym.runtime import modes
+from grasping_sym.runtime.settings import RunSettings
+
+TOL = {"rtol": 1e-10, "atol": 1e-12}
+
+
+@pytest.fixture(scope="module")
+def base():
+    return gs.scenes.paper2d()
+
+
+@pytest.fixture(scope="module")
+def model(base):
+    return gs.build(gs.scenes.with_modes(base))
+
+
+@pytest.fixture(scope="module")
+def rolling(base):
+    return gs.build(base)
+
+
+def _x0(base) -> np.ndarray:
+    x = base.initial_state()
+    return np.concatenate([x[:6], [x[6], x[6]]])
+
+
+@functools.lru_cache(maxsize=4)
+def _formulas(curve):
+    """``u -> (x, y, x', y')`` of a contour, from its SymPy formulas."""
+    return sp.lambdify(T, [curve.x, curve.y, sp.diff(curve.x, T), sp.diff(curve.y, T)], "numpy")
+
+
+def _world_points(base, x):
+    """The two contours' points at ``u0``, ``u1`` (world, m) and their unit normals, from the
+    contours' formulas (docs/conventions.md section 1: the fingertip's frame at O01 turned by
+    pi/2 - q1 - q2, the object's at the pivot turned by -theta)."""
+    p = base.params
+    th, q1, q2, u0, u1 = x[0], x[1], x[2], x[6], x[7]
+
+    def rot(a):
+        return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+
+    def point_tangent(curve, u):
+        X, Y, dX, dY = (float(v) for v in _formulas(curve)(u))
+        return np.array([X, Y]), np.array([dX, dY]) / math.hypot(dX, dY)
+
+    o01 = np.array([p["l11"] * math.sin(q1) + p["l12"] * math.sin(q1 + q2),
+                    p["l11"] * math.cos(q1) + p["l12"] * math.cos(q1 + q2)])
+    c0, t0 = point_tangent(base.fingertip, u0)
+    c1, t1 = point_tangent(base.object, u1)
+    Rf, Ro = rot(math.pi / 2 - q1 - q2), rot(-th)
+    return o01 + Rf @ c0, Rf @ t0, np.array(base.pivot) + Ro @ c1, Ro @ t1
+
+
+def test_rolling_mode_is_the_rolling_model(base, model, rolling):
+    """Mode 0 is the paper2d model: the same right-hand side at random states (to 1e-12
+    relative), and without a friction limit the same motion (to 1e-9), never switching."""
+    rng = np.random.default_rng(7)
+    x_start = base.initial_state()
+    for _ in range(10):
+        x = x_start + rng.normal(scale=[0.05, 0.05, 0.05, 0.5, 0.5, 0.5, 0.05])
+        a, b = rolling.rhs(x), model.rhs(np.concatenate([x, [x[6]]]))
+        scale = np.abs(a[:6]) + 1e-12
+        assert np.max(np.abs(a[:6] - b[:6]) / scale) < 1e-12
+        assert abs(b[6] - a[6]) < 1e-12 * abs(a[6]) and abs(b[7] - a[6]) < 1e-12 * abs(a[6])
+    te = np.linspace(0.0, 0.3, 31)
+    r = model.simulate(0.3, t_eval=te, **TOL)
+    r0 = rolling.simulate(0.3, t_eval=te, method="radau", **TOL)
+    assert r.events == [] and set(r.modes) == {"rolling"}
+    assert np.max(np.abs(r.x[:, :6] - r0.x[:, :6])) < 1e-9
+
+
+@pytest.fixture(scope="module")
+def slide(model):
+    """paper2d with mu = 0.2: rolls, slides from the cone's edge, sticks again."""
+    return model.simulate(0.25, mu=0.2, t_eval=np.linspace(0.0, 0.25, 2501), **TOL)
+
+
+def test_slip_starts_where_the_rolling_model_leaves_its_cone(base, rolling, slide):
+    """The first switch (rolling -> sliding, on the cone) is at the time the rolling model's
+    own cone check stops it (FrictionConeError, located independently on its lam and f)."""
+    with pytest.raises(FrictionConeError) as err:
+        rolling.simulate(0.25, mu=0.2, t_eval=np.linspace(0.0, 0.25, 251), method="radau", **TOL)
+    first = slide.events[0]
+    assert (first["from"], first["to"], first["witness"]) == ("rolling", "sliding", "cone")
+    assert abs(first["t"] - err.value.t) < 1e-8
+    later = slide.events[1]
+    assert (later["from"], later["to"], later["witness"]) == ("sliding", "rolling", "slip")
+    assert later["reset"] < 1e-9  # the slip speed had reached 0 by itself
+    sliding = slide.modes == "sliding"
+    assert sliding.sum() > 100
+    # Coulomb's law while sliding: |lam| = mu f, against the slip
+    f, lam, vt = (slide[k][sliding] for k in ("normal_force", "lam", "vt"))
+    assert np.max(np.abs(np.abs(lam) - 0.2 * f)) < 1e-12 * np.max(f)
+    assert np.all(lam * vt >= 0)
+    assert np.max(slide["cone_ratio"]) <= 0.2 + 1e-12
+
+
+def test_a_slide_loses_what_friction_dissipates(slide):
+    """Energy balance along the slide: d(K + V)/dt = the joints' power - lam v_t (the normal
+    force does no work on a closed contact), integrated by Simpson's rule over the output grid."""
+    from scipy.integrate import simpson
+
+    rows = np.flatnonzero(slide.modes == "sliding")
+    rows = rows[(rows > rows[0]) & (rows < rows[-1])]  # whole samples inside the slide
+    t = slide.t[rows]
+    E = slide["kinetic_energy"][rows] + slide["potential_energy"][rows]
+    rate = slide["power"][rows] - slide["lam"][rows] * slide["vt"][rows]
+    dissipated = simpson(slide["lam"][rows] * slide["vt"][rows], x=t)
+    assert dissipated > 1e-7  # the slide dissipates something measurable
+    assert abs((E[-1] - E[0]) - simpson(rate, x=t)) < 1e-6 * dissipated
+
+
+def test_sliding_contact_points_stay_one_point(base, slide):
+    """While sliding, the contours' points at u0 and u1, computed here from their formulas,
+    coincide and their tangents are parallel, though u0 and u1 move apart."""
+    rows = np.flatnonzero(slide.modes == "sliding")[::40]
+    for k in rows:
+        p0, t0, p1, t1 = _world_points(base, slide.x[k])
+        assert np.linalg.norm(p0 - p1) < 1e-10
+        assert abs(t0[0] * t1[1] - t0[1] * t1[0]) < 1e-9
+    u = slide.x[:, 6:8]
+    assert abs((u[rows[-1], 0] - u[rows[0], 0]) - (u[rows[-1], 1] - u[rows[0], 1])) > 1e-4
+
+
+@pytest.fixture(scope="module")
+def drop(base, model):
+    """The finger pulled back 0.02 rad: apart, pulled in by the law, hits the object."""
+    x0 = _x0(base)
+    x0[1] -= 0.02
+    return model.simulate(0.05, x0=x0, mu=0.3, e=0.0, t_eval=np.linspace(0.0, 0.05, 501), **TOL)
+
+
+def test_gap_is_the_distance_between_the_contours(base, drop):
+    """Apart, ``gap`` is the shortest distance between the two contours: found here by sampling
+    both and refining, independently of the model's common-normal points."""
+    from scipy.optimize import minimize
+
+    rows = np.flatnonzero(drop.modes == "separated")[::20]
+    assert len(rows) >= 3
+    for k in rows:
+        x = drop.x[k]
+
+        def dist(u, x=x):
+            y = x.copy()
+            y[6:8] = u
+            p0, _, p1, _ = _world_points(base, y)
+            return float(np.linalg.norm(p0 - p1))
+
+        grid = np.linspace(-0.025, 0.025, 21)
+        best = min(((a, b) for a in grid for b in grid), key=dist)
+        res = minimize(dist, best, method="Nelder-Mead",
+                       options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 4000})
+        assert abs(res.fun - drop["gap"][k]) < 1e-10
+        assert drop["gap"][k] > 0
+
+
+def test_the_finger_returns_and_rolls(drop):
+    """One plastic impact where the gap closes, then the contact holds (mu = 0.3)."""
+    assert [(e["from"], e["to"], e["witness"]) for e in drop.events] == [("separated", "rolling", "gap")]
+    k = np.searchsorted(drop.t, drop.events[0]["t"])
+    assert np.all(drop["gap"][:k] > 0) and np.max(np.abs(drop["gap"][k + 1:])) < 1e-12
+    assert np.all(drop.modes[k + 1:] == "rolling") and np.all(drop["normal_force"][k + 1:] > 0)
+
+
+def test_impact_laws(base, model):
+    """At random approaching velocities: e = 0 ends the approach and never adds energy;
+    a stuck impact leaves no slip, a sliding one an impulse on the cone's edge; frictionless
+    with e = 1 keeps the kinetic energy and reverses the normal speed."""
+    rng = np.random.default_rng(3)
+    x_start = _x0(base)
+    s = RunSettings.__new__(RunSettings)
+    seen = set()
+    for mu, e in ((0.3, 0.0), (0.05, 0.0), (0.0, 1.0), (0.3, 0.5)):
+        r = modes._PlanarRun(model, s, mu, e)
+        for _ in range(25):
+            x = x_start.copy()
+            x[3:6] = rng.normal(scale=0.5, size=3)
+            y = r.outputs(x, r.params(modes.ROLLING))
+            if not y["vn_fixed"] > modes.REST_SPEED:
+                continue
+            try:
+                after, _, stuck, _ = r.impact(0.0, x, y)
+            except gs.errors.ContactModeError:
+                assert e > 0  # only restitution with friction may want energy
+                continue
+            ya = r.outputs(after, r.params(modes.ROLLING))
+            assert ya["kinetic_energy"] <= y["kinetic_energy"] * (1 + 1e-12)
+            assert abs(ya["vn_fixed"] + e * y["vn_fixed"]) < 1e-12
+            if stuck:
+                assert abs(ya["vt"]) < 1e-12
+            seen.add(stuck)
+            if mu == 0.0:
+                assert abs(ya["kinetic_energy"] - y["kinetic_energy"]) < 1e-12 * y["kinetic_energy"]
+    assert seen == {True, False}
+
+
+def test_bounces_settle(base, model):
+    """With e = 0.5 the finger bounces, each return located from its apex, until an impact
+    slower than REST_SPEED is plastic; then it rolls."""
+    x0 = _x0(base)
+    x0[1] -= 0.02
+    r = model.simulate(0.04, x0=x0, mu=0.3, e=0.5, t_eval=np.linspace(0.0, 0.04, 81), **TOL)
+    bounces = [ev for ev in r.events if ev["to"] == "separated"]
+    assert len(bounces) >= 4 and r.events[-1]["to"] == "rolling" and r.modes[-1] == "rolling"
+    times = [ev["t"] for ev in r.events]
+    assert all(b > a for a, b in zip(times, times[1:]))
+
+
+def test_modes_many_runs_and_refusals(base, model):
+    """simulate_many carries mu per run; a scene modes cannot take is refused by name."""
+    res = model.simulate_many(0.1, x0=np.tile(_x0(base), (2, 1)), mu=np.array([0.2, 1.0]),
+                              t_eval=np.linspace(0.0, 0.1, 11), **TOL)
+    assert [e["to"] for e in res.events[0]] == ["sliding"] and res.events[1] == []
+    with pytest.raises(InvalidSceneError, match="one finger"):
+        gs.scenes.with_modes(gs.scenes.planar_finger(
+            base.fingertip, base.object, extra_fingers=(ExtraFinger(
+                fingertip=base.fingertip, base=(0.1, 0.0), u1_0=0.01),)))
+    with pytest.raises(InvalidSceneError, match="runtime"):
+        gs.scenes.with_modes(gs.scenes.paper2d(runtime=("fd",)))
+    with pytest.raises(RunArgumentError, match="params"):
+        model.simulate(0.1, params={"mu": 0.2})
