@@ -417,8 +417,8 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
         raise ValueError(f"settle_tol = {settle_tol!r} must be a number > 0")
     roles = _roles(model, g.names)
     _check_values(model, g, roles)
-    if model.manifest.get("modes"):  # one contact; simulate checks the value
-        fixed = None if mu is None else [modes.friction_law(model, mu)[0]]
+    if model.manifest.get("modes"):  # simulate checks the value
+        fixed = None if mu is None else list(modes.friction_law(model, mu)[0])
     else:
         fixed = friction.resolve(model, mu)
     with_mu = fixed is not None or "mu" in g.names

@@ -189,19 +189,19 @@ def test_impact_laws(base, model):
     s = RunSettings.__new__(RunSettings)
     seen = set()
     for mu, e in ((0.3, 0.0), (0.05, 0.0), (0.0, 1.0), (0.3, 0.5)):
-        r = modes._PlanarRun(model, s, mu, e)
+        r = modes._PlanarRun(model, s, (mu,), e)
         for _ in range(25):
             x = x_start.copy()
             x[3:6] = rng.normal(scale=0.5, size=3)
-            y = r.outputs(x, r.params(modes.ROLLING))
+            y = r.outputs(x, r.params([modes.ROLLING]))
             if not y["vn_fixed"] > modes.REST_SPEED:
                 continue
             try:
-                after, _, stuck, _ = r.impact(0.0, x, y)
+                after, _, stuck, _ = r.impact(0.0, x, y, [modes.SEPARATED])
             except gs.errors.ContactModeError:
                 assert e > 0  # only restitution with friction may want energy
                 continue
-            ya = r.outputs(after, r.params(modes.ROLLING))
+            ya = r.outputs(after, r.params([modes.ROLLING]))
             assert ya["kinetic_energy"] <= y["kinetic_energy"] * (1 + 1e-12)
             assert abs(ya["vn_fixed"] + e * y["vn_fixed"]) < 1e-12
             if stuck:

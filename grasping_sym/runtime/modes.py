@@ -68,21 +68,22 @@ SWITCH_WINDOW = 1e-3
 REST_SPEED = 1e-3
 
 
-def friction_law(model, mu, e=None) -> tuple[float, float]:
-    """``(mu, e)`` of a run: ``mu`` (a number or a ``Coulomb``) else the model's law, ``e``
-    (a number in [0, 1]) else the law's; no law at all: ``mu = inf`` (the contact never
-    slides), ``e = 0``."""
+def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
+    """``(mu per contact, e)`` of a run: ``mu`` (a number or a ``Coulomb``) else the model's
+    law, ``e`` (a number in [0, 1]) else the law's; no law at all: ``mu = inf`` (the contact
+    never slides), ``e = 0``."""
+    k = int(model.manifest.get("n_contacts", 1))
     law = model.friction if mu is None else mu
     if law is None:
-        mu_, e_law = math.inf, 0.0
+        mu_, e_law = (math.inf,) * k, 0.0
     elif isinstance(law, Coulomb):
-        mu_, e_law = float(law.per_contact(1)[0]), float(law.e)
+        mu_, e_law = tuple(float(v) for v in law.per_contact(k)), float(law.e)
     else:
         if isinstance(law, (bool, np.bool_)) or not isinstance(law, (int, float, np.floating, np.integer)):
             raise RunArgumentError(f"mu = {law!r:.40} must be a number >= 0 or gs.contact.coulomb(mu, e)")
-        mu_ = float(law)
-        if not mu_ >= 0:
+        if not float(law) >= 0:
             raise RunArgumentError(f"mu = {law!r} must be a number >= 0 (math.inf: never slides)")
+        mu_ = (float(law),) * k
         e_law = float(model.friction.e) if isinstance(model.friction, Coulomb) else 0.0
     if e is None:
         return mu_, e_law
@@ -94,82 +95,129 @@ def friction_law(model, mu, e=None) -> tuple[float, float]:
 
 class _Run:
     """One run's state: the model, its settings, the parameters per mode; what every kind of
-    model with modes shares (a subclass per kind gives its contact's geometry)."""
+    model with modes shares (a subclass per kind gives its contacts' geometry).
 
-    def __init__(self, model, s, mu: float, e: float):
-        self.model, self.s, self.mu, self.e = model, s, mu, e
+    Contacts are numbered from 1; ``modes`` and ``slips`` hold each contact's mode and slip
+    direction (None: the parameter's default). A model of one contact names its outputs
+    without a number (``gap``), one of several with it (``gap1``, ``gap2``).
+    """
+
+    #: the run-time parameters of contact j: its mode, its slip direction's first entry
+    MODE, SLIP = "mode", "slip"
+
+    def __init__(self, model, s, mus: tuple[float, ...], e: float):
+        self.model, self.s, self.mus, self.e = model, s, tuple(mus), e
+        self.k = len(self.mus)
         names = model.p_names
         self.p = np.array(model.default_params, dtype=float)
-        self.i_mode, self.i_mu = names.index("mode"), names.index("mu")
-        self.p[self.i_mu] = min(mu, 1e300)
+        self.i_mode = [names.index(self.key(self.MODE, j)) for j in self.contacts]
+        self.i_slip = [names.index(self.key(self.SLIP, j)) for j in self.contacts]
+        for j in self.contacts:
+            self.p[names.index(self.key("mu", j))] = min(self.mus[j - 1], 1e300)
         self.events: list[dict] = []
         #: ``switch_time``: seconds spent locating the switches and making them
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
 
-    def params(self, mode: int, slip=None) -> np.ndarray:
+    @property
+    def contacts(self) -> range:
+        return range(1, self.k + 1)
+
+    @property
+    def mu(self) -> float:
+        """The friction coefficient of a model of one contact."""
+        return self.mus[0]
+
+    def key(self, name: str, j: int) -> str:
+        """Contact ``j``'s output or parameter ``name``."""
+        return name if self.k == 1 else f"{name}{j}"
+
+    def params(self, modes, slips=None) -> np.ndarray:
+        """``p`` with each contact's mode and, where given, slip direction."""
         p = self.p.copy()
-        p[self.i_mode] = float(mode)
-        if slip is not None:
-            p[self.i_slip:self.i_slip + len(slip)] = slip
+        for j in self.contacts:
+            p[self.i_mode[j - 1]] = float(modes[j - 1])
+            d = None if slips is None else slips[j - 1]
+            if d is not None:
+                p[self.i_slip[j - 1]:self.i_slip[j - 1] + len(d)] = d
         return p
 
     def outputs(self, x: np.ndarray, p: np.ndarray) -> dict[str, float]:
         return outputs_.at(self.model, x, p)
 
-    def contact_start(self, t: float, x: np.ndarray, y: dict) -> tuple[int, np.ndarray | None]:
-        """The mode of a state in contact (gap and normal speed 0; ``y`` its outputs with the
-        rolling parameters) and its slip direction: a slipping contact slides if its sliding
-        normal force is > 0; one at rest of the slip rolls if rolling is consistent
-        (``f > 0``, ``|F_t| <= mu f``), else slides where the sliding equations take it if
-        that is consistent; a contact that can do neither separates if its free normal
-        acceleration is >= 0. Otherwise there is no consistent mode: a named error."""
-        vt = self.slip_velocity(y)
-        f, ft = y["rolling_normal_force"], y["rolling_tangential_force"]
+    def with_mode(self, x, modes, slips, j: int, mode: int, slip=None) -> dict[str, float]:
+        """The outputs at ``x`` with contact ``j`` in ``mode`` (the others as they are)."""
+        m, sl = list(modes), list(slips)
+        m[j - 1], sl[j - 1] = mode, slip
+        return self.outputs(x, self.params(m, sl))
+
+    def contact_start(self, t: float, x: np.ndarray, modes, slips, j: int) -> tuple[int, np.ndarray | None]:
+        """The mode of contact ``j`` in contact (gap and normal speed 0) and its slip direction,
+        the others in their modes: a slipping contact slides if its sliding normal force is
+        > 0; one at rest of the slip rolls if rolling is consistent (``f > 0``,
+        ``|F_t| <= mu f``), else slides where the sliding equations take it if that is
+        consistent; a contact that can do neither separates if its free normal acceleration
+        is >= 0. Otherwise there is no consistent mode: a named error."""
+        y = self.with_mode(x, modes, slips, j, ROLLING)
+        mu = self.mus[j - 1]
+        vt = self.slip_velocity(y, j)
+        f, ft = y[self.key("normal_force", j)], y[self.key("tangential_force", j)]
         if np.linalg.norm(vt) > SLIP_SPEED:
-            return self._slide_or_leave(t, x, y, vt / np.linalg.norm(vt))
-        if f > 0 and (ft < self.mu * f or self.mu == math.inf):
+            return self._slide_or_leave(t, x, modes, slips, j, y, vt / np.linalg.norm(vt))
+        if f > 0 and (ft < mu * f or mu == math.inf):
             return ROLLING, None
         if f > 0:
-            return self._slide_or_leave(t, x, y, self.slip_direction(x, y))
-        return self._slide_or_leave(t, x, y, None)
+            return self._slide_or_leave(t, x, modes, slips, j, y, self.slip_direction(x, y, j))
+        return self._slide_or_leave(t, x, modes, slips, j, y, None)
 
-    def _slide_or_leave(self, t, x, y, d):
+    def _slide_or_leave(self, t, x, modes, slips, j, y, d):
         if d is not None:
-            ys = self.outputs(x, self.params(SLIDING, d))
-            if not ys["painleve"] > 0:
-                _painleve(self.model, t, x, ys, self.mu)
-            if ys["normal_force"] > 0:
+            ys = self.with_mode(x, modes, slips, j, SLIDING, d)
+            if not ys[self.key("painleve", j)] > 0:
+                _painleve(self.model, t, x, ys[self.key("painleve", j)], self.mus[j - 1], j)
+            if ys[self.key("normal_force", j)] > 0:
                 return SLIDING, d
-        if self.free_normal_acceleration(y) >= 0:
+        if self.free_normal_acceleration(x, modes, slips, j, y) >= 0:
             return SEPARATED, None
-        raise ContactModeError(t, x, "no contact mode is consistent: rolling needs f = "
-                               f"{y['rolling_normal_force']:.6g} N <= 0 or more friction than mu = "
-                               f"{self.mu:g}, sliding a normal force <= 0, and the free bodies would "
-                               "accelerate into each other; the rigid model has no answer here",
+        raise ContactModeError(t, x, f"no mode of contact {j} is consistent: rolling needs f = "
+                               f"{y[self.key('normal_force', j)]:.6g} N <= 0 or more friction than mu = "
+                               f"{self.mus[j - 1]:g}, sliding a normal force <= 0, and the free bodies "
+                               "would accelerate into each other; the rigid model has no answer here",
                                self.model.state_names)
 
-    def witnesses(self, mode: int, slip):
-        """``(name, function of the outputs)`` of the events of ``mode``, elementwise (one
-        state's outputs or every sample's) (``slip``: the slide's direction parameter: the
-        stop is where ``v_t . slip`` reaches 0)."""
-        if mode == ROLLING:
-            lift = [("normal_force", lambda y: y["normal_force"])]
-            if self.mu == math.inf:  # no friction limit: no cone to leave
-                return lift
-            return [("cone", lambda y: self.mu * y["normal_force"] - y["tangential_force"]), *lift]
-        if mode == SLIDING:
-            return [("normal_force", lambda y: y["normal_force"]),
-                    ("slip", self.slip_witness(np.asarray(slip, dtype=float))),
-                    ("painleve", lambda y: y["painleve"])]
-        return [("gap", lambda y: y["gap"])]
+    def witnesses(self, modes, slips) -> list[tuple[str, int, object]]:
+        """``(name, contact, function of the outputs)`` of the events of every contact in its
+        mode, elementwise (one state's outputs or every sample's); a sliding contact stops
+        where ``v_t . slip`` reaches 0. A separated contact's gap is watched apart
+        (``_first_event``)."""
+        out = []
+        for j in self.contacts:
+            mode, mu = modes[j - 1], self.mus[j - 1]
+            fk = self.key("normal_force", j)
+            lift = (fk, j, lambda y, fk=fk: y[fk])
+            if mode == ROLLING:
+                tk = self.key("tangential_force", j)
+                if mu != math.inf:  # no friction limit: no cone to leave
+                    out.append(("cone", j, lambda y, fk=fk, tk=tk, mu=mu: mu * y[fk] - y[tk]))
+                out.append(("normal_force", j, lift[2]))
+            elif mode == SLIDING:
+                pk = self.key("painleve", j)
+                out += [("normal_force", j, lift[2]),
+                        ("slip", j, self.slip_witness(np.asarray(slips[j - 1], dtype=float), j)),
+                        ("painleve", j, lambda y, pk=pk: y[pk])]
+        return out
+
+    def gap_witness(self, j: int):
+        gk = self.key("gap", j)
+        return lambda y: y[gk]
 
 
 class _BodyRun(_Run):
     """A body on a plane (``model.body``): the contact's quantities in the world frame."""
 
-    def __init__(self, model, s, mu: float, e: float):
-        super().__init__(model, s, mu, e)
-        self.i_slip = model.p_names.index("slip_x")
+    SLIP = "slip_x"
+
+    def __init__(self, model, s, mus, e: float):
+        super().__init__(model, s, mus, e)
         info = model.manifest["body"]
         self.m = float(info["mass"])
         self.H = np.array(info["inertia"], dtype=float)
@@ -187,10 +235,10 @@ class _BodyRun(_Run):
         F_roll = y["rolling_normal_force"] * self.n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
         return K, vc, rc, F_roll
 
-    def slip_velocity(self, y: dict) -> np.ndarray:
+    def slip_velocity(self, y: dict, j: int = 1) -> np.ndarray:
         return np.array([y[f"vt_{c}"] for c in "xyz"])
 
-    def slip_witness(self, d: np.ndarray):
+    def slip_witness(self, d: np.ndarray, j: int = 1):
         return lambda y: d[0] * y["vt_x"] + d[1] * y["vt_y"] + d[2] * y["vt_z"]
 
     def apart(self, x: np.ndarray) -> np.ndarray:
@@ -198,7 +246,7 @@ class _BodyRun(_Run):
         return np.asarray(x, dtype=float)
 
     # ------------------------------------------------------------------ what a mode is
-    def slip_direction(self, x: np.ndarray, y: dict) -> np.ndarray:
+    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1) -> np.ndarray:
         """The direction a slide starts in from rest of the slip (module docstring)."""
         n = self.n
         K, _, _, F_roll = self.contact(y)
@@ -218,7 +266,7 @@ class _BodyRun(_Run):
             d = nd
         return d
 
-    def free_normal_acceleration(self, y: dict) -> float:
+    def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         """The contact's normal acceleration with no contact force (m/s^2)."""
         n = self.n
         K, vc, _, F_roll = self.contact(y)
@@ -236,13 +284,13 @@ class _BodyRun(_Run):
         x[10:13] += self.Hinv @ np.cross(R.T @ rc, R.T @ P)
         return x
 
-    def stop_slip(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float]:
+    def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
         """The contact velocity set to 0 (the impulse that does it); the largest change."""
         K, vc, rc, _ = self.contact(y)
         P = np.linalg.solve(K, -vc)
         return self._apply(x, P, rc), float(np.max(np.abs(vc)))
 
-    def impact(self, t: float, x: np.ndarray, y: dict) -> tuple[np.ndarray, float, bool, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (module docstring):
         ``(x after, largest speed change, stuck, bounced)``: a bounce when ``e > 0`` and the
         approach is faster than ``REST_SPEED``."""
@@ -282,19 +330,14 @@ class _PlanarRun(_Run):
     section 8). A contact impulse ``(P_n, P_t)`` changes the speeds by
     ``-M^-1 (P_n gQ + P_t gR)``."""
 
-    def __init__(self, model, s, mu: float, e: float):
-        super().__init__(model, s, mu, e)
-        self.i_slip = model.p_names.index("slip")
-        self.n_speeds = 3
-
-    def slip_velocity(self, y: dict) -> np.ndarray:
+    def slip_velocity(self, y: dict, j: int = 1) -> np.ndarray:
         return np.array([y["vt"]])
 
     def apart(self, x: np.ndarray) -> np.ndarray:
         """``x`` with its contact parameters on the contours' common normal (``R = 0`` and
         ``delta = 0``, Newton's method on ``(u0, u1)``): a start apart need not give them."""
         x = np.array(x, dtype=float)
-        p = self.params(SEPARATED)
+        p = self.params([SEPARATED])
 
         def G(u):
             y = self.outputs(np.concatenate([x[:6], u]), p)
@@ -315,15 +358,15 @@ class _PlanarRun(_Run):
         x[6:8] = u
         return x
 
-    def slip_witness(self, d: np.ndarray):
+    def slip_witness(self, d: np.ndarray, j: int = 1):
         return lambda y: d[0] * y["vt"]
 
-    def slip_direction(self, x: np.ndarray, y: dict) -> np.ndarray:
+    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1) -> np.ndarray:
         """A slide from rest of the slip starts along the rolling solution's tangential force
         (the friction it needs and the cone cannot give)."""
         return np.array([1.0 if y["rolling_lam"] >= 0 else -1.0])
 
-    def free_normal_acceleration(self, y: dict) -> float:
+    def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         return float(y["free_normal_acceleration"])
 
     def _W(self, y: dict) -> np.ndarray:
@@ -353,12 +396,12 @@ class _PlanarRun(_Run):
                             "row's coefficient (Painleve's paradox at an impact); the rigid model "
                             "has no answer here", self.model.state_names)
 
-    def stop_slip(self, x: np.ndarray, y: dict) -> tuple[np.ndarray, float]:
+    def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
         """The contact's normal and slip speeds set to 0 (the impulse that does it)."""
         Jv = np.array([y["vn_fixed"], y["vt"]])
         return self._apply(x, y, np.linalg.solve(self._W(y), Jv)), float(np.max(np.abs(Jv)))
 
-    def impact(self, t: float, x: np.ndarray, y: dict) -> tuple[np.ndarray, float, bool, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (``_BodyRun.impact``, in
         the contact's frame); the kinetic energy must not grow (a named error otherwise)."""
         mu, W = self.mu, self._W(y)
@@ -370,7 +413,7 @@ class _PlanarRun(_Run):
             P = self._sliding_impulse(t, x, W, vn, vt, e, math.copysign(1.0, P[1]))
         after = self._apply(x, y, P)
         before_k = float(y["kinetic_energy"])
-        after_k = float(self.outputs(after, self.params(ROLLING))["kinetic_energy"])
+        after_k = float(self.outputs(after, self.params([ROLLING]))["kinetic_energy"])
         if after_k > before_k * (1 + 1e-9) + 1e-15:
             raise ContactModeError(t, x, f"the impact with mu = {mu:g}, e = {e:g} would raise the kinetic "
                                    f"energy from {before_k:.9g} J to {after_k:.9g} J (Newton's "
@@ -379,8 +422,134 @@ class _PlanarRun(_Run):
         return after, float(np.max(np.abs(W @ P))), stuck, e > 0
 
 
-#: the kind of a model with modes (its manifest's ``kind``) -> how its contact is run
-_RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun}
+class _GraspRun(_Run):
+    """A 3D grasp (``model.grasp3d_modes``): each contact's rows ``(n, x_f, y_f)`` of
+    ``A = dC/dV`` in its fingertip's contact frame, ``J V = (vn_fixed, vt_x, vt_y)`` per contact,
+    ``W = A M^-1 A^T`` and ``M^-1 A^T`` (``docs/conventions.md`` section 9). An impulse ``P``
+    (three per contact) changes the speeds by ``-M^-1 A^T P``."""
+
+    SLIP = "slip_x"
+
+    def __init__(self, model, s, mus, e: float):
+        super().__init__(model, s, mus, e)
+        info = model.manifest["grasp_modes"]
+        self.v0, self.nv = int(info["speeds"][0]), int(info["speeds"][1])
+
+    def slip_velocity(self, y: dict, j: int) -> np.ndarray:
+        return np.array([y[f"vt_x{j}"], y[f"vt_y{j}"]])
+
+    def slip_witness(self, d: np.ndarray, j: int):
+        return lambda y: d[0] * y[f"vt_x{j}"] + d[1] * y[f"vt_y{j}"]
+
+    def slip_direction(self, x: np.ndarray, y: dict, j: int) -> np.ndarray:
+        """A slide from rest of the slip starts along the rolling solution's tangential force
+        (at the cone's edge Coulomb's force equals it)."""
+        ft = np.array([y[f"lam{j}"], y[f"eta{j}"]])
+        return ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.array([1.0, 0.0])
+
+    def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
+        return float(self.with_mode(x, modes, slips, j, SEPARATED)[f"normal_acceleration{j}"])
+
+    def apart(self, x: np.ndarray) -> np.ndarray:
+        raise RunArgumentError("x0 has a contact apart: a grasp with modes starts with every contact "
+                               "closed (its solved start); open contacts come from the run")
+
+    def _rows(self, j: int) -> list[int]:
+        return [3 * (j - 1), 3 * (j - 1) + 1, 3 * (j - 1) + 2]
+
+    def _W(self, y: dict) -> np.ndarray:
+        n = 3 * self.k
+        W = np.empty((n, n))
+        for r in range(n):
+            for c in range(r, n):
+                W[r, c] = W[c, r] = y[f"W_{r}_{c}"]
+        return W
+
+    def _JV(self, y: dict) -> np.ndarray:
+        return np.array([y[f"{k}{j}"] for j in self.contacts for k in ("vn_fixed", "vt_x", "vt_y")])
+
+    def _apply(self, x: np.ndarray, y: dict, rows: list[int], P: np.ndarray) -> np.ndarray:
+        x = x.copy()
+        B = np.array([[y[f"MinvAT_{i}_{r}"] for r in rows] for i in range(self.nv)])
+        x[self.v0:self.v0 + self.nv] -= B @ P
+        return x
+
+    def _held(self, modes, j: int) -> list[int]:
+        """The rows an impulse at contact ``j`` must keep: ``j``'s, and every other rolling
+        contact's; another contact sliding is refused (a slide through an impulse is not built)."""
+        rows = list(self._rows(j))
+        for i in self.contacts:
+            if i != j and modes[i - 1] == ROLLING:
+                rows += self._rows(i)
+        return rows
+
+    def stop_slip(self, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float]:
+        """Contact ``j``'s velocity set to 0, the other rolling contacts' kept at 0."""
+        rows = self._held(modes, j)
+        JV = self._JV(y)
+        W = self._W(y)
+        P = np.linalg.solve(W[np.ix_(rows, rows)], JV[rows])
+        return self._apply(x, y, rows, P), float(np.max(np.abs(JV[self._rows(j)])))
+
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float, bool, bool]:
+        """Newton's restitution and Coulomb friction on the impulse at contact ``j``, the other
+        rolling contacts held (they must stay in their cones, else a named error: impacts with
+        slip at several contacts are not built); the kinetic energy must not grow."""
+        for i in self.contacts:
+            if i != j and modes[i - 1] == SLIDING:
+                raise ContactModeError(t, x, f"contact {j} hits while contact {i} slides: an impact "
+                                       "during a slide is not built; raise mu or start elsewhere",
+                                       self.model.state_names)
+        mu = self.mus[j - 1]
+        rows = self._held(modes, j)
+        W, JV = self._W(y), self._JV(y)
+        n_r, t_r = self._rows(j)[0], self._rows(j)[1:]
+        vn = float(JV[n_r])
+        e = self.e if vn > REST_SPEED else 0.0
+        target = np.zeros(3 * self.k)
+        target[n_r] = -e * vn
+        Wrr = W[np.ix_(rows, rows)]
+        P = np.linalg.solve(Wrr, JV[rows] - target[rows])
+        Pn, Pt = P[0], P[1:3]
+        stuck = bool(np.linalg.norm(Pt) <= mu * Pn)
+        if not stuck:  # on the cone's edge along the incoming slip (else the stick impulse's)
+            vt = JV[t_r]
+            d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else Pt / np.linalg.norm(Pt)
+            others = rows[3:]
+            # unknowns: P_n at j, then the others' impulses; P_t at j = mu P_n d
+            col = W[np.ix_([n_r] + others, [n_r])][:, 0] + mu * W[np.ix_([n_r] + others, t_r)] @ d
+            Mx = np.column_stack([col, W[np.ix_([n_r] + others, others)]]) if others else col[:, None]
+            sol = np.linalg.solve(Mx, (JV - target)[[n_r] + others])
+            Pn = sol[0]
+            P = np.concatenate([[Pn], mu * Pn * d, sol[1:]])
+            after_vt = JV[t_r] - W[np.ix_(t_r, rows)] @ P
+            if not (Pn > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(JV[t_r]))):
+                raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no consistent "
+                                    "impulse on the cone's edge along the slip (the slip would reverse "
+                                    "or the normal impulse pull); the rigid model has no answer here",
+                                    self.model.state_names)
+        for i in self.contacts:  # the held contacts stay in their cones
+            if i == j or i - 1 >= len(modes) or modes[i - 1] != ROLLING:
+                continue
+            k0 = rows.index(self._rows(i)[0])
+            pn, pt = P[k0], P[k0 + 1:k0 + 3]
+            if not (pn >= -1e-12 and np.linalg.norm(pt) <= self.mus[i - 1] * pn + 1e-12):
+                raise ContactModeError(t, x, f"the impact at contact {j} pushes contact {i} out of its "
+                                       f"cone (impulse {pn:.6g} N s normal, {np.linalg.norm(pt):.6g} N s "
+                                       "tangential): impacts with slip at several contacts are not built",
+                                       self.model.state_names)
+        after = self._apply(x, y, rows, P)
+        before_k = float(y["kinetic_energy"])
+        after_k = float(self.outputs(after, self.params(modes))["kinetic_energy"])
+        if after_k > before_k * (1 + 1e-9) + 1e-15:
+            raise ContactModeError(t, x, f"the impact at contact {j} would raise the kinetic energy from "
+                                   f"{before_k:.9g} J to {after_k:.9g} J; the rigid model has no answer "
+                                   "here: give e = 0", self.model.state_names)
+        return after, float(np.max(np.abs(Wrr @ P))), stuck, e > 0
+
+
+#: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
+_RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun}
 
 
 def refuse_unused(*, params, u, slip) -> None:
@@ -410,34 +579,20 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs one of {METHODS} "
                                "(the loops in C, with which its switches are located by integrating "
                                "again)")
-    mu, e = friction_law(model, mu_arg, e_arg)
-    r = _RUNS[model.manifest.get("kind", "body")](model, s, mu, e)
+    mus, e = friction_law(model, mu_arg, e_arg)
+    r = _RUNS[model.manifest.get("kind", "body")](model, s, mus, e)
     t_eval = s.t_eval
-    y = r.outputs(x0, r.params(ROLLING))
-    if y["gap"] > CONTACT_GAP:
-        x0 = r.apart(x0)
-        y = r.outputs(x0, r.params(ROLLING))
-    if abs(y["gap"]) <= CONTACT_GAP and y["normal_speed"] > STOP_SPEED:  # leaving at once
-        mode, slip = SEPARATED, None
-    elif abs(y["gap"]) <= CONTACT_GAP and y["normal_speed"] < -STOP_SPEED:  # an impact at once
-        mode, slip, x0, reset = _switch(r, SEPARATED, "gap", 0.0, np.asarray(x0, dtype=float))
-        r.events.append({"t": 0.0, "contact": 1, "from": NAMES[SEPARATED], "to": NAMES[mode],
-                         "witness": "gap", "value": float(y["gap"]), "reset": reset})
-    elif abs(y["gap"]) <= CONTACT_GAP:
-        mode, slip = r.contact_start(0.0, x0, y)
-    elif y["gap"] > 0:
-        mode, slip = SEPARATED, None
-    else:
-        raise RunArgumentError(f"x0 penetrates the contact: gap = {y['gap']:.6g} m < 0; start in "
-                               "contact (a body: start='contact'; a finger: the scene's start) or apart")
+    x_now, modes, slips = _start(r, np.asarray(x0, dtype=float))
     rows_t, rows_x, rows_mode, rows_p = [], [], [], []
-    t_now, x_now = 0.0, np.asarray(x0, dtype=float)
+    t_now = 0.0
     last_t = -math.inf
     recent: list[float] = []
     while True:
-        p = r.params(mode, slip)
-        if mode == SLIDING and r.outputs(x_now, p)["painleve"] <= 0:
-            _painleve(model, t_now, x_now, r.outputs(x_now, p), mu)
+        p = r.params(modes, slips)
+        y_now = r.outputs(x_now, p)
+        for j in r.contacts:
+            if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
+                _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
         grid = np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]])
         if len(grid) < 2:
             break
@@ -451,34 +606,34 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         r.stats["segments"] += 1
         Y = outputs_.at_rows(model, X, p)
         t_look = perf_counter()
-        found = _first_event(r, mode, slip, t, X, Y, p)
+        found = _first_event(r, modes, slips, t, X, Y, p)
         keep = len(t) if found is None else found[0]
         on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
         rows_t.append(t[:keep][on_grid])
         rows_x.append(X[:keep][on_grid])
-        rows_mode.append(np.full(int(on_grid.sum()), mode))
+        rows_mode.append(np.tile(modes, (int(on_grid.sum()), 1)))
         rows_p.append(np.tile(p, (int(on_grid.sum()), 1)))
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
         if found is None:
             break
-        _, t_ev, x_ev, name, value = found
+        _, t_ev, x_ev, name, j, value = found
         recent = [tt for tt in recent if tt > t_ev - SWITCH_WINDOW] + [t_ev]
         if len(recent) > MAX_SWITCHES:
             raise ChatteringError(t_ev, x_ev, f"{len(recent)} switches of contact modes within "
                                   f"{SWITCH_WINDOW:g} s up to t = {t_ev:.9g} s (a Zeno run): the "
                                   "contact chatters; give a plastic impact (e = 0) or a larger "
                                   "friction coefficient", model.state_names)
-        mode_before = mode
-        mode, slip, x_now, reset = _switch(r, mode, name, t_ev, x_ev)
+        before = modes[j - 1]
+        modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
         r.stats["switch_time"] += perf_counter() - t_look
         if reset is not None:  # None: a slide re-aimed, no switch
-            r.events.append({"t": t_ev, "contact": 1, "from": NAMES[mode_before], "to": NAMES[mode],
+            r.events.append({"t": t_ev, "contact": j, "from": NAMES[before], "to": NAMES[modes[j - 1]],
                              "witness": name, "value": value, "reset": reset})
         t_now = t_ev
     t_all = np.concatenate(rows_t)
     X_all = np.concatenate(rows_x)
-    modes_all = np.concatenate(rows_mode)
+    modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
     outs = {}
     if s.outputs:
         P_all = np.concatenate(rows_p)
@@ -489,91 +644,149 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
         outs = {k: v[1:] for k, v in outs.items()}
     stats = {**r.stats, "n_events": len(r.events), "wall_time": perf_counter() - start}
-    pdict = {"mu": mu, "e": e}
+    pdict = {"mu": mus[0] if r.k == 1 else mus, "e": e}
+    names = np.array(NAMES)[modes_all.astype(int)]
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
-                            events=r.events, modes=np.array([NAMES[m] for m in modes_all]))
+                            events=r.events, modes=names[:, 0] if r.k == 1 else names)
 
 
-def _first_event(r: _Run, mode: int, slip, t, X, Y, p):
-    """``(samples to keep, t, x, witness, value)`` of the first event along the segment's
-    samples, located; None if none."""
+def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
+    """The start's state and each contact's mode: apart (gap > CONTACT_GAP; the contact
+    coordinates put on the common normal), leaving (separated), approaching (an impact at
+    once, recorded), or in contact (``contact_start``)."""
+    k = r.k
+    modes, slips = [ROLLING] * k, [None] * k
+    y = r.outputs(x0, r.params(modes))
+    if any(y[r.key("gap", j)] > CONTACT_GAP for j in r.contacts):
+        x0 = r.apart(x0)
+        y = r.outputs(x0, r.params(modes))
+    hits = []
+    for j in r.contacts:
+        gap, speed = y[r.key("gap", j)], y[r.key("normal_speed", j)]
+        if gap < -CONTACT_GAP:
+            raise RunArgumentError(f"x0 penetrates at contact {j}: gap = {gap:.6g} m < 0; start in "
+                                   "contact (a body: start='contact'; a finger: the scene's start) or apart")
+        if gap > CONTACT_GAP or speed > STOP_SPEED:
+            modes[j - 1] = SEPARATED
+        elif speed < -STOP_SPEED:
+            modes[j - 1] = SEPARATED
+            hits.append(j)
+    if len(hits) > 1:
+        raise ContactModeError(0.0, x0, f"contacts {hits} hit at once: simultaneous impacts have no "
+                               "answer here (the impulses' order would decide)", r.model.state_names)
+    for j in hits:
+        gap = y[r.key("gap", j)]
+        modes, slips, x0, reset = _switch(r, modes, slips, "gap", j, 0.0, x0)
+        r.events.append({"t": 0.0, "contact": j, "from": NAMES[SEPARATED], "to": NAMES[modes[j - 1]],
+                         "witness": "gap", "value": float(gap), "reset": reset})
+    for j in r.contacts:
+        if modes[j - 1] == ROLLING:
+            modes[j - 1], slips[j - 1] = r.contact_start(0.0, x0, modes, slips, j)
+    return x0, modes, slips
+
+
+def _first_event(r: _Run, modes, slips, t, X, Y, p):
+    """``(samples to keep, t, x, witness, contact, value)`` of the first event along the
+    segment's samples, located; None if none."""
     cols = {k: i for i, k in enumerate(r.model.columns)}
     values = {k: Y[k] for k in r.model.columns}
-    if mode == SEPARATED:
-        gap = values["gap"]
-        bad = np.flatnonzero(~(gap > 0) & (values["normal_speed"] < 0))
-        bad = bad[bad > 0]
-        cands = [("gap", int(bad[0]))] if bad.size else []
-    else:  # the witnesses on every sample at once (they are elementwise in the outputs)
-        cands = []
-        for name, w in r.witnesses(mode, slip):
-            W = np.asarray(w(values), dtype=float)
-            cross = np.flatnonzero((W[:-1] > 0) & ~(W[1:] > 0))
-            if cross.size:
-                cands.append((name, int(cross[0]) + 1))
+    watched = [(name, j, w) for name, j, w in r.witnesses(modes, slips)]
+    cands = []
+    for j in r.contacts:
+        if modes[j - 1] == SEPARATED:
+            gap, speed = values[r.key("gap", j)], values[r.key("normal_speed", j)]
+            bad = np.flatnonzero(~(gap > 0) & (speed < 0))
+            bad = bad[bad > 0]
+            if bad.size:
+                cands.append(int(bad[0]))
+            watched.append(("gap", j, r.gap_witness(j)))
+    for name, _j, w in watched:
+        if name == "gap":
+            continue
+        W = np.asarray(w(values), dtype=float)
+        cross = np.flatnonzero((W[:-1] > 0) & ~(W[1:] > 0))
+        if cross.size:
+            cands.append(int(cross[0]) + 1)
     if not cands:
         return None
-    i = min(k for _, k in cands)
+    i = min(cands)
     y0 = {k: float(values[k][i - 1]) for k in cols}
+    y1 = {k: float(values[k][i]) for k in cols}
     t0, x0 = float(t[i - 1]), X[i - 1]
-    if mode == SEPARATED and not y0["gap"] > CONTACT_GAP:  # just left the contact: from the apex
-        apex = events.locate(r.model, r.s, None, p, t0, x0, float(t[i]), lambda y: y["normal_speed"]) \
-            if y0["normal_speed"] > 0 else None
-        if apex is None or not r.outputs(apex[1], p)["gap"] > 0:
-            raise EventLocationError(float(t[i]), X[i], f"the contact left at {t0:.9g} s returns before "
-                                     f"{t[i]:.9g} s, but no time apart is found between: give a denser "
-                                     "t_eval or tighter tolerances", r.model.state_names)
-        t0, x0 = apex
     best = None
-    for name, w in r.witnesses(mode, slip):
-        if mode != SEPARATED and not (w(y0) > 0 and not w({k: float(values[k][i]) for k in cols}) > 0):
+    for name, j, w in watched:
+        start_t, start_x = t0, x0
+        if name == "gap":
+            if not (not y1[r.key("gap", j)] > 0 and y1[r.key("normal_speed", j)] < 0):
+                continue
+            if not y0[r.key("gap", j)] > CONTACT_GAP:  # just left the contact: from the apex
+                sk = r.key("normal_speed", j)
+                apex = events.locate(r.model, r.s, None, p, t0, x0, float(t[i]), lambda y, sk=sk: y[sk]) \
+                    if y0[sk] > 0 else None
+                if apex is None or not r.outputs(apex[1], p)[r.key("gap", j)] > 0:
+                    raise EventLocationError(float(t[i]), X[i], f"contact {j}, left at {t0:.9g} s, returns "
+                                             f"before {t[i]:.9g} s, but no time apart is found between: "
+                                             "give a denser t_eval or tighter tolerances",
+                                             r.model.state_names)
+                start_t, start_x = apex
+        elif not (w(y0) > 0 and not w(y1) > 0):
             continue
-        found = events.locate(r.model, r.s, None, p, t0, x0, float(t[i]), w)
+        found = events.locate(r.model, r.s, None, p, start_t, start_x, float(t[i]), w)
         if found is None:
-            raise EventLocationError(float(t[i]), X[i], f"the {name} witness changes sign between the "
-                                     f"outputs at {t[i - 1]:.9g} and {t[i]:.9g} s, but integrating "
-                                     "again does not find where: give a denser t_eval or tighter "
-                                     "tolerances", r.model.state_names)
+            raise EventLocationError(float(t[i]), X[i], f"the {name} witness of contact {j} changes sign "
+                                     f"between the outputs at {t[i - 1]:.9g} and {t[i]:.9g} s, but "
+                                     "integrating again does not find where: give a denser t_eval or "
+                                     "tighter tolerances", r.model.state_names)
         tc, xc = found
         if best is None or tc < best[1]:
-            best = (i, tc, xc, name, float(w(r.outputs(xc, p))))
+            best = (i, tc, xc, name, j, float(w(r.outputs(xc, p))))
     return best
 
 
-def _switch(r: _Run, mode: int, name: str, t: float, x: np.ndarray):
-    """``(new mode, slip direction, state after, reset)`` at an event of ``mode``."""
+def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray):
+    """``(modes, slips, state after, reset)`` at an event of contact ``j``."""
+    modes, slips = list(modes), list(slips)
     if name == "painleve":
-        _painleve(r.model, t, x, r.outputs(x, r.params(SLIDING)), r.mu)
+        y = r.outputs(x, r.params(modes, slips))
+        _painleve(r.model, t, x, y[r.key("painleve", j)], r.mus[j - 1], j)
     if name == "normal_force":
-        return SEPARATED, None, x, 0.0
+        modes[j - 1], slips[j - 1] = SEPARATED, None
+        return modes, slips, x, 0.0
     if name == "cone":
-        y = r.outputs(x, r.params(ROLLING))
-        return SLIDING, r.slip_direction(x, y), x, 0.0
+        y = r.with_mode(x, modes, slips, j, ROLLING)
+        modes[j - 1], slips[j - 1] = SLIDING, r.slip_direction(x, y, j)
+        return modes, slips, x, 0.0
+    y = r.with_mode(x, modes, slips, j, ROLLING)
     if name == "slip":
-        y = r.outputs(x, r.params(ROLLING))
-        vt = r.slip_velocity(y)
+        vt = r.slip_velocity(y, j)
         if np.linalg.norm(vt) > STOP_SPEED:  # the slip turned past 90 degrees, it did not stop
-            return SLIDING, vt / np.linalg.norm(vt), x, None
-        x2, reset = r.stop_slip(x, y)
-        y2 = r.outputs(x2, r.params(ROLLING))
-        new, slip = r.contact_start(t, x2, y2)
-        return new, slip, x2, reset
+            slips[j - 1] = vt / np.linalg.norm(vt)
+            return modes, slips, x, None
+        x2, reset = r.stop_slip(x, y, modes, j)
+        modes[j - 1], slips[j - 1] = r.contact_start(t, x2, modes, slips, j)
+        return modes, slips, x2, reset
     # an impact
-    y = r.outputs(x, r.params(ROLLING))
-    x2, reset, _, bounced = r.impact(t, x, y)
-    y2 = r.outputs(x2, r.params(ROLLING))
-    if bounced:  # restitution: it leaves the plane again
-        return SEPARATED, None, x2, reset
-    new, slip = r.contact_start(t, x2, y2)
-    return new, slip, x2, reset
+    x2, reset, _, bounced = r.impact(t, x, y, modes, j)
+    if bounced:  # restitution: it leaves again
+        modes[j - 1], slips[j - 1] = SEPARATED, None
+    else:
+        modes[j - 1], slips[j - 1] = ROLLING, None
+        modes[j - 1], slips[j - 1] = r.contact_start(t, x2, modes, slips, j)
+    y2 = r.outputs(x2, r.params(modes, slips))
+    for i in r.contacts:
+        if i != j and modes[i - 1] == SEPARATED and not y2[r.key("gap", i)] > CONTACT_GAP \
+                and y2[r.key("normal_speed", i)] < -STOP_SPEED:
+            raise ContactModeError(t, x2, f"contacts {j} and {i} hit at once: simultaneous impacts have no "
+                                   "answer here (the impulses' order would decide)", r.model.state_names)
+    return modes, slips, x2, reset
 
 
-def _painleve(model, t, x, y, mu):
-    raise PainleveError(t, x, f"sliding with mu = {mu:g} has no consistent normal force (or several): "
-                        f"the normal row's coefficient n . K (n - mu d) = {y['painleve']:.6g} 1/kg <= 0 "
-                        "(Painleve's paradox); the rigid model has no answer here: lower mu, or "
-                        "model the contact's compliance", model.state_names)
+def _painleve(model, t, x, value, mu, j=1):
+    raise PainleveError(t, x, f"contact {j} sliding with mu = {mu:g} has no consistent normal force (or "
+                        f"several): the normal row's coefficient {value:.6g} <= 0 (Painleve's paradox); "
+                        "the rigid model has no answer here: lower mu, or model the contact's compliance",
+                        model.state_names)
 
 
 def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
@@ -607,9 +820,14 @@ def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
         events[i] = res.events
     return {"x_final": x_final, "x": X if dense else None, "status": status, "errors": errors,
             "outputs": outs if dense else {k: v[:, -1] for k, v in outs.items()},
-            "params": {"mu": np.array([friction_law(model, mu_i, e_i)[0] for mu_i, e_i in zip(mus, es)]),
+            "params": {"mu": np.array([_first_or_all(friction_law(model, mu_i, e_i)[0])
+                                       for mu_i, e_i in zip(mus, es)]),
                        "e": np.array([friction_law(model, mu_i, e_i)[1] for mu_i, e_i in zip(mus, es)])},
             "events": events}
+
+
+def _first_or_all(mus: tuple):
+    return mus[0] if len(mus) == 1 else mus
 
 
 def _per_run(name: str, value, n: int) -> list:
