@@ -78,6 +78,10 @@ def _planar_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     return scene.initial_state(), scene.start_values(), {}
 
 
+def _grasp3d_modes_functions(scene, progress=None, layers: bool = True):
+    return scene_functions.grasp3d_modes_functions(scene, progress)
+
+
 def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     x0, info = body_plane.start_state(scene)
     return x0, {}, info
@@ -92,6 +96,9 @@ KINDS: dict[str, Kind] = {
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
+    "grasp3d_modes": Kind(functions=_grasp3d_modes_functions,
+                          solve_start=lambda scene: _grasp3d_start(scene.base),
+                          templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
     "planar_modes": Kind(functions=_planar_modes_functions, solve_start=_planar_modes_start,
                          templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
 }

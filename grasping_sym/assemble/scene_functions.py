@@ -33,6 +33,7 @@ from grasping_sym.assemble.structure3d import Grasp3DStructureSpec, structure3d_
 from grasping_sym.assemble.structure_cache import StructureRecord
 from grasping_sym.derive.body_plane import derive_body_plane
 from grasping_sym.derive.grasp3d import derive_grasp3d
+from grasping_sym.derive.grasp3d_modes import derive_grasp3d_modes
 from grasping_sym.derive.planar import has_gravity, parameter_values
 from grasping_sym.derive.planar_modes import derive_planar_modes
 from grasping_sym.emit.casadi_model import CasadiModel
@@ -215,6 +216,20 @@ def planar_modes_functions(scene, progress: Progress | None = None) -> SceneFunc
     t0 = time.perf_counter()
     say(f"deriving {scene.name} (a planar finger, three contact modes; SymPy, then CasADi)")
     d = derive_planar_modes(scene, controller_torques)
+    t1 = time.perf_counter()
+    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
+                  scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"])
+    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
+
+
+def grasp3d_modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A 3D grasp with contact modes (``model.grasp3d_modes``): every contact's modes in one
+    piece of SX (``derive.grasp3d_modes``), the modes run-time parameters; no generated
+    Jacobian (the integrators difference the rhs)."""
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    say(f"deriving {scene.name} (a grasp, three contact modes per contact; SymPy, then CasADi)")
+    d = derive_grasp3d_modes(scene, controller_torques)
     t1 = time.perf_counter()
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
                   scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"])

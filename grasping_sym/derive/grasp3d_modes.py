@@ -34,6 +34,9 @@ from grasping_sym.derive.loop3d import outputs as loop_outputs
 TRACK_GAIN = 200.0
 #: Floors (m/s, N) of the slip speed and the normal force where they divide.
 SLIP_ZERO = 1e-300
+#: m/s: a slide follows its own velocity's direction once ``v_t . slip`` exceeds this; below,
+#: the direction ``slip`` (the round-off of a slip starting from rest has no direction).
+SLIP_START = 1e-10
 FORCE_FLOOR = 1e-300
 
 
@@ -52,13 +55,14 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     cs = contacts(base, b, REGULAR, lambda slot, s, u, v, extra: surface_sx(s, u, v, extra))
     C = ca.vertcat(*[c.gap for c in cs])
     M, h = dynamics(base, b)
+    modes = [p[names.index(f"mode{i}")] for i in range(1, k + 1)]
     u = split_torques(base, tau_joints)
-    tau, dissipation = applied_forces(base, b, cs, u)
+    # a soft finger's twist friction acts where the contact touches (rolling or sliding)
+    tau, dissipation = applied_forces(base, b, cs, u, touching=[ca.if_else(m < 1.5, 1, 0) for m in modes])
     gain = p[names.index("gain")] if "gain" in names else ca.SX(base.params["gain"])
     A = ca.jacobian(ca.jtimes(C, b.zb, b.zb_dot_lin), b.Vs)
     V = b.Vs
 
-    modes = [p[names.index(f"mode{i}")] for i in range(1, k + 1)]
     mus = [p[names.index(f"mu{i}")] for i in range(1, k + 1)]
     slips = [ca.vertcat(p[names.index(f"slip_x{i}")], p[names.index(f"slip_y{i}")]) for i in range(1, k + 1)]
 
@@ -92,7 +96,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         r = 3 * i
         vt = A[r + 1:r + 3, :] @ V
         speed = ca.norm_2(vt)
-        d = ca.if_else(ca.dot(vt, slips[i]) > 0, vt / ca.fmax(speed, SLIP_ZERO), slips[i])
+        d = ca.if_else(ca.dot(vt, slips[i]) > SLIP_START, vt / ca.fmax(speed, SLIP_ZERO), slips[i])
         vts.append(vt)
         ds.append(d)
         rolling, sliding = modes[i] < 0.5, modes[i] < 1.5
@@ -124,6 +128,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
             f"cone_ratio{tag}": ft / ca.fmax(f, FORCE_FLOOR),
             f"vt_x{tag}": vts[i][0], f"vt_y{tag}": vts[i][1], f"slip_speed{tag}": ca.norm_2(vts[i]),
             f"painleve{tag}": Ahat[r, :] @ own,
+            f"at_x{tag}": ca.jtimes(vts[i][0], x, xdot), f"at_y{tag}": ca.jtimes(vts[i][1], x, xdot),
             f"vn_fixed{tag}": A[r, :] @ V,
         })
     for r in range(n3):

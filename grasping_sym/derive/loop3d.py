@@ -153,10 +153,12 @@ def split_torques(scene: GraspScene3D, torques: ca.SX) -> list[ca.SX]:
     return u
 
 
-def applied_forces(scene: GraspScene3D, b: Bodies, cs: list[Contact], u: list[ca.SX]) -> tuple[ca.SX, ca.SX]:
+def applied_forces(scene: GraspScene3D, b: Bodies, cs: list[Contact], u: list[ca.SX],
+                   touching: list | None = None) -> tuple[ca.SX, ca.SX]:
     """``(tau, dissipation)``: the generalised applied force (joint torques, and torsional
     (spin) friction at the contacts: a soft finger's viscous twist torque) and the power
-    the friction dissipates (W, <= 0)."""
+    the friction dissipates (W, <= 0). ``touching``: per contact, 1 where it touches and 0
+    where it is open (contact modes); default every contact touches."""
     spin_f = [ca.DM.zeros(f.chain.n) for f in scene.fingers]
     spin_o = ca.DM.zeros(3)
     dissipation = ca.SX(0)
@@ -164,6 +166,8 @@ def applied_forces(scene: GraspScene3D, b: Bodies, cs: list[Contact], u: list[ca
         for i, (fin, c) in enumerate(zip(b.fingers, cs)):
             n_w = c.frame[:, 2]
             spin = ca.dot(n_w, b.R @ b.om - fin.W @ fin.dq)
+            if touching is not None:
+                spin = spin * touching[i]
             torque = scene.spin_damping * spin * n_w          # on the finger, world; -torque on the object
             spin_f[i] = fin.W.T @ torque
             spin_o = spin_o - b.R.T @ torque

@@ -11,11 +11,12 @@ from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model import chains
 from grasping_sym.model.body import BodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
+from grasping_sym.model.grasp3d_modes import GraspModesScene
 from grasping_sym.model.inertia import solid_ellipsoid_inertia
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
-from grasping_sym.model.planar_modes import PlanarModesScene, with_modes
+from grasping_sym.model.planar_modes import PlanarModesScene
 
-__all__ = ["BUILTIN", "PlanarModesScene", "body_on_plane", "paper2d", "paper3d", "pivot3d",
+__all__ = ["BUILTIN", "GraspModesScene", "PlanarModesScene", "body_on_plane", "paper2d", "paper3d", "pivot3d",
            "planar_finger", "sphere_on_incline", "with_modes"]
 
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
@@ -206,3 +207,12 @@ def sphere_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 
     defaults.update(kwargs)
     return BodyScene(name=name, surface=surface_library.sphere(radius, lon=(-3 * math.pi, 3 * math.pi)),
                      mass=mass, inertia=(inertia, inertia, inertia), **defaults)
+
+
+def with_modes(scene):
+    """``scene`` whose contacts roll, slide (Coulomb) or separate, switching at located events
+    (``docs/conventions.md`` sections 8 and 9): a one-finger 2D scene
+    (``model.planar_modes``) or a 3D grasp (``model.grasp3d_modes``)."""
+    if isinstance(scene, GraspScene3D):
+        return GraspModesScene(scene)
+    return PlanarModesScene(scene)

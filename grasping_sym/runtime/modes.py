@@ -166,7 +166,8 @@ class _Run:
         if f > 0 and (ft < mu * f or mu == math.inf):
             return ROLLING, None
         if f > 0:
-            return self._slide_or_leave(t, x, modes, slips, j, y, self.slip_direction(x, y, j))
+            return self._slide_or_leave(t, x, modes, slips, j, y,
+                                        self.slip_direction(x, y, j, modes=modes, slips=slips))
         return self._slide_or_leave(t, x, modes, slips, j, y, None)
 
     def _slide_or_leave(self, t, x, modes, slips, j, y, d):
@@ -246,7 +247,7 @@ class _BodyRun(_Run):
         return np.asarray(x, dtype=float)
 
     # ------------------------------------------------------------------ what a mode is
-    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1) -> np.ndarray:
+    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1, modes=None, slips=None) -> np.ndarray:
         """The direction a slide starts in from rest of the slip (module docstring)."""
         n = self.n
         K, _, _, F_roll = self.contact(y)
@@ -361,7 +362,7 @@ class _PlanarRun(_Run):
     def slip_witness(self, d: np.ndarray, j: int = 1):
         return lambda y: d[0] * y["vt"]
 
-    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1) -> np.ndarray:
+    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1, modes=None, slips=None) -> np.ndarray:
         """A slide from rest of the slip starts along the rolling solution's tangential force
         (the friction it needs and the cone cannot give)."""
         return np.array([1.0 if y["rolling_lam"] >= 0 else -1.0])
@@ -441,11 +442,24 @@ class _GraspRun(_Run):
     def slip_witness(self, d: np.ndarray, j: int):
         return lambda y: d[0] * y[f"vt_x{j}"] + d[1] * y[f"vt_y{j}"]
 
-    def slip_direction(self, x: np.ndarray, y: dict, j: int) -> np.ndarray:
-        """A slide from rest of the slip starts along the rolling solution's tangential force
-        (at the cone's edge Coulomb's force equals it)."""
+    def slip_direction(self, x: np.ndarray, y: dict, j: int, modes=None, slips=None) -> np.ndarray:
+        """The direction a slide starts in from rest of the slip: the fixed point of
+        ``d -> a_t(d)/|a_t(d)|`` (the slip's acceleration in the sliding equations) from the
+        rolling solution's tangential force (at the cone's edge Coulomb's force equals it)."""
         ft = np.array([y[f"lam{j}"], y[f"eta{j}"]])
-        return ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.array([1.0, 0.0])
+        d = ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.array([1.0, 0.0])
+        if modes is None:
+            return d
+        for _ in range(50):
+            ys = self.with_mode(x, modes, slips, j, SLIDING, d)
+            a = np.array([ys[f"at_x{j}"], ys[f"at_y{j}"]])
+            if not np.linalg.norm(a) > 1e-9:
+                break  # on the cone's edge: no slip acceleration, keep the direction
+            nd = a / np.linalg.norm(a)
+            if np.linalg.norm(nd - d) < 1e-14:
+                break
+            d = nd
+        return d
 
     def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         return float(self.with_mode(x, modes, slips, j, SEPARATED)[f"normal_acceleration{j}"])
@@ -755,7 +769,7 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray):
         return modes, slips, x, 0.0
     if name == "cone":
         y = r.with_mode(x, modes, slips, j, ROLLING)
-        modes[j - 1], slips[j - 1] = SLIDING, r.slip_direction(x, y, j)
+        modes[j - 1], slips[j - 1] = SLIDING, r.slip_direction(x, y, j, modes=modes, slips=slips)
         return modes, slips, x, 0.0
     y = r.with_mode(x, modes, slips, j, ROLLING)
     if name == "slip":

@@ -181,4 +181,5 @@ def _frames_3d(fig, scene, result, rows):
 
 #: kind of scene (``model.kinds``) -> how its frames are drawn
 _FRAMES = {"planar": _frames_2d, "planar_modes": _frames_2d, "grasp3d": _frames_3d,
+           "grasp3d_modes": lambda fig, scene, result, rows: _frames_3d(fig, scene.base, result, rows),
            "body": body_frames}

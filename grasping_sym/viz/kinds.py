@@ -17,6 +17,7 @@ KINDS = {
     "grasp3d": (write_figures3d, summary_lines3d),
     "body": (body_figures, body_summary),
     "planar_modes": (body_figures, body_summary),
+    "grasp3d_modes": (body_figures, body_summary),
 }
 
 
