@@ -265,7 +265,9 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
         op_counts["jac_sx_instructions"] = jac.n_instructions()
     out_fn = None
     if outputs:
-        (y,) = fix(ca.vertcat(*outputs.values()))
+        # dense: an output that is structurally zero (a pivoted object's speed) must still
+        # take its place in the buffer, or every later column is read shifted
+        (y,) = fix(ca.densify(ca.vertcat(*outputs.values())))
         if not outputs_time:
             y = ca.substitute(y, t, ca.SX(0))
         out_fn = ca.Function(f"{name}_outputs", [x, ca.vertcat(p, t) if outputs_time else p], [y],

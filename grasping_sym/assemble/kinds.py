@@ -23,8 +23,10 @@ import numpy as np
 from grasping_sym.assemble import scene_functions
 from grasping_sym.assemble.functions import sympy_op_counts
 from grasping_sym.derive import body_plane, finger_templates, start3d
+from grasping_sym.derive.bodies3d import rotation_of
 from grasping_sym.derive.grasp3d import finger_function
 from grasping_sym.derive.planar import derive_planar
+from grasping_sym.errors import InvalidSceneError
 from grasping_sym.model import kinds
 
 
@@ -82,6 +84,26 @@ def _grasp3d_modes_functions(scene, progress=None, layers: bool = True):
     return scene_functions.grasp3d_modes_functions(scene, progress)
 
 
+def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    """The base grasp's start, and each plane's support point on the object; every plane must
+    be apart from the object at the start."""
+    x0, values, info = _grasp3d_start(scene.base)
+    base = scene.base
+    names = base.state_names
+    quat = x0[[names.index(k) for k in ("qw", "qx", "qy", "qz")]]
+    R = rotation_of(quat)
+    pos = np.array(base.position, float) if not base.free else x0[[names.index(k) for k in "xyz"]]
+    extra = []
+    for m, w in enumerate(scene.planes, start=1):
+        uv, S = body_plane.support_point(base.object_surface, R, np.array(w.normal), w.support)
+        gap = float(np.dot(w.normal, pos + R @ S - np.array(w.point)))
+        if not gap > 0:
+            raise InvalidSceneError([f"plane {m} cuts the object at the start (gap {gap:.6g} m): put it "
+                                     "below the object (its normal into the free side)"])
+        extra += list(uv)
+    return np.concatenate([x0, extra]), values, info
+
+
 def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     x0, info = body_plane.start_state(scene)
     return x0, {}, info
@@ -97,7 +119,7 @@ KINDS: dict[str, Kind] = {
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
     "grasp3d_modes": Kind(functions=_grasp3d_modes_functions,
-                          solve_start=lambda scene: _grasp3d_start(scene.base),
+                          solve_start=_grasp3d_modes_start,
                           templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
     "planar_modes": Kind(functions=_planar_modes_functions, solve_start=_planar_modes_start,
                          templates=lambda scene: [], sympy_op_counts=lambda scene: {}),

@@ -83,6 +83,12 @@ def quaternion_of(R: np.ndarray) -> np.ndarray:
     return q if q[0] >= 0 else -q
 
 
+def rotation_of(quat: np.ndarray) -> np.ndarray:
+    """The rotation matrix of the quaternion ``(w, x, y, z)`` (normalised)."""
+    w, x, y, z = np.asarray(quat, dtype=float)
+    return Rotation.from_quat([x, y, z, w]).as_matrix()
+
+
 def object_rotation(quat: ca.SX, om: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
     """``(R, quat', N)``: the rotation of a (not necessarily unit) quaternion, its rate at
     the body angular velocity ``om`` and the matrix ``N`` of ``quat' = N om``."""

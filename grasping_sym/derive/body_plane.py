@@ -128,17 +128,7 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
     moved along ``n``, the contact point's normal speed removed)."""
     R0 = np.asarray(scene.rotation, float)
     n = np.asarray(scene.plane_normal, float)
-    uv = ca.SX.sym("uv", 2)
-    s = surface_sx(scene.surface, uv[0], uv[1], extra=True)
-    resid = s["Tm"].T @ (s["n"] + ca.DM(R0.T @ n))
-    solver = ca.rootfinder("support", "newton", ca.Function("r", [uv], [resid]),
-                           {"abstol": 1e-15, "max_iter": 100})
-    uv0 = np.ravel(solver(ca.DM(scene.support)).full())
-    S0, N0 = (np.ravel(v.full()) for v in ca.Function("geo", [uv], [s["S"], s["n"]])(uv0))
-    if not np.dot(R0 @ N0, n) < -1 + 1e-12:
-        raise InvalidSceneError([f"no support point near support = {scene.support}: the normal found "
-                                 f"at (u, v) = {tuple(uv0)} faces {R0 @ N0}, not -plane_normal; give "
-                                 "a guess (support=(u, v)) where the surface faces the plane"])
+    uv0, S0 = support_point(scene.surface, R0, n, scene.support)
     pos = np.asarray(scene.position, float)
     om = np.asarray(scene.omega, float)
     vel = np.asarray(scene.velocity, float)
@@ -147,3 +137,20 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
         vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0)) * n
     x0 = np.concatenate([pos, quaternion_of(R0), vel, om, uv0])
     return x0, {"support": [float(v) for v in uv0]}
+
+
+def support_point(surface, R: np.ndarray, n: np.ndarray, guess) -> tuple[np.ndarray, np.ndarray]:
+    """``((u, v), S)``: the point of ``surface`` (body frame, turned by ``R``) whose outward
+    normal is ``-n`` (Newton's method from ``guess``); a named error where there is none near."""
+    uv = ca.SX.sym("uv", 2)
+    s = surface_sx(surface, uv[0], uv[1], extra=True)
+    resid = s["Tm"].T @ (s["n"] + ca.DM(R.T @ n))
+    solver = ca.rootfinder("support", "newton", ca.Function("r", [uv], [resid]),
+                           {"abstol": 1e-15, "max_iter": 100})
+    uv0 = np.ravel(solver(ca.DM(guess)).full())
+    S0, N0 = (np.ravel(v.full()) for v in ca.Function("geo", [uv], [s["S"], s["n"]])(uv0))
+    if not np.dot(R @ N0, n) < -1 + 1e-12:
+        raise InvalidSceneError([f"no support point near support = {tuple(guess)}: the normal found "
+                                 f"at (u, v) = {tuple(uv0)} faces {R @ N0}, not -plane_normal; give "
+                                 "a guess (support=(u, v)) where the surface faces the plane"])
+    return uv0, S0

@@ -23,6 +23,7 @@ Every row's ``C'`` and ``C''`` are taken along the coordinates' motion of its co
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 
 from grasping_sym.derive.bodies3d import bodies, surface_sx
 from grasping_sym.derive.grasp3d import REGULAR
@@ -44,30 +45,29 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     """``{"x", "p", "t", "xdot", "outputs", "reads_time"}`` of a ``model.grasp3d_modes`` scene;
     ``torques(base, t, x, p_base)`` gives the joint torques of the base scene's controller."""
     base = scene.base
-    k = base.n_contacts
+    kf = base.n_contacts
+    k = scene.n_contacts
     names = scene.p_names
     x = ca.SX.sym("x", len(scene.state_names))
     p = ca.SX.sym("p", len(names))
     t = ca.SX.sym("t")
     p_base = ca.vertcat(*[p[names.index(n)] for n in base.p_names]) if base.p_names else ca.SX(0, 1)
-    tau_joints, _, timed = torques(base, t, x, p_base)
+    tau_joints, _, timed = torques(base, t, x[:len(base.state_names)], p_base)
     b = bodies(base, x, REGULAR.n_eta)
     cs = contacts(base, b, REGULAR, lambda slot, s, u, v, extra: surface_sx(s, u, v, extra))
-    C = ca.vertcat(*[c.gap for c in cs])
+    C_f = ca.vertcat(*[c.gap for c in cs])
     M, h = dynamics(base, b)
     modes = [p[names.index(f"mode{i}")] for i in range(1, k + 1)]
-    u = split_torques(base, tau_joints)
-    # a soft finger's twist friction acts where the contact touches (rolling or sliding)
-    tau, dissipation = applied_forces(base, b, cs, u, touching=[ca.if_else(m < 1.5, 1, 0) for m in modes])
-    gain = p[names.index("gain")] if "gain" in names else ca.SX(base.params["gain"])
-    A = ca.jacobian(ca.jtimes(C, b.zb, b.zb_dot_lin), b.Vs)
-    V = b.Vs
-
     mus = [p[names.index(f"mu{i}")] for i in range(1, k + 1)]
     slips = [ca.vertcat(p[names.index(f"slip_x{i}")], p[names.index(f"slip_y{i}")]) for i in range(1, k + 1)]
+    u = split_torques(base, tau_joints)
+    # a soft finger's twist friction acts where the contact touches (rolling or sliding)
+    tau, dissipation = applied_forces(base, b, cs, u, touching=[ca.if_else(m < 1.5, 1, 0) for m in modes[:kf]])
+    gain = p[names.index("gain")] if "gain" in names else ca.SX(base.params["gain"])
+    V = b.Vs
 
-    # the contact coordinates' rates in each mode
-    eta_rates, geo = [], []
+    # the fingers' contact coordinates' rates in each mode
+    eta_rates = []
     for c, eta, mode in zip(cs, b.etas, modes):
         alpha = eta[0:4]
         xf, yf = c.frame[:, 0], c.frame[:, 1]
@@ -77,13 +77,37 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         psi_frames = ca.atan2(-ca.dot(x_o, yf), ca.dot(x_o, xf))
         za, za_dot = ca.vertcat(b.zb, alpha), ca.vertcat(b.zb_dot, alpha_dot)
         psi_dot = ca.jtimes(psi_frames, za, za_dot) - TRACK_GAIN * ca.sin(eta[4] - psi_frames)
-        common = ca.vertcat(alpha_dot, psi_dot)
-        geo.append(common)
-        eta_rates.append(ca.if_else(mode < 0.5, c.rates, common))
-    eta_all = ca.vertcat(*b.etas)
-    z = ca.vertcat(b.zb, eta_all)
-    zdot = ca.vertcat(b.zb_dot, *eta_rates)
-    Cdot = ca.jtimes(C, z, zdot)
+        eta_rates.append(ca.if_else(mode < 0.5, c.rates, ca.vertcat(alpha_dot, psi_dot)))
+    # the planes': the support point where the object's normal is -n, its rows in (n, t1, t2)
+    nb = len(base.state_names)
+    uvs, uv_rates, plane_rows = [], [], []
+    for m, w in enumerate(scene.planes):
+        uv = x[nb + 2 * m:nb + 2 * m + 2]
+        sd = surface_sx(base.object_surface, uv[0], uv[1], extra=True)
+        n = ca.DM(w.normal)
+        N_uv = ca.jacobian(sd["n"], uv)
+        rhs_uv = -ca.cross(b.om, sd["n"]) - TRACK_GAIN * (sd["n"] + b.R.T @ n)
+        uvs.append(uv)
+        uv_rates.append(ca.solve(sd["Tm"].T @ N_uv, sd["Tm"].T @ rhs_uv))
+        r_c = b.pos + b.R @ sd["S"]
+        v_c = (b.vel if base.free else 0) + b.R @ ca.cross(b.om, sd["S"])
+        J = ca.jacobian(v_c, V)
+        t1, t2 = _tangents(np.asarray(w.normal))
+        plane_rows.append((-ca.dot(n, r_c - ca.DM(w.point)), -(n.T @ J), -(ca.DM(t1).T @ J), -(ca.DM(t2).T @ J)))
+    z = ca.vertcat(b.zb, *b.etas, *uvs)
+    zdot = ca.vertcat(b.zb_dot, *eta_rates, *uv_rates)
+    # every row: its position value (0: a velocity-level row), its rate, its Jacobian A
+    A_f = ca.jacobian(ca.jtimes(C_f, b.zb, b.zb_dot_lin), V)
+    C_rows = [C_f[r] for r in range(3 * kf)]
+    Cdot_rows = [ca.jtimes(C_f[r], z, zdot) for r in range(3 * kf)]
+    A_rows = [A_f[r, :] for r in range(3 * kf)]
+    for gap_c, An, At1, At2 in plane_rows:
+        C_rows += [gap_c, ca.SX(0), ca.SX(0)]
+        Cdot_rows += [ca.jtimes(gap_c, z, zdot), At1 @ V, At2 @ V]
+        A_rows += [An, At1, At2]
+    C = ca.vertcat(*C_rows)
+    Cdot = ca.vertcat(*Cdot_rows)
+    A = ca.vertcat(*A_rows)
     Ahat = ca.jacobian(Cdot, V)
     bhat = ca.jtimes(Cdot, z, zdot)
 
@@ -112,10 +136,10 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     S = ca.vertcat(*rows)
     lam = ca.solve(S, ca.vertcat(*rhs))
     a = free - MinvAT @ lam
-    xdot = ca.vertcat(b.zb_dot, a, *eta_rates)
+    xdot = ca.vertcat(b.zb_dot, a, *eta_rates, *uv_rates)
     acc_C = Ahat @ a + bhat  # C'' along the motion
 
-    out = loop_outputs(base, b, cs, C, lam, u, dissipation)
+    out = loop_outputs(base, b, cs, C_f, lam, u, dissipation)
     W = A @ MinvAT
     for i in range(k):
         r, tag = 3 * i, i + 1
@@ -123,6 +147,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         ft = ca.norm_2(Ft)
         own = MinvAT[:, r] + mus[i] * (MinvAT[:, r + 1:r + 3] @ ds[i])
         out.update({
+            f"f{tag}": f, f"lam{tag}": Ft[0], f"eta{tag}": Ft[1],
             f"gap{tag}": -C[r], f"normal_speed{tag}": -Cdot[r], f"normal_acceleration{tag}": -acc_C[r],
             f"normal_force{tag}": f, f"tangential_force{tag}": ft,
             f"cone_ratio{tag}": ft / ca.fmax(f, FORCE_FLOOR),
@@ -137,3 +162,11 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         for j in range(V.numel()):
             out[f"MinvAT_{j}_{r}"] = MinvAT[j, r]
     return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": timed}
+
+
+def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents of the unit normal ``n`` with ``(t1, t2, n)`` right-handed."""
+    helper = np.eye(3)[int(np.argmin(np.abs(n)))]
+    t1 = np.cross(helper, n)
+    t1 /= np.linalg.norm(t1)
+    return t1, np.cross(n, t1)

@@ -1,15 +1,20 @@
-"""A 3D grasp whose finger contacts each roll, slide or separate: the grasp scene with modes.
+"""A 3D grasp whose contacts each roll, slide or separate: the grasp scene with modes.
 
-``with_modes(scene)`` on a ``model.grasp3d.GraspScene3D`` (regular formulation) gives the
-scene of kind ``"grasp3d_modes"``: the same fingers, object, start and controller, compiled
-once with every contact's mode a run-time parameter (``derive.grasp3d_modes``), run by
-``runtime.modes`` (``docs/conventions.md`` section 9). The state is the base scene's.
+``with_modes(scene, planes=...)`` on a ``model.grasp3d.GraspScene3D`` (regular formulation)
+gives the scene of kind ``"grasp3d_modes"``: the same fingers, object, start and controller,
+and fixed planes of the world the object may touch (a table, a wall: ``WorldPlane``),
+compiled once with every contact's mode a run-time parameter (``derive.grasp3d_modes``), run
+by ``runtime.modes`` (``docs/conventions.md`` section 9). Contacts are the fingers' first,
+then the planes'. The state is the base scene's, then each plane's support point ``(u, v)``
+on the object's surface (where its normal is minus the plane's).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
+
+import numpy as np
 
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.model.grasp3d import GraspScene3D
@@ -18,11 +23,36 @@ from grasping_sym.model.grasp3d import GraspScene3D
 MODES = ("rolling", "sliding", "separated")
 
 
+@dataclass(frozen=True)
+class WorldPlane:
+    """A fixed plane of the world: a point on it and its unit normal (into the free half-space)
+    (m, world); ``support``: a guess of the object's surface coordinates facing it at the start."""
+
+    point: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    support: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "point", tuple(float(v) for v in np.ravel(self.point)))
+        object.__setattr__(self, "normal", tuple(float(v) for v in np.ravel(self.normal)))
+        object.__setattr__(self, "support", tuple(float(v) for v in np.ravel(self.support)))
+        p = []
+        if len(self.point) != 3 or not all(math.isfinite(v) for v in self.point):
+            p.append(f"plane point {self.point} must be three finite numbers (m)")
+        if len(self.normal) != 3 or not abs(math.hypot(*self.normal) - 1) < 1e-12:
+            p.append(f"plane normal {self.normal} must be a unit vector (to 1e-12)")
+        if len(self.support) != 2 or not all(math.isfinite(v) for v in self.support):
+            p.append(f"support {self.support} must be two finite numbers (a guess of (u, v))")
+        if p:
+            raise InvalidSceneError(p)
+
+
 @dataclass(frozen=True, eq=False)
 class GraspModesScene:
-    """``base`` with its contacts' modes (module docstring)."""
+    """``base`` with its contacts' modes and the world's ``planes`` (module docstring)."""
 
     base: GraspScene3D
+    planes: tuple[WorldPlane, ...] = field(default=())
 
     kind: ClassVar[str] = "grasp3d_modes"
     dimension: ClassVar[int] = 3
@@ -44,6 +74,13 @@ class GraspModesScene:
                             "constants (give their values in the scene); its run-time inputs are mu and e")
         if b.inputs is not None:
             problems.append("inputs: a scene with contact modes has no control inputs (use a controller)")
+        object.__setattr__(self, "planes", tuple(self.planes))
+        if any(not isinstance(w, WorldPlane) for w in self.planes):
+            problems.append("planes must be gs.scenes.world_plane(point, normal) values")
+        elif b.friction is not None and isinstance(b.friction.mu, tuple) \
+                and len(b.friction.mu) != b.n_contacts + len(self.planes):
+            problems.append(f"the friction law has {len(b.friction.mu)} mu for {b.n_contacts + len(self.planes)} "
+                            "contacts (the fingers', then the planes'): give one per contact, or one for all")
         if problems:
             raise InvalidSceneError(problems)
 
@@ -54,6 +91,10 @@ class GraspModesScene:
 
     @property
     def n_contacts(self) -> int:
+        return self.base.n_contacts + len(self.planes)
+
+    @property
+    def n_fingers(self) -> int:
         return self.base.n_contacts
 
     @property
@@ -89,7 +130,8 @@ class GraspModesScene:
 
     @property
     def state_names(self) -> tuple[str, ...]:
-        return self.base.state_names
+        return (*self.base.state_names,
+                *[f"{c}_w{m}" for m in range(1, len(self.planes) + 1) for c in "uv"])
 
     @property
     def p_names(self) -> tuple[str, ...]:
@@ -107,10 +149,11 @@ class GraspModesScene:
     def outputs(self) -> tuple[str, ...]:
         k = self.n_contacts
         n = range(1, k + 1)
-        per = ("f", "lam", "eta", "krel_min", "gap", "normal_speed", "normal_acceleration",
+        per = ("f", "lam", "eta", "gap", "normal_speed", "normal_acceleration",
                "normal_force", "tangential_force", "cone_ratio", "vt_x", "vt_y", "slip_speed",
                "painleve", "at_x", "at_y", "vn_fixed")
         return ("constraint_residual", *[f"{q}{i}" for i in n for q in per],
+                *[f"krel_min{i}" for i in range(1, self.n_fingers + 1)],
                 "orthonormality", "quat_norm_error", "kinetic_energy", "potential_energy", "power",
                 "object_speed", "object_angular_speed",
                 *[f"W_{r}_{c}" for r in range(3 * k) for c in range(r, 3 * k)],
@@ -120,22 +163,29 @@ class GraspModesScene:
         return self.outputs
 
     def code_key(self) -> str:
-        return "\n".join(["grasp3d-modes-v1", self.base.code_key()])
+        return "\n".join(["grasp3d-modes-v1", self.base.code_key(),
+                          *[repr((w.point, w.normal)) for w in self.planes]])
 
     def key(self) -> str:
-        return "\n".join(["grasp3d-modes-v1", self.base.key()])
+        return "\n".join(["grasp3d-modes-v1", self.base.key(),
+                          *[repr((w.point, w.normal, w.support)) for w in self.planes]])
 
     def manifest_extra(self) -> dict:
         """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are."""
         return {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
-                "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds]},
+                "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers},
                 "param_rules": {f"mu{i}": "nonnegative" for i in range(1, self.n_contacts + 1)}}
 
     def bounds(self) -> tuple[list, list]:
-        return self.base.bounds()
+        lower, upper = self.base.bounds()
+        (u0, u1), (v0, v1) = self.base.object_surface.domain
+        for _ in self.planes:
+            lower, upper = [*lower, u0, v0], [*upper, u1, v1]
+        return lower, upper
 
 
-def with_modes(scene: GraspScene3D) -> GraspModesScene:
-    """``scene`` whose contacts roll, slide or separate (module docstring)."""
-    return GraspModesScene(scene)
+def with_modes(scene: GraspScene3D, planes=()) -> GraspModesScene:
+    """``scene`` whose contacts roll, slide or separate, with the world's ``planes`` (module
+    docstring)."""
+    return GraspModesScene(scene, tuple(planes))
 

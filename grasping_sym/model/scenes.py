@@ -6,18 +6,19 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry import library, surface_library
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model import chains
 from grasping_sym.model.body import BodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
-from grasping_sym.model.grasp3d_modes import GraspModesScene
+from grasping_sym.model.grasp3d_modes import GraspModesScene, WorldPlane
 from grasping_sym.model.inertia import solid_ellipsoid_inertia
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
 from grasping_sym.model.planar_modes import PlanarModesScene
 
-__all__ = ["BUILTIN", "GraspModesScene", "PlanarModesScene", "body_on_plane", "paper2d", "paper3d", "pivot3d",
-           "planar_finger", "sphere_on_incline", "with_modes"]
+__all__ = ["BUILTIN", "GraspModesScene", "PlanarModesScene", "WorldPlane", "body_on_plane", "paper2d",
+           "paper3d", "pivot3d", "planar_finger", "sphere_on_incline", "with_modes", "world_plane"]
 
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
     from grasping_sym.model.grasp3d import GraspScene3D
@@ -209,10 +210,21 @@ def sphere_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 
                      mass=mass, inertia=(inertia, inertia, inertia), **defaults)
 
 
-def with_modes(scene):
+def with_modes(scene, planes=()):
     """``scene`` whose contacts roll, slide (Coulomb) or separate, switching at located events
     (``docs/conventions.md`` sections 8 and 9): a one-finger 2D scene
-    (``model.planar_modes``) or a 3D grasp (``model.grasp3d_modes``)."""
+    (``model.planar_modes``) or a 3D grasp (``model.grasp3d_modes``), whose object may also
+    touch fixed ``planes`` of the world (``world_plane``: a table, a wall)."""
     if isinstance(scene, GraspScene3D):
-        return GraspModesScene(scene)
+        return GraspModesScene(scene, tuple(planes))
+    if planes:
+        raise InvalidSceneError(["planes of the world touch a free object: a 2D object turns about "
+                                 "its pivot (free 2D objects are issue 29's)"])
     return PlanarModesScene(scene)
+
+
+def world_plane(point, normal, support=(0.0, 0.0)) -> WorldPlane:
+    """A fixed plane of the world through ``point`` with unit ``normal`` (into the free side),
+    for ``with_modes(scene, planes=[...])``; ``support``: a guess of the object's surface
+    coordinates that face it at the start."""
+    return WorldPlane(point, normal, support)

@@ -465,8 +465,16 @@ class _GraspRun(_Run):
         return float(self.with_mode(x, modes, slips, j, SEPARATED)[f"normal_acceleration{j}"])
 
     def apart(self, x: np.ndarray) -> np.ndarray:
-        raise RunArgumentError("x0 has a contact apart: a grasp with modes starts with every contact "
-                               "closed (its solved start); open contacts come from the run")
+        """A start with a plane of the world apart is the scene's own (its support points solved
+        at the build); a finger apart is refused: the grasp starts closed."""
+        y = self.outputs(x, self.params([ROLLING] * self.k))
+        n_fingers = int(self.model.manifest["grasp_modes"]["fingers"])
+        open_ = [j for j in range(1, n_fingers + 1) if y[f"gap{j}"] > CONTACT_GAP]
+        if open_:
+            raise RunArgumentError(f"x0 has finger contact(s) {open_} apart: a grasp with modes starts "
+                                   "with every finger closed (its solved start); open contacts come "
+                                   "from the run")
+        return np.asarray(x, dtype=float)
 
     def _rows(self, j: int) -> list[int]:
         return [3 * (j - 1), 3 * (j - 1) + 1, 3 * (j - 1) + 2]
@@ -488,78 +496,102 @@ class _GraspRun(_Run):
         x[self.v0:self.v0 + self.nv] -= B @ P
         return x
 
-    def _held(self, modes, j: int) -> list[int]:
-        """The rows an impulse at contact ``j`` must keep: ``j``'s, and every other rolling
-        contact's; another contact sliding is refused (a slide through an impulse is not built)."""
-        rows = list(self._rows(j))
-        for i in self.contacts:
-            if i != j and modes[i - 1] == ROLLING:
-                rows += self._rows(i)
-        return rows
+    def _impulse(self, t, x, y, modes, j: int, target_j: np.ndarray, slide_j=None):
+        """The impulses of an impact (or a stop) at contact ``j``: ``j``'s rows reach
+        ``target_j`` (normal, and tangential unless ``slide_j``, a direction on its cone's
+        edge), every other rolling contact is held (its velocity stays 0), every other sliding
+        contact keeps its normal speed 0 with its tangential impulse on its cone's edge against
+        its slip. Returns ``(P over every row, rows solved)``."""
+        n3 = 3 * self.k
+        W, JV = self._W(y), self._JV(y)
+        cols, eqs, rhs = [], [], []
+        for c in self.contacts:
+            rows = self._rows(c)
+            sliding = (c == j and slide_j is not None) or (c != j and modes[c - 1] == SLIDING)
+            if c != j and modes[c - 1] == SEPARATED:
+                continue
+            target = target_j if c == j else np.zeros(3)
+            if sliding:
+                vt = self.slip_velocity(y, c)
+                d = slide_j if c == j else vt / max(np.linalg.norm(vt), 1e-300)
+                col = np.zeros(n3)
+                col[rows[0]] = 1.0
+                col[rows[1:]] = self.mus[c - 1] * np.asarray(d)
+                cols.append(col)
+                eqs.append(rows[0])
+                rhs.append(JV[rows[0]] - target[0])
+            else:
+                for k_, r_ in enumerate(rows):
+                    col = np.zeros(n3)
+                    col[r_] = 1.0
+                    cols.append(col)
+                    eqs.append(r_)
+                    rhs.append(JV[r_] - target[k_])
+        B = np.column_stack(cols)
+        u = np.linalg.solve(W[eqs, :] @ B, np.array(rhs))
+        return B @ u, W, JV
+
+    def _check_impulse(self, t, x, modes, j, P, W, JV, what: str) -> None:
+        """Every closed contact's impulse pushes (``P_n >= 0``); the held rolling ones stay in
+        their cones; the sliding ones' slip does not reverse. A named error otherwise."""
+        after = JV - W @ P
+        for c in self.contacts:
+            if c == j or modes[c - 1] == SEPARATED:
+                continue
+            rows = self._rows(c)
+            pn, pt = P[rows[0]], P[rows[1:]]
+            if not pn >= -1e-12 * max(1.0, np.max(np.abs(P))):
+                raise ContactModeError(t, x, f"{what} at contact {j} would pull at contact {c} (normal "
+                                       f"impulse {pn:.6g} N s): contact {c} would open through an impulse, "
+                                       "which is not built", self.model.state_names)
+            if modes[c - 1] == ROLLING and not np.linalg.norm(pt) <= self.mus[c - 1] * pn + 1e-12:
+                raise ContactModeError(t, x, f"{what} at contact {j} pushes contact {c} out of its cone "
+                                       f"(impulse {pn:.6g} N s normal, {np.linalg.norm(pt):.6g} N s "
+                                       "tangential): a slip started by an impulse at another contact is "
+                                       "not built", self.model.state_names)
+            if modes[c - 1] == SLIDING and np.dot(after[rows[1:]], JV[rows[1:]]) < 0:
+                raise ContactModeError(t, x, f"{what} at contact {j} would reverse contact {c}'s slip: a "
+                                       "slip stopped by an impulse at another contact is not built",
+                                       self.model.state_names)
 
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float]:
-        """Contact ``j``'s velocity set to 0, the other rolling contacts' kept at 0."""
-        rows = self._held(modes, j)
-        JV = self._JV(y)
-        W = self._W(y)
-        P = np.linalg.solve(W[np.ix_(rows, rows)], JV[rows])
-        return self._apply(x, y, rows, P), float(np.max(np.abs(JV[self._rows(j)])))
+        """Contact ``j``'s velocity set to 0, the other closed contacts as at an impact."""
+        P, W, JV = self._impulse(0.0, x, y, modes, j, np.zeros(3))
+        return self._apply(x, y, list(range(3 * self.k)), P), float(np.max(np.abs(JV[self._rows(j)])))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float, bool, bool]:
-        """Newton's restitution and Coulomb friction on the impulse at contact ``j``, the other
-        rolling contacts held (they must stay in their cones, else a named error: impacts with
-        slip at several contacts are not built); the kinetic energy must not grow."""
-        for i in self.contacts:
-            if i != j and modes[i - 1] == SLIDING:
-                raise ContactModeError(t, x, f"contact {j} hits while contact {i} slides: an impact "
-                                       "during a slide is not built; raise mu or start elsewhere",
-                                       self.model.state_names)
+        """Newton's restitution and Coulomb friction on the impulse at contact ``j``: stick if
+        its impulse lies in its cone, else on the cone's edge along the incoming slip; the
+        other closed contacts as ``_impulse`` says (each checked, a named error where it
+        cannot); the kinetic energy must not grow."""
         mu = self.mus[j - 1]
-        rows = self._held(modes, j)
-        W, JV = self._W(y), self._JV(y)
-        n_r, t_r = self._rows(j)[0], self._rows(j)[1:]
-        vn = float(JV[n_r])
+        JV = self._JV(y)
+        rows = self._rows(j)
+        vn = float(JV[rows[0]])
         e = self.e if vn > REST_SPEED else 0.0
-        target = np.zeros(3 * self.k)
-        target[n_r] = -e * vn
-        Wrr = W[np.ix_(rows, rows)]
-        P = np.linalg.solve(Wrr, JV[rows] - target[rows])
-        Pn, Pt = P[0], P[1:3]
-        stuck = bool(np.linalg.norm(Pt) <= mu * Pn)
-        if not stuck:  # on the cone's edge along the incoming slip (else the stick impulse's)
-            vt = JV[t_r]
-            d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else Pt / np.linalg.norm(Pt)
-            others = rows[3:]
-            # unknowns: P_n at j, then the others' impulses; P_t at j = mu P_n d
-            col = W[np.ix_([n_r] + others, [n_r])][:, 0] + mu * W[np.ix_([n_r] + others, t_r)] @ d
-            Mx = np.column_stack([col, W[np.ix_([n_r] + others, others)]]) if others else col[:, None]
-            sol = np.linalg.solve(Mx, (JV - target)[[n_r] + others])
-            Pn = sol[0]
-            P = np.concatenate([[Pn], mu * Pn * d, sol[1:]])
-            after_vt = JV[t_r] - W[np.ix_(t_r, rows)] @ P
-            if not (Pn > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(JV[t_r]))):
+        target = np.array([-e * vn, 0.0, 0.0])
+        P, W, JV = self._impulse(t, x, y, modes, j, target)
+        stuck = bool(np.linalg.norm(P[rows[1:]]) <= mu * P[rows[0]])
+        if not stuck:
+            vt = JV[rows[1:]]
+            pt = P[rows[1:]]
+            d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
+            P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
+            after_vt = (JV - W @ P)[rows[1:]]
+            if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
                 raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no consistent "
                                     "impulse on the cone's edge along the slip (the slip would reverse "
                                     "or the normal impulse pull); the rigid model has no answer here",
                                     self.model.state_names)
-        for i in self.contacts:  # the held contacts stay in their cones
-            if i == j or i - 1 >= len(modes) or modes[i - 1] != ROLLING:
-                continue
-            k0 = rows.index(self._rows(i)[0])
-            pn, pt = P[k0], P[k0 + 1:k0 + 3]
-            if not (pn >= -1e-12 and np.linalg.norm(pt) <= self.mus[i - 1] * pn + 1e-12):
-                raise ContactModeError(t, x, f"the impact at contact {j} pushes contact {i} out of its "
-                                       f"cone (impulse {pn:.6g} N s normal, {np.linalg.norm(pt):.6g} N s "
-                                       "tangential): impacts with slip at several contacts are not built",
-                                       self.model.state_names)
-        after = self._apply(x, y, rows, P)
+        self._check_impulse(t, x, modes, j, P, W, JV, "the impact")
+        after = self._apply(x, y, list(range(3 * self.k)), P)
         before_k = float(y["kinetic_energy"])
         after_k = float(self.outputs(after, self.params(modes))["kinetic_energy"])
         if after_k > before_k * (1 + 1e-9) + 1e-15:
             raise ContactModeError(t, x, f"the impact at contact {j} would raise the kinetic energy from "
                                    f"{before_k:.9g} J to {after_k:.9g} J; the rigid model has no answer "
                                    "here: give e = 0", self.model.state_names)
-        return after, float(np.max(np.abs(Wrr @ P))), stuck, e > 0
+        return after, float(np.max(np.abs(W @ P))), stuck, e > 0
 
 
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
@@ -610,17 +642,15 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         grid = np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]])
         if len(grid) < 2:
             break
-        try:
-            t, X, st = integrators.c_loop(model, s.method, x_now, grid, p, rtol=s.rtol, atol=s.atol,
-                                          max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
-        except IntegratorError as exc:  # named as simulate names it (a contact off its chart)
-            raise failures.classify(model, exc) from None
+        t, X, st, failure = _segment(r, x_now, grid, p)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
         r.stats["segments"] += 1
         Y = outputs_.at_rows(model, X, p)
         t_look = perf_counter()
-        found = _first_event(r, modes, slips, t, X, Y, p)
+        found = _first_event(r, modes, slips, t, X, Y, p) if len(t) > 1 else None
+        if found is None and failure is not None:
+            raise failure  # no switch before the integration failed: its failure stands
         keep = len(t) if found is None else found[0]
         on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
         rows_t.append(t[:keep][on_grid])
@@ -663,6 +693,29 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
+
+
+def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
+    """``(t, X, stats, failure)``: one mode's integration over ``grid``. Where it fails (a
+    contact off its chart, named as ``simulate`` names it), the samples before the failure
+    and the failure: a switch among those samples comes first, and changes the motion that
+    failed."""
+    s = r.s
+
+    def loop(g):
+        return integrators.c_loop(r.model, s.method, x, g, p, rtol=s.rtol, atol=s.atol,
+                                  max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+
+    try:
+        t, X, st = loop(grid)
+        return t, X, st, None
+    except IntegratorError as exc:
+        failure = failures.classify(r.model, exc)
+    before = grid[grid < failure.t]
+    if len(before) < 2:
+        return grid[:1], np.asarray(x, dtype=float)[None, :], {}, failure
+    t, X, st = loop(before)
+    return t, X, st, failure
 
 
 def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
