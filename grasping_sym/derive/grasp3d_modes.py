@@ -134,7 +134,9 @@ def derive_grasp3d_modes(scene, torques) -> dict:
             rows.append(ca.if_else(rolling, dyn, ca.if_else(sliding, slide_row, eye[r + j, :])))
             rhs.append(ca.if_else(rolling, dyn_rhs, ca.if_else(sliding, slide_rhs, 0)))
     S = ca.vertcat(*rows)
-    lam = ca.solve(S, ca.vertcat(*rhs))
+    # an open contact's multipliers are 0 exactly (not the solve's round-off)
+    closed = ca.vertcat(*[ca.if_else(m < 1.5, 1, 0) for m in modes for _ in range(3)])
+    lam = closed * ca.solve(S, ca.vertcat(*rhs))
     a = free - MinvAT @ lam
     xdot = ca.vertcat(b.zb_dot, a, *eta_rates, *uv_rates)
     acc_C = Ahat @ a + bhat  # C'' along the motion

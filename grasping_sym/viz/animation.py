@@ -12,6 +12,7 @@ a GIF are held in memory until it is written).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import shutil
 from pathlib import Path
@@ -179,7 +180,38 @@ def _frames_3d(fig, scene, result, rows):
     return draw
 
 
+def _frames_grasp_modes(fig, scene, result, rows):
+    """A grasp with modes: its base grasp drawn from the base's states, each plane of the world
+    as a square under the object, and the contacts' modes in the title."""
+    nb = len(scene.base.state_names)
+    base_run = dataclasses.replace(result, x=result.x[:, :nb], state_names=scene.base.state_names)
+    draw_base = _frames_3d(fig, scene.base, base_run, rows)
+    ax = fig.axes[-1]
+    names = scene.base.state_names
+    centre = result.x[:, [names.index(k) for k in "xyz"]] if scene.base.free else \
+        np.tile(np.asarray(scene.base.position, float), (len(result.t), 1))
+
+    def draw(k):
+        draw_base(k)
+        for w in scene.planes:
+            n, w0 = np.asarray(w.normal), np.asarray(w.point)
+            foot = centre[rows[k]] - np.dot(n, centre[rows[k]] - w0) * n
+            helper = np.eye(3)[int(np.argmin(np.abs(n)))]
+            t1 = np.cross(helper, n) / np.linalg.norm(np.cross(helper, n))
+            t2 = np.cross(n, t1)
+            s = np.linspace(-PLANE_HALF_WIDTH, PLANE_HALF_WIDTH, 2)
+            a, b = np.meshgrid(s, s)
+            pts = foot[:, None, None] + t1[:, None, None] * a + t2[:, None, None] * b
+            ax.plot_surface(*pts, color="0.55", alpha=0.3, linewidth=0)
+        if result.modes is not None:
+            ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s\n"
+                         + ", ".join(str(m) for m in np.atleast_1d(result.modes[rows[k]])), fontsize=9)
+    return draw
+
+
+#: m: half the side of the square that draws a plane of the world
+PLANE_HALF_WIDTH = 0.05
+
 #: kind of scene (``model.kinds``) -> how its frames are drawn
 _FRAMES = {"planar": _frames_2d, "planar_modes": _frames_2d, "grasp3d": _frames_3d,
-           "grasp3d_modes": lambda fig, scene, result, rows: _frames_3d(fig, scene.base, result, rows),
-           "body": body_frames}
+           "grasp3d_modes": _frames_grasp_modes, "body": body_frames}
