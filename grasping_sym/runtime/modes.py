@@ -63,6 +63,9 @@ STOP_SPEED = 1e-6
 #: Most switches within ``SWITCH_WINDOW`` seconds before a run stops as chattering.
 MAX_SWITCHES = 50
 SWITCH_WINDOW = 1e-3
+#: Most iterations of the sliding impulse's direction (Moreau's law: the impulse on the cone's
+#: edge opposes the slip it leaves).
+MOREAU_ITERATIONS = 100
 #: An impact slower than this (m/s, normal approach) is plastic whatever ``e``: the bounces
 #: of a body coming to rest would otherwise accumulate (Zeno).
 REST_SPEED = 1e-3
@@ -318,8 +321,26 @@ class _BodyRun(_Run):
                                     f"n . K (n - mu d) = {denominator:.6g} 1/kg <= 0 (Painleve's "
                                     "paradox at an impact); the rigid model has no answer here",
                                     self.model.state_names)
-            Pn = -(1 + e) * vn / denominator
-            P = Pn * (n - mu * d)
+            P = None
+            for _ in range(MOREAU_ITERATIONS):  # Moreau: against the slip the impulse leaves
+                denominator = float(np.dot(n, K @ (n - mu * d)))
+                if not denominator > 0:
+                    break
+                P = -(1 + e) * vn / denominator * (n - mu * d)
+                after_v = vc + K @ P
+                after_t = after_v - np.dot(after_v, n) * n
+                if not np.linalg.norm(after_t) > SLIP_SPEED:
+                    break  # the slip stops on the cone's edge
+                nd = after_t / np.linalg.norm(after_t)
+                if np.linalg.norm(nd - d) < 1e-13:
+                    break
+                d = nd
+            after_v = vc + K @ P if P is not None else vc
+            after_t = after_v - np.dot(after_v, n) * n
+            if P is None or np.dot(after_t, d) < -1e-12 * max(1.0, np.linalg.norm(vt)):
+                raise PainleveError(t, x, f"an impact with mu = {mu:g} has no impulse on the cone's edge "
+                                    "that opposes the slip it leaves (Moreau's law); the rigid model "
+                                    "has no answer here", self.model.state_names)
         after = self._apply(x, P, rc)
         return after, float(np.max(np.abs(K @ P))), bool(stuck), e > 0
 
@@ -576,12 +597,19 @@ class _GraspRun(_Run):
             vt = JV[rows[1:]]
             pt = P[rows[1:]]
             d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
-            P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
-            after_vt = (JV - W @ P)[rows[1:]]
+            for _ in range(MOREAU_ITERATIONS):  # Moreau: against the slip the impulse leaves
+                P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
+                after_vt = (JV - W @ P)[rows[1:]]
+                if not np.linalg.norm(after_vt) > SLIP_SPEED:
+                    break
+                nd = after_vt / np.linalg.norm(after_vt)
+                if np.linalg.norm(nd - d) < 1e-13:
+                    break
+                d = nd
             if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
-                raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no consistent "
-                                    "impulse on the cone's edge along the slip (the slip would reverse "
-                                    "or the normal impulse pull); the rigid model has no answer here",
+                raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no impulse on "
+                                    "the cone's edge that opposes the slip it leaves (Moreau's law) with "
+                                    "a pushing normal impulse; the rigid model has no answer here",
                                     self.model.state_names)
         self._check_impulse(t, x, modes, j, P, W, JV, "the impact")
         after = self._apply(x, y, list(range(3 * self.k)), P)
