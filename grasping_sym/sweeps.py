@@ -215,13 +215,14 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
     out, problems = [], []
     cone = _cone_names(model)
     known = (*model.state_names, *model.output_names, *(cone if with_mu else ()))
-    n_contacts = len(friction.contacts(model))
+    n_contacts = int(model.manifest.get("n_contacts", 1)) if model.manifest.get("modes") \
+        else len(friction.contacts(model))
     for k in outputs:
         (out.append((k, "final", k)) if k in model.output_names else problems.append(k))
     for m in measures:
         kind, _, q = m.partition(":")
         if m == "held":
-            if not with_mu or model.manifest.get("modes"):
+            if not (with_mu or model.manifest.get("modes")) or model.manifest.get("kind") == "body":
                 problems.append(m)
                 continue
             out.append(("held", "held", ""))
@@ -237,7 +238,7 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
                          f"of a state or output Q (with mu also of {list(cone[:n_contacts * 4])}), "
                          f"'first_slip:i' (contact i = 1..{n_contacts}, with mu) or 'held' (with mu, "
                          "for grasp scenes)")
-    if not with_mu and any(kind == "first_slip" for _, kind, _ in out):
+    if not with_mu and not model.manifest.get("modes") and any(kind == "first_slip" for _, kind, _ in out):
         raise ValueError("sweep: 'first_slip:i' needs a friction coefficient: give mu=... (or a grid "
                          "axis 'mu'), or build the scene with friction=gs.contact.coulomb(mu)")
     return out
@@ -275,8 +276,8 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
             settings[k] = vals[k]
     cone = _cone_names(model)
     sliding = any(kind in ("first_slip", "held") or q in cone for _, kind, q in measures)
-    if sliding:  # the measures of the cone read the whole rolling run: it goes on past a slip
-        settings["slip"] = "record"
+    if sliding and not model.manifest.get("modes"):  # the cone's measures read the whole rolling
+        settings["slip"] = "record"                   # run: it goes on past a slip
     # the cone is checked at the output times: with a friction coefficient, always on samples
     dense = any(kind != "final" for _, kind, _ in measures) or (
         settings.get("mu") is not None and settings.get("checks", True) and not model.manifest.get("modes"))
@@ -292,9 +293,16 @@ def run_chunk(model, task: dict, a: int, b: int) -> dict[str, np.ndarray]:
     out = {k: batch.x_final[:, i] for i, k in enumerate(model.state_names)}
     keep = []
     for var, kind, q in measures:
+        if kind == "held" and batch.modes is not None:
+            out[var] = _held_modes(model, batch)
+            keep.append(var)
+            continue
         if kind == "held":
             out[var] = _held(model, batch, status, error)
             keep.append(var)
+            continue
+        if kind == "first_slip" and batch.modes is not None:
+            out[var] = _first_slip_modes(batch, int(q))
             continue
         if kind == "first_slip":
             out[var] = _first_crossing(batch.t, batch.outputs[f"cone_margin{q}"])
@@ -335,6 +343,37 @@ def _held(model, batch, status, error) -> np.ndarray:
     opened = np.array([str(e).startswith("ContactOpenedError") for e in error])
     held[opened] = 0.0
     return held
+
+
+def _mode_columns(modes) -> np.ndarray:
+    """A run's modes as ``(samples, contacts)``."""
+    m = np.asarray(modes)
+    return m[:, None] if m.ndim == 1 else m
+
+
+def _held_modes(model, batch) -> np.ndarray:
+    """Per run of a model with modes: 1 when no finger contact is open at the end, 0 when one
+    is, NaN when the run failed (the world's planes are not fingers)."""
+    fingers = int(model.manifest.get("grasp_modes", {}).get("fingers", 1))
+    return np.array([math.nan if m is None or not len(m) else
+                     float(not np.any(_mode_columns(m)[-1, :fingers] == "separated"))
+                     for m in batch.modes])
+
+
+def _first_slip_modes(batch, contact: int) -> np.ndarray:
+    """Per run of a model with modes: the time contact ``contact`` first slides (its switch's
+    located time; the first output time it slides at when it slid from the start), ``inf``
+    when it never does, NaN when the run failed."""
+    out = []
+    for m, events in zip(batch.modes, batch.events):
+        if m is None or not len(m):
+            out.append(math.nan)
+            continue
+        times = [e["t"] for e in events if e["contact"] == contact and e["to"] == "sliding"]
+        sliding = np.flatnonzero(_mode_columns(m)[:, contact - 1] == "sliding")
+        at_start = sliding.size and sliding[0] == 0
+        out.append(float(batch.t[0]) if at_start else min(times) if times else math.inf)
+    return np.array(out)
 
 
 def _series(model, batch, q: str, dense: bool) -> np.ndarray:

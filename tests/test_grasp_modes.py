@@ -148,3 +148,16 @@ def test_refusals(base):
                                                                        support=(-1.5708, 0.0))])
     with pytest.raises(InvalidSceneError, match="cuts the object"):
         kinds.kind(cutting).solve_start(cutting)
+
+
+def test_a_sweep_over_mu_measures_slip_and_hold(model, slide, tmp_path):
+    """gs.sweep over mu: ``first_slip:i`` is each finger's located slip (the run's own switch),
+    ``held`` 0 once the fingers have let go, 1 where mu holds the grasp."""
+    ds = gs.sweep(model, {"mu": [0.08, 0.5]}, t_final=0.12, measures=("held", "first_slip:1", "first_slip:2"),
+                  store=tmp_path / "s.zarr", progress=False, **TOL)
+    assert (ds["status"].values == 0).all()
+    slips = {e["contact"]: e["t"] for e in slide.events[::-1] if e["to"] == "sliding"}
+    assert abs(float(ds["first_slip_1"].sel(mu=0.08)) - slips[1]) < 1e-9  # two runs: other steps
+    assert abs(float(ds["first_slip_2"].sel(mu=0.08)) - slips[2]) < 1e-9
+    assert list(ds["held"].values) == [0.0, 1.0]
+    assert np.isinf(ds["first_slip_1"].sel(mu=0.5)) and np.isinf(ds["first_slip_2"].sel(mu=0.5))

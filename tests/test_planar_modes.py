@@ -237,3 +237,13 @@ def test_modes_many_runs_and_refusals(base, model):
         gs.scenes.with_modes(gs.scenes.paper2d(runtime=("fd",)))
     with pytest.raises(RunArgumentError, match="params"):
         model.simulate(0.1, params={"mu": 0.2})
+
+
+def test_a_sweep_over_mu_measures_the_first_slip(model, slide, tmp_path):
+    """gs.sweep over mu with modes: ``first_slip:1`` is the located switch (0 where the contact
+    slides from the start, inf where it never slides), ``held`` 1 while the finger touches."""
+    ds = gs.sweep(model, {"mu": [0.05, 0.2, 1.0]}, t_final=0.1, measures=("held", "first_slip:1"),
+                  store=tmp_path / "s.zarr", progress=False, **TOL)
+    first = ds["first_slip_1"].values
+    assert first[0] == 0.0 and abs(first[1] - slide.events[0]["t"]) < 1e-9 and np.isinf(first[2])
+    assert list(ds["held"].values) == [1.0, 1.0, 1.0]

@@ -68,6 +68,9 @@ class BatchResult:
         Seconds for the whole call.
     events
         A model with contact modes: each run's switches (``SimulationResult.events``); else None.
+    modes
+        A model with contact modes: each run's modes at the output times
+        (``SimulationResult.modes``; None for a run that failed); else None.
     """
 
     x_final: np.ndarray
@@ -83,6 +86,7 @@ class BatchResult:
     stats: dict[str, np.ndarray] = field(default_factory=dict)
     wall_time: float = 0.0
     events: list | None = None
+    modes: list | None = None
 
     @property
     def ok(self) -> np.ndarray:
@@ -188,7 +192,7 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, dense: bool, start: f
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],
                        x=got["x"], outputs=got["outputs"], wall_time=perf_counter() - start,
-                       events=got["events"])
+                       events=got["events"], modes=got["modes"])
 
 
 def _threads(threads) -> int:

@@ -81,6 +81,12 @@ def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
         mu_, e_law = (math.inf,) * k, 0.0
     elif isinstance(law, Coulomb):
         mu_, e_law = tuple(float(v) for v in law.per_contact(k)), float(law.e)
+    elif isinstance(law, (tuple, list, np.ndarray)) and np.ndim(law) == 1:  # one per contact
+        if len(law) != k or not all(isinstance(v, (int, float, np.floating, np.integer))
+                                    and not isinstance(v, (bool, np.bool_)) and float(v) >= 0 for v in law):
+            raise RunArgumentError(f"mu = {tuple(law)!r:.60}: give {k} numbers >= 0, one per contact")
+        mu_ = tuple(float(v) for v in law)
+        e_law = float(model.friction.e) if isinstance(model.friction, Coulomb) else 0.0
     else:
         if isinstance(law, (bool, np.bool_)) or not isinstance(law, (int, float, np.floating, np.integer)):
             raise RunArgumentError(f"mu = {law!r:.40} must be a number >= 0 or gs.contact.coulomb(mu, e)")
@@ -899,6 +905,7 @@ def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
     status = np.zeros(n, dtype=np.int64)
     errors = np.full(n, "", dtype=object)
     events: list = [[] for _ in range(n)]
+    run_modes: list = [None] * n
     for i in range(n):
         try:
             res = run(model, s, X0[i], mus[i], es[i])
@@ -913,12 +920,13 @@ def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
         for k in outs:
             outs[k][i] = res.outputs[k]
         events[i] = res.events
+        run_modes[i] = res.modes
     return {"x_final": x_final, "x": X if dense else None, "status": status, "errors": errors,
             "outputs": outs if dense else {k: v[:, -1] for k, v in outs.items()},
             "params": {"mu": np.array([_first_or_all(friction_law(model, mu_i, e_i)[0])
                                        for mu_i, e_i in zip(mus, es)]),
                        "e": np.array([friction_law(model, mu_i, e_i)[1] for mu_i, e_i in zip(mus, es)])},
-            "events": events}
+            "events": events, "modes": run_modes}
 
 
 def _first_or_all(mus: tuple):
@@ -926,10 +934,13 @@ def _first_or_all(mus: tuple):
 
 
 def _per_run(name: str, value, n: int) -> list:
-    """None or one value for every run, or an array of ``n``: one per run."""
+    """None or one value for every run, or an array of ``n``: one per run (``mu``: or of
+    ``(n, contacts)``, one per contact of each run)."""
     if value is None or isinstance(value, Coulomb) or np.ndim(value) == 0:
         return [value] * n
     arr = np.asarray(value)
+    if name == "mu" and arr.ndim == 2 and arr.shape[0] == n:
+        return [tuple(float(v) for v in row) for row in arr]
     if arr.shape != (n,):
         raise RunArgumentError(f"{name} has shape {arr.shape}: give one value, or one per run ({n},)")
     return [float(v) for v in arr]
