@@ -10,7 +10,10 @@
 - a drop and settle in 3D: wall time per simulated second, with every default;
 - ensembles over ``mu``: paper2d, ``simulate_many`` on one thread at rtol 1e-8 with the cone
   checked at 301 output times, runs per second, and the final-state error of every run that
-  held against a reference at rtol 1e-12.
+  held against a reference at rtol 1e-12;
+- the fingers' modes: paper2d's finger slipping (mu = 0.2) and paper3d's grasp slipping and
+  dropped onto a table, each against its rolling model's run of the same length and
+  tolerance (no friction limit), and the seconds each build takes.
 
 Every ratio's baseline is measured in the same run.
 """
@@ -93,9 +96,37 @@ def ensembles(n: int = 2000) -> dict:
     return out
 
 
+def finger_modes() -> dict:
+    """paper2d with modes at mu = 0.2 (slips, sticks again) and paper3d's grasp over a table at
+    mu = 0.08 (slips, lets go, lands), 0.25 s each, against the rolling model's run."""
+    from time import perf_counter
+
+    from grasping_sym.geometry import surface_library
+
+    out = {}
+    ellipsoid = surface_library.ellipsoid(0.020, 0.025, 0.030, lon=(-2.5, 4.0), name="object ellipsoid")
+    table = gs.scenes.world_plane((0, -0.01, 0), (0, 1, 0), support=(-1.5708, 0.0))
+    cases = (("paper2d finger, mu 0.2", gs.scenes.paper2d(), [], 0.2, 1e-10),
+             ("paper3d grasp over a table, mu 0.08", gs.scenes.paper3d(object_surface=ellipsoid), [table],
+              gs.contact.coulomb((0.08, 0.08, 0.5)), 1e-9))
+    for label, base, planes, mu, rtol in cases:
+        rolling = gs.build(base)
+        t0 = perf_counter()
+        model = gs.build(gs.scenes.with_modes(base, planes=planes), force=True)
+        build = perf_counter() - t0
+        tol = dict(rtol=rtol, atol=rtol / 100, t_eval=np.linspace(0.0, 0.25, 251))
+        res = model.simulate(0.25, mu=mu, **tol)
+        t_modes = best_per_call(lambda m=model, mu=mu, tol=tol: m.simulate(0.25, mu=mu, **tol), number=1, repeat=3)
+        t_roll = best_per_call(lambda r=rolling, tol=tol: r.simulate(0.25, method="radau", **tol), number=1,
+                               repeat=3)
+        out[label] = {"build_s": build, "modes_s": t_modes, "rolling_s": t_roll, "ratio": t_modes / t_roll,
+                      "switches": len(res.events), "switch_s": res.stats["switch_time"]}
+    return out
+
+
 def main() -> dict:
     out = {"machine": platform.processor() or platform.machine(), "cone_check": cone_check_cost(),
-           "switches": switches(), "ensembles": ensembles()}
+           "switches": switches(), "ensembles": ensembles(), "finger_modes": finger_modes()}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "friction.json").write_text(json.dumps(out, indent=1))
     c, s, e = out["cone_check"], out["switches"], out["ensembles"]
@@ -120,7 +151,14 @@ def main() -> dict:
     d = e["default scene, mixed"]
     lines += ["", f"- the default scene (Baumgarte), rtol 1e-8, 301 output times, mu from 0.05 to 0.6: "
               f"{d['runs_per_s_one_thread']:.0f} runs/s; {d['held']} held, {d['slipped']} stopped with "
-              "FrictionConeError (each run again alone for its located message)", ""]
+              "FrictionConeError (each run again alone for its located message)", "",
+              "## The fingers' contact modes (0.25 s, 251 output times, radau)", "",
+              "| run | build (s) | with modes (ms) | rolling model, no limit (ms) | ratio | switches | "
+              "locating and making them (ms) |", "|---|---|---|---|---|---|---|"]
+    for k, v in out["finger_modes"].items():
+        lines.append(f"| {k} | {v['build_s']:.1f} | {1e3 * v['modes_s']:.1f} | {1e3 * v['rolling_s']:.1f} | "
+                     f"{v['ratio']:.2f} | {v['switches']} | {1e3 * v['switch_s']:.2f} |")
+    lines.append("")
     (RESULTS / "friction.md").write_text("\n".join(lines))
     print("\n".join(lines))
     return out

@@ -36,7 +36,11 @@ TRACK_GAIN = 200.0
 #: Floors (m/s, N) of the slip speed and the normal force where they divide.
 SLIP_ZERO = 1e-300
 #: m/s: a slide follows its own velocity's direction once ``v_t . slip`` exceeds this; below,
-#: the direction ``slip`` (the round-off of a slip starting from rest has no direction).
+#: the direction ``slip`` (the fixed point of the slip's acceleration, where a slip from rest
+#: starts; the round-off of a slip starting from rest has no direction). The direction's own
+#: dynamics has a rate ~ |a_t| / |v_t| (1e9 1/s at 1e-9 m/s): radau crosses a slip's start in
+#: thousands of steps. 1e-6 here would spare them but makes the direction jump where it
+#: switches (radau then fails): the exact law's cost is measured in benchmarks/friction.py.
 SLIP_START = 1e-10
 FORCE_FLOOR = 1e-300
 
