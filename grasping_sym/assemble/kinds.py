@@ -71,17 +71,13 @@ def _body_functions(scene, progress=None, layers: bool = True):
     return scene_functions.body_functions(scene, progress)
 
 
-def _planar_modes_functions(scene, progress=None, layers: bool = True):
-    return scene_functions.planar_modes_functions(scene, progress)
+def _modes_functions(scene, progress=None, layers: bool = True):
+    return scene_functions.modes_functions(scene, progress)
 
 
 def _planar_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     scene.validate()
     return scene.initial_state(), scene.start_values(), {}
-
-
-def _grasp3d_modes_functions(scene, progress=None, layers: bool = True):
-    return scene_functions.grasp3d_modes_functions(scene, progress)
 
 
 def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
@@ -118,10 +114,10 @@ KINDS: dict[str, Kind] = {
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
-    "grasp3d_modes": Kind(functions=_grasp3d_modes_functions,
+    "grasp3d_modes": Kind(functions=_modes_functions,
                           solve_start=_grasp3d_modes_start,
                           templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
-    "planar_modes": Kind(functions=_planar_modes_functions, solve_start=_planar_modes_start,
+    "planar_modes": Kind(functions=_modes_functions, solve_start=_planar_modes_start,
                          templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
 }
 

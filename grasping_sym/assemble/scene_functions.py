@@ -207,29 +207,16 @@ def body_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
 
 
-def planar_modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
-    """A planar finger with contact modes (``model.planar_modes``): its three modes in one
-    piece of SX (``derive.planar_modes``), the mode a run-time parameter. No generated
-    Jacobian: its 17 869 SX instructions take gcc 19 s (the rhs 0.4 s); the integrators
-    difference the rhs (8 states)."""
+def modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A scene with contact modes (``model.planar_modes``, ``model.grasp3d_modes``): every
+    contact's modes in one piece of SX (``derive.planar_modes``, ``derive.grasp3d_modes``),
+    the modes run-time parameters. No generated Jacobian: the 2D one's 17 869 SX instructions
+    take gcc 19 s (its rhs 0.4 s); the integrators difference the rhs."""
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
-    say(f"deriving {scene.name} (a planar finger, three contact modes; SymPy, then CasADi)")
-    d = derive_planar_modes(scene, controller_torques)
-    t1 = time.perf_counter()
-    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
-                  scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"])
-    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
-
-
-def grasp3d_modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
-    """A 3D grasp with contact modes (``model.grasp3d_modes``): every contact's modes in one
-    piece of SX (``derive.grasp3d_modes``), the modes run-time parameters; no generated
-    Jacobian (the integrators difference the rhs)."""
-    say = progress or (lambda msg: None)
-    t0 = time.perf_counter()
-    say(f"deriving {scene.name} (a grasp, three contact modes per contact; SymPy, then CasADi)")
-    d = derive_grasp3d_modes(scene, controller_torques)
+    say(f"deriving {scene.name} (contact modes; SymPy, then CasADi)")
+    derive = derive_planar_modes if scene.kind == "planar_modes" else derive_grasp3d_modes
+    d = derive(scene, controller_torques)
     t1 = time.perf_counter()
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
                   scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"])

@@ -18,6 +18,7 @@ import numpy as np
 
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.model.grasp3d import GraspScene3D
+from grasping_sym.model.with_modes import WithModes
 
 #: The contacts' modes, by the number the compiled model takes as its parameter ``mode{i}``.
 MODES = ("rolling", "sliding", "separated")
@@ -48,7 +49,7 @@ class WorldPlane:
 
 
 @dataclass(frozen=True, eq=False)
-class GraspModesScene:
+class GraspModesScene(WithModes):
     """``base`` with its contacts' modes and the world's ``planes`` (module docstring)."""
 
     base: GraspScene3D
@@ -56,7 +57,6 @@ class GraspModesScene:
 
     kind: ClassVar[str] = "grasp3d_modes"
     dimension: ClassVar[int] = 3
-    input_names: ClassVar[tuple[str, ...]] = ()
     simulate_defaults: ClassVar[dict] = {"t_final": 1.0, "method": "radau",
                                          "tolerances": {"radau": (1e-9, 1e-11)}}
 
@@ -85,9 +85,6 @@ class GraspModesScene:
             raise InvalidSceneError(problems)
 
     # ------------------------------------------------------------------ the base's parts
-    @property
-    def name(self) -> str:
-        return f"{self.base.name}_modes"
 
     @property
     def n_contacts(self) -> int:
@@ -97,17 +94,6 @@ class GraspModesScene:
     def n_fingers(self) -> int:
         return self.base.n_contacts
 
-    @property
-    def controller(self):
-        return self.base.controller
-
-    @property
-    def friction(self):
-        return self.base.friction
-
-    @property
-    def gravity(self):
-        return self.base.gravity
 
     @property
     def start_param_names(self) -> tuple[str, ...]:

@@ -19,6 +19,7 @@ import numpy as np
 
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.model.planar import PlanarFingerScene
+from grasping_sym.model.with_modes import WithModes
 from grasping_sym.names import output_problems
 
 #: The contact's modes, by the number the compiled model takes as its parameter ``mode``.
@@ -35,7 +36,7 @@ OUTPUTS = ("gap", "normal_speed", "normal_force", "lam", "tangential_force", "co
 
 
 @dataclass(frozen=True, eq=False)
-class PlanarModesScene:
+class PlanarModesScene(WithModes):
     """``base`` with its contact's modes (module docstring)."""
 
     base: PlanarFingerScene
@@ -43,7 +44,6 @@ class PlanarModesScene:
     kind: ClassVar[str] = "planar_modes"
     dimension: ClassVar[int] = 2
     start_param_names: ClassVar[tuple[str, ...]] = ("xm", "ym")
-    input_names: ClassVar[tuple[str, ...]] = ()
     extra_fingers: ClassVar[tuple] = ()
     n_fingers: ClassVar[int] = 1
     n_contacts: ClassVar[int] = 1
@@ -73,9 +73,6 @@ class PlanarModesScene:
             raise InvalidSceneError(problems)
 
     # ------------------------------------------------------------------ the base's parts
-    @property
-    def name(self) -> str:
-        return f"{self.base.name}_modes"
 
     @property
     def fingertip(self):
@@ -89,21 +86,11 @@ class PlanarModesScene:
     def fingertips(self) -> tuple:
         return (self.base.fingertip,)
 
-    @property
-    def gravity(self):
-        return self.base.gravity
 
     @property
     def pivot(self) -> tuple[float, float]:
         return self.base.pivot
 
-    @property
-    def controller(self):
-        return self.base.controller
-
-    @property
-    def friction(self):
-        return self.base.friction
 
     @property
     def params(self) -> dict[str, float]:

@@ -262,19 +262,12 @@ class _BodyRun(_Run):
         K, _, _, F_roll = self.contact(y)
         ft = F_roll - np.dot(F_roll, n) * n
         d = -ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.cross(n, [1.0, 0.0, 0.0])
-        target = np.zeros(3)  # at v_c = 0 and gap = 0 the rolling acceleration is 0
-        for _ in range(50):
+        def slip_acceleration(d):  # at v_c = 0 and gap = 0 the rolling acceleration is 0
             dirn = n - self.mu * d
-            f = np.dot(n, K @ F_roll) / np.dot(n, K @ dirn)
-            a = K @ (f * dirn - F_roll) + target
-            a_t = a - np.dot(a, n) * n
-            if not np.linalg.norm(a_t) > 1e-12 * max(np.linalg.norm(a), 1.0):
-                break  # on the cone's edge: no slip acceleration, keep the direction
-            nd = a_t / np.linalg.norm(a_t)
-            if np.linalg.norm(nd - d) < 1e-15:
-                break
-            d = nd
-        return d
+            a = K @ (np.dot(n, K @ F_roll) / np.dot(n, K @ dirn) * dirn - F_roll)
+            return a - np.dot(a, n) * n, 1e-12 * max(np.linalg.norm(a), 1.0)
+
+        return _direction(d, slip_acceleration)
 
     def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         """The contact's normal acceleration with no contact force (m/s^2)."""
@@ -327,22 +320,18 @@ class _BodyRun(_Run):
                                     f"n . K (n - mu d) = {denominator:.6g} 1/kg <= 0 (Painleve's "
                                     "paradox at an impact); the rigid model has no answer here",
                                     self.model.state_names)
-            P = None
-            for _ in range(MOREAU_ITERATIONS):  # Moreau: against the slip the impulse leaves
+            def impulse(d):
                 denominator = float(np.dot(n, K @ (n - mu * d)))
-                if not denominator > 0:
-                    break
-                P = -(1 + e) * vn / denominator * (n - mu * d)
-                after_v = vc + K @ P
-                after_t = after_v - np.dot(after_v, n) * n
-                if not np.linalg.norm(after_t) > SLIP_SPEED:
-                    break  # the slip stops on the cone's edge
-                nd = after_t / np.linalg.norm(after_t)
-                if np.linalg.norm(nd - d) < 1e-13:
-                    break
-                d = nd
-            after_v = vc + K @ P if P is not None else vc
-            after_t = after_v - np.dot(after_v, n) * n
+                return None if not denominator > 0 else -(1 + e) * vn / denominator * (n - mu * d)
+
+            def slip_left(d):  # Moreau: the impulse opposes the slip it leaves
+                P = impulse(d)
+                after_v = vc + K @ (np.zeros(3) if P is None else P)
+                return after_v - np.dot(after_v, n) * n, SLIP_SPEED
+
+            d = _direction(d, slip_left, MOREAU_ITERATIONS)
+            P = impulse(d)
+            after_t = slip_left(d)[0]
             if P is None or np.dot(after_t, d) < -1e-12 * max(1.0, np.linalg.norm(vt)):
                 raise PainleveError(t, x, f"an impact with mu = {mu:g} has no impulse on the cone's edge "
                                     "that opposes the slip it leaves (Moreau's law); the rigid model "
@@ -477,16 +466,12 @@ class _GraspRun(_Run):
         d = ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.array([1.0, 0.0])
         if modes is None:
             return d
-        for _ in range(50):
+
+        def slip_acceleration(d):
             ys = self.with_mode(x, modes, slips, j, SLIDING, d)
-            a = np.array([ys[f"at_x{j}"], ys[f"at_y{j}"]])
-            if not np.linalg.norm(a) > 1e-9:
-                break  # on the cone's edge: no slip acceleration, keep the direction
-            nd = a / np.linalg.norm(a)
-            if np.linalg.norm(nd - d) < 1e-14:
-                break
-            d = nd
-        return d
+            return np.array([ys[f"at_x{j}"], ys[f"at_y{j}"]]), 1e-9
+
+        return _direction(d, slip_acceleration)
 
     def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         return float(self.with_mode(x, modes, slips, j, SEPARATED)[f"normal_acceleration{j}"])
@@ -603,15 +588,13 @@ class _GraspRun(_Run):
             vt = JV[rows[1:]]
             pt = P[rows[1:]]
             d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
-            for _ in range(MOREAU_ITERATIONS):  # Moreau: against the slip the impulse leaves
+            def slip_left(d):  # Moreau: the impulse opposes the slip it leaves
                 P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
-                after_vt = (JV - W @ P)[rows[1:]]
-                if not np.linalg.norm(after_vt) > SLIP_SPEED:
-                    break
-                nd = after_vt / np.linalg.norm(after_vt)
-                if np.linalg.norm(nd - d) < 1e-13:
-                    break
-                d = nd
+                return (JV - W @ P)[rows[1:]], SLIP_SPEED
+
+            d = _direction(d, slip_left, MOREAU_ITERATIONS)
+            P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
+            after_vt = (JV - W @ P)[rows[1:]]
             if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
                 raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no impulse on "
                                     "the cone's edge that opposes the slip it leaves (Moreau's law) with "
@@ -630,6 +613,20 @@ class _GraspRun(_Run):
 
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
 _RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun}
+
+
+def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
+    """The fixed point of ``d -> v(d)/|v(d)|`` from ``d`` (``along(d) -> (v, small)``): where
+    ``|v| <= small`` (nothing to follow: on the cone's edge) the direction is kept."""
+    for _ in range(iterations):
+        v, small = along(d)
+        if not np.linalg.norm(v) > small:
+            break
+        nd = v / np.linalg.norm(v)
+        if np.linalg.norm(nd - d) < 1e-14:
+            break
+        d = nd
+    return d
 
 
 def refuse_unused(*, params, u, slip) -> None:
