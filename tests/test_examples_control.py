@@ -6,6 +6,10 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+import grasping_sym as gs
+from grasping_sym.errors import FrictionConeError
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -30,6 +34,18 @@ def test_ocp_paper2d_reaches_the_target_with_the_contact_closed(tmp_path):
     # FrictionConeError), and the cone constraint was active (the optimum without it needs 0.54)
     assert 0.9 * ocp.MU < out["cone_ratio_max"] <= ocp.MU
     assert np.all(np.isfinite(out["U"])) and (tmp_path / "ocp.png").stat().st_size > 10_000
+    # re-simulated with contact modes on (gs.scenes.with_modes): never a switch, it rolls all
+    # along, on the rolling re-simulation's path (theta, q1, q2 at common output times)
+    assert out["modes_events"] == [] and set(out["modes"]) == {"rolling"}
+    assert out["modes_vs_rolling"] < 1e-8
+    # with less friction than the optimum needs (|lam|/f = 0.287 at the start), the rolling
+    # run's cone check stops it at t = 0, and with modes the same torques slide from the start
+    # until the slip stops
+    with pytest.raises(FrictionConeError) as err:
+        ocp.resimulate(gs.build(ocp.scene()), out, mu=0.25)
+    assert err.value.t == 0.0
+    slipped = ocp.resimulate_with_modes(out, mu=0.25, t_final=0.1)
+    assert slipped.modes[0] == "sliding" and slipped.events[0]["to"] == "rolling"
 
 
 def test_orientation2d_turns_the_object_and_holds_it(tmp_path):

@@ -18,6 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.model.control import coefficient_names
 from grasping_sym.model.planar import PlanarFingerScene
 from grasping_sym.model.with_modes import WithModes
 from grasping_sym.names import output_problems
@@ -66,8 +67,6 @@ class PlanarModesScene(WithModes):
             problems.append(f"runtime = {b.runtime}: a scene with contact modes takes its parameters "
                             "as constants (give their values in the scene); its run-time inputs "
                             "are mu and e")
-        if b.inputs is not None:
-            problems.append("inputs: a scene with contact modes has no control inputs (use a controller)")
         problems += output_problems(self.outputs, OUTPUTS)
         if problems:
             raise InvalidSceneError(problems)
@@ -103,8 +102,13 @@ class PlanarModesScene(WithModes):
         return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", "u0", "u1")
 
     @property
+    def input_names(self) -> tuple[str, ...]:
+        """The base scene's inputs (joint torques ``u1, u2``, held or tabled by ``simulate(u=)``)."""
+        return self.base.input_names
+
+    @property
     def p_names(self) -> tuple[str, ...]:
-        return (*self.runtime, *self.start_param_names)
+        return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
 
     def check_outputs(self) -> tuple[str, ...]:
         return OUTPUTS

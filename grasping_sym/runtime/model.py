@@ -401,9 +401,9 @@ class Model:
                               h=h, max_steps=max_steps, project=project, outputs=outputs,
                               checks=checks, time_limit=time_limit)
         if self.manifest.get("modes"):  # contact that can change: runtime.modes
-            modes.refuse_unused(params=params, u=u, slip=slip)
+            modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(self.input_names))
             x0, _ = run_.start_state(self, x0)
-            return modes.run(self, s, x0, mu, e)
+            return modes.run(self, s, x0, mu, e, u)
         if e is not None:
             raise RunArgumentError(f"e given, but model {self.name!r} has no impacts (no contact modes): "
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")

@@ -46,6 +46,7 @@ from grasping_sym.errors import (
 )
 from grasping_sym.runtime import events, failures, integrators
 from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.result import SimulationResult
 
 ROLLING, SLIDING, SEPARATED = 0, 1, 2
@@ -126,6 +127,9 @@ class _Run:
         self.events: list[dict] = []
         #: ``switch_time``: seconds spent locating the switches and making them
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
+        #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
+        #: which ``outputs`` reads them
+        self.sched, self.t = None, 0.0
 
     @property
     def contacts(self) -> range:
@@ -151,6 +155,9 @@ class _Run:
         return p
 
     def outputs(self, x: np.ndarray, p: np.ndarray) -> dict[str, float]:
+        """Every output at ``x`` with ``p``, the inputs at ``self.t``."""
+        if self.sched is not None:
+            p = self.model.with_inputs(p, self.sched(self.t))
         return outputs_.at(self.model, x, p)
 
     def with_mode(self, x, modes, slips, j: int, mode: int, slip=None) -> dict[str, float]:
@@ -629,9 +636,10 @@ def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
     return d
 
 
-def refuse_unused(*, params, u, slip) -> None:
-    """Refuse by name what a run with modes does not read (it would be ignored silently)."""
-    given = [k for k, v in (("params", params), ("u", u)) if v is not None]
+def refuse_unused(*, params, u, slip, inputs: bool = False) -> None:
+    """Refuse by name what a run with modes does not read (it would be ignored silently);
+    ``inputs``: ``u`` is read (a single run of a model with inputs)."""
+    given = [k for k, v in (("params", params), ("u", None if inputs else u)) if v is not None]
     if slip != "stop":
         given.append("slip")
     if given:
@@ -649,8 +657,10 @@ def rotation(q: np.ndarray) -> np.ndarray:
         [[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])) / s
 
 
-def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
-    """``Model.simulate`` of a model with modes (module docstring)."""
+def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> SimulationResult:
+    """``Model.simulate`` of a model with modes (module docstring); ``u``: the inputs of a
+    model with inputs (``runtime.inputs``: numbers, or a table; each mode's segment restarts
+    at the table's knots)."""
     start = perf_counter()
     if s.method not in METHODS:
         raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs one of {METHODS} "
@@ -659,6 +669,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
     mus, e = friction_law(model, mu_arg, e_arg)
     r = _RUNS[model.manifest.get("kind", "body")](model, s, mus, e)
     t_eval = s.t_eval
+    r.sched = run_.schedule(model, u, s.method, t_eval)
     x_now, modes, slips = _start(r, np.asarray(x0, dtype=float))
     rows_t, rows_x, rows_mode, rows_p = [], [], [], []
     t_now = 0.0
@@ -666,6 +677,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
     recent: list[float] = []
     while True:
         p = r.params(modes, slips)
+        r.t = t_now
         y_now = r.outputs(x_now, p)
         for j in r.contacts:
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
@@ -677,7 +689,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
         r.stats["segments"] += 1
-        Y = outputs_.at_rows(model, X, p)
+        Y = outputs_.along(model, t, X, p, r.sched)
         t_look = perf_counter()
         found = _first_event(r, modes, slips, t, X, Y, p) if len(t) > 1 else None
         if found is None and failure is not None:
@@ -700,6 +712,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
                                   "contact chatters; give a plastic impact (e = 0) or a larger "
                                   "friction coefficient", model.state_names)
         before = modes[j - 1]
+        r.t = t_ev
         modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
         r.stats["switch_time"] += perf_counter() - t_look
         if reset is not None:  # None: a slide re-aimed, no switch
@@ -712,7 +725,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None) -> SimulationResult:
     outs = {}
     if s.outputs:
         P_all = np.concatenate(rows_p)
-        Y = np.array([outputs_.row(model, x, pp) for x, pp in zip(X_all, P_all)]) if len(X_all) \
+        Y = np.array([outputs_.row(model, x, pp if r.sched is None else model.with_inputs(pp, r.sched(tt)))
+                      for tt, x, pp in zip(t_all, X_all, P_all)]) if len(X_all) \
             else np.zeros((0, len(model.columns)))
         outs = {k: Y[:, i].copy() for i, k in enumerate(model.columns) if k in model.output_names}
     if s.drop_first and len(t_all) and t_all[0] == 0.0:
@@ -734,8 +748,10 @@ def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
     s = r.s
 
     def loop(g):
-        return integrators.c_loop(r.model, s.method, x, g, p, rtol=s.rtol, atol=s.atol,
-                                  max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+        if r.sched is None:
+            return integrators.c_loop(r.model, s.method, x, g, p, rtol=s.rtol, atol=s.atol,
+                                      max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+        return _pieces(r, x, g, p)
 
     try:
         t, X, st = loop(grid)
@@ -747,6 +763,24 @@ def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
         return grid[:1], np.asarray(x, dtype=float)[None, :], {}, failure
     t, X, st = loop(before)
     return t, X, st, failure
+
+
+def _pieces(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
+    """``(t, X, stats)`` over ``grid`` restarted at the inputs' knots inside it (each piece with
+    its inputs ``a + b t``), the samples at ``grid``'s times."""
+    s, rows_t, rows_x, stats = r.s, [], [], {}
+    for k, (a0, a1, a, b) in enumerate(r.sched.segments(float(grid[0]), float(grid[-1]))):
+        g = np.array([a0, *grid[(grid > a0) & (grid < a1)], a1])
+        t, X, st = integrators.c_loop(r.model, s.method, x, g, r.model.with_inputs(p, a, b), rtol=s.rtol,
+                                      atol=s.atol, max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+        rows_t.append(t if k == 0 else t[1:])
+        rows_x.append(X if k == 0 else X[1:])
+        x = X[-1]
+        for key in ("n_steps", "n_rhs"):
+            stats[key] = stats.get(key, 0) + int(st.get(key, 0))
+    t, X = np.concatenate(rows_t), np.concatenate(rows_x)
+    keep = np.isin(t, grid)
+    return t[keep], X[keep], stats
 
 
 def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
@@ -820,8 +854,9 @@ def _first_event(r: _Run, modes, slips, t, X, Y, p):
                 continue
             if not y0[r.key("gap", j)] > CONTACT_GAP:  # just left the contact: from the apex
                 sk = r.key("normal_speed", j)
-                apex = events.locate(r.model, r.s, None, p, t0, x0, float(t[i]), lambda y, sk=sk: y[sk]) \
+                apex = events.locate(r.model, r.s, r.sched, p, t0, x0, float(t[i]), lambda y, sk=sk: y[sk]) \
                     if y0[sk] > 0 else None
+                r.t = apex[0] if apex is not None else t0
                 if apex is None or not r.outputs(apex[1], p)[r.key("gap", j)] > 0:
                     raise EventLocationError(float(t[i]), X[i], f"contact {j}, left at {t0:.9g} s, returns "
                                              f"before {t[i]:.9g} s, but no time apart is found between: "
@@ -830,13 +865,14 @@ def _first_event(r: _Run, modes, slips, t, X, Y, p):
                 start_t, start_x = apex
         elif not (w(y0) > 0 and not w(y1) > 0):
             continue
-        found = events.locate(r.model, r.s, None, p, start_t, start_x, float(t[i]), w)
+        found = events.locate(r.model, r.s, r.sched, p, start_t, start_x, float(t[i]), w)
         if found is None:
             raise EventLocationError(float(t[i]), X[i], f"the {name} witness of contact {j} changes sign "
                                      f"between the outputs at {t[i - 1]:.9g} and {t[i]:.9g} s, but "
                                      "integrating again does not find where: give a denser t_eval or "
                                      "tighter tolerances", r.model.state_names)
         tc, xc = found
+        r.t = tc
         if best is None or tc < best[1]:
             best = (i, tc, xc, name, j, float(w(r.outputs(xc, p))))
     return best
