@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.errors import ChatteringError, PainleveError
+from grasping_sym.errors import ChatteringError, InvalidSceneError, PainleveError
 from grasping_sym.geometry import surface_library
 from grasping_sym.runtime import modes
 
@@ -251,3 +251,22 @@ def test_a_sweep_over_mu_finds_the_incline_threshold(tmp_path):
                   measures=["max:slip_speed"], progress=False)
     slides, rolls = ds["max_slip_speed"].values          # threshold tan(0.3) / 3.5 = 0.088
     assert slides > 0.01 and rolls < 1e-9
+
+
+def test_a_ball_on_a_rising_conveyor_slides_then_rolls_at_two_sevenths_of_the_belt():
+    """A driven plane (``plane_motion``: a belt at V along y, rising with acceleration a): the
+    ball at rest slides, friction mu m (g + a) brings its contact to the belt's speed at
+    t* = 2 V / (7 mu (g + a)), then it rolls at (2/7) V along the belt and rises with it; the
+    normal force is m (g + a) throughout (closed forms, MODELS.md section 5's sphere)."""
+    V, mu, g, r, a, mass = 0.2, 0.3, 9.81, 0.05, 2.0, 0.1
+    scene = gs.scenes.sphere_on_incline(radius=r, mass=mass, incline=0.0, name="lift",
+                                        friction=gs.contact.coulomb(mu),
+                                        plane_motion=(0, f"{V}*t", f"{a / 2}*t**2"))
+    res = gs.build(scene).simulate(0.05, t_eval=np.linspace(0.0, 0.05, 51), rtol=1e-10, atol=1e-12)
+    assert res.modes[0] == "sliding" and res.modes[-1] == "rolling"
+    assert [(e["from"], e["to"]) for e in res.events] == [("sliding", "rolling")]
+    assert abs(res.events[0]["t"] - 2 * V / (7 * mu * (g + a))) < 1e-9
+    assert abs(res.x[-1, 8] - 2 * V / 7) < 1e-9 and abs(res.x[-1, 9] - a * 0.05) < 1e-9
+    assert np.max(np.abs(res["normal_force"] - mass * (g + a))) < 1e-9
+    with pytest.raises(InvalidSceneError, match="not 0 at t = 0"):
+        gs.scenes.sphere_on_incline(plane_motion=(0, "1 + t", 0))

@@ -203,7 +203,7 @@ def body_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     d = derive_body_plane(scene)
     t1 = time.perf_counter()
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
-                  scene.name, jacobian=True)
+                  scene.name, jacobian=True, t=d["t"], outputs_time=d["reads_time"])
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
 
 

@@ -27,9 +27,12 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from grasping_sym.derive.bodies3d import object_rotation, quaternion_of, surface_sx
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.model.body import TIME
+from grasping_sym.symbolic.translate import SympyToCasadi
 
 #: Floor of ``|v_t|`` (m/s) in the slip's direction ``v_t / |v_t|`` (used only where
 #: ``v_t . slip > 0``).
@@ -40,6 +43,7 @@ def derive_body_plane(scene) -> dict:
     """``{"x", "p", "xdot", "outputs", "constraint"}`` of a ``model.body.BodyScene``."""
     x = ca.SX.sym("x", 15)
     p = ca.SX.sym("p", len(scene.p_names))
+    t = ca.SX.sym("t")
     mode, mu, slip = p[0], p[1], p[2:5]
     pos, quat, vel, om, uv = x[0:3], x[3:7], x[7:10], x[10:13], x[13:15]
     m = float(scene.mass)
@@ -64,6 +68,13 @@ def derive_body_plane(scene) -> dict:
     if spin:  # a turntable: the plane turns about its normal through w0 at spin rad/s
         W = spin * n
         v_c = v_c - ca.cross(W, r_c - w0)   # relative to the plane's material point
+    moving = scene.plane_motion is not None
+    if moving:  # a translating plane: its point, velocity and acceleration at t
+        d = SympyToCasadi({TIME: t})(sp.Matrix(scene.plane_motion))
+        w0 = w0 + d
+        d_dot = ca.jacobian(d, t)
+        d_ddot = ca.jacobian(d_dot, t)
+        v_c = v_c - d_dot   # relative to the plane's material point
     gap = ca.dot(n, r_c - w0)
     vn = ca.dot(n, v_c)
     v_t = v_c - vn * n
@@ -75,6 +86,8 @@ def derive_body_plane(scene) -> dict:
         + R @ ca.cross(om, Tm @ uv_dot)
     if spin:  # minus the plane's velocity's rate along the moving contact point
         acc = acc - ca.cross(W, vel + R @ ca.cross(om, S) + R @ (Tm @ uv_dot))
+    if moving:  # minus the plane's acceleration (a translation: the same at every point)
+        acc = acc - d_ddot
     K = ca.jacobian(acc, F)
     b = ca.substitute(acc, F, ca.DM.zeros(3))
 
@@ -119,7 +132,7 @@ def derive_body_plane(scene) -> dict:
     for i in range(3):
         for j in range(3):
             out[f"K_{i}{j}"] = K[i, j]
-    return {"x": x, "p": p, "xdot": xdot, "outputs": out}
+    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": moving}
 
 
 def start_state(scene) -> tuple[np.ndarray, dict]:
@@ -133,8 +146,10 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
     om = np.asarray(scene.omega, float)
     vel = np.asarray(scene.velocity, float)
     if scene.start == "contact":
+        v_plane = np.zeros(3) if scene.plane_motion is None else np.array(
+            [float(sp.diff(e, TIME).subs(TIME, 0)) for e in scene.plane_motion])
         pos = pos - np.dot(n, pos + R0 @ S0 - np.asarray(scene.plane_point)) * n
-        vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0)) * n
+        vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0) - v_plane) * n
     x0 = np.concatenate([pos, quaternion_of(R0), vel, om, uv0])
     return x0, {"support": [float(v) for v in uv0]}
 

@@ -21,12 +21,16 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+import sympy as sp
 
 from grasping_sym.contact import Coulomb, friction_problems
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.expressions import ExpressionError, to_expression
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.names import name_problems, names_tuple, output_problems
 
+#: The time in ``plane_motion``'s expressions.
+TIME = sp.Symbol("t", real=True)
 #: The contact's modes, by the number the compiled model takes as its parameter ``mode``.
 MODES = ("rolling", "sliding", "separated")
 #: The run-time parameters every body model takes: the mode, the friction coefficient, the
@@ -66,6 +70,9 @@ class BodyScene:
     plane_point: tuple[float, float, float] = (0.0, 0.0, 0.0)
     plane_normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     plane_spin: float = 0.0
+    #: the plane's translation ``d(t)`` (m, world; three expressions of ``t``, text, numbers or
+    #: SymPy with the symbol ``t``; ``d(0) = 0``): a conveyor, a rising or shaking table
+    plane_motion: tuple | None = None
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotation: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
@@ -96,7 +103,15 @@ class BodyScene:
         object.__setattr__(self, "inertia", tuple(map(tuple, H.tolist())))
         object.__setattr__(self, "rotation", tuple(map(tuple, np.asarray(self.rotation, float).tolist())))
         object.__setattr__(self, "outputs", names_tuple(self.outputs))
-        problems = self._problems()
+        motion_problems = []
+        if self.plane_motion is not None:
+            try:
+                motion = tuple(to_expression(e, {"t": TIME}, "plane_motion") for e in self.plane_motion)
+            except (ExpressionError, TypeError) as exc:
+                motion, motion_problems = None, [str(exc)]
+            if motion is not None:
+                object.__setattr__(self, "plane_motion", motion)
+        problems = motion_problems + self._problems()
         if problems:
             raise InvalidSceneError(problems)
 
@@ -126,6 +141,14 @@ class BodyScene:
                      "'as given' (where position says, e.g. above the plane)")
         if not _number(self.plane_spin):
             p.append(f"plane_spin = {self.plane_spin!r} must be a finite number (rad/s; 0: a fixed plane)")
+        if self.plane_motion is not None and all(isinstance(e, sp.Basic) for e in self.plane_motion):
+            m = self.plane_motion
+            if len(m) != 3 or any(e.free_symbols - {TIME} for e in m):
+                p.append(f"plane_motion = {m}: give three expressions of t alone (m)")
+            elif any(abs(float(e.subs(TIME, 0))) > 1e-15 for e in m):
+                p.append(f"plane_motion = {m} is not 0 at t = 0: the plane starts at plane_point")
+            elif self.plane_spin:
+                p.append("plane_motion and plane_spin together are not built: a plane translates or turns")
         if not (_number(self.gain) and self.gain > 0):
             p.append(f"gain = {self.gain!r} must be a finite number > 0 (1/s)")
         if self.controller is not None or self.inputs is not None:
@@ -161,7 +184,9 @@ class BodyScene:
         return "\n".join(["body-v1", self.name, self.surface.key(), repr(self.mass),
                           repr(self.inertia), repr(self.plane_point), repr(self.plane_normal),
                           repr(self.gravity), repr(self.gain), ",".join(self.outputs),
-                          f"spin={self.plane_spin!r}"])
+                          f"spin={self.plane_spin!r}",
+                          *([] if self.plane_motion is None
+                            else [f"motion={tuple(map(sp.srepr, self.plane_motion))}"])])
 
     def key(self) -> str:
         return "\n".join([self.code_key(), repr(self.position), repr(self.rotation),

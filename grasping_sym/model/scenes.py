@@ -184,6 +184,7 @@ BUILTIN.update({"paper3d": paper3d, "pivot3d": pivot3d})
 def body_on_plane(surface, *, mass: float, inertia, name: str = "body", **kwargs) -> "BodyScene":
     """A free rigid body with ``surface`` (body frame, centre of mass at its origin) on a fixed
     plane of the world (``model.body.BodyScene``: ``plane_point``, ``plane_normal``,
+    ``plane_spin`` (a turntable), ``plane_motion`` (a translation of time: a conveyor, a lift),
     ``gravity``, the start ``position``, ``rotation``, ``velocity``, ``omega``, ``support``,
     ``start``, ``gain``, ``friction``)."""
     return BodyScene(name=name, surface=surface, mass=mass, inertia=inertia, **kwargs)

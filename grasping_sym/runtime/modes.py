@@ -47,6 +47,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import events, failures, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
+from grasping_sym.runtime.parameters import complete
 from grasping_sym.runtime.result import SimulationResult
 
 ROLLING, SLIDING, SEPARATED = 0, 1, 2
@@ -158,7 +159,11 @@ class _Run:
         """Every output at ``x`` with ``p``, the inputs at ``self.t``."""
         if self.sched is not None:
             p = self.model.with_inputs(p, self.sched(self.t))
-        return outputs_.at(self.model, x, p)
+        if not self.model.columns:
+            return {}
+        timed = bool(self.model.manifest.get("outputs_time"))
+        y = outputs_.row(self.model, x, complete(self.model, p), self.t if timed else None)
+        return dict(zip(self.model.columns, map(float, y)))
 
     def with_mode(self, x, modes, slips, j: int, mode: int, slip=None) -> dict[str, float]:
         """The outputs at ``x`` with contact ``j`` in ``mode`` (the others as they are)."""
@@ -725,7 +730,10 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     outs = {}
     if s.outputs:
         P_all = np.concatenate(rows_p)
-        Y = np.array([outputs_.row(model, x, pp if r.sched is None else model.with_inputs(pp, r.sched(tt)))
+        timed = bool(model.manifest.get("outputs_time"))
+        Y = np.array([outputs_.row(model, x, complete(model, pp if r.sched is None else
+                                                       model.with_inputs(pp, r.sched(tt))),
+                                   tt if timed else None)
                       for tt, x, pp in zip(t_all, X_all, P_all)]) if len(X_all) \
             else np.zeros((0, len(model.columns)))
         outs = {k: Y[:, i].copy() for i, k in enumerate(model.columns) if k in model.output_names}
