@@ -24,11 +24,14 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from grasping_sym.derive.bodies3d import bodies, surface_sx
 from grasping_sym.derive.grasp3d import REGULAR
 from grasping_sym.derive.loop3d import applied_forces, contacts, dynamics, split_torques
 from grasping_sym.derive.loop3d import outputs as loop_outputs
+from grasping_sym.model.body import TIME
+from grasping_sym.symbolic.translate import SympyToCasadi
 
 #: 1/s: the rate at which sliding and separated contact coordinates return to the common
 #: normal (its conditions are invariants of their law; this only damps round-off).
@@ -97,7 +100,11 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         v_c = (b.vel if base.free else 0) + b.R @ ca.cross(b.om, sd["S"])
         J = ca.jacobian(v_c, V)
         t1, t2 = _tangents(np.asarray(w.normal))
-        plane_rows.append((-ca.dot(n, r_c - ca.DM(w.point)), -(n.T @ J), -(ca.DM(t1).T @ J), -(ca.DM(t2).T @ J)))
+        # a driven plane: its point w0 + d(t), its material's velocity d'(t)
+        d = ca.SX.zeros(3) if w.motion is None else SympyToCasadi({TIME: t})(sp.Matrix(w.motion))
+        d_dot = ca.jacobian(d, t)
+        plane_rows.append((-ca.dot(n, r_c - ca.DM(w.point) - d), -(n.T @ J), -(ca.DM(t1).T @ J),
+                           -(ca.DM(t2).T @ J), ca.vertcat(n.T @ d_dot, ca.DM(t1).T @ d_dot, ca.DM(t2).T @ d_dot)))
     z = ca.vertcat(b.zb, *b.etas, *uvs)
     zdot = ca.vertcat(b.zb_dot, *eta_rates, *uv_rates)
     # every row: its position value (0: a velocity-level row), its rate, its Jacobian A
@@ -105,15 +112,19 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     C_rows = [C_f[r] for r in range(3 * kf)]
     Cdot_rows = [ca.jtimes(C_f[r], z, zdot) for r in range(3 * kf)]
     A_rows = [A_f[r, :] for r in range(3 * kf)]
-    for gap_c, An, At1, At2 in plane_rows:
+    #: each row's velocity relative to a driven plane is ``A_r V + drift_r(t)``
+    drift_rows = [ca.SX(0)] * (3 * kf)
+    for gap_c, An, At1, At2, drift in plane_rows:
         C_rows += [gap_c, ca.SX(0), ca.SX(0)]
-        Cdot_rows += [ca.jtimes(gap_c, z, zdot), At1 @ V, At2 @ V]
+        Cdot_rows += [ca.jtimes(gap_c, z, zdot) + ca.jacobian(gap_c, t), At1 @ V + drift[1], At2 @ V + drift[2]]
         A_rows += [An, At1, At2]
+        drift_rows += [drift[0], drift[1], drift[2]]
     C = ca.vertcat(*C_rows)
     Cdot = ca.vertcat(*Cdot_rows)
     A = ca.vertcat(*A_rows)
+    drift_v = ca.vertcat(*drift_rows)
     Ahat = ca.jacobian(Cdot, V)
-    bhat = ca.jtimes(Cdot, z, zdot)
+    bhat = ca.jtimes(Cdot, z, zdot) + ca.jacobian(Cdot, t)
 
     free = ca.solve(M, tau - h)
     MinvAT = ca.solve(M, A.T)
@@ -122,7 +133,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     rows, rhs, vts, ds = [], [], [], []
     for i in range(k):
         r = 3 * i
-        vt = A[r + 1:r + 3, :] @ V
+        vt = A[r + 1:r + 3, :] @ V + drift_v[r + 1:r + 3]
         speed = ca.norm_2(vt)
         d = ca.if_else(ca.dot(vt, slips[i]) > SLIP_START, vt / ca.fmax(speed, SLIP_ZERO), slips[i])
         vts.append(vt)
@@ -160,14 +171,15 @@ def derive_grasp3d_modes(scene, torques) -> dict:
             f"vt_x{tag}": vts[i][0], f"vt_y{tag}": vts[i][1], f"slip_speed{tag}": ca.norm_2(vts[i]),
             f"painleve{tag}": Ahat[r, :] @ own,
             f"at_x{tag}": ca.jtimes(vts[i][0], x, xdot), f"at_y{tag}": ca.jtimes(vts[i][1], x, xdot),
-            f"vn_fixed{tag}": A[r, :] @ V,
+            f"vn_fixed{tag}": A[r, :] @ V + drift_v[r],
         })
     for r in range(n3):
         for c_ in range(r, n3):
             out[f"W_{r}_{c_}"] = W[r, c_]
         for j in range(V.numel()):
             out[f"MinvAT_{j}_{r}"] = MinvAT[j, r]
-    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": timed}
+    moving = any(w.motion is not None for w in scene.planes)
+    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": timed or moving}
 
 
 def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

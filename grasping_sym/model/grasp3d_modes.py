@@ -15,8 +15,11 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+import sympy as sp
 
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.expressions import ExpressionError, to_expression
+from grasping_sym.model.body import TIME
 from grasping_sym.model.grasp3d import GraspScene3D
 from grasping_sym.model.with_modes import WithModes
 
@@ -32,6 +35,8 @@ class WorldPlane:
     point: tuple[float, float, float]
     normal: tuple[float, float, float]
     support: tuple[float, float] = (0.0, 0.0)
+    #: the plane's translation ``d(t)`` (as ``model.body.BodyScene.plane_motion``); None: fixed
+    motion: tuple | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "point", tuple(float(v) for v in np.ravel(self.point)))
@@ -44,6 +49,18 @@ class WorldPlane:
             p.append(f"plane normal {self.normal} must be a unit vector (to 1e-12)")
         if len(self.support) != 2 or not all(math.isfinite(v) for v in self.support):
             p.append(f"support {self.support} must be two finite numbers (a guess of (u, v))")
+        if self.motion is not None:
+            try:
+                m = tuple(to_expression(e, {"t": TIME}, "plane motion") for e in self.motion)
+            except (ExpressionError, TypeError) as exc:
+                m = None
+                p.append(str(exc))
+            if m is not None:
+                object.__setattr__(self, "motion", m)
+                if len(m) != 3 or any(e.free_symbols - {TIME} for e in m):
+                    p.append(f"plane motion {m}: give three expressions of t alone (m)")
+                elif any(abs(float(e.subs(TIME, 0))) > 1e-15 for e in m):
+                    p.append(f"plane motion {m} is not 0 at t = 0: the plane starts at its point")
         if p:
             raise InvalidSceneError(p)
 
@@ -150,7 +167,8 @@ class GraspModesScene(WithModes):
 
     def code_key(self) -> str:
         return "\n".join(["grasp3d-modes-v1", self.base.code_key(),
-                          *[repr((w.point, w.normal)) for w in self.planes]])
+                          *[repr((w.point, w.normal, None if w.motion is None else tuple(map(sp.srepr, w.motion))))
+                            for w in self.planes]])
 
     def key(self) -> str:
         return "\n".join(["grasp3d-modes-v1", self.base.key(),
@@ -159,7 +177,9 @@ class GraspModesScene(WithModes):
     def manifest_extra(self) -> dict:
         """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are."""
         return {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
-                "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers},
+                "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers,
+                                "driven": [self.n_fingers + m for m, w in enumerate(self.planes, start=1)
+                                           if w.motion is not None]},
                 "param_rules": {f"mu{i}": "nonnegative" for i in range(1, self.n_contacts + 1)}}
 
     def bounds(self) -> tuple[list, list]:

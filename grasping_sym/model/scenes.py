@@ -224,8 +224,9 @@ def with_modes(scene, planes=()):
     return PlanarModesScene(scene)
 
 
-def world_plane(point, normal, support=(0.0, 0.0)) -> WorldPlane:
-    """A fixed plane of the world through ``point`` with unit ``normal`` (into the free side),
-    for ``with_modes(scene, planes=[...])``; ``support``: a guess of the object's surface
-    coordinates that face it at the start."""
-    return WorldPlane(point, normal, support)
+def world_plane(point, normal, support=(0.0, 0.0), motion=None) -> WorldPlane:
+    """A plane of the world through ``point`` with unit ``normal`` (into the free side), for
+    ``with_modes(scene, planes=[...])``; ``support``: a guess of the object's surface
+    coordinates that face it at the start; ``motion``: its translation ``d(t)`` (three
+    expressions of ``t``, ``d(0) = 0``; None: fixed)."""
+    return WorldPlane(point, normal, support, motion)
