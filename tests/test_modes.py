@@ -268,5 +268,12 @@ def test_a_ball_on_a_rising_conveyor_slides_then_rolls_at_two_sevenths_of_the_be
     assert abs(res.events[0]["t"] - 2 * V / (7 * mu * (g + a))) < 1e-9
     assert abs(res.x[-1, 8] - 2 * V / 7) < 1e-9 and abs(res.x[-1, 9] - a * 0.05) < 1e-9
     assert np.max(np.abs(res["normal_force"] - mass * (g + a))) < 1e-9
-    with pytest.raises(InvalidSceneError, match="not 0 at t = 0"):
-        gs.scenes.sphere_on_incline(plane_motion=(0, "1 + t", 0))
+
+
+@pytest.mark.parametrize("motion, words", [((0, "1 + t", 0), "not 0 at t = 0"), ((0, "x*t", 0), "unknown name 'x'"),
+                                           ((0, "t"), "three expressions of t")])
+def test_a_bad_plane_motion_is_refused_by_name(motion, words):
+    with pytest.raises(InvalidSceneError, match=words):
+        gs.scenes.sphere_on_incline(plane_motion=motion)
+    with pytest.raises(InvalidSceneError, match=words):
+        gs.scenes.world_plane((0, 0, 0), (0, 1, 0), motion=motion)

@@ -103,14 +103,8 @@ class BodyScene:
         object.__setattr__(self, "inertia", tuple(map(tuple, H.tolist())))
         object.__setattr__(self, "rotation", tuple(map(tuple, np.asarray(self.rotation, float).tolist())))
         object.__setattr__(self, "outputs", names_tuple(self.outputs))
-        motion_problems = []
-        if self.plane_motion is not None:
-            try:
-                motion = tuple(to_expression(e, {"t": TIME}, "plane_motion") for e in self.plane_motion)
-            except (ExpressionError, TypeError) as exc:
-                motion, motion_problems = None, [str(exc)]
-            if motion is not None:
-                object.__setattr__(self, "plane_motion", motion)
+        motion, motion_problems = translation_of_time(self.plane_motion, "plane_motion")
+        object.__setattr__(self, "plane_motion", motion)
         problems = motion_problems + self._problems()
         if problems:
             raise InvalidSceneError(problems)
@@ -141,14 +135,8 @@ class BodyScene:
                      "'as given' (where position says, e.g. above the plane)")
         if not _number(self.plane_spin):
             p.append(f"plane_spin = {self.plane_spin!r} must be a finite number (rad/s; 0: a fixed plane)")
-        if self.plane_motion is not None and all(isinstance(e, sp.Basic) for e in self.plane_motion):
-            m = self.plane_motion
-            if len(m) != 3 or any(e.free_symbols - {TIME} for e in m):
-                p.append(f"plane_motion = {m}: give three expressions of t alone (m)")
-            elif any(abs(float(e.subs(TIME, 0))) > 1e-15 for e in m):
-                p.append(f"plane_motion = {m} is not 0 at t = 0: the plane starts at plane_point")
-            elif self.plane_spin:
-                p.append("plane_motion and plane_spin together are not built: a plane translates or turns")
+        if self.plane_motion is not None and self.plane_spin:
+            p.append("plane_motion and plane_spin together are not built: a plane translates or turns")
         if not (_number(self.gain) and self.gain > 0):
             p.append(f"gain = {self.gain!r} must be a finite number > 0 (1/s)")
         if self.controller is not None or self.inputs is not None:
@@ -205,3 +193,23 @@ class BodyScene:
         (u0, u1), (v0, v1) = self.surface.domain
         lower[13], upper[13], lower[14], upper[14] = u0, u1, v0, v1
         return lower, upper
+
+
+def translation_of_time(value, what: str) -> tuple[tuple | None, list[str]]:
+    """``(d, problems)``: a plane's translation ``value`` (None, or three expressions of ``t``:
+    text, numbers or SymPy with the symbol ``t``) as SymPy expressions, and what is wrong with
+    it (not three expressions of ``t`` alone, or not 0 at ``t = 0``: the plane starts where its
+    point is)."""
+    if value is None:
+        return None, []
+    try:
+        d = tuple(to_expression(e, {"t": TIME}, what) for e in value)
+    except (ExpressionError, TypeError) as exc:
+        return None, [str(exc)]
+    # a SymPy t of the user's (any assumptions) is the time
+    d = tuple(e.subs({s: TIME for s in e.free_symbols if s.name == "t"}) for e in d)
+    if len(d) != 3 or any(e.free_symbols - {TIME} for e in d):
+        return None, [f"{what} = {d}: give three expressions of t alone (m)"]
+    if any(abs(float(e.subs(TIME, 0))) > 1e-15 for e in d):
+        return None, [f"{what} = {d} is not 0 at t = 0: the plane starts at its point"]
+    return d, []

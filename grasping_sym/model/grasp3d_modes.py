@@ -18,8 +18,7 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym.errors import InvalidSceneError
-from grasping_sym.geometry.expressions import ExpressionError, to_expression
-from grasping_sym.model.body import TIME
+from grasping_sym.model.body import translation_of_time
 from grasping_sym.model.grasp3d import GraspScene3D
 from grasping_sym.model.with_modes import WithModes
 
@@ -49,18 +48,9 @@ class WorldPlane:
             p.append(f"plane normal {self.normal} must be a unit vector (to 1e-12)")
         if len(self.support) != 2 or not all(math.isfinite(v) for v in self.support):
             p.append(f"support {self.support} must be two finite numbers (a guess of (u, v))")
-        if self.motion is not None:
-            try:
-                m = tuple(to_expression(e, {"t": TIME}, "plane motion") for e in self.motion)
-            except (ExpressionError, TypeError) as exc:
-                m = None
-                p.append(str(exc))
-            if m is not None:
-                object.__setattr__(self, "motion", m)
-                if len(m) != 3 or any(e.free_symbols - {TIME} for e in m):
-                    p.append(f"plane motion {m}: give three expressions of t alone (m)")
-                elif any(abs(float(e.subs(TIME, 0))) > 1e-15 for e in m):
-                    p.append(f"plane motion {m} is not 0 at t = 0: the plane starts at its point")
+        motion, problems = translation_of_time(self.motion, "plane motion")
+        object.__setattr__(self, "motion", motion)
+        p += problems
         if p:
             raise InvalidSceneError(p)
 
