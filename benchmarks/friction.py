@@ -22,11 +22,13 @@ from __future__ import annotations
 import json
 import platform
 from pathlib import Path
+from time import perf_counter
 
 import numpy as np
 
 import grasping_sym as gs
 from benchmarks.timing import best_per_call
+from grasping_sym.geometry import surface_library
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -99,10 +101,6 @@ def ensembles(n: int = 2000) -> dict:
 def finger_modes() -> dict:
     """paper2d with modes at mu = 0.2 (slips, sticks again) and paper3d's grasp over a table at
     mu = 0.08 (slips, lets go, lands), 0.25 s each, against the rolling model's run."""
-    from time import perf_counter
-
-    from grasping_sym.geometry import surface_library
-
     out = {}
     ellipsoid = surface_library.ellipsoid(0.020, 0.025, 0.030, lon=(-2.5, 4.0), name="object ellipsoid")
     table = gs.scenes.world_plane((0, -0.01, 0), (0, 1, 0), support=(-1.5708, 0.0))

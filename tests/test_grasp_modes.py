@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.integrate import simpson
 
 import grasping_sym as gs
 from grasping_sym.assemble import kinds
@@ -92,7 +93,6 @@ def test_coulomb_law_while_sliding(slide):
 def test_a_slide_loses_what_friction_dissipates(slide):
     """d(K + V)/dt = the joints' power and the spin friction's (``power``) minus what Coulomb
     friction takes, sum_i F_t,i . v_t,i, integrated by Simpson's rule along the slide."""
-    from scipy.integrate import simpson
 
     opened = min(e["t"] for e in slide.events if e["to"] == "separated")
     rows = (slide.t > slide.events[0]["t"]) & (slide.t < opened)

@@ -10,6 +10,8 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
+from scipy.integrate import simpson
+from scipy.optimize import minimize
 
 import grasping_sym as gs
 from grasping_sym.errors import FrictionConeError, InvalidSceneError, RunArgumentError
@@ -116,7 +118,6 @@ def test_slip_starts_where_the_rolling_model_leaves_its_cone(base, rolling, slid
 def test_a_slide_loses_what_friction_dissipates(slide):
     """Energy balance along the slide: d(K + V)/dt = the joints' power - lam v_t (the normal
     force does no work on a closed contact), integrated by Simpson's rule over the output grid."""
-    from scipy.integrate import simpson
 
     rows = np.flatnonzero(slide.modes == "sliding")
     rows = rows[(rows > rows[0]) & (rows < rows[-1])]  # whole samples inside the slide
@@ -151,7 +152,6 @@ def drop(base, model):
 def test_gap_is_the_distance_between_the_contours(base, drop):
     """Apart, ``gap`` is the shortest distance between the two contours: found here by sampling
     both and refining, independently of the model's common-normal points."""
-    from scipy.optimize import minimize
 
     rows = np.flatnonzero(drop.modes == "separated")[::20]
     assert len(rows) >= 3
