@@ -215,15 +215,15 @@ class _Run:
         for j in self.contacts:
             mode, mu = modes[j - 1], self.mus[j - 1]
             fk = self.key("normal_force", j)
-            lift = (fk, j, lambda y, fk=fk: y[fk])
+            force = lambda y, fk=fk: y[fk]  # noqa: E731 - one witness, two modes
             if mode == ROLLING:
                 tk = self.key("tangential_force", j)
                 if mu != math.inf:  # no friction limit: no cone to leave
                     out.append(("cone", j, lambda y, fk=fk, tk=tk, mu=mu: mu * y[fk] - y[tk]))
-                out.append(("normal_force", j, lift[2]))
+                out.append(("normal_force", j, force))
             elif mode == SLIDING:
                 pk = self.key("painleve", j)
-                out += [("normal_force", j, lift[2]),
+                out += [("normal_force", j, force),
                         ("slip", j, self.slip_witness(np.asarray(slips[j - 1], dtype=float), j)),
                         ("painleve", j, lambda y, pk=pk: y[pk])]
         return out
@@ -520,12 +520,12 @@ class _GraspRun(_Run):
         x[self.v0:self.v0 + self.nv] -= B @ P
         return x
 
-    def _impulse(self, t, x, y, modes, j: int, target_j: np.ndarray, slide_j=None):
+    def _impulse(self, y, modes, j: int, target_j: np.ndarray, slide_j=None):
         """The impulses of an impact (or a stop) at contact ``j``: ``j``'s rows reach
         ``target_j`` (normal, and tangential unless ``slide_j``, a direction on its cone's
         edge), every other rolling contact is held (its velocity stays 0), every other sliding
         contact keeps its normal speed 0 with its tangential impulse on its cone's edge against
-        its slip. Returns ``(P over every row, rows solved)``."""
+        its slip. Returns ``(P over every row, W, J V)``."""
         n3 = 3 * self.k
         W, JV = self._W(y), self._JV(y)
         cols, eqs, rhs = [], [], []
@@ -580,7 +580,7 @@ class _GraspRun(_Run):
 
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float]:
         """Contact ``j``'s velocity set to 0, the other closed contacts as at an impact."""
-        P, W, JV = self._impulse(0.0, x, y, modes, j, np.zeros(3))
+        P, W, JV = self._impulse(y, modes, j, np.zeros(3))
         return self._apply(x, y, list(range(3 * self.k)), P), float(np.max(np.abs(JV[self._rows(j)])))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float, bool, bool]:
@@ -594,18 +594,18 @@ class _GraspRun(_Run):
         vn = float(JV[rows[0]])
         e = self.e if vn > REST_SPEED else 0.0
         target = np.array([-e * vn, 0.0, 0.0])
-        P, W, JV = self._impulse(t, x, y, modes, j, target)
+        P, W, JV = self._impulse(y, modes, j, target)
         stuck = bool(np.linalg.norm(P[rows[1:]]) <= mu * P[rows[0]])
         if not stuck:
             vt = JV[rows[1:]]
             pt = P[rows[1:]]
             d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
             def slip_left(d):  # Moreau: the impulse opposes the slip it leaves
-                P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
+                P, W, JV = self._impulse(y, modes, j, target, slide_j=d)
                 return (JV - W @ P)[rows[1:]], SLIP_SPEED
 
             d = _direction(d, slip_left, MOREAU_ITERATIONS)
-            P, W, JV = self._impulse(t, x, y, modes, j, target, slide_j=d)
+            P, W, JV = self._impulse(y, modes, j, target, slide_j=d)
             after_vt = (JV - W @ P)[rows[1:]]
             if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
                 raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no impulse on "
