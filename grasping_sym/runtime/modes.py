@@ -4,8 +4,9 @@ A model with modes (a body on a plane, ``model.body``; the manifest's ``modes``)
 once with its mode a run-time parameter (0 rolling, 1 sliding, 2 separated) and the slip
 direction at the start of a slide (``slip_x``, ``slip_y``, ``slip_z``). A run integrates one
 segment per mode by the run's C loop (``METHODS``: radau, dopri5, dop853); along each segment
-the mode's witnesses are watched at the output samples and the first sign change is located
-between the samples by integrating again (``runtime.events``), where the run switches
+the mode's witnesses are watched at the output samples and at least every ``WATCH_DT`` s
+between them (so a sparse ``t_eval`` misses no switch that lasts longer), and the first sign
+change is located between the samples by integrating again (``runtime.events``), where the run switches
 (``docs/conventions.md`` section 7):
 
 - rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
@@ -71,6 +72,10 @@ MOREAU_ITERATIONS = 100
 #: An impact slower than this (m/s, normal approach) is plastic whatever ``e``: the bounces
 #: of a body coming to rest would otherwise accumulate (Zeno).
 REST_SPEED = 1e-3
+#: s, the longest interval between two samples at which the witnesses are watched, whatever
+#: ``t_eval`` (the samples added for it are not reported): a sign change and its return
+#: within it can be missed, one that lasts longer cannot.
+WATCH_DT = 1e-3
 
 
 def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
@@ -690,7 +695,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         for j in r.contacts:
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
                 _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
-        grid = np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]])
+        grid = _watched(np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]]))
         if len(grid) < 2:
             break
         t, X, st, failure = _segment(r, x_now, grid, p)
@@ -749,6 +754,15 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
+
+
+def _watched(grid: np.ndarray) -> np.ndarray:
+    """``grid`` with samples added so that no interval is longer than ``WATCH_DT``."""
+    if len(grid) < 2:
+        return grid
+    n = np.maximum(np.ceil(np.diff(grid) / WATCH_DT * (1 - 1e-9)).astype(int), 1)  # 1 ms: no split
+    parts = [np.linspace(a, b, k, endpoint=False) for a, b, k in zip(grid[:-1], grid[1:], n)]
+    return np.concatenate([*parts, grid[-1:]])
 
 
 def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
