@@ -12,6 +12,8 @@ import grasping_sym as gs
 from grasping_sym.assemble import kinds
 from grasping_sym.errors import FrictionConeError, InvalidSceneError
 from grasping_sym.geometry import surface_library
+from grasping_sym.model import chains
+from grasping_sym.model.grasp3d import Finger3D
 from grasping_sym.runtime.modes import rotation
 
 TOL = {"rtol": 1e-9, "atol": 1e-11}
@@ -188,3 +190,64 @@ def test_a_rising_table_meets_the_held_object(base):
     assert abs(exact(at.t[-1], at.x[-1])) < 1e-9
     after = r.t > hit[0]["t"]
     assert (r.modes[after, 2] != "separated").all() and np.max(np.abs(r["normal_speed3"][after])) < 1e-9
+
+
+def _pressing_finger(offset: float):
+    """``chains.finger1`` pressing a ball of radius 0.02 m from above, its fingertip centre
+    ``offset`` m beside the top; the ball 0.5 mm above a table at y = 0."""
+    R, r, link = 0.02, 0.010, 0.065
+    centre = np.array([-0.05, R + 0.0005, 0.0])
+    d = centre + (offset, R + r, 0.0) - np.array([-0.1275, 0.0, 0.0])
+    q2 = np.arccos((d @ d - 2 * link**2) / (2 * link**2))
+    q1 = np.arctan2(d[0], d[1]) - q2 / 2
+    return centre, Finger3D(chain=chains.finger1(), tip=surface_library.sphere(r, name="fingertip"),
+                            q0=(q1, q2), tip_contact=(q1 + q2 - np.pi, 0.0), object_contact=(np.pi / 2, 0.0))
+
+
+def test_one_finger_presses_a_free_ball_onto_a_table():
+    """One finger and a table hold a free ball (issue 27 part 5). The finger, 4 mm beside the
+    ball's top, presses it toward the ball's given centre ``a`` (controllers.paper3d with one
+    finger on a free object); the ball falls 0.5 mm, lands, rolls under the finger and comes to
+    rest. The statics at rest are solved here from the joint angles and the ball's centre alone:
+    the unknown finger force ``F`` (on the finger, at the contact point ``p``) and the table's
+    friction ``T`` and normal force ``N`` satisfy the finger's joints,
+    ``J^T F - ((p - r_tip) x F)_z (1, 1) = J^T (fd / r_ctrl)(r_tip - a)`` (its weight held, the
+    axes -z), and the ball's forces and moment: 5 equations for 4 unknowns, consistent to
+    round-off, and equal to the model's multipliers. The landing is found wherever the outputs
+    are asked (a sparse t_eval once let the ball fall through the table)."""
+    R, r, link, m, g, fd, r_ctrl = 0.02, 0.010, 0.065, 0.04, 9.81, 0.5, 0.010
+    a, finger = _pressing_finger(0.004)
+    scene = gs.scenes.paper3d(name="press", fingers=(finger,), mass=m, inertia=np.eye(3) * 0.4 * m * R * R,
+                              object_surface=surface_library.ellipsoid(R, R, R, lon=(-2.5, 4.0), name="ball"),
+                              rotation=np.eye(3), position=tuple(a), k_center=0.0, dq0=None, outputs=())
+    with pytest.raises(InvalidSceneError, match="needs a surface of the world"):
+        gs.build(scene)
+    table = gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0))
+    model = gs.build(gs.scenes.with_modes(scene, planes=[table]))
+    res = model.simulate(1.0, mu=0.8, t_eval=np.linspace(0.0, 1.0, 21), **TOL)
+    sparse = model.simulate(1.0, mu=0.8, t_eval=np.linspace(0.0, 1.0, 3), **TOL)
+    assert [(e["contact"], e["from"], e["to"]) for e in res.events] == [(2, "separated", "rolling")]
+    assert abs(sparse.events[0]["t"] - res.events[0]["t"]) < 1e-12
+    assert np.max(np.abs(sparse.x[-1] - res.x[-1])) < 1e-9
+    y = {k: v[-1] for k, v in res.outputs.items()}
+    assert y["object_speed"] < 1e-6 and y["object_angular_speed"] < 1e-4  # at rest
+    q1, q12 = res["q11"][-1], res["q11"][-1] + res["q12"][-1]
+    tip = np.array([-0.1275 + link * (np.sin(q1) + np.sin(q12)), link * (np.cos(q1) + np.cos(q12))])
+    J = link * np.array([[np.cos(q1) + np.cos(q12), np.cos(q12)], [-np.sin(q1) - np.sin(q12), -np.sin(q12)]])
+    c = np.array([res["x"][-1], res["y"][-1]])
+    lever = r * (c - tip) / np.linalg.norm(c - tip)      # p - r_tip
+    pull = fd / r_ctrl * (tip - a[:2])
+    # unknowns (F_x, F_y, T, N): finger joints (2), ball forces (2), ball moment about c (1)
+    A = np.array([[J[0, 0] + lever[1], J[1, 0] - lever[0], 0, 0],
+                  [J[0, 1] + lever[1], J[1, 1] - lever[0], 0, 0],
+                  [-1, 0, 1, 0], [0, -1, 0, 1],
+                  [(tip + lever - c)[1], -(tip + lever - c)[0], R, 0]])
+    b = np.array([*(J.T @ pull), 0.0, m * g, 0.0])
+    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
+    assert np.linalg.norm(A @ sol - b) < 1e-7 * np.linalg.norm(b)
+    F, T, N = sol[:2], sol[2], sol[3]
+    assert abs(T) > 0.03  # the ball rolled to a rest where friction works
+    assert y["f2"] == pytest.approx(N, rel=1e-7)
+    assert y["tangential_force2"] == pytest.approx(abs(T), rel=1e-6)
+    assert np.hypot(y["f1"], y["tangential_force1"]) == pytest.approx(np.linalg.norm(F), rel=1e-7)
+    assert res["y"][-1] == pytest.approx(R, abs=1e-10) and abs(y["gap2"]) < 1e-10

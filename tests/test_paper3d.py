@@ -212,8 +212,9 @@ def test_invalid_3d_scene_lists_every_problem():
         gs.scenes.paper3d(formulation="frenet", mass=-1.0, outputs=("f3",))
     msg = str(info.value)
     assert "formulation 'frenet'" in msg and "mass" in msg and "'f3'" in msg
-    with pytest.raises(InvalidSceneError, match="at least two fingers"):
-        gs.scenes.pivot3d(support="free")
+    # one finger on a free object: refused by the rolling build (it needs a surface, with_modes)
+    with pytest.raises(InvalidSceneError, match="needs a surface of the world"):
+        gs.build(gs.scenes.pivot3d(name="one_free", support="free"))
 
 
 def test_model_contains_only_what_the_scene_needs(tmp_path):

@@ -50,6 +50,8 @@ def _planar_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
 
 
 def _grasp3d_functions(scene, progress=None, layers: bool = True):
+    if scene.rolling_problems():
+        raise InvalidSceneError(scene.rolling_problems())
     if layers and scene.formulation == "regular":
         return scene_functions.grasp3d_layered(scene, progress)
     return scene_functions.grasp3d_functions(scene, progress)
@@ -59,6 +61,12 @@ def _grasp3d_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     x0, info = start3d.initial_state(scene)
     values = dict(zip(scene.start_param_names, map(float, info["r_bar0"])))
     return x0, values, {"residual": float(info["residual"]), "iterations": int(info["iterations"])}
+
+
+def _grasp3d_rolling_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    if scene.rolling_problems():
+        raise InvalidSceneError(scene.rolling_problems())
+    return _grasp3d_start(scene)
 
 
 def _grasp3d_templates(scene) -> list[tuple[str, str, object]]:
@@ -110,7 +118,7 @@ KINDS: dict[str, Kind] = {
     "planar": Kind(functions=_planar_functions, solve_start=_planar_start,
                    templates=lambda scene: [],
                    sympy_op_counts=lambda scene: sympy_op_counts(derive_planar(scene))),
-    "grasp3d": Kind(functions=_grasp3d_functions, solve_start=_grasp3d_start,
+    "grasp3d": Kind(functions=_grasp3d_functions, solve_start=_grasp3d_rolling_start,
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),

@@ -11,7 +11,8 @@ parameters, then its start's values, then its inputs' coefficients). A law reads
 - ``m.gravity_torque[i]``: the joint torques that hold finger ``i`` against gravity
   (``dV_i/dq_i``; zero without gravity);
 - ``m.param(name)``: a parameter (a run-time input or its folded value; 3D also ``r_ctrl``,
-  ``rotation0``: the scene's ``rotation``, and ``r_bar0`` when the scene has a centre spring);
+  ``rotation0``: the scene's ``rotation``, ``position0``: a free object's ``position`` as
+  given, and ``r_bar0`` when the scene has a centre spring);
 - object information (recorded in ``m.uses_object`` when read): 2D ``m.theta``,
   ``m.dtheta``; 3D ``m.position``, ``m.velocity``, ``m.rotation`` (body to world),
   ``m.omega`` (body angular velocity), ``m.quaternion``;
@@ -154,6 +155,8 @@ def grasp3d_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, 
     params = {k: p[p_names.index(k)] if k in p_names else ca.SX(v) for k, v in scene.params.items()}
     params["r_ctrl"] = ca.SX(float(scene.r_ctrl))
     params["rotation0"] = ca.SX(ca.DM(np.asarray(scene.rotation, dtype=float)))
+    if scene.free:  # the point one finger presses a free object toward (controllers.paper3d)
+        params["position0"] = ca.SX(ca.DM(np.asarray(scene.position, dtype=float)))
     if scene.start_param_names:
         params["r_bar0"] = ca.vertcat(*[p[p_names.index(k)] for k in scene.start_param_names])
     q, dq, tip, J, grav = [], [], [], [], []

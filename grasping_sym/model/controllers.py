@@ -196,8 +196,10 @@ def paper2d() -> Controller:
 def paper3d() -> Controller:
     """The 3D grasp law (docs/conventions.md section 2), finger ``i`` of ``N``:
     ``tau_i = dP_i/dq_i - c q_i' - J_i^T [(fd / r_ctrl) sum_j (r_i - r_j)
-    + (k_center / N)(r_bar - r_bar0)]`` (one finger on a pivoted object: the pull toward the
-    pivot). No object information."""
+    + (k_center / N)(r_bar - r_bar0)]``. One finger pulls toward a fixed point instead: the
+    pivot of a pivoted object; for a free object (held against a surface of the world,
+    ``with_modes``), the scene's ``position`` (the object's centre as given, before the start
+    is solved). No object information."""
     def paper(m):
         N = len(m.tip)
         fd, c = m.param("fd"), m.param("c")
@@ -205,7 +207,8 @@ def paper3d() -> Controller:
         out = []
         for i, (dq, J, tip, g) in enumerate(zip(m.dq, m.J, m.tip, m.gravity_torque)):
             if N == 1:
-                pull = (fd / m.param("r_ctrl")) * (tip - m.pivot)
+                anchor = m.param("position0") if m.has_param("position0") else m.pivot
+                pull = (fd / m.param("r_ctrl")) * (tip - anchor)
             else:
                 pull = (fd / m.param("r_ctrl")) * sum((tip - m.tip[j] for j in range(N) if j != i),
                                                       0 * tip)

@@ -183,8 +183,6 @@ class GraspScene3D:
         if self.dq0 is not None and len(self.dq0) != sum(f.chain.n for f in self.fingers):
             p.append(f"dq0 has {len(self.dq0)} speeds; the fingers have "
                      f"{sum(f.chain.n for f in self.fingers)} joints")
-        if self.support == "free" and len(self.fingers) < 2:
-            p.append("a free object needs at least two fingers: use support='pivot' with one finger")
         names = [f.chain.name for f in self.fingers]
         if len(set(names)) != len(names):
             p.append(f"finger chains share names {names}: give each a distinct name")
@@ -329,6 +327,16 @@ class GraspScene3D:
             return ("r_bar0_x", "r_bar0_y", "r_bar0_z")
         return ()
 
+
+    def rolling_problems(self) -> list[str]:
+        """What stops this scene's rolling model (kind ``"grasp3d"``, every contact held):
+        one finger alone cannot hold a free object; with a surface of the world it can, as
+        contacts that may slide and let go (``with_modes``)."""
+        if self.free and len(self.fingers) < 2:
+            return ["a free object held by one finger needs a surface of the world to rest on: "
+                    "gs.scenes.with_modes(scene, planes=[gs.scenes.world_plane(point, normal)]); "
+                    "or use support='pivot' with one finger"]
+        return []
 
     # ------------------------------------------------------------------ scene protocol
     #: 3D scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA
