@@ -1,7 +1,9 @@
 """Contact modes of a 3D grasp over a table (model.grasp3d_modes, derive.grasp3d_modes,
 runtime.modes; docs/conventions.md section 9): checked against the rolling model, the rolling
 model's own cone event, Coulomb's law, the energy balance of a slide, a free fall's exact
-motion once both fingers let go, and the ellipsoid's exact distance to the table."""
+motion once both fingers let go, and the ellipsoid's exact distance to the table; one finger
+pressing a free ball onto a table against the statics at rest, and onto a turntable against
+the table's material velocity."""
 from __future__ import annotations
 
 import numpy as np
@@ -192,16 +194,24 @@ def test_a_rising_table_meets_the_held_object(base):
     assert (r.modes[after, 2] != "separated").all() and np.max(np.abs(r["normal_speed3"][after])) < 1e-9
 
 
-def _pressing_finger(offset: float):
-    """``chains.finger1`` pressing a ball of radius 0.02 m from above, its fingertip centre
-    ``offset`` m beside the top; the ball 0.5 mm above a table at y = 0."""
-    R, r, link = 0.02, 0.010, 0.065
+BALL_R, BALL_M = 0.02, 0.04
+
+
+def _pressed_ball(name: str, offset: float):
+    """``(a, scene)``: a free ball (radius 0.02 m, 0.04 kg, given centre ``a`` 0.5 mm above a
+    table at y = 0) pressed from above by ``chains.finger1`` (fingertip sphere 0.010 m), its
+    fingertip centre ``offset`` m beside the ball's top."""
+    R, r, link = BALL_R, 0.010, 0.065
     centre = np.array([-0.05, R + 0.0005, 0.0])
     d = centre + (offset, R + r, 0.0) - np.array([-0.1275, 0.0, 0.0])
     q2 = np.arccos((d @ d - 2 * link**2) / (2 * link**2))
     q1 = np.arctan2(d[0], d[1]) - q2 / 2
-    return centre, Finger3D(chain=chains.finger1(), tip=surface_library.sphere(r, name="fingertip"),
-                            q0=(q1, q2), tip_contact=(q1 + q2 - np.pi, 0.0), object_contact=(np.pi / 2, 0.0))
+    finger = Finger3D(chain=chains.finger1(), tip=surface_library.sphere(r, name="fingertip"),
+                      q0=(q1, q2), tip_contact=(q1 + q2 - np.pi, 0.0), object_contact=(np.pi / 2, 0.0))
+    return centre, gs.scenes.paper3d(name=name, fingers=(finger,), mass=BALL_M,
+                                     inertia=np.eye(3) * 0.4 * BALL_M * R * R, rotation=np.eye(3),
+                                     object_surface=surface_library.ellipsoid(R, R, R, lon=(-2.5, 4.0), name="ball"),
+                                     position=tuple(centre), k_center=0.0, dq0=None, outputs=())
 
 
 def test_one_finger_presses_a_free_ball_onto_a_table():
@@ -215,11 +225,8 @@ def test_one_finger_presses_a_free_ball_onto_a_table():
     axes -z), and the ball's forces and moment: 5 equations for 4 unknowns, consistent to
     round-off, and equal to the model's multipliers. The landing is found wherever the outputs
     are asked (a sparse t_eval once let the ball fall through the table)."""
-    R, r, link, m, g, fd, r_ctrl = 0.02, 0.010, 0.065, 0.04, 9.81, 0.5, 0.010
-    a, finger = _pressing_finger(0.004)
-    scene = gs.scenes.paper3d(name="press", fingers=(finger,), mass=m, inertia=np.eye(3) * 0.4 * m * R * R,
-                              object_surface=surface_library.ellipsoid(R, R, R, lon=(-2.5, 4.0), name="ball"),
-                              rotation=np.eye(3), position=tuple(a), k_center=0.0, dq0=None, outputs=())
+    R, r, link, m, g, fd, r_ctrl = BALL_R, 0.010, 0.065, BALL_M, 9.81, 0.5, 0.010
+    a, scene = _pressed_ball("press", 0.004)
     with pytest.raises(InvalidSceneError, match="needs a surface of the world"):
         gs.build(scene)
     table = gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0))
@@ -251,3 +258,36 @@ def test_one_finger_presses_a_free_ball_onto_a_table():
     assert y["tangential_force2"] == pytest.approx(abs(T), rel=1e-6)
     assert np.hypot(y["f1"], y["tangential_force1"]) == pytest.approx(np.linalg.norm(F), rel=1e-7)
     assert res["y"][-1] == pytest.approx(R, abs=1e-10) and abs(y["gap2"]) < 1e-10
+
+
+def test_a_turntable_spinning_up_drags_the_pressed_ball():
+    """The finger presses the ball onto a turntable whose rate grows as ``w(t) = 2 t`` rad/s
+    about the vertical through ``w0``, 2 cm beside the ball (``world_plane(spin=...)``). The
+    ball lands (the impact stops its slip on the table's moving material) and rolls on: its
+    material point at the support moves exactly with the table's material there,
+    ``v + R (omega x S) = w(t) n x (r_c - w0)``, computed here from the state and the sphere's
+    formula (to 1e-12 m/s, at speeds up to 2 cm/s; an error in the rate of the table's velocity
+    along the moving contact would show as an offset of about 1e-4 m/s)."""
+    R = BALL_R
+    _, scene = _pressed_ball("press_turn", 0.0)
+    w0 = np.array([-0.03, 0.0, 0.0])
+    turntable = gs.scenes.world_plane(tuple(w0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0), spin="2*t")
+    with pytest.raises(InvalidSceneError, match="plane spin"):
+        gs.scenes.world_plane(tuple(w0), (0.0, 1.0, 0.0), spin="2*s")
+    model = gs.build(gs.scenes.with_modes(scene, planes=[turntable]))
+    res = model.simulate(0.5, mu=(0.5, 1.0), t_eval=np.linspace(0.0, 0.5, 11), **TOL)
+    assert [(e["contact"], e["from"], e["to"]) for e in res.events] == [(2, "separated", "rolling")]
+    assert (res.modes[1:] == "rolling").all()
+    names = model.state_names
+    speeds = []
+    for t, x in zip(res.t[1:], res.x[1:]):
+        u, v = x[names.index("u_w1")], x[names.index("v_w1")]
+        S = R * np.array([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)])
+        Rm = rotation(x[[names.index(k) for k in ("qw", "qx", "qy", "qz")]])
+        r_c = x[[names.index(k) for k in "xyz"]] + Rm @ S
+        v_c = x[[names.index(k) for k in ("vx", "vy", "vz")]] + Rm @ np.cross(
+            x[[names.index(k) for k in ("omegaX", "omegaY", "omegaZ")]], S)
+        v_table = 2 * t * np.cross((0.0, 1.0, 0.0), r_c - w0)
+        assert np.max(np.abs(v_c - v_table)) < 1e-12
+        speeds.append(np.linalg.norm(v_table))
+    assert max(speeds) > 0.019  # the ball is carried

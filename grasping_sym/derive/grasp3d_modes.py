@@ -100,11 +100,15 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         v_c = (b.vel if base.free else 0) + b.R @ ca.cross(b.om, sd["S"])
         J = ca.jacobian(v_c, V)
         t1, t2 = _tangents(np.asarray(w.normal))
-        # a driven plane: its point w0 + d(t), its material's velocity d'(t)
+        # a driven plane: its point w0 + d(t); its material's velocity at the contact point
+        # d'(t) + w(t) n x (r_c - w0 - d(t)) (turning at w(t) about its normal)
         d = ca.SX.zeros(3) if w.motion is None else SympyToCasadi({TIME: t})(sp.Matrix(w.motion))
-        d_dot = ca.jacobian(d, t)
-        plane_rows.append((-ca.dot(n, r_c - ca.DM(w.point) - d), -(n.T @ J), -(ca.DM(t1).T @ J),
-                           -(ca.DM(t2).T @ J), ca.vertcat(n.T @ d_dot, ca.DM(t1).T @ d_dot, ca.DM(t2).T @ d_dot)))
+        arm = r_c - ca.DM(w.point) - d
+        v_plane = ca.jacobian(d, t)
+        if w.spin is not None:
+            v_plane = v_plane + SympyToCasadi({TIME: t})(sp.Matrix([w.spin]))[0] * ca.cross(n, arm)
+        plane_rows.append((-ca.dot(n, arm), -(n.T @ J), -(ca.DM(t1).T @ J), -(ca.DM(t2).T @ J),
+                           ca.vertcat(n.T @ v_plane, ca.DM(t1).T @ v_plane, ca.DM(t2).T @ v_plane)))
     z = ca.vertcat(b.zb, *b.etas, *uvs)
     zdot = ca.vertcat(b.zb_dot, *eta_rates, *uv_rates)
     # every row: its position value (0: a velocity-level row), its rate, its Jacobian A
@@ -178,7 +182,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
             out[f"W_{r}_{c_}"] = W[r, c_]
         for j in range(V.numel()):
             out[f"MinvAT_{j}_{r}"] = MinvAT[j, r]
-    moving = any(w.motion is not None for w in scene.planes)
+    moving = any(w.motion is not None or w.spin is not None for w in scene.planes)
     return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": timed or moving}
 
 

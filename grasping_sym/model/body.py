@@ -195,6 +195,24 @@ class BodyScene:
         return lower, upper
 
 
+def rate_of_time(value, what: str) -> tuple[sp.Expr | None, list[str]]:
+    """``(w, problems)``: a plane's turning rate ``value`` (rad/s: None, a number, or one
+    expression of ``t``: text or SymPy with the symbol ``t``) as a SymPy expression, and what is
+    wrong with it (not one finite expression of ``t`` alone)."""
+    if value is None:
+        return None, []
+    try:
+        w = to_expression(value, {"t": TIME}, what)
+    except (ExpressionError, TypeError) as exc:
+        return None, [str(exc)]
+    w = w.subs({s: TIME for s in w.free_symbols if s.name == "t"})
+    if w.free_symbols - {TIME}:
+        return None, [f"{what} = {w}: give one expression of t alone (rad/s)"]
+    if not math.isfinite(float(w.subs(TIME, 0))):
+        return None, [f"{what} = {w} is not finite at t = 0"]
+    return w, []
+
+
 def translation_of_time(value, what: str) -> tuple[tuple | None, list[str]]:
     """``(d, problems)``: a plane's translation ``value`` (None, or three expressions of ``t``:
     text, numbers or SymPy with the symbol ``t``) as SymPy expressions, and what is wrong with

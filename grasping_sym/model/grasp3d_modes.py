@@ -2,7 +2,9 @@
 
 ``with_modes(scene, planes=...)`` on a ``model.grasp3d.GraspScene3D`` (regular formulation)
 gives the scene of kind ``"grasp3d_modes"``: the same fingers, object, start and controller,
-and fixed planes of the world the object may touch (a table, a wall: ``WorldPlane``),
+and planes of the world the object may touch (a table, a wall, fixed, translated or
+turned by given functions of time: ``WorldPlane``; one finger and a plane may hold a free
+object),
 compiled once with every contact's mode a run-time parameter (``derive.grasp3d_modes``), run
 by ``runtime.modes`` (``docs/conventions.md`` section 9). Contacts are the fingers' first,
 then the planes'. The state is the base scene's, then each plane's support point ``(u, v)``
@@ -18,7 +20,7 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym.errors import InvalidSceneError
-from grasping_sym.model.body import translation_of_time
+from grasping_sym.model.body import rate_of_time, translation_of_time
 from grasping_sym.model.grasp3d import GraspScene3D
 from grasping_sym.model.with_modes import WithModes
 
@@ -36,6 +38,9 @@ class WorldPlane:
     support: tuple[float, float] = (0.0, 0.0)
     #: the plane's translation ``d(t)`` (as ``model.body.BodyScene.plane_motion``); None: fixed
     motion: tuple | None = None
+    #: its turning rate ``w(t)`` (rad/s, about its normal through ``point + d(t)``: a
+    #: turntable); None: it does not turn
+    spin: object = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "point", tuple(float(v) for v in np.ravel(self.point)))
@@ -50,6 +55,9 @@ class WorldPlane:
             p.append(f"support {self.support} must be two finite numbers (a guess of (u, v))")
         motion, problems = translation_of_time(self.motion, "plane motion")
         object.__setattr__(self, "motion", motion)
+        p += problems
+        spin, problems = rate_of_time(self.spin, "plane spin")
+        object.__setattr__(self, "spin", spin)
         p += problems
         if p:
             raise InvalidSceneError(p)
@@ -157,7 +165,8 @@ class GraspModesScene(WithModes):
 
     def code_key(self) -> str:
         return "\n".join(["grasp3d-modes-v1", self.base.code_key(),
-                          *[repr((w.point, w.normal, None if w.motion is None else tuple(map(sp.srepr, w.motion))))
+                          *[repr((w.point, w.normal, None if w.motion is None else tuple(map(sp.srepr, w.motion)),
+                                  None if w.spin is None else sp.srepr(w.spin)))
                             for w in self.planes]])
 
     def key(self) -> str:
@@ -169,7 +178,7 @@ class GraspModesScene(WithModes):
         return {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
                 "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers,
                                 "driven": [self.n_fingers + m for m, w in enumerate(self.planes, start=1)
-                                           if w.motion is not None]},
+                                           if w.motion is not None or w.spin is not None]},
                 "param_rules": {f"mu{i}": "nonnegative" for i in range(1, self.n_contacts + 1)}}
 
     def bounds(self) -> tuple[list, list]:

@@ -224,9 +224,10 @@ def with_modes(scene, planes=()):
     return PlanarModesScene(scene)
 
 
-def world_plane(point, normal, support=(0.0, 0.0), motion=None) -> WorldPlane:
+def world_plane(point, normal, support=(0.0, 0.0), motion=None, spin=None) -> WorldPlane:
     """A plane of the world through ``point`` with unit ``normal`` (into the free side), for
     ``with_modes(scene, planes=[...])``; ``support``: a guess of the object's surface
     coordinates that face it at the start; ``motion``: its translation ``d(t)`` (three
-    expressions of ``t``, ``d(0) = 0``; None: fixed)."""
-    return WorldPlane(point, normal, support, motion)
+    expressions of ``t``, ``d(0) = 0``; None: fixed); ``spin``: its turning rate (rad/s, a
+    number or an expression of ``t``) about its normal through ``point + d(t)``: a turntable."""
+    return WorldPlane(point, normal, support, motion, spin)

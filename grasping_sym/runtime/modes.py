@@ -5,9 +5,9 @@ once with its mode a run-time parameter (0 rolling, 1 sliding, 2 separated) and 
 direction at the start of a slide (``slip_x``, ``slip_y``, ``slip_z``). A run integrates one
 segment per mode by the run's C loop (``METHODS``: radau, dopri5, dop853); along each segment
 the mode's witnesses are watched at the output samples and at least every ``WATCH_DT`` s
-between them (so a sparse ``t_eval`` misses no switch that lasts longer), and the first sign
-change is located between the samples by integrating again (``runtime.events``), where the run switches
-(``docs/conventions.md`` section 7):
+between them (so a sparse ``t_eval`` misses no switch that lasts longer), ``CHUNK`` samples at
+a time, and the first sign change is located between the samples by integrating again
+(``runtime.events``), where the run switches (``docs/conventions.md`` section 7):
 
 - rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
   equations accelerate it (the fixed point of ``d -> a_t(d)/|a_t(d)|`` from
@@ -76,6 +76,9 @@ REST_SPEED = 1e-3
 #: ``t_eval`` (the samples added for it are not reported): a sign change and its return
 #: within it can be missed, one that lasts longer cannot.
 WATCH_DT = 1e-3
+#: Watched samples integrated at a time: a mode's integration goes on in chunks of this many
+#: samples, so that a switch wastes at most one chunk's integration past it.
+CHUNK = 64
 
 
 def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
@@ -698,6 +701,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         grid = _watched(np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]]))
         if len(grid) < 2:
             break
+        last_chunk = len(grid) <= CHUNK + 1
+        grid = grid[:CHUNK + 1]
         t, X, st, failure = _segment(r, x_now, grid, p)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
@@ -716,7 +721,10 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
         if found is None:
-            break
+            if last_chunk:
+                break
+            t_now, x_now = float(t[-1]), X[-1]  # on with the same mode in the next chunk
+            continue
         _, t_ev, x_ev, name, j, value = found
         recent = [tt for tt in recent if tt > t_ev - SWITCH_WINDOW] + [t_ev]
         if len(recent) > MAX_SWITCHES:
