@@ -247,3 +247,22 @@ def test_a_sweep_over_mu_measures_the_first_slip(model, slide, tmp_path):
     first = ds["first_slip_1"].values
     assert first[0] == 0.0 and abs(first[1] - slide.events[0]["t"]) < 1e-9 and np.isinf(first[2])
     assert list(ds["held"].values) == [1.0, 1.0, 1.0]
+
+
+def test_many_runs_with_inputs_are_the_single_runs():
+    """simulate_many of a model with modes and inputs: per-run constant inputs ``(N, 2)`` and
+    one table for every run, each run bit for bit ``simulate`` with its own inputs."""
+    torqued = gs.build(gs.scenes.with_modes(gs.scenes.paper2d(inputs="torques")))
+    kw = dict(mu=0.2, t_eval=np.linspace(0.0, 0.1, 11), **TOL)
+    U = np.array([[0.0, 0.0], [4e-3, -2e-3]])
+    res = torqued.simulate_many(0.1, u=U, **kw)
+    for i in range(2):
+        one = torqued.simulate(0.1, u=U[i], **kw)
+        assert np.array_equal(res.x[i], one.x) and res.events[i] == one.events
+    assert np.max(np.abs(res.x[1] - res.x[0])) > 1e-4
+    table = gs.inputs.zero_order_hold([0.0, 0.05], [[0.0, 0.0], [4e-3, -2e-3]])
+    many = torqued.simulate_many(0.1, u=table, x0=np.tile(torqued.initial_state(), (2, 1)), **kw)
+    one = torqued.simulate(0.1, u=table, **kw)
+    assert np.array_equal(many.x[1], one.x)
+    with pytest.raises(RunArgumentError, match="different numbers of runs"):
+        torqued.simulate_many(0.1, u=U, **{**kw, "mu": np.array([0.2, 0.3, 0.4])})

@@ -142,8 +142,8 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
     threads = _threads(threads)
     dense = t_eval is not None
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
-        modes.refuse_unused(params=params, u=u, slip=slip)
-        return _with_modes(model, s, t_final, x0, mu, e, dense, start)
+        modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names))
+        return _with_modes(model, s, t_final, x0, mu, e, u, dense, start)
     if e is not None:
         raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
                                "restitution applies to a model with modes (gs.scenes.body_on_plane)")
@@ -177,17 +177,22 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                    wall=perf_counter() - start, mu=MU)
 
 
-def _with_modes(model, s: RunSettings, t_final, x0, mu, e, dense: bool, start: float) -> BatchResult:
-    """``simulate_many`` of a model with contact modes: ``modes.run_many``."""
+def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start: float) -> BatchResult:
+    """``simulate_many`` of a model with contact modes: ``modes.run_many``; ``u`` as for a model
+    without modes (constant inputs ``(n_inputs,)`` or ``(N, n_inputs)``, or one table for every
+    run), each run's by ``simulate``'s own reading."""
     sizes = {len(v) for v in (mu, e) if v is not None and not hasattr(v, "per_contact") and np.ndim(v) >= 1}
     if x0 is not None and np.ndim(x0) == 2:
         sizes.add(len(x0))
+    per_run_u = u is not None and not hasattr(u, "knots") and np.ndim(u) == 2
+    if per_run_u:
+        sizes.add(len(u))
     if len(sizes) > 1:
-        raise RunArgumentError(f"simulate_many: x0, mu and e give different numbers of runs {sorted(sizes)}: "
+        raise RunArgumentError(f"simulate_many: x0, mu, e and u give different numbers of runs {sorted(sizes)}: "
                                "give every per-run array the same length N")
     n = sizes.pop() if sizes else 1
     X0 = _initial_states(model, x0, n)
-    got = modes.run_many(model, s, X0, mu, e)
+    got = modes.run_many(model, s, X0, mu, e, list(np.asarray(u, dtype=float)) if per_run_u else [u] * n)
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],

@@ -654,7 +654,7 @@ def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
 
 def refuse_unused(*, params, u, slip, inputs: bool = False) -> None:
     """Refuse by name what a run with modes does not read (it would be ignored silently);
-    ``inputs``: ``u`` is read (a single run of a model with inputs)."""
+    ``inputs``: ``u`` is read (a model with inputs)."""
     given = [k for k, v in (("params", params), ("u", None if inputs else u)) if v is not None]
     if slip != "stop":
         given.append("slip")
@@ -956,10 +956,10 @@ def _painleve(model, t, x, value, mu, j=1):
                         model.state_names)
 
 
-def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
+def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
     """``simulate_many`` of a model with modes: each run by ``run`` in turn (``mu``, ``e``:
-    None, one value, or one per run); a run that stops by name is recorded, the others go on.
-    Returns the pieces of a ``runtime.batch.BatchResult``."""
+    None, one value, or one per run; ``us``: each run's inputs, None: none); a run that stops
+    by name is recorded, the others go on. Returns the pieces of a ``runtime.batch.BatchResult``."""
     n = len(X0)
     mus = _per_run("mu", mu, n)
     es = _per_run("e", e, n)
@@ -974,7 +974,7 @@ def run_many(model, s, X0: np.ndarray, mu, e) -> dict:
     run_modes: list = [None] * n
     for i in range(n):
         try:
-            res = run(model, s, X0[i], mus[i], es[i])
+            res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i])
         except (GraspingSymError, ValueError) as exc:
             status[i] = -11 if isinstance(exc, ContactModeError) else \
                 -2 if isinstance(exc, ContactLeftContourError) else \
