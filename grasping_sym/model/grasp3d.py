@@ -17,8 +17,9 @@ Controller (no object information; ``derive.grasp3d``)::
 
 ``r_i`` the fingertip centres, ``r_bar`` their mean. The first term cancels the finger's own
 weight (only when gravity is modelled), the second is joint damping, the third the pull of the
-fingertip centres toward each other (the 3D counterpart of the 2D law (32); for ONE finger the
-pull is toward the pivot, as in 2D), the last a spring on the grasp's centre. The pull is an
+fingertip centres toward each other (the 3D counterpart of the 2D law (32); ONE finger pulls
+toward a fixed point: the pivot, as in 2D, or a free object's given ``position``, the object
+then held against a plane of the world, ``with_modes``), the last a spring on the grasp's centre. The pull is an
 internal force: the two fingertip forces sum to zero, so with gravity alone nothing carries
 the object's weight and a grasp under gravity slides down until the fingers are stretched.
 The centre spring (N/m) carries it: the object sags by about ``m g / k_center`` and is held.
