@@ -14,7 +14,13 @@ from scipy.integrate import simpson
 from scipy.optimize import minimize
 
 import grasping_sym as gs
-from grasping_sym.errors import FrictionConeError, InvalidSceneError, RunArgumentError
+from grasping_sym.errors import (
+    FrictionConeError,
+    InputScheduleError,
+    IntegratorError,
+    InvalidSceneError,
+    RunArgumentError,
+)
 from grasping_sym.geometry.curves import T
 from grasping_sym.model.planar import ExtraFinger
 from grasping_sym.runtime import modes
@@ -264,5 +270,14 @@ def test_many_runs_with_inputs_are_the_single_runs():
     many = torqued.simulate_many(0.1, u=table, x0=np.tile(torqued.initial_state(), (2, 1)), **kw)
     one = torqued.simulate(0.1, u=table, **kw)
     assert np.array_equal(many.x[1], one.x)
+    with pytest.raises(InputScheduleError):  # a wrong shape: the call's error
+        torqued.simulate_many(0.1, u=np.zeros((2, 3)), **kw)
     with pytest.raises(RunArgumentError, match="different numbers of runs"):
         torqued.simulate_many(0.1, u=U, **{**kw, "mu": np.array([0.2, 0.3, 0.4])})
+
+
+def test_max_steps_bounds_the_whole_run_not_each_chunk(model):
+    """A run with modes integrates in chunks; ``max_steps`` still bounds the whole run (the
+    run takes ~450 steps over 2 s, no chunk more than 60)."""
+    with pytest.raises(IntegratorError, match="too many steps"):
+        model.simulate(2.0, mu=0.2, t_eval=np.linspace(0.0, 2.0, 201), max_steps=60)

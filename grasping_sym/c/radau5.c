@@ -227,8 +227,10 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
     }
     /* The last step: shortened to end at t_end, or stretched by at most 1 % so that no
      * sliver of a step is left; never stretched right after a rejection (the rejected size
-     * would come back, and a sliver that fails would be retried forever). */
-    if (t + h >= t_end || (!reject && t + 1.01 * h >= t_end)) {
+     * would come back, and a sliver that fails would be retried forever); a remainder of
+     * under 10 ulp (too short to be a step) is always taken in. */
+    if (t + h >= t_end || t_end - (t + h) < 10.0 * (nextafter(t_end, INFINITY) - t_end) ||
+        (!reject && t + 1.01 * h >= t_end)) {
       if (h != t_end - t) lu_valid = 0;
       h = t_end - t;
     }

@@ -208,8 +208,12 @@ def rate_of_time(value, what: str) -> tuple[sp.Expr | None, list[str]]:
     w = w.subs({s: TIME for s in w.free_symbols if s.name == "t"})
     if w.free_symbols - {TIME}:
         return None, [f"{what} = {w}: give one expression of t alone (rad/s)"]
-    if not math.isfinite(float(w.subs(TIME, 0))):
-        return None, [f"{what} = {w} is not finite at t = 0"]
+    try:  # the rate and its derivative (in the contact's acceleration) real and finite at t = 0
+        at0 = [complex(e.subs(TIME, 0)) for e in (w, sp.diff(w, TIME))]
+    except (TypeError, ValueError):
+        at0 = [complex(math.nan)]
+    if not all(math.isfinite(v.real) and v.imag == 0 for v in at0):
+        return None, [f"{what} = {w}: it and its rate must be real and finite at t = 0 (rad/s)"]
     return w, []
 
 

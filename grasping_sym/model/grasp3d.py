@@ -281,8 +281,10 @@ class GraspScene3D:
         """Canonical text of what the generated code depends on.
 
         The start -- the guesses ``rotation``, ``q0``, ``tip_contact``, ``object_contact``,
-        ``dq0`` and, for a free object, ``position`` -- is not in it: it enters the code only
-        through the run-time rest point of the centre spring (``start_param_names``).
+        ``dq0`` and, for a free object, ``position`` -- is not in it: it enters the code
+        through the run-time rest point of the centre spring (``start_param_names``), and
+        through the law where the law reads it (one finger's ``position0``: then in the
+        controller's key, ``assemble.controller.controller_key``).
         """
         parts = ["grasp3d-v2", self.name, self.support, self.formulation, repr(self.mass),
                  repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),

@@ -192,7 +192,13 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
                                "give every per-run array the same length N")
     n = sizes.pop() if sizes else 1
     X0 = _initial_states(model, x0, n)
-    got = modes.run_many(model, s, X0, mu, e, list(np.asarray(u, dtype=float)) if per_run_u else [u] * n)
+    try:
+        us = list(np.asarray(u, dtype=float)) if per_run_u else [u] * n
+    except ValueError as exc:
+        raise RunArgumentError(f"u = {u!r}: give numbers, (n_inputs,) or (N, n_inputs), or one table") from exc
+    for u_i in us[:1] if not per_run_u else us:  # a bad u is the call's error, not each run's
+        run_.schedule(model, u_i, s.method, s.t_eval)
+    got = modes.run_many(model, s, X0, mu, e, us)
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],

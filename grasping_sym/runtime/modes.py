@@ -29,6 +29,7 @@ switches within ``SWITCH_WINDOW`` s), an event that cannot be located.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from time import perf_counter
 
@@ -698,11 +699,16 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         for j in r.contacts:
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
                 _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
-        grid = _watched(np.concatenate([[t_now], t_eval[t_eval > t_now + 1e-15]]))
+        i_next = int(np.searchsorted(t_eval, t_now + 1e-15, side="right"))
+        grid = _watched(np.concatenate([[t_now], t_eval[i_next:i_next + CHUNK]]))
         if len(grid) < 2:
             break
-        last_chunk = len(grid) <= CHUNK + 1
+        last_chunk = i_next + CHUNK >= len(t_eval) and len(grid) <= CHUNK + 1
         grid = grid[:CHUNK + 1]
+        # max_steps and time_limit bound the whole run, whatever its chunks
+        r.s = dataclasses.replace(s, max_steps=max(s.max_steps - r.stats["n_steps"], 1),
+                                  time_limit=None if s.time_limit is None else
+                                  max(s.time_limit - (perf_counter() - start), 1e-9))
         t, X, st, failure = _segment(r, x_now, grid, p)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
