@@ -278,6 +278,9 @@ def test_many_runs_with_inputs_are_the_single_runs():
 
 def test_max_steps_bounds_the_whole_run_not_each_chunk(model):
     """A run with modes integrates in chunks; ``max_steps`` still bounds the whole run (the
-    run takes ~450 steps over 2 s, no chunk more than 60)."""
+    run takes ~450 steps over 2 s, no chunk more than 60); its stats count the mode segments
+    (one more than the switches) apart from the chunks."""
     with pytest.raises(IntegratorError, match="too many steps"):
         model.simulate(2.0, mu=0.2, t_eval=np.linspace(0.0, 2.0, 201), max_steps=60)
+    r = model.simulate(0.25, mu=0.2, t_eval=np.linspace(0.0, 0.25, 11))
+    assert len(r.events) == 2 and r.stats["segments"] == 3 and r.stats["chunks"] > 3

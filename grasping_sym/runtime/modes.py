@@ -136,7 +136,9 @@ class _Run:
             self.p[names.index(self.key("mu", j))] = min(self.mus[j - 1], 1e300)
         self.events: list[dict] = []
         #: ``switch_time``: seconds spent locating the switches and making them
-        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "switch_time": 0.0}
+        #: segments: one per mode's stretch (the start's and one after each switch); chunks:
+        #: the integrations they were run in (``CHUNK``)
+        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "switch_time": 0.0}
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
@@ -692,6 +694,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     t_now = 0.0
     last_t = -math.inf
     recent: list[float] = []
+    new_segment = True
     while True:
         p = r.params(modes, slips)
         r.t = t_now
@@ -712,7 +715,9 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         t, X, st, failure = _segment(r, x_now, grid, p)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
-        r.stats["segments"] += 1
+        r.stats["chunks"] += 1
+        r.stats["segments"] += 1 if new_segment else 0
+        new_segment = False
         Y = outputs_.along(model, t, X, p, r.sched)
         t_look = perf_counter()
         found = _first_event(r, modes, slips, t, X, Y, p) if len(t) > 1 else None
@@ -746,6 +751,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
             r.events.append({"t": t_ev, "contact": j, "from": NAMES[before], "to": NAMES[modes[j - 1]],
                              "witness": name, "value": value, "reset": reset})
         t_now = t_ev
+        new_segment = True
     t_all = np.concatenate(rows_t)
     X_all = np.concatenate(rows_x)
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
