@@ -271,7 +271,8 @@ def test_a_ball_on_a_rising_conveyor_slides_then_rolls_at_two_sevenths_of_the_be
 
 
 @pytest.mark.parametrize("motion, words", [((0, "1 + t", 0), "not 0 at t = 0"), ((0, "x*t", 0), "unknown name 'x'"),
-                                           ((0, "t"), "three expressions of t")])
+                                           ((0, "t"), "three expressions of t"),
+                                           ((0, "t*log(t)", 0), "finite at t = 0")])
 def test_a_bad_plane_motion_is_refused_by_name(motion, words):
     with pytest.raises(InvalidSceneError, match=words):
         gs.scenes.sphere_on_incline(plane_motion=motion)

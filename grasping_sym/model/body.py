@@ -208,13 +208,21 @@ def rate_of_time(value, what: str) -> tuple[sp.Expr | None, list[str]]:
     w = w.subs({s: TIME for s in w.free_symbols if s.name == "t"})
     if w.free_symbols - {TIME}:
         return None, [f"{what} = {w}: give one expression of t alone (rad/s)"]
-    try:  # the rate and its derivative (in the contact's acceleration) real and finite at t = 0
-        at0 = [complex(e.subs(TIME, 0)) for e in (w, sp.diff(w, TIME))]
-    except (TypeError, ValueError):
-        at0 = [complex(math.nan)]
-    if not all(math.isfinite(v.real) and v.imag == 0 for v in at0):
+    # the rate and its derivative (in the contact's acceleration) real and finite at t = 0
+    if _values_at_start((w, sp.diff(w, TIME))) is None:
         return None, [f"{what} = {w}: it and its rate must be real and finite at t = 0 (rad/s)"]
     return w, []
+
+
+def _values_at_start(exprs) -> list[float] | None:
+    """The values of ``exprs`` at ``t = 0``; None if one is not a real finite number there."""
+    try:
+        at0 = [complex(e.subs(TIME, 0)) for e in exprs]
+    except (TypeError, ValueError):
+        return None
+    if not all(math.isfinite(v.real) and v.imag == 0 for v in at0):
+        return None
+    return [v.real for v in at0]
 
 
 def translation_of_time(value, what: str) -> tuple[tuple | None, list[str]]:
@@ -232,6 +240,10 @@ def translation_of_time(value, what: str) -> tuple[tuple | None, list[str]]:
     d = tuple(e.subs({s: TIME for s in e.free_symbols if s.name == "t"}) for e in d)
     if len(d) != 3 or any(e.free_symbols - {TIME} for e in d):
         return None, [f"{what} = {d}: give three expressions of t alone (m)"]
-    if any(abs(float(e.subs(TIME, 0))) > 1e-15 for e in d):
+    at0 = _values_at_start((*d, *(sp.diff(e, TIME) for e in d), *(sp.diff(e, TIME, 2) for e in d)))
+    if at0 is None:
+        return None, [f"{what} = {d}: it, its velocity and acceleration must be real and finite at "
+                      "t = 0 (m)"]
+    if any(abs(v) > 1e-15 for v in at0[:3]):
         return None, [f"{what} = {d} is not 0 at t = 0: the plane starts at its point"]
     return d, []

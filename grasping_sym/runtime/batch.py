@@ -184,7 +184,7 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
     sizes = {len(v) for v in (mu, e) if v is not None and not hasattr(v, "per_contact") and np.ndim(v) >= 1}
     if x0 is not None and np.ndim(x0) == 2:
         sizes.add(len(x0))
-    per_run_u = u is not None and not hasattr(u, "knots") and np.ndim(u) == 2
+    per_run_u = u is not None and not hasattr(u, "segments") and np.ndim(u) == 2
     if per_run_u:
         sizes.add(len(u))
     if len(sizes) > 1:
