@@ -276,11 +276,14 @@ def test_many_runs_with_inputs_are_the_single_runs():
         torqued.simulate_many(0.1, u=U, **{**kw, "mu": np.array([0.2, 0.3, 0.4])})
 
 
-def test_max_steps_bounds_the_whole_run_not_each_chunk(model):
-    """A run with modes integrates in chunks; ``max_steps`` still bounds the whole run (the
-    run takes ~450 steps over 2 s, no chunk more than 60); its stats count the mode segments
-    (one more than the switches) apart from the chunks."""
+def test_max_steps_bounds_the_whole_run_not_each_segment(model):
+    """A run with modes integrates one segment per mode; ``max_steps`` bounds the whole run:
+    one step fewer than the run takes stops it, though each of its three segments takes
+    fewer. Its stats count the mode segments (one more than the switches) and the
+    integrations (one per segment without inputs)."""
+    kw = dict(mu=0.2, t_eval=np.linspace(0.0, 0.25, 11))
+    r = model.simulate(0.25, **kw)
+    assert len(r.events) == 2 and r.stats["segments"] == 3 and r.stats["chunks"] == 3
+    assert isinstance(r.events[1]["t"], float)
     with pytest.raises(IntegratorError, match="too many steps"):
-        model.simulate(2.0, mu=0.2, t_eval=np.linspace(0.0, 2.0, 201), max_steps=60)
-    r = model.simulate(0.25, mu=0.2, t_eval=np.linspace(0.0, 0.25, 11))
-    assert len(r.events) == 2 and r.stats["segments"] == 3 and r.stats["chunks"] > 3
+        model.simulate(0.25, **kw, max_steps=r.stats["n_steps"] - 1)

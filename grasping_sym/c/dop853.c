@@ -95,6 +95,22 @@ static inline void gs_d8_stage(int s, double h, const double* y, const int n, do
  * continuous extension of order 7; stats [13] the last estimate of h |lambda|, [14] the
  * number of stiffness tests above 6.1).
  */
+/* The continuous extension of the step just accepted: its start y0 and d (7 rows of n). */
+typedef struct {
+  const double *y0, *d;
+  double told, hsol;
+} gs_dop853_dense;
+
+static void gs_dop853_interp(const void* ctx, double t, double* x) {
+  const gs_dop853_dense* c = (const gs_dop853_dense*)ctx;
+  const int n = gs_nx;
+  const double *d = c->d, *y = c->y0;
+  const double s = (t - c->told) / c->hsol, s1 = 1.0 - s;
+  for (int i = 0; i < n; ++i)
+    x[i] = y[i] + s * (d[i] + s1 * (d[n + i] + s * (d[2 * n + i] + s1 * (d[3 * n + i] + s * (
+           d[4 * n + i] + s1 * (d[5 * n + i] + s * d[6 * n + i]))))));
+}
+
 GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const double* x0,
                          const double* p, double rtol, double atol, double h0, long max_steps,
                          long nstiff, const double* lo, const double* hi, const int* proj_mask,
@@ -119,6 +135,9 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
 
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, y1, out, &row))) goto fail;
   if (row == n_out) goto done;
+#if GS_HAS_OUT
+  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p))) goto fail;
+#endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
   st[GS_ST_RHS] += 1;
@@ -220,7 +239,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     /* Continuous extension of the unprojected step, only when an output lies inside it:
      * three more stages, then y(t + s h) = y + s (d0 + (1-s) (d1 + s (d2 + (1-s) (d3 +
      * s (d4 + (1-s) (d5 + s d6)))))). */
-    const int inside = row < n_out && t_out[row] < tph;
+    const int inside = (row < n_out && t_out[row] < tph) || gs_watching();
     if (inside) {
       for (int s = 13; s < 16; ++s) {
         const double ts = t + gs_d8_c[s] * h;
@@ -257,7 +276,19 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     const double told = t, hsol = h;
     t = tph;
     st[GS_ST_HLAST] = h;
-    while (row < n_out && t_out[row] <= t) {
+    int event = 0;
+    double t_ev = t;
+#if GS_HAS_OUT
+    if (gs_watching()) {
+      const gs_dop853_dense dn = {y, &dense[0][0], told, hsol};
+      event = gs_watch_step(wk, told, t, y1, p, gs_dop853_interp, &dn, &t_ev, ys);
+      if (event < 0) {
+        rc = event;
+        goto fail;
+      }
+    }
+#endif
+    while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
       double* o = out + row * n;
       if (t_out[row] == t) {
         for (int i = 0; i < n; ++i) o[i] = y1[i];
@@ -274,6 +305,15 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
 #endif
       }
       ++row;
+    }
+    if (event) { /* stop at the event: its state, and its step's start (gs_adaptive_end) */
+      for (int i = 0; i < n; ++i) {
+        y1[i] = y[i];
+        y[i] = ys[i];
+      }
+      t = t_ev;
+      rc = GS_EVENT;
+      goto fail;
     }
     for (int i = 0; i < n; ++i) {
       y[i] = y1[i];

@@ -81,6 +81,21 @@ static const double gs_dp_d[7] = {-12715105075.0 / 11282082432.0, 0.0,
  *   GS_ERR_STIFF     (-8)  the problem is stiff: *t_fail and row r are the start of the
  *                          step on which the stiffness test fired for the 15th time.
  */
+/* The continuous extension of the step just accepted (d: 5 rows of n, see below). */
+typedef struct {
+  const double* d;
+  double told, hsol;
+} gs_dopri_dense;
+
+static void gs_dopri_interp(const void* ctx, double t, double* x) {
+  const gs_dopri_dense* c = (const gs_dopri_dense*)ctx;
+  const int n = gs_nx;
+  const double* d = c->d;
+  const double s = (t - c->told) / c->hsol, s1 = 1.0 - s;
+  for (int i = 0; i < n; ++i)
+    x[i] = d[i] + s * (d[n + i] + s1 * (d[2 * n + i] + s * (d[3 * n + i] + s1 * d[4 * n + i])));
+}
+
 GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const double* x0,
                          const double* p, double rtol, double atol, double h0, long max_steps,
                          long nstiff, const double* lo, const double* hi, const int* proj_mask,
@@ -105,6 +120,9 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
 
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, y1, out, &row))) goto fail;
   if (row == n_out) goto done;
+#if GS_HAS_OUT
+  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p))) goto fail;
+#endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, k1))) goto fail;
   st[GS_ST_RHS] += 1;
@@ -244,7 +262,19 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
       y[i] = y1[i];
       k1[i] = k7[i];
     }
-    while (row < n_out && t_out[row] <= t) {
+    int event = 0;
+    double t_ev = t;
+#if GS_HAS_OUT
+    if (gs_watching()) {
+      const gs_dopri_dense dn = {&dense[0][0], told, hsol};
+      event = gs_watch_step(wk, told, t, y, p, gs_dopri_interp, &dn, &t_ev, ys);
+      if (event < 0) {
+        rc = event;
+        goto fail;
+      }
+    }
+#endif
+    while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
       double* o = out + row * n;
       if (t_out[row] == t) {
         for (int i = 0; i < n; ++i) o[i] = y[i];
@@ -261,6 +291,15 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
 #endif
       }
       ++row;
+    }
+    if (event) { /* stop at the event: its state, and its step's start (gs_adaptive_end) */
+      for (int i = 0; i < n; ++i) {
+        y[i] = ys[i];
+        y1[i] = dense[0][i];
+      }
+      t = t_ev;
+      rc = GS_EVENT;
+      goto fail;
     }
     if (last) break;
     hnew = fmin(hnew, interval);

@@ -13,6 +13,8 @@
  *                  jac.c: its Jacobian; lu.c: its real and complex LU)
  *   dopri5.c       gs_dopri5
  *   dop853.c       gs_dop853
+ *   watch.c        gs_watch_set, gs_watch_clear, gs_watch_result: witnesses watched along
+ *                  gs_radau5 / gs_dopri5 / gs_dop853, which stop at their events
  *   stop.c         gs_stop_bind, gs_sigint_ensure, gs_set_time_limit, gs_stop_cause: Ctrl-C
  *                  (one handler for the process, runtime/interrupt.py) and a wall-time
  *                  limit stop the loops (GS_ERR_INTERRUPT)
@@ -34,6 +36,8 @@
  *   gs_nx         number of states nx (>= 1)
  *   gs_np         number of parameters np (>= 0)
  *   gs_ny         number of outputs ny (0 without GS_HAS_OUT)
+ *   gs_out_time   1 when the outputs read the time (a last entry of p): only watch.c
+ *                 calls them then, gs_info reports none and gs_outputs refuses
  *   gs_nc         number of constraints nc (>= 1 with GS_HAS_CON, else 0)
  *
  * Everything else is configured by preprocessor macros passed with -D (the same for
@@ -43,7 +47,8 @@
  *                 Inputs (t[1], x[nx], z[0], p[np], u[0]),
  *                 outputs (ode[nx], alg[0], quad[0], zero[0]).          required
  *   GS_HAS_OUT    1 if an outputs function exists, else 0         default 0
- *   GS_OUT        name of the outputs function, inputs (x[nx], p[np]),
+ *   GS_OUT        name of the outputs function, inputs (x[nx], p[np] or, with gs_out_time,
+ *                 p[np + 1]),
  *                 output y[ny]                                    needed if GS_HAS_OUT
  *   GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W
  *                 work sizes: maximum over the functions used of CasADi's
@@ -129,11 +134,13 @@
  */
 #include "gs_internal.h"
 
+/* The outputs are the caller's only when they do not read the time (gs_out_time: watch.c's). */
 GS_EXPORT int gs_info(long* nx, long* np, long* ny) {
+  const int out = GS_HAS_OUT && !gs_out_time;
   if (nx) *nx = gs_nx;
   if (np) *np = gs_np;
-  if (ny) *ny = GS_HAS_OUT ? gs_ny : -1;
-  return GS_HAS_OUT;
+  if (ny) *ny = out ? gs_ny : -1;
+  return out;
 }
 
 GS_EXPORT int gs_rhs(const double* x, const double* p, double* xdot) {
@@ -156,12 +163,13 @@ GS_EXPORT int gs_rhs_batch(long n, const double* X, const double* p, double* XDO
 #if GS_HAS_OUT
 GS_EXPORT int gs_outputs(const double* x, const double* p, double* y) {
   GS_DECLARE_WORK(wk);
+  if (gs_out_time) return GS_ERR_ARGS; /* they would read p[np] */
   return gs_eval_out(wk, x, p, y);
 }
 
 GS_EXPORT int gs_outputs_batch(long n, const double* X, const double* p, double* Y) {
   GS_DECLARE_WORK(wk);
-  if (n < 0) return GS_ERR_ARGS;
+  if (n < 0 || gs_out_time) return GS_ERR_ARGS;
   for (long k = 0; k < n; ++k) {
     int rc = gs_eval_out(wk, X + k * gs_nx, p, Y + k * gs_ny);
     if (rc) return rc;

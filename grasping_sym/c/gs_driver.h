@@ -18,6 +18,9 @@
  * build of the driver serves models of every size.  gs_ny is 0 without outputs, gs_nc 0
  * without constraints. */
 extern __attribute__((visibility("hidden"))) const int gs_nx, gs_np, gs_ny, gs_nc;
+/* 1 when the model's outputs read the time: they take p with one more last entry, t; the
+ * driver then calls them only to watch witnesses (watch.c), and gs_outputs refuses. */
+extern __attribute__((visibility("hidden"))) const int gs_out_time;
 
 /* Length of the stats array of gs_rk4, gs_radau5, gs_dopri5 and gs_project. */
 #define GS_NSTATS 16

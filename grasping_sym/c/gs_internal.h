@@ -15,6 +15,7 @@
  *   dopri5.c   adaptive Dormand-Prince 5(4): gs_dopri5
  *   dop853.c   adaptive Dormand-Prince 8(5,3): gs_dop853
  *   stop.c     Ctrl-C and the wall-time limit
+ *   watch.c    witnesses watched along a run, its stop at their events (gs_watch_*)
  *   batch.c    many runs over a pool of threads: gs_batch
  *
  * Helpers used by several files are static inline here; the functions defined in one
@@ -81,6 +82,7 @@
 #define GS_ERR_PROJECT   (-7) /* projection onto the constraints failed      */
 #define GS_ERR_STIFF     (-8) /* gs_dopri5, gs_dop853: the problem is stiff  */
 #define GS_ERR_INTERRUPT (-9) /* stopped: SIGINT or the time limit (stop.c)  */
+#define GS_EVENT        (-10) /* stopped at a watched witness's event (watch.c) */
 
 /* Entries of the stats array (GS_NSTATS doubles). */
 #define GS_ST_STEPS 0       /* accepted steps                                      */
@@ -288,7 +290,8 @@ static inline int gs_adaptive_begin(double t0, long n_out, const double* t_out, 
 /* The end of an adaptive loop (gs_radau5, gs_dopri5, gs_dop853), rc its result: the rows
  * written and the counters go into stats; on a failure (rc < 0) *t_fail = t, output row
  * `row` holds y (the last accepted state) and row `row` + 1 x_bad (the rejected state of the
- * failures that have one, see gs_radau5) or NaN. Returns rc. */
+ * failures that have one, see gs_radau5; at GS_EVENT the start of the event's step) or NaN.
+ * Returns rc. */
 static inline long gs_adaptive_end(long rc, long row, double t, double* st, double* stats,
                                    double* t_fail, double* out, const double* y,
                                    const double* x_bad) {
@@ -297,7 +300,8 @@ static inline long gs_adaptive_end(long rc, long row, double t, double* st, doub
     for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
   if (rc >= 0) return rc;
   if (t_fail) *t_fail = t;
-  const int bad = rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT;
+  const int bad = rc == GS_ERR_NONFINITE || rc == GS_ERR_BOUNDS || rc == GS_ERR_PROJECT ||
+                  rc == GS_EVENT;
   for (int i = 0; i < gs_nx; ++i) {
     out[row * gs_nx + i] = y[i];
     out[(row + 1) * gs_nx + i] = bad ? x_bad[i] : NAN;
@@ -359,6 +363,28 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
   } while (0)
 #else
 #define GS_PROJECT_STEP(x, changed) ((void)0)
+#endif
+
+/* ---- Defined in watch.c (used by the adaptive loops): witnesses watched along a run ---- */
+#define GS_WATCH_MAX 64     /* witnesses of one watch                                 */
+#define GS_WATCH_TERMS 512  /* their terms in all                                     */
+#define GS_WATCH_TTOL 1e-9  /* a root on the dense output: to this fraction of its
+                               interval (runtime/events.py locates it exactly)         */
+#define GS_WATCH_ITERATIONS 60
+/* The dense output of the step just accepted: x at t (between the step's start and end). */
+typedef void (*gs_interp)(const void* ctx, double t, double* x);
+#if GS_HAS_OUT
+/* Non-zero when this thread's runs watch witnesses (gs_watch_set). */
+GS_HIDDEN int gs_watching(void);
+/* The run's start (t0, x0): the witnesses' values there, each armed if > 0. */
+GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p);
+/* After an accepted step from told to t (end state y_end, dense output interp(ctx, .)): 1 and
+ * (*t_ev, x_ev) at the earliest event, 0 without one, or GS_ERR_EVAL. */
+GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_end,
+                            const double* p, gs_interp interp, const void* ctx, double* t_ev,
+                            double* x_ev);
+#else
+#define gs_watching() 0
 #endif
 
 /* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major) ---- */

@@ -25,6 +25,19 @@
  * our own; the constants are those of the reference.
  */
 
+/* The collocation polynomial of the step just accepted (Q row-major, n x 3). */
+typedef struct {
+  const double *yold, *Q;
+  double told, hsol;
+} gs_radau_dense;
+
+static void gs_radau_interp(const void* ctx, double t, double* x) {
+  const gs_radau_dense* d = (const gs_radau_dense*)ctx;
+  const double s = (t - d->told) / d->hsol, s2 = s * s, s3 = s2 * s;
+  for (int i = 0; i < gs_nx; ++i)
+    x[i] = d->yold[i] + d->Q[3 * i] * s + d->Q[3 * i + 1] * s2 + d->Q[3 * i + 2] * s3;
+}
+
 /* Work storage of gs_radau5: four n x n matrices (row-major) and two pivot vectors, in one
  * block sized at run time (gs_radau5: on the stack when small, else on the heap). */
 typedef struct {
@@ -199,6 +212,9 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
   for (int i = 0; i < n; ++i) yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, ynew, out, &row))) goto fail;
   if (row == n_out) goto done;
+#if GS_HAS_OUT
+  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p))) goto fail;
+#endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
   st[2] += 1;
@@ -462,7 +478,19 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
       have_sol = 1;
       t = tnew;
       st[7] = h;
-      while (row < n_out && t_out[row] <= t) {
+      int event = 0;
+      double t_ev = t;
+#if GS_HAS_OUT
+      if (gs_watching()) {
+        const gs_radau_dense dense = {yold, &Q[0][0], told, hsol};
+        event = gs_watch_step(wk, told, t, y, p, gs_radau_interp, &dense, &t_ev, tmp);
+        if (event < 0) {
+          rc = event;
+          goto fail;
+        }
+      }
+#endif
+      while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
         double* o = out + row * n;
         if (t_out[row] == t) {
           for (int i = 0; i < n; ++i) o[i] = y[i];
@@ -478,6 +506,15 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
 #endif
         }
         ++row;
+      }
+      if (event) { /* stop at the event: its state, and its step's start (gs_adaptive_end) */
+        for (int i = 0; i < n; ++i) {
+          y[i] = tmp[i];
+          ynew[i] = yold[i];
+        }
+        t = t_ev;
+        rc = GS_EVENT;
+        goto fail;
       }
       if (t >= t_end) break;
 

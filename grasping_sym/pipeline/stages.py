@@ -138,7 +138,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         # the control layer: the law (its name), whether it reads the object's state and the time
         "controller": {"law": law if isinstance(law, str) or law is None else law.name,
                        "uses_object": ctrl.uses_object, "reads_time": ctrl.reads_time},
-        "driver_defines": model_defines(cm, len(scene.p_names), lanes=bool(lane_c)),
+        "driver_defines": model_defines(cm, lanes=bool(lane_c)),
         "c_symbols": [f.name() for f in cm.functions()],
         "files": files,
         "constraints": _constraints_entry(cm, scene.state_names),

@@ -22,6 +22,8 @@ from grasping_sym.runtime import interrupt
 # Return codes of gs_rk4, gs_radau5, gs_dopri5, gs_dop853 and gs_project (see c/gs_internal.h).
 _ERR_NONFINITE, _ERR_BOUNDS, _ERR_EVAL, _ERR_ARGS, _ERR_STEP, _ERR_MAXSTEPS = -1, -2, -3, -4, -5, -6
 _ERR_PROJECT, _ERR_STIFF, _ERR_INTERRUPT = -7, -8, -9
+#: gs_radau5, gs_dopri5, gs_dop853 stopped at a watched witness's event (c/watch.c)
+_EVENT = -10
 ERR_PROJECT = _ERR_PROJECT
 ERR_INTERRUPT, ERR_ARGS = _ERR_INTERRUPT, _ERR_ARGS
 _RK4_EXTRA_ROWS = 2
@@ -198,6 +200,10 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
         if rc != m:
             raise RuntimeError(f"{c_name} returned {rc}, expected {m}")
         return t_arr.copy(), out[:m], stats  # out is ours: a view of it, no copy
+    if rc == _EVENT:  # the rows before it, its state, its step's start (c/watch.c)
+        r = int(stats_a[6])
+        stats["event"] = {"t": tf, "x": out[r].copy(), "x_step": out[r + 1].copy()}
+        return t_arr[:r].copy(), out[:r], stats
     if rc == _ERR_ARGS:
         if not (np.all(np.isfinite(t_arr)) and np.all(np.diff(t_arr) > 0)):
             raise ValueError(_T_OUT)

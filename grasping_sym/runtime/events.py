@@ -1,13 +1,19 @@
-"""Where between two output samples an event happens: the root of its witness, located.
+"""Where an event happens: the root of its witness, located on the run's trajectory.
 
-A check finds an event on the output samples (a witness function of the state, e.g. a
-contact's cone margin ``mu f - |F_t|``, positive before and not after). ``locate`` finds the
-time where the witness reaches zero: the run is integrated again from the last sample before
-the event, by the run's own method and tolerances (the C Radau loop for the SUNDIALS methods,
-as ``failures.locate_exit`` does), to each trial time of Brent's method (``scipy.optimize.brentq``)
-on the witness. The time is located to ``TIME_TOL`` s on the re-integrated trajectory, whose
-distance from the run's own is the integrator's tolerance; the state returned is the
+A witness is a function of the state (e.g. a contact's cone margin ``mu f - |F_t|``),
+positive before the event and not after. The time where it reaches zero is found on the
+trajectory integrated again from a state before the event, by the run's own method and
+tolerances (the C Radau loop for the SUNDIALS methods, as ``failures.locate_exit`` does), to
+each trial time; the time is located to ``TIME_TOL`` s on the re-integrated trajectory, whose
+distance from the run's own is the integrator's tolerance, and the state returned is the
 re-integrated one there.
+
+- ``locate``: the event was seen between two output samples; Brent's method
+  (``scipy.optimize.brentq``) between them, each trial integrated from the first.
+- ``refine``: the event was seen by the C loop itself (``c/watch.c``), inside one step, with
+  the root of its dense output as a first guess and the dense output's slope: secant steps
+  from it, each trial one step from the step's start; Brent's method between the watched
+  points around it when they do not converge.
 """
 from __future__ import annotations
 
@@ -26,9 +32,16 @@ from grasping_sym.runtime.parameters import complete
 TIME_TOL = 1e-14
 
 
-def state_at(model, s, sched, p, t0: float, x0: np.ndarray, t: float) -> np.ndarray:
+#: Most secant steps of ``refine`` before it falls back to Brent's method.
+SECANT_STEPS = 8
+
+
+def state_at(model, s, sched, p, t0: float, x0: np.ndarray, t: float, one_step: bool = False,
+             projection=None) -> np.ndarray:
     """The state at ``t`` integrated from ``(t0, x0)`` with the run's settings ``s`` (restarting
-    at the knots of the inputs' table ``sched``, as the run did)."""
+    at the knots of the inputs' table ``sched``, as the run did); ``one_step``: the first step
+    tried is the whole interval (``t`` inside a step the run took from ``t0``); ``projection``:
+    the run's (None: ``s.proj``)."""
     if t <= t0:
         return x0
     pieces = [(t0, t, None, None)] if sched is None else sched.segments(t0, t)
@@ -37,10 +50,79 @@ def state_at(model, s, sched, p, t0: float, x0: np.ndarray, t: float) -> np.ndar
     for a0, a1, a, b in pieces:
         pk = p if sched is None else model.with_inputs(p, a, b)
         _, X, _ = integrators.c_loop(model, method, x, np.array([a0, a1]), pk, rtol=s.rtol,
-                                     atol=s.atol, max_steps=s.max_steps, h=s.h, projection=s.proj,
-                                     time_limit=s.time_limit)
+                                     atol=s.atol, max_steps=s.max_steps, h=s.h,
+                                     projection=s.proj if projection is None else projection,
+                                     time_limit=s.time_limit, h0=a1 - a0 if one_step else 0.0)
         x = X[-1]
     return x
+
+
+def _witness_at(model, p, sched, witness: Callable[[dict], float]) -> Callable[[float, np.ndarray], float]:
+    """``g(t, x)``: ``witness`` of the compiled outputs at ``(t, x)`` (the inputs at ``t``, and
+    ``t`` itself for a law that reads it); a NaN (a blow-up) counts as past the event."""
+    plain = sched is None and not model.manifest.get("outputs_time")
+    p_full = complete(model, p) if plain else None
+
+    def g(t: float, x: np.ndarray) -> float:
+        if plain:  # one compiled call, no arrays by name
+            y = dict(zip(model.columns, model.library.outputs(x, p_full).tolist()))
+        else:
+            y = {k: float(col[0]) for k, col in
+                 outputs_.along(model, np.array([t]), x[None, :], p, sched).items()}
+        v = witness(y)
+        return -1e300 if math.isnan(v) else v
+
+    return g
+
+
+def refine(model, s, sched, p, t_step: float, x_step: np.ndarray, t_lo: float, t_hi: float,
+           t_guess: float, slope: float, witness: Callable[[dict], float],
+           projection=(None, 0.0)) -> tuple[float, np.ndarray] | None:
+    """``(t, x)`` where ``witness`` reaches zero in ``[t_lo, t_hi]``, inside the step the run
+    took from ``(t_step, x_step)``, the dense output's root ``t_guess`` and slope ``slope``
+    given (module docstring); None when the trajectory integrated again does not change sign
+    there."""
+    g_at = _witness_at(model, p, sched, witness)
+    cache: dict[float, np.ndarray] = {}
+
+    def x_at(t: float) -> np.ndarray:
+        if t not in cache:
+            cache[t] = state_at(model, s, sched, p, t_step, x_step, t, one_step=True,
+                                projection=projection)
+        return cache[t]
+
+    def g(t: float) -> float:
+        return g_at(t, x_at(t))
+
+    try:
+        a, b = t_lo, t_hi  # g(a) > 0 >= g(b) on the dense output
+        t1 = min(max(t_guess, a), b)
+        g1 = g(t1)
+        if g1 > 0:
+            a = t1
+        else:
+            b = t1
+        t2 = t1 - g1 / slope if slope < 0 and math.isfinite(slope) else 0.5 * (a + b)
+        for _ in range(SECANT_STEPS):
+            if g1 == 0 or b - a <= TIME_TOL:
+                return t1, x_at(t1)
+            if not a <= t2 <= b or t2 == t1:
+                t2 = 0.5 * (a + b)
+            g2 = g(t2)
+            if g2 > 0:
+                a = t2
+            else:
+                b = t2
+            if abs(t2 - t1) <= TIME_TOL or g2 == 0:
+                return t2, x_at(t2)
+            t1, g1, t2 = t2, g2, (t2 - g2 * (t2 - t1) / (g2 - g1) if g2 != g1 else 0.5 * (a + b))
+        # no convergence: Brent's method between the sides found
+        if not (g(a) > 0 and not g(b) > 0):
+            return None
+        t = brentq(g, a, b, xtol=TIME_TOL, maxiter=200)
+    except (IntegratorError, ValueError, RuntimeError):
+        return None
+    return t, x_at(t)
 
 
 def locate(model, s, sched, p, t0: float, x0: np.ndarray, t1: float,
@@ -56,17 +138,10 @@ def locate(model, s, sched, p, t0: float, x0: np.ndarray, t1: float,
             cache[t] = state_at(model, s, sched, p, t0, x0, t)
         return cache[t]
 
-    plain = sched is None and not model.manifest.get("outputs_time")
-    p_full = complete(model, p) if plain else None
+    g_at = _witness_at(model, p, sched, witness)
 
     def g(t: float) -> float:
-        if plain:  # one compiled call, no arrays by name
-            y = dict(zip(model.columns, model.library.outputs(x_at(t), p_full).tolist()))
-        else:
-            y = {k: float(col[0]) for k, col in
-                 outputs_.along(model, np.array([t]), x_at(t)[None, :], p, sched).items()}
-        v = witness(y)
-        return -1e300 if math.isnan(v) else v  # a NaN (blow-up): past the event
+        return g_at(t, x_at(t))
 
     try:
         if not g(t0) > 0:

@@ -376,18 +376,19 @@ def _sundials_reason(message: str) -> str:
 def c_loop(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarray | None, *,
            rtol: float, atol: float, max_steps: int, h: float,
            projection: tuple[np.ndarray | None, float] = (None, 0.0),
-           time_limit: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+           time_limit: float | None = None, h0: float = 0.0) -> tuple[np.ndarray, np.ndarray, dict]:
     """Integrate with one of ``C_LOOPS``, bounds ``model.lower`` / ``model.upper`` checked
     after every step, projecting when ``projection[0]`` (the mask) is given; Ctrl-C and
-    ``time_limit`` (s of wall time) stop the loop within a few steps."""
+    ``time_limit`` (s of wall time) stop the loop within a few steps. ``h``: rk4's step;
+    ``h0``: the adaptive loops' first step (0: chosen)."""
     lo, hi = model.lower, model.upper
     if method == "rk4":
         return rk4(model, x0, t_eval, p, h, lo, hi, projection, time_limit)
     if method == "radau":
-        return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, projection=projection,
-                     time_limit=time_limit)
+        return radau(model, x0, t_eval, p, rtol, atol, max_steps, lo, hi, h0=h0,
+                     projection=projection, time_limit=time_limit)
     if method in c_loops.STIFF_BOUND:  # the explicit loops
-        return explicit(model, method, x0, t_eval, p, rtol, atol, max_steps, lo, hi,
+        return explicit(model, method, x0, t_eval, p, rtol, atol, max_steps, lo, hi, h0=h0,
                         projection=projection, time_limit=time_limit)
     raise ValueError(f"method {method!r} has no C loop: choose one of {C_LOOPS}")
 

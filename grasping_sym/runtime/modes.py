@@ -3,11 +3,12 @@
 A model with modes (a body on a plane, ``model.body``; the manifest's ``modes``) is compiled
 once with its mode a run-time parameter (0 rolling, 1 sliding, 2 separated) and the slip
 direction at the start of a slide (``slip_x``, ``slip_y``, ``slip_z``). A run integrates one
-segment per mode by the run's C loop (``METHODS``: radau, dopri5, dop853); along each segment
-the mode's witnesses are watched at the output samples and at least every ``WATCH_DT`` s
-between them (so a sparse ``t_eval`` misses no switch that lasts longer), ``CHUNK`` samples at
-a time, and the first sign change is located between the samples by integrating again
-(``runtime.events``), where the run switches (``docs/conventions.md`` section 7):
+segment per mode by the run's C loop (``METHODS``: radau, dopri5, dop853), which watches the
+mode's witnesses itself (``c/watch.c``) at every step's end and at points of its dense output
+at most ``WATCH_DT`` s apart (so a sparse ``t_eval`` misses no switch that lasts longer), and
+stops at the first sign change, found on the dense output; the event is then located on the
+trajectory integrated again from that step's start (``runtime.events.refine``), where the run
+switches (``docs/conventions.md`` section 7):
 
 - rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
   equations accelerate it (the fixed point of ``d -> a_t(d)/|a_t(d)|`` from
@@ -73,13 +74,22 @@ MOREAU_ITERATIONS = 100
 #: An impact slower than this (m/s, normal approach) is plastic whatever ``e``: the bounces
 #: of a body coming to rest would otherwise accumulate (Zeno).
 REST_SPEED = 1e-3
-#: s, the longest interval between two samples at which the witnesses are watched, whatever
-#: ``t_eval`` (the samples added for it are not reported): a sign change and its return
-#: within it can be missed, one that lasts longer cannot.
+#: s, the longest interval between two points at which the C loop watches the witnesses
+#: (every step's end, and points of its dense output between), whatever ``t_eval``: a sign
+#: change and its return within it can be missed, one that lasts longer cannot.
 WATCH_DT = 1e-3
-#: Watched samples integrated at a time: a mode's integration goes on in chunks of this many
-#: samples, so that a switch wastes at most one chunk's integration past it.
-CHUNK = 64
+#: m: a separated contact's gap is watched for its return once it was seen above this; one
+#: that closes again first (within the watched interval that opened it) hits once its gap
+#: falls below ``-GAP_RETURN``: the round-off of a gap at its opening does not count.
+GAP_RETURN = 1e-12
+
+
+def _arming(name: str) -> float:
+    """The witness's ``tol`` of ``c/watch.c``: it is watched for a return to 0 once it was seen
+    above it, and, when > 0, for a fall below ``-tol`` before that: a gap's (``GAP_RETURN``)
+    and a slide's slip, whose start from rest is noise below ``SLIP_SPEED``; the others
+    start > 0."""
+    return GAP_RETURN if name == "gap" else SLIP_SPEED if name == "slip" else 0.0
 
 
 def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
@@ -137,8 +147,12 @@ class _Run:
         self.events: list[dict] = []
         #: ``switch_time``: seconds spent locating the switches and making them
         #: segments: one per mode's stretch (the start's and one after each switch); chunks:
-        #: the integrations they were run in (``CHUNK``)
+        #: the integrations they were run in (one per segment, and per piece of an inputs' table)
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "switch_time": 0.0}
+        #: each compiled output's column; the inputs' slots in p, ``(first, how many)``
+        self.col = {k: i for i, k in enumerate(model.columns)}
+        self.input_slots = (names.index(model.input_names[0]), len(model.input_names)) \
+            if model.input_names else (0, 0)
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
@@ -217,31 +231,31 @@ class _Run:
                                "would accelerate into each other; the rigid model has no answer here",
                                self.model.state_names)
 
-    def witnesses(self, modes, slips) -> list[tuple[str, int, object]]:
-        """``(name, contact, function of the outputs)`` of the events of every contact in its
-        mode, elementwise (one state's outputs or every sample's); a sliding contact stops
-        where ``v_t . slip`` reaches 0. A separated contact's gap is watched apart
-        (``_first_event``)."""
+    def witnesses(self, modes, slips) -> list[tuple[str, int, list[tuple[str, float]]]]:
+        """``(name, contact, terms)`` of the events of every contact in its mode: each witness
+        is ``sum(c * y[k] for k, c in terms)`` over the compiled outputs ``y`` (``value``); a
+        sliding contact stops where ``v_t . slip`` reaches 0, a separated one hits where its
+        gap does."""
         out = []
         for j in self.contacts:
             mode, mu = modes[j - 1], self.mus[j - 1]
             fk = self.key("normal_force", j)
-            force = lambda y, fk=fk: y[fk]  # noqa: E731 - one witness, two modes
             if mode == ROLLING:
-                tk = self.key("tangential_force", j)
                 if mu != math.inf:  # no friction limit: no cone to leave
-                    out.append(("cone", j, lambda y, fk=fk, tk=tk, mu=mu: mu * y[fk] - y[tk]))
-                out.append(("normal_force", j, force))
+                    out.append(("cone", j, [(fk, mu), (self.key("tangential_force", j), -1.0)]))
+                out.append(("normal_force", j, [(fk, 1.0)]))
             elif mode == SLIDING:
-                pk = self.key("painleve", j)
-                out += [("normal_force", j, force),
-                        ("slip", j, self.slip_witness(np.asarray(slips[j - 1], dtype=float), j)),
-                        ("painleve", j, lambda y, pk=pk: y[pk])]
+                out += [("normal_force", j, [(fk, 1.0)]),
+                        ("slip", j, self.slip_terms(np.asarray(slips[j - 1], dtype=float), j)),
+                        ("painleve", j, [(self.key("painleve", j), 1.0)])]
+            else:
+                out.append(("gap", j, [(self.key("gap", j), 1.0)]))
         return out
 
-    def gap_witness(self, j: int):
-        gk = self.key("gap", j)
-        return lambda y: y[gk]
+
+def value(terms: list[tuple[str, float]], y: dict) -> float:
+    """A witness (``_Run.witnesses``) at one state's outputs ``y``."""
+    return sum(c * y[k] for k, c in terms)
 
 
 class _BodyRun(_Run):
@@ -271,8 +285,8 @@ class _BodyRun(_Run):
     def slip_velocity(self, y: dict, j: int = 1) -> np.ndarray:
         return np.array([y[f"vt_{c}"] for c in "xyz"])
 
-    def slip_witness(self, d: np.ndarray, j: int = 1):
-        return lambda y: d[0] * y["vt_x"] + d[1] * y["vt_y"] + d[2] * y["vt_z"]
+    def slip_terms(self, d: np.ndarray, j: int = 1) -> list[tuple[str, float]]:
+        return [("vt_x", d[0]), ("vt_y", d[1]), ("vt_z", d[2])]
 
     def apart(self, x: np.ndarray) -> np.ndarray:
         """A body apart from the plane: its support point is the model's to keep."""
@@ -398,8 +412,8 @@ class _PlanarRun(_Run):
         x[6:8] = u
         return x
 
-    def slip_witness(self, d: np.ndarray, j: int = 1):
-        return lambda y: d[0] * y["vt"]
+    def slip_terms(self, d: np.ndarray, j: int = 1) -> list[tuple[str, float]]:
+        return [("vt", d[0])]
 
     def slip_direction(self, x: np.ndarray, y: dict, j: int = 1, modes=None, slips=None) -> np.ndarray:
         """A slide from rest of the slip starts along the rolling solution's tangential force
@@ -478,8 +492,8 @@ class _GraspRun(_Run):
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
         return np.array([y[f"vt_x{j}"], y[f"vt_y{j}"]])
 
-    def slip_witness(self, d: np.ndarray, j: int):
-        return lambda y: d[0] * y[f"vt_x{j}"] + d[1] * y[f"vt_y{j}"]
+    def slip_terms(self, d: np.ndarray, j: int) -> list[tuple[str, float]]:
+        return [(f"vt_x{j}", d[0]), (f"vt_y{j}", d[1])]
 
     def slip_direction(self, x: np.ndarray, y: dict, j: int, modes=None, slips=None) -> np.ndarray:
         """The direction a slide starts in from rest of the slip: the fixed point of
@@ -694,7 +708,6 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     t_now = 0.0
     last_t = -math.inf
     recent: list[float] = []
-    new_segment = True
     while True:
         p = r.params(modes, slips)
         r.t = t_now
@@ -702,28 +715,21 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         for j in r.contacts:
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
                 _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
-        i_next = int(np.searchsorted(t_eval, t_now + 1e-15, side="right"))
-        grid = _watched(np.concatenate([[t_now], t_eval[i_next:i_next + CHUNK]]))
+        grid = np.concatenate([[t_now], t_eval[int(np.searchsorted(t_eval, t_now + 1e-15, side="right")):]])
         if len(grid) < 2:
             break
-        last_chunk = i_next + CHUNK >= len(t_eval) and len(grid) <= CHUNK + 1
-        grid = grid[:CHUNK + 1]
-        # max_steps and time_limit bound the whole run, whatever its chunks
+        # max_steps and time_limit bound the whole run, whatever its segments
         r.s = dataclasses.replace(s, max_steps=max(s.max_steps - r.stats["n_steps"], 1),
                                   time_limit=None if s.time_limit is None else
                                   max(s.time_limit - (perf_counter() - start), 1e-9))
-        t, X, st, failure = _segment(r, x_now, grid, p)
+        watched = r.witnesses(modes, slips)
+        t, X, st, hit = _segment(r, x_now, grid, p, watched)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
-        r.stats["chunks"] += 1
-        r.stats["segments"] += 1 if new_segment else 0
-        new_segment = False
-        Y = outputs_.along(model, t, X, p, r.sched)
+        r.stats["segments"] += 1
         t_look = perf_counter()
-        found = _first_event(r, modes, slips, t, X, Y, p) if len(t) > 1 else None
-        if found is None and failure is not None:
-            raise failure  # no switch before the integration failed: its failure stands
-        keep = len(t) if found is None else found[0]
+        found = None if hit is None else _locate(r, p, watched, hit)
+        keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
         on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
         rows_t.append(t[:keep][on_grid])
         rows_x.append(X[:keep][on_grid])
@@ -732,11 +738,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
         if found is None:
-            if last_chunk:
-                break
-            t_now, x_now = float(t[-1]), X[-1]  # on with the same mode in the next chunk
-            continue
-        _, t_ev, x_ev, name, j, value = found
+            break
+        t_ev, x_ev, name, j, value_ = found
         recent = [tt for tt in recent if tt > t_ev - SWITCH_WINDOW] + [t_ev]
         if len(recent) > MAX_SWITCHES:
             raise ChatteringError(t_ev, x_ev, f"{len(recent)} switches of contact modes within "
@@ -745,13 +748,12 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
                                   "friction coefficient", model.state_names)
         before = modes[j - 1]
         r.t = t_ev
-        modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
+        modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev, hit["armed"])
         r.stats["switch_time"] += perf_counter() - t_look
         if reset is not None:  # None: a slide re-aimed, no switch
             r.events.append({"t": t_ev, "contact": j, "from": NAMES[before], "to": NAMES[modes[j - 1]],
-                             "witness": name, "value": value, "reset": reset})
+                             "witness": name, "value": value_, "reset": reset})
         t_now = t_ev
-        new_segment = True
     t_all = np.concatenate(rows_t)
     X_all = np.concatenate(rows_x)
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
@@ -776,56 +778,82 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
 
 
-def _watched(grid: np.ndarray) -> np.ndarray:
-    """``grid`` with samples added so that no interval is longer than ``WATCH_DT``."""
-    if len(grid) < 2:
-        return grid
-    n = np.maximum(np.ceil(np.diff(grid) / WATCH_DT * (1 - 1e-9)).astype(int), 1)  # 1 ms: no split
-    parts = [np.linspace(a, b, k, endpoint=False) for a, b, k in zip(grid[:-1], grid[1:], n)]
-    return np.concatenate([*parts, grid[-1:]])
-
-
-def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
-    """``(t, X, stats, failure)``: one mode's integration over ``grid``. Where it fails (a
-    contact off its chart, named as ``simulate`` names it), the samples before the failure
-    and the failure: a switch among those samples comes first, and changes the motion that
-    failed."""
-    s = r.s
-
-    def loop(g):
-        if r.sched is None:
-            return integrators.c_loop(r.model, s.method, x, g, p, rtol=s.rtol, atol=s.atol,
-                                      max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
-        return _pieces(r, x, g, p)
-
+def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
+    """``(t, X, stats, hit)``: one mode's integration over ``grid``, the C loop watching the
+    mode's witnesses (``watched``, ``c/watch.c``) and stopping at the first event: ``hit``
+    (None: none) holds its witness, its time and state on the dense output, the watched points
+    around it and its step's start (``CompiledLibrary.watch_result``); the samples before it.
+    Restarted at the inputs' knots inside ``grid`` (each piece with its inputs ``a + b t``)."""
+    s, lib = r.s, r.model.library
+    cols = r.col
+    lib.watch([[(cols[k], c) for k, c in terms] for _, _, terms in watched],
+              [_arming(name) for name, _, _ in watched],
+              inputs=r.input_slots, dt=WATCH_DT)
     try:
-        t, X, st = loop(grid)
-        return t, X, st, None
-    except IntegratorError as exc:
-        failure = failures.classify(r.model, exc)
-    before = grid[grid < failure.t]
-    if len(before) < 2:
-        return grid[:1], np.asarray(x, dtype=float)[None, :], {}, failure
-    t, X, st = loop(before)
-    return t, X, st, failure
+        pieces = [(float(grid[0]), float(grid[-1]), None, None)] if r.sched is None else \
+            r.sched.segments(float(grid[0]), float(grid[-1]))
+        rows_t, rows_x, stats = [], [], {}
+        for k, (a0, a1, a, b) in enumerate(pieces):
+            g = np.array([a0, *grid[(grid > a0) & (grid < a1)], a1])
+            pk = p if r.sched is None else r.model.with_inputs(p, a, b)
+            r.stats["chunks"] += 1
+            try:
+                t, X, st = integrators.c_loop(r.model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
+                                              max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+            except IntegratorError as exc:
+                raise failures.classify(r.model, exc) from None
+            rows_t.append(t if k == 0 else t[1:])
+            rows_x.append(X if k == 0 else X[1:])
+            for key in ("n_steps", "n_rhs"):
+                stats[key] = stats.get(key, 0) + int(st.get(key, 0))
+            if "event" in st:
+                hit = {**st["event"], **lib.watch_result(), "p": pk}
+                return _on_grid(rows_t, rows_x, grid) + (stats, hit)
+            x = X[-1]
+        return _on_grid(rows_t, rows_x, grid) + (stats, None)
+    finally:
+        lib.unwatch()
 
 
-def _pieces(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray):
-    """``(t, X, stats)`` over ``grid`` restarted at the inputs' knots inside it (each piece with
-    its inputs ``a + b t``), the samples at ``grid``'s times."""
-    s, rows_t, rows_x, stats = r.s, [], [], {}
-    for k, (a0, a1, a, b) in enumerate(r.sched.segments(float(grid[0]), float(grid[-1]))):
-        g = np.array([a0, *grid[(grid > a0) & (grid < a1)], a1])
-        t, X, st = integrators.c_loop(r.model, s.method, x, g, r.model.with_inputs(p, a, b), rtol=s.rtol,
-                                      atol=s.atol, max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
-        rows_t.append(t if k == 0 else t[1:])
-        rows_x.append(X if k == 0 else X[1:])
-        x = X[-1]
-        for key in ("n_steps", "n_rhs"):
-            stats[key] = stats.get(key, 0) + int(st.get(key, 0))
+def _on_grid(rows_t, rows_x, grid):
+    """The samples at ``grid``'s times (the pieces' knots left out)."""
     t, X = np.concatenate(rows_t), np.concatenate(rows_x)
+    if len(rows_t) == 1:
+        return t, X
     keep = np.isin(t, grid)
-    return t[keep], X[keep], stats
+    return t[keep], X[keep]
+
+
+def _locate(r: _Run, p: np.ndarray, watched, hit: dict):
+    """``(t, x, witness, contact, value)`` of the event the C loop stopped at (``_segment``'s
+    ``hit``), located on the trajectory integrated again from its step's start
+    (``events.refine``)."""
+    name, j, terms = watched[hit["which"]]
+    level = 0.0 if hit["armed"] else -_arming(name)  # unarmed: it fell below -tol (c/watch.c)
+    w = lambda y: value(terms, y) - level  # noqa: E731 - one witness
+    t_lo, t_guess, slope = hit["t_lo"], hit["t"], hit["slope"]
+    t_step, x_step = hit["t_step"], hit["x_step"]
+    if not hit["armed"] and name == "gap":  # it closes again within the interval that opened it
+        sk = r.key("normal_speed", j)
+        apex = events.locate(r.model, r.s, r.sched, p, t_step, x_step, hit["t_hi"], lambda y: y[sk])
+        r.t = apex[0] if apex is not None else t_step
+        if apex is None or not r.outputs(apex[1], p)[r.key("gap", j)] > 0:
+            raise EventLocationError(hit["t_hi"], hit["x"], f"contact {j}, apart from {t_step:.9g} s, "
+                                     f"returns before {hit['t_hi']:.9g} s, but no time apart is found "
+                                     "between: give tighter tolerances", r.model.state_names)
+        found = events.locate(r.model, r.s, r.sched, p, apex[0], apex[1], hit["t_hi"],
+                              lambda y: value(terms, y))
+    else:
+        found = events.refine(r.model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess,
+                              slope, w)
+    if found is None:
+        raise EventLocationError(hit["t_hi"], hit["x"], f"the {name} witness of contact {j} changes sign "
+                                 f"between {t_lo:.9g} and {hit['t_hi']:.9g} s on the integration's dense "
+                                 "output, but integrating again does not find where: give tighter "
+                                 "tolerances", r.model.state_names)
+    tc, xc = float(found[0]), found[1]
+    r.t = tc
+    return tc, xc, name, j, float(value(terms, r.outputs(xc, p)))
 
 
 def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
@@ -863,68 +891,9 @@ def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
     return x0, modes, slips
 
 
-def _first_event(r: _Run, modes, slips, t, X, Y, p):
-    """``(samples to keep, t, x, witness, contact, value)`` of the first event along the
-    segment's samples, located; None if none."""
-    cols = {k: i for i, k in enumerate(r.model.columns)}
-    values = {k: Y[k] for k in r.model.columns}
-    watched = [(name, j, w) for name, j, w in r.witnesses(modes, slips)]
-    cands = []
-    for j in r.contacts:
-        if modes[j - 1] == SEPARATED:
-            gap, speed = values[r.key("gap", j)], values[r.key("normal_speed", j)]
-            bad = np.flatnonzero(~(gap > 0) & (speed < 0))
-            bad = bad[bad > 0]
-            if bad.size:
-                cands.append(int(bad[0]))
-            watched.append(("gap", j, r.gap_witness(j)))
-    for name, _j, w in watched:
-        if name == "gap":
-            continue
-        W = np.asarray(w(values), dtype=float)
-        cross = np.flatnonzero((W[:-1] > 0) & ~(W[1:] > 0))
-        if cross.size:
-            cands.append(int(cross[0]) + 1)
-    if not cands:
-        return None
-    i = min(cands)
-    y0 = {k: float(values[k][i - 1]) for k in cols}
-    y1 = {k: float(values[k][i]) for k in cols}
-    t0, x0 = float(t[i - 1]), X[i - 1]
-    best = None
-    for name, j, w in watched:
-        start_t, start_x = t0, x0
-        if name == "gap":
-            if not (not y1[r.key("gap", j)] > 0 and y1[r.key("normal_speed", j)] < 0):
-                continue
-            if not y0[r.key("gap", j)] > CONTACT_GAP:  # just left the contact: from the apex
-                sk = r.key("normal_speed", j)
-                apex = events.locate(r.model, r.s, r.sched, p, t0, x0, float(t[i]), lambda y, sk=sk: y[sk]) \
-                    if y0[sk] > 0 else None
-                r.t = apex[0] if apex is not None else t0
-                if apex is None or not r.outputs(apex[1], p)[r.key("gap", j)] > 0:
-                    raise EventLocationError(float(t[i]), X[i], f"contact {j}, left at {t0:.9g} s, returns "
-                                             f"before {t[i]:.9g} s, but no time apart is found between: "
-                                             "give a denser t_eval or tighter tolerances",
-                                             r.model.state_names)
-                start_t, start_x = apex
-        elif not (w(y0) > 0 and not w(y1) > 0):
-            continue
-        found = events.locate(r.model, r.s, r.sched, p, start_t, start_x, float(t[i]), w)
-        if found is None:
-            raise EventLocationError(float(t[i]), X[i], f"the {name} witness of contact {j} changes sign "
-                                     f"between the outputs at {t[i - 1]:.9g} and {t[i]:.9g} s, but "
-                                     "integrating again does not find where: give a denser t_eval or "
-                                     "tighter tolerances", r.model.state_names)
-        tc, xc = found
-        r.t = tc
-        if best is None or tc < best[1]:
-            best = (i, tc, xc, name, j, float(w(r.outputs(xc, p))))
-    return best
-
-
-def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray):
-    """``(modes, slips, state after, reset)`` at an event of contact ``j``."""
+def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, armed: bool = True):
+    """``(modes, slips, state after, reset)`` at an event of contact ``j`` (``armed``: its witness
+    was seen above its ``_arming`` level first, ``c/watch.c``)."""
     modes, slips = list(modes), list(slips)
     if name == "painleve":
         y = r.outputs(x, r.params(modes, slips))
@@ -939,7 +908,10 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray):
     y = r.with_mode(x, modes, slips, j, ROLLING)
     if name == "slip":
         vt = r.slip_velocity(y, j)
-        if np.linalg.norm(vt) > STOP_SPEED:  # the slip turned past 90 degrees, it did not stop
+        # the slip turned past 90 degrees from its start's direction, it did not stop: faster
+        # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
+        # event: below -SLIP_SPEED before it was ever above SLIP_SPEED)
+        if np.linalg.norm(vt) > (STOP_SPEED if armed else SLIP_SPEED):
             slips[j - 1] = vt / np.linalg.norm(vt)
             return modes, slips, x, None
         x2, reset = r.stop_slip(x, y, modes, j)

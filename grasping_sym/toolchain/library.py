@@ -28,7 +28,7 @@ _C_DIR = Path(__file__).resolve().parent.parent / "c"
 #: its header comment maps the macros and the other files).
 DRIVER_SOURCES: tuple[Path, ...] = tuple(
     _C_DIR / f for f in ("driver.c", "project.c", "rk4.c", "radau5.c", "jac.c", "lu.c", "dopri5.c", "dop853.c",
-                         "stop.c", "batch.c", "budget.c"))
+                         "stop.c", "watch.c", "batch.c", "budget.c"))
 #: The optional CPython extension giving the sub-microsecond call path.
 PYFAST_C: Path = _C_DIR / "pyfast.c"
 
@@ -62,8 +62,9 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
         ``GS_RHS, GS_NX, GS_NP, GS_HAS_OUT, [GS_OUT, GS_NY,] GS_HAS_JAC, [GS_JAC,
         GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_HAS_CON, [GS_CON, GS_NC,]
         GS_HAS_RHS_LANES, [GS_RHS_LANES,] GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes
-        are maxima over all the functions given. The sizes (``GS_NX``, ``GS_NP``, ``GS_NY``,
-        ``GS_NC``) are not compiled into the driver: the library's link file defines them for
+        are maxima over all the functions given; ``GS_OUT_TIME`` 1 when the outputs take the
+        time as one more last entry of p. The sizes (``GS_NX``, ``GS_NP``, ``GS_NY``,
+        ``GS_NC``, and ``GS_OUT_TIME``) are not compiled into the driver: the library's link file defines them for
         it to read at run time (``objects.links_c``).
     """
     fns = [rhs_fn] + [f for f in (outputs_fn, jac_fn, constraints_fn) if f is not None]
@@ -74,13 +75,16 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
         "GS_HAS_OUT": int(outputs_fn is not None),
     }
     if outputs_fn is not None:
-        if outputs_fn.numel_in(0) != defines["GS_NX"] or outputs_fn.numel_in(1) != defines["GS_NP"]:
+        n_p = defines["GS_NP"]
+        if outputs_fn.numel_in(0) != defines["GS_NX"] or outputs_fn.numel_in(1) not in (n_p, n_p + 1):
             raise ValueError(
                 f"outputs function {outputs_fn.name()!r} must take x[{defines['GS_NX']}], "
-                f"p[{defines['GS_NP']}]; got x[{outputs_fn.numel_in(0)}], p[{outputs_fn.numel_in(1)}]"
+                f"p[{n_p}] (or p[{n_p + 1}], the time last); got x[{outputs_fn.numel_in(0)}], "
+                f"p[{outputs_fn.numel_in(1)}]"
             )
         defines["GS_OUT"] = outputs_fn.name()
         defines["GS_NY"] = int(outputs_fn.numel_out(0))
+        defines["GS_OUT_TIME"] = int(outputs_fn.numel_in(1) == n_p + 1)
     defines["GS_HAS_JAC"] = int(jac_fn is not None)
     if jac_fn is not None:
         nx = defines["GS_NX"]
@@ -118,14 +122,13 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
     return defines
 
 
-def model_defines(cm, n_p: int, lanes: bool) -> dict[str, str | int]:
-    """The driver's macros for a model's functions (``functions.CasadiModel``) with ``n_p``
-    parameters, and a 4-lane rhs when ``lanes``. A law that reads the time gives outputs that
-    take it as one more last entry of p: the driver (whose p has the model's size) then does
-    not call them (``runtime.outputs.row`` does)."""
-
-    return driver_defines(cm.rhs, None if outputs_read_time(cm, n_p) else cm.outputs,
-                          jac_fn=cm.jac, constraints_fn=cm.constraints,
+def model_defines(cm, lanes: bool) -> dict[str, str | int]:
+    """The driver's macros for a model's functions (``functions.CasadiModel``), and a 4-lane
+    rhs when ``lanes``. A law that reads the time gives outputs that
+    take it as one more last entry of p (``GS_OUT_TIME``, the link file's ``gs_out_time``):
+    the driver then calls them only to watch witnesses (``c/watch.c``; ``runtime.outputs.row``
+    gives them to the caller)."""
+    return driver_defines(cm.rhs, cm.outputs, jac_fn=cm.jac, constraints_fn=cm.constraints,
                           rhs_lanes=lanes_symbol(cm.rhs) if lanes else None)
 
 

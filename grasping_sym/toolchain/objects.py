@@ -44,7 +44,8 @@ __all__ = ["ALIASES", "SIZES", "cached_objects", "driver_objects", "flags_digest
 
 #: The model's sizes among the driver's macros, and the run-time variable each one defines in
 #: the link file (``c/gs_driver.h``); the driver's objects are compiled without them.
-SIZES: dict[str, str] = {"GS_NX": "gs_nx", "GS_NP": "gs_np", "GS_NY": "gs_ny", "GS_NC": "gs_nc"}
+SIZES: dict[str, str] = {"GS_NX": "gs_nx", "GS_NP": "gs_np", "GS_NY": "gs_ny", "GS_NC": "gs_nc",
+                         "GS_OUT_TIME": "gs_out_time"}
 #: The driver's macros that name a model function, and the fixed name each one gets.
 ALIASES: dict[str, str] = {
     "GS_RHS": "gs_model_rhs", "GS_OUT": "gs_model_outputs", "GS_JAC": "gs_model_jac",
@@ -83,7 +84,7 @@ def links_c(defines: Mapping[str, str | int]) -> str:
     has = {"GS_NY": bool(defines.get("GS_HAS_OUT")), "GS_NC": bool(defines.get("GS_HAS_CON"))}
     lines = ["/* grasping_sym: this model's sizes and functions, for the driver (toolchain.objects) */"]
     for k, var in SIZES.items():
-        value = int(defines[k]) if has.get(k, True) else 0
+        value = int(defines.get(k, 0)) if has.get(k, True) else 0
         lines.append(f'__attribute__((visibility("hidden"))) const int {var} = {value};')
     for k, alias in ALIASES.items():
         if k not in defines:

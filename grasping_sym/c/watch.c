@@ -1,0 +1,230 @@
+/*
+ * grasping_sym driver: witnesses watched along an adaptive run, for the runs with contact
+ * modes (runtime/modes.py): gs_watch_set, gs_watch_clear, gs_watch_result.
+ *
+ * A witness is a linear combination of the model's outputs, g = sum_k c_k y[i_k] (a cone's
+ * margin mu f - |F_t|, a normal force, a slip velocity along a direction, a gap). With a
+ * watch set on this thread, gs_radau5, gs_dopri5 and gs_dop853 evaluate every witness at
+ * the run's start, then after each accepted step at its end and at points of its dense
+ * output no farther apart than dt. A witness is armed once it was seen > tol (>= 0, its
+ * own). An event is an armed witness <= 0 at a watched point, or, when tol > 0, an unarmed
+ * one below -tol (a gap that closes again within the interval that opened it; a slip that
+ * reverses before it was ever faster than tol: the noise of a slip that starts from rest
+ * does not count). Its root (of g, or of g + tol unarmed) between the two watched points is located on the dense output (Illinois' regula falsi, to
+ * GS_WATCH_TTOL of the interval), the earliest of the step's events is taken, and the loop
+ * stops there with GS_EVENT: the output rows before the event are written, row r (r =
+ * stats[6]) holds the dense output's state at the event, row r + 1 the state at the start
+ * of the step, *t_fail the event's time, and gs_watch_result gives the rest (below).
+ * runtime/events.py then locates the root on the trajectory integrated again from the
+ * step's start, the dense output's root as its first guess.
+ *
+ * The outputs the witnesses read take p with the inputs at the watched time (p[k .. k+m) =
+ * a + b t and p[k+m .. k+2m) = 0, as runtime.parameters.with_inputs does) and, for a model
+ * whose outputs read the time (gs_out_time), t as one more last entry.
+ *
+ * The watch is thread-local: gs_batch's threads never watch.
+ */
+#include "gs_internal.h"
+
+#if GS_HAS_OUT
+/* One watch: its witnesses (terms in compressed rows), and the run's state of them. */
+typedef struct {
+  int on, n, in_k, in_m;
+  double dt;
+  int ptr[GS_WATCH_MAX + 1], idx[GS_WATCH_TERMS];
+  double coef[GS_WATCH_TERMS], tol[GS_WATCH_MAX];
+  int armed[GS_WATCH_MAX];
+  double g_prev[GS_WATCH_MAX], t_prev;
+  /* the last event: which witness, armed or not, its bracket, the dense output's slope
+   * there, the start of its step */
+  int which, armed_at_event;
+  double t_lo, t_hi, slope, t_step;
+} gs_watch_state;
+
+static _Thread_local gs_watch_state gs_w;
+
+GS_HIDDEN int gs_watching(void) { return gs_w.on; }
+
+/* The witnesses at (t, x), into g. */
+static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p, double* g) {
+  double pw[gs_np + 1], y[gs_ny > 0 ? gs_ny : 1];
+  for (int i = 0; i < gs_np; ++i) pw[i] = p[i];
+  for (int i = 0; i < gs_w.in_m; ++i) {
+    pw[gs_w.in_k + i] = p[gs_w.in_k + i] + p[gs_w.in_k + gs_w.in_m + i] * t;
+    pw[gs_w.in_k + gs_w.in_m + i] = 0.0;
+  }
+  pw[gs_np] = t; /* read only by outputs that take the time (gs_out_time) */
+  const int rc = gs_eval_out(wk, x, pw, y);
+  if (rc) return rc;
+  for (int k = 0; k < gs_w.n; ++k) {
+    double s = 0.0;
+    for (int j = gs_w.ptr[k]; j < gs_w.ptr[k + 1]; ++j) s += gs_w.coef[j] * y[gs_w.idx[j]];
+    g[k] = s;
+  }
+  return 0;
+}
+
+GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p) {
+  double g[GS_WATCH_MAX];
+  const int rc = gs_watch_eval(wk, t0, x0, p, g);
+  if (rc) return rc;
+  for (int k = 0; k < gs_w.n; ++k) {
+    gs_w.armed[k] = g[k] > gs_w.tol[k];
+    gs_w.g_prev[k] = g[k];
+  }
+  gs_w.t_prev = t0;
+  gs_w.which = -1;
+  return 0;
+}
+
+/* Whether witness k's value v (after gs_w.g_prev at gs_w.t_prev) is an event. */
+static int gs_watch_fires(int k, double v) {
+  return gs_w.armed[k] ? !(v > 0.0) : (gs_w.tol[k] > 0.0 && v < -gs_w.tol[k]);
+}
+
+/* Witness k's root in [a, b] (ga = g(a) on the fired side's other side, gb = g(b)) on the
+ * dense output: Illinois' regula falsi. */
+static int gs_watch_root(gs_work* wk, int k, double a, double ga, double b, double gb,
+                         const double* p, gs_interp interp, const void* ctx, double* x,
+                         double* root, double* slope) {
+  double g[GS_WATCH_MAX];
+  const double tol = GS_WATCH_TTOL * (b - a);
+  int side = 0;
+  /* the sign change sought: from ga's side to gb's (gb <= 0 < ga, or gb < -tol <= ga) */
+  const double level = gs_w.armed[k] ? 0.0 : -gs_w.tol[k];
+  ga -= level;
+  gb -= level;
+  for (int it = 0; it < GS_WATCH_ITERATIONS && b - a > tol && ga != gb; ++it) {
+    double c = b - gb * (b - a) / (gb - ga);
+    if (!(c > a && c < b)) c = 0.5 * (a + b);
+    interp(ctx, c, x);
+    const int rc = gs_watch_eval(wk, c, x, p, g);
+    if (rc) return rc;
+    const double gc = g[k] - level;
+    if (gc > 0.0) {
+      a = c;
+      ga = gc;
+      if (side == -1) gb *= 0.5;
+      side = -1;
+    } else {
+      b = c;
+      gb = gc;
+      if (side == 1) ga *= 0.5;
+      side = 1;
+    }
+  }
+  *root = b;
+  *slope = ga != gb ? (gb - ga) / (b - a) : 0.0;
+  return 0;
+}
+
+GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_end,
+                            const double* p, gs_interp interp, const void* ctx, double* t_ev,
+                            double* x_ev) {
+  double g[GS_WATCH_MAX], x[gs_nx];
+  const int m = gs_w.dt > 0.0 ? (int)fmin(ceil((t - told) / gs_w.dt), 1e6) : 1;
+  for (int j = 1; j <= (m > 1 ? m : 1); ++j) {
+    const double tj = j == m || m <= 1 ? t : told + (t - told) * ((double)j / m);
+    const double* xj = y_end;
+    if (tj != t) {
+      interp(ctx, tj, x);
+      xj = x;
+    }
+    int rc = gs_watch_eval(wk, tj, xj, p, g);
+    if (rc) return rc;
+    int best = -1;
+    double best_t = tj, best_slope = 0.0;
+    for (int k = 0; k < gs_w.n; ++k) {
+      if (!gs_watch_fires(k, g[k])) continue;
+      double root, slope;
+      rc = gs_watch_root(wk, k, gs_w.t_prev, gs_w.g_prev[k], tj, g[k], p, interp, ctx, x, &root,
+                         &slope);
+      if (rc) return rc;
+      if (best < 0 || root < best_t) {
+        best = k;
+        best_t = root;
+        best_slope = slope;
+      }
+    }
+    if (best >= 0) {
+      gs_w.which = best;
+      gs_w.armed_at_event = gs_w.armed[best];
+      gs_w.t_lo = gs_w.t_prev;
+      gs_w.t_hi = tj;
+      gs_w.slope = best_slope;
+      gs_w.t_step = told;
+      *t_ev = best_t;
+      if (best_t == t)
+        for (int i = 0; i < gs_nx; ++i) x_ev[i] = y_end[i];
+      else
+        interp(ctx, best_t, x_ev);
+      return 1;
+    }
+    for (int k = 0; k < gs_w.n; ++k) {
+      gs_w.armed[k] |= g[k] > gs_w.tol[k];
+      gs_w.g_prev[k] = g[k];
+    }
+    gs_w.t_prev = tj;
+  }
+  return 0;
+}
+#endif
+
+/* Watch n witnesses in this thread's next runs: witness k is sum_j coef[j] y[idx[j]] over
+ * j in [ptr[k], ptr[k + 1]); tol[k] as above; the inputs (a, b) at p[in_k .. in_k + 2
+ * in_m) (in_m = 0: none); watched points at most dt apart (0: the steps' ends only).
+ * Returns 0, or GS_ERR_ARGS (nothing set) for a model without outputs, more than
+ * GS_WATCH_MAX witnesses or GS_WATCH_TERMS terms, an index out of range or a non-finite
+ * number. */
+GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const double* coef,
+                           const double* tol, long in_k, long in_m, double dt) {
+#if GS_HAS_OUT
+  if (n < 0 || n > GS_WATCH_MAX || !ptr || ptr[0] != 0 || ptr[n] > GS_WATCH_TERMS ||
+      !(dt >= 0.0) || !isfinite(dt) || in_m < 0 || in_k < 0 || in_k + 2 * in_m > gs_np)
+    return GS_ERR_ARGS;
+  for (long k = 0; k < n; ++k) {
+    if (ptr[k + 1] < ptr[k] || !(tol[k] >= 0.0) || !isfinite(tol[k])) return GS_ERR_ARGS;
+    for (long j = ptr[k]; j < ptr[k + 1]; ++j)
+      if (idx[j] < 0 || idx[j] >= gs_ny || !isfinite(coef[j])) return GS_ERR_ARGS;
+  }
+  gs_w.n = (int)n;
+  gs_w.in_k = (int)in_k;
+  gs_w.in_m = (int)in_m;
+  gs_w.dt = dt;
+  for (long k = 0; k <= n; ++k) gs_w.ptr[k] = (int)ptr[k];
+  for (long j = 0; j < ptr[n]; ++j) {
+    gs_w.idx[j] = (int)idx[j];
+    gs_w.coef[j] = coef[j];
+  }
+  for (long k = 0; k < n; ++k) gs_w.tol[k] = tol[k];
+  gs_w.which = -1;
+  gs_w.on = 1;
+  return 0;
+#else
+  (void)n, (void)ptr, (void)idx, (void)coef, (void)tol, (void)in_k, (void)in_m, (void)dt;
+  return GS_ERR_ARGS;
+#endif
+}
+
+GS_EXPORT void gs_watch_clear(void) {
+#if GS_HAS_OUT
+  gs_w.on = 0;
+#endif
+}
+
+/* The last event of this thread's watched run: out[0] the witness (-1: none), out[1] 1 if it
+ * was armed (else it fell below -tol), out[2], out[3] the watched points around it,
+ * out[4] the dense output's slope of the witness there, out[5] the start of its step. */
+GS_EXPORT void gs_watch_result(double* out) {
+#if GS_HAS_OUT
+  out[0] = gs_w.which;
+  out[1] = gs_w.armed_at_event;
+  out[2] = gs_w.t_lo;
+  out[3] = gs_w.t_hi;
+  out[4] = gs_w.slope;
+  out[5] = gs_w.t_step;
+#else
+  out[0] = -1;
+  for (int i = 1; i < 6; ++i) out[i] = NAN;
+#endif
+}
