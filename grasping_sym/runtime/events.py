@@ -103,6 +103,8 @@ def refine(model, s, sched, p, t_step: float, x_step: np.ndarray, t_lo: float, t
         else:
             b = t1
         t2 = t1 - g1 / slope if slope < 0 and math.isfinite(slope) else 0.5 * (a + b)
+        if abs(t2 - t1) <= TIME_TOL and a <= t2 <= b:  # the dense output's root was the root
+            return t1, x_at(t1)
         for _ in range(SECANT_STEPS):
             if g1 == 0 or b - a <= TIME_TOL:
                 return t1, x_at(t1)
@@ -113,9 +115,10 @@ def refine(model, s, sched, p, t_step: float, x_step: np.ndarray, t_lo: float, t
                 a = t2
             else:
                 b = t2
-            if abs(t2 - t1) <= TIME_TOL or g2 == 0:
+            t3 = t2 - g2 * (t2 - t1) / (g2 - g1) if g2 != g1 else 0.5 * (a + b)
+            if g2 == 0 or abs(t3 - t2) <= TIME_TOL:  # the next secant step would be below TIME_TOL
                 return t2, x_at(t2)
-            t1, g1, t2 = t2, g2, (t2 - g2 * (t2 - t1) / (g2 - g1) if g2 != g1 else 0.5 * (a + b))
+            t1, g1, t2 = t2, g2, t3
         # no convergence: Brent's method between the sides found
         if not (g(a) > 0 and not g(b) > 0):
             return None

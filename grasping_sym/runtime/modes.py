@@ -321,7 +321,9 @@ class _BodyRun(_Run):
         q = x[3:7]
         R = rotation(q)
         x[7:10] += P / self.m
-        x[10:13] += self.Hinv @ np.cross(R.T @ rc, R.T @ P)
+        a, b = R.T @ rc, R.T @ P  # their cross product (np.cross costs ~20 us on 3-vectors)
+        x[10:13] += self.Hinv @ np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                                          a[0] * b[1] - a[1] * b[0]])
         return x
 
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
@@ -684,10 +686,11 @@ def refuse_unused(*, params, u, slip, inputs: bool = False) -> None:
 def rotation(q: np.ndarray) -> np.ndarray:
     """The rotation of a (not necessarily unit) quaternion ``(w, x, y, z)``, in the homogeneous
     form the compiled model uses (``derive.bodies3d.object_rotation``)."""
-    w, v = q[0], q[1:4]
-    s = float(np.dot(q, q))
-    return ((w * w - v @ v) * np.eye(3) + 2 * np.outer(v, v) + 2 * w * np.array(
-        [[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])) / s
+    w, x, y, z = (float(c) for c in q)
+    s = w * w + x * x + y * y + z * z
+    return np.array([[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]]) / s
 
 
 def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> SimulationResult:
@@ -734,7 +737,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         rows_t.append(t[:keep][on_grid])
         rows_x.append(X[:keep][on_grid])
         rows_mode.append(np.tile(modes, (int(on_grid.sum()), 1)))
-        rows_p.append(np.tile(p, (int(on_grid.sum()), 1)))
+        rows_p.append(p)
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
         if found is None:
@@ -758,15 +761,11 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     X_all = np.concatenate(rows_x)
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
     outs = {}
-    if s.outputs:
-        P_all = np.concatenate(rows_p)
-        timed = bool(model.manifest.get("outputs_time"))
-        Y = np.array([outputs_.row(model, x, complete(model, pp if r.sched is None else
-                                                       model.with_inputs(pp, r.sched(tt))),
-                                   tt if timed else None)
-                      for tt, x, pp in zip(t_all, X_all, P_all)]) if len(X_all) \
-            else np.zeros((0, len(model.columns)))
-        outs = {k: Y[:, i].copy() for i, k in enumerate(model.columns) if k in model.output_names}
+    if s.outputs:  # each segment's rows with its parameters (one compiled batch call each)
+        parts = [outputs_.along(model, tt, xx, pp, r.sched) for tt, xx, pp in zip(rows_t, rows_x, rows_p)
+                 if len(tt)]
+        outs = {k: np.concatenate([part[k] for part in parts]) if parts else np.zeros(0)
+                for k in model.columns if k in model.output_names}
     if s.drop_first and len(t_all) and t_all[0] == 0.0:
         t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
         outs = {k: v[1:] for k, v in outs.items()}
