@@ -28,7 +28,7 @@ import casadi as ca
 
 from grasping_sym.derive.planar import derive_template, has_gravity, parameter_values, torque_names
 from grasping_sym.errors import InvalidSceneError
-from grasping_sym.symbolic.contour_functions import FINGERTIP, OBJECT, leaf_expressions
+from grasping_sym.symbolic.contour_functions import FINGERTIP, OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi
 
 #: 1/s: the rate at which sliding and separated contact parameters return to the common
@@ -41,7 +41,10 @@ FORCE_FLOOR = 1e-300
 def derive_planar_modes(scene, torques) -> dict:
     """``{"x", "p", "t", "xdot", "outputs", "reads_time"}`` of a ``model.planar_modes`` scene;
     ``torques(scene, t, x, p) -> (tau, reads the object, reads the time)`` gives the joint
-    torques of its controller (``assemble.controller.controller_torques``)."""
+    torques of its controller (``assemble.controller.controller_torques``). Several fingers:
+    ``derive_planar_fingers_modes``."""
+    if scene.n_fingers > 1:
+        return derive_planar_fingers_modes(scene, torques)
     base = scene.base
     system = derive_template(False, has_gravity(base), 1)
     names = scene.p_names
@@ -126,4 +129,113 @@ def derive_planar_modes(scene, torques) -> dict:
     for i in range(3):
         outputs[f"Minv_gQ_{i}"] = MinvA[i, 0]
         outputs[f"Minv_gR_{i}"] = MinvA[i, 1]
+    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": outputs, "reads_time": timed}
+
+
+def derive_planar_fingers_modes(scene, torques) -> dict:
+    """``derive_planar_modes`` of a scene of ``k > 1`` fingers: each contact ``i`` in its own
+    mode (``mode{i}``, ``slip{i}``, ``mu{i}``), the multipliers of every contact
+    ``z = (f_1, lam_1, ..., f_k, lam_k)`` (the force on the system ``-A^T z``, ``A`` the rows
+    ``(gQ_i, gR_i)``) solved together from two rows per contact: rolling, its two constraint
+    rows along the motion (as the rolling model); sliding, its normal row along the common
+    normal's motion and Coulomb's ``lam_i = mu_i d_i f_i``; separated, ``f_i = lam_i = 0``.
+    ``painleve{i}`` is contact ``i``'s own coefficient of its sliding normal row."""
+    base = scene.base
+    k = base.n_fingers
+    system = derive_template(False, has_gravity(base), k)
+    names = scene.p_names
+    x = ca.SX.sym("x", len(scene.state_names))
+    p = ca.SX.sym("p", len(names))
+    t = ca.SX.sym("t")
+    nq = 1 + 2 * k
+    q, v, u = x[0:nq], x[nq:2 * nq], x[2 * nq:2 * nq + 2 * k]
+    tau, _, timed = torques(scene, t, x, p)
+    if ca.depends_on(tau, u):
+        raise InvalidSceneError(["the controller reads the contact parameters (u0_i, u1_i): with contact "
+                                 "modes they are not one point while a contact slides or is open; "
+                                 "write the law on the joints and the object (m.q, m.dq, m.tip, ...)"])
+    values = parameter_values(base)
+    symbols = {s: x[i] for i, s in enumerate(system.state)}
+    taus = torque_names(k)
+    for s in system.params:
+        key = str(s)
+        symbols[s] = tau[taus.index(key)] if key in taus else p[names.index(key)] if key in names \
+            else ca.SX(values[key])
+    leaves = dict(leaf_expressions(OBJECT, base.object))
+    for i, tip in enumerate(base.fingertips, start=1):
+        leaves.update(leaf_expressions(fingertip_functions(i), tip))
+    tr = SympyToCasadi(symbols, leaves)
+    by_name = {str(s): symbols[s] for s in system.params}
+    gf, gl, wf, wl = (by_name[key] for key in ("gf", "gl", "wf", "wl"))
+
+    M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
+    C = tr(system.constraint)
+    sigma = tr(system.contact_rates)
+    A = ca.jacobian(C, q)
+    zq = ca.SX.zeros(nq)
+    free = ca.solve(M, F - h)
+    MinvA = ca.solve(M, A.T)
+    # the rolling rows along the motion (each contact's parameters carried by sigma)
+    Cdot = ca.jtimes(C, x, ca.vertcat(v, zq, sigma))
+    Ahat = ca.jacobian(Cdot, v)
+    bhat = ca.jtimes(Cdot, x, ca.vertcat(v, zq, sigma))
+    # sliding and separated contacts' parameters on the common normal
+    u_geo = []
+    for i in range(1, k + 1):
+        ui = u[2 * i - 2:2 * i]
+        G = ca.vertcat(C[2 * i - 1], tr(system.outputs[f"tangency_defect{i}"]))
+        u_geo.append(ca.solve(ca.jacobian(G, ui), -ca.jacobian(G, q) @ v - TRACK_GAIN * G))
+    u_geo = ca.vertcat(*u_geo)
+    rows, rhs, per = [], [], []
+    unit = ca.SX.eye(2 * k)
+    for i in range(1, k + 1):
+        a_, b_ = 2 * i - 2, 2 * i - 1
+        mode, slip, mu = (p[names.index(f"{key}{i}")] for key in ("mode", "slip", "mu"))
+        Q = C[a_]
+        Qdot = ca.jtimes(Q, x, ca.vertcat(v, zq, u_geo))
+        Qa = ca.jacobian(Qdot, v)
+        Qb = ca.jtimes(Qdot, x, ca.vertcat(v, zq, u_geo))
+        vt = ca.mtimes(A[b_, :], v)
+        d = ca.if_else(vt * slip > 0, ca.sign(vt), slip)
+        rolling, sliding = mode < 0.5, mode < 1.5
+        roll_a = (Ahat[a_, :] @ MinvA, Ahat[a_, :] @ free + bhat[a_] + 2 * gf * Cdot[a_] + wf * C[a_])
+        roll_b = (Ahat[b_, :] @ MinvA, Ahat[b_, :] @ free + bhat[b_] + 2 * gl * Cdot[b_] + wl * C[b_])
+        slide_a = (Qa @ MinvA, Qa @ free + Qb + 2 * gf * Qdot + wf * Q)
+        slide_b = (unit[b_, :] - mu * d * unit[a_, :], ca.SX(0))
+        for (ra, fa), (rs, fs), ro in ((roll_a, slide_a, unit[a_, :]), (roll_b, slide_b, unit[b_, :])):
+            rows.append(ca.if_else(rolling, ra, ca.if_else(sliding, rs, ro)))
+            rhs.append(ca.if_else(rolling, fa, ca.if_else(sliding, fs, 0)))
+        per.append({"Q": Q, "Qdot": Qdot, "Qa": Qa, "Qb": Qb, "vt": vt, "d": d, "mu": mu,
+                    "rolling": rolling})
+    z = ca.solve(ca.vertcat(*rows), ca.vertcat(*rhs))
+    a = free - MinvA @ z
+    udot = ca.vertcat(*[ca.if_else(c["rolling"], sigma[2 * i:2 * i + 2], u_geo[2 * i:2 * i + 2])
+                        for i, c in enumerate(per)])
+    xdot = ca.vertcat(v, a, udot)
+
+    outputs = {}
+    for i, c in enumerate(per, start=1):
+        f, lam = z[2 * i - 2], z[2 * i - 1]
+        w = MinvA @ (unit[:, 2 * i - 2] + c["mu"] * c["d"] * unit[:, 2 * i - 1])
+        outputs.update({
+            f"gap{i}": -c["Q"], f"normal_speed{i}": -c["Qdot"], f"normal_force{i}": f, f"lam{i}": lam,
+            f"tangential_force{i}": ca.fabs(lam), f"cone_ratio{i}": ca.fabs(lam) / ca.fmax(f, FORCE_FLOOR),
+            f"vt{i}": c["vt"], f"slip_speed{i}": ca.fabs(c["vt"]), f"painleve{i}": ca.mtimes(c["Qa"], w),
+            f"normal_acceleration{i}": -(ca.mtimes(c["Qa"], a) + c["Qb"]),
+            f"Q{i}": c["Q"], f"R{i}": C[2 * i - 1],
+            f"tangency_defect{i}": tr(system.outputs[f"tangency_defect{i}"]),
+            f"vn_fixed{i}": ca.mtimes(A[2 * i - 2, :], v),
+        })
+    W = A @ MinvA
+    outputs.update({
+        "kinetic_energy": tr(system.outputs["kinetic_energy"]),
+        "potential_energy": tr(system.outputs["potential_energy"]),
+        "power": ca.dot(v[1:], tau),
+    })
+    for r in range(2 * k):
+        for c in range(r, 2 * k):
+            outputs[f"W_{r}_{c}"] = W[r, c]
+    for s_ in range(nq):
+        for r in range(2 * k):
+            outputs[f"MinvAT_{s_}_{r}"] = MinvA[s_, r]
     return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": outputs, "reads_time": timed}

@@ -16,7 +16,7 @@ KINDS: dict[str, str] = {
     "grasp3d": "3D: spatial finger chains grasping an object with smooth surfaces (model.grasp3d)",
     "body": "3D: a free body on a plane of the world, rolling, sliding or separated (model.body)",
     "grasp3d_modes": "3D: a grasp whose finger contacts roll, slide or separate (model.grasp3d_modes)",
-    "planar_modes": "2D: a planar finger whose contact rolls, slides or separates (model.planar_modes)",
+    "planar_modes": "2D: planar fingers whose contacts roll, slide or separate (model.planar_modes)",
 }
 
 

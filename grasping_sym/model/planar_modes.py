@@ -1,13 +1,17 @@
-"""A 2D scene whose finger contact rolls, slides or separates: the planar scene with modes.
+"""A 2D scene whose finger contacts roll, slide or separate: the planar scene with modes.
 
-``with_modes(scene)`` takes a one-finger ``model.planar.PlanarFingerScene`` (its contours,
-links, pivot, gravity and controller) and gives the scene of kind ``"planar_modes"``: the
-same bodies, compiled once with the contact's mode a run-time parameter
-(``derive.planar_modes``), run by ``runtime.modes`` (switches at located events, impacts
-with restitution and Coulomb friction on the impulse; ``docs/conventions.md`` section 8).
+``with_modes(scene)`` takes a ``model.planar.PlanarFingerScene`` (its contours, links, pivot,
+gravity and controller; one finger or several) and gives the scene of kind
+``"planar_modes"``: the same bodies, compiled once with each contact's mode a run-time
+parameter (``derive.planar_modes``), run by ``runtime.modes`` (switches at located events,
+impacts with restitution and Coulomb friction on the impulse; ``docs/conventions.md``
+section 8).
 
-State: ``theta, q1, q2, dtheta, dq1, dq2, u0, u1`` (the contact parameters are always two:
-the contours' points on their common normal, which move apart while the contact slides).
+State: ``theta, q1, q2, dtheta, dq1, dq2, u0, u1`` for one finger (the contact parameters
+are always two: the contours' points on their common normal, which move apart while the
+contact slides); the base's ``theta, q11, q12, q21, ..., u0_1, u1_1, u0_2, ...`` for several.
+A scene of several fingers numbers its run-time parameters and outputs by contact
+(``mode1``, ``mu2``, ``gap1``, ...).
 """
 from __future__ import annotations
 
@@ -34,6 +38,21 @@ OUTPUTS = ("gap", "normal_speed", "normal_force", "lam", "tangential_force", "co
            "rolling_tangential_force", "painleve", "free_normal_acceleration", "Q", "R",
            "tangency_defect", "kinetic_energy", "potential_energy", "power", "vn_fixed",
            "W_nn", "W_nt", "W_tt", *(f"Minv_g{k}_{i}" for k in "QR" for i in range(3)))
+#: Each contact's outputs in a scene of several fingers (numbered by contact, ``gap1``).
+CONTACT_OUTPUTS = ("gap", "normal_speed", "normal_force", "lam", "tangential_force", "cone_ratio",
+                   "vt", "slip_speed", "painleve", "normal_acceleration", "Q", "R",
+                   "tangency_defect", "vn_fixed")
+
+
+def fingers_outputs(k: int) -> tuple[str, ...]:
+    """Every output of a scene of ``k > 1`` fingers: each contact's, the energies and power,
+    ``W = A M^-1 A^T`` (``W_r_c``, ``r <= c``, rows ``(Q_i, R_i)`` of contact ``i`` at
+    ``2i - 2, 2i - 1``) and ``M^-1 A^T`` (``MinvAT_s_r``, speed ``s``)."""
+    n, nv = 2 * k, 1 + 2 * k
+    return (*(f"{o}{i}" for i in range(1, k + 1) for o in CONTACT_OUTPUTS),
+            "kinetic_energy", "potential_energy", "power",
+            *(f"W_{r}_{c}" for r in range(n) for c in range(r, n)),
+            *(f"MinvAT_{s}_{r}" for s in range(nv) for r in range(n)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,12 +64,7 @@ class PlanarModesScene(WithModes):
     kind: ClassVar[str] = "planar_modes"
     dimension: ClassVar[int] = 2
     start_param_names: ClassVar[tuple[str, ...]] = ("xm", "ym")
-    extra_fingers: ClassVar[tuple] = ()
-    n_fingers: ClassVar[int] = 1
-    n_contacts: ClassVar[int] = 1
     shared_parameter: ClassVar[bool] = False
-    runtime: ClassVar[tuple[str, ...]] = RUNTIME
-    outputs: ClassVar[tuple[str, ...]] = OUTPUTS
     simulate_defaults: ClassVar[dict] = {"t_final": 1.0, "method": "radau",
                                          "tolerances": {"radau": (1e-10, 1e-12)}}
 
@@ -60,18 +74,38 @@ class PlanarModesScene(WithModes):
         if not isinstance(b, PlanarFingerScene):
             raise InvalidSceneError([f"with_modes takes a 2D finger scene (gs.scenes.paper2d(), "
                                      f"gs.scenes.planar_finger(...)), not {type(b).__name__}"])
-        if b.extra_fingers:
-            problems.append(f"{b.name} has {b.n_fingers} fingers: contact modes in 2D are built for one "
-                            "finger (one contact); several contacts need impacts solved jointly")
         if b.runtime:
             problems.append(f"runtime = {b.runtime}: a scene with contact modes takes its parameters "
                             "as constants (give their values in the scene); its run-time inputs "
                             "are mu and e")
-        problems += output_problems(self.outputs, OUTPUTS)
+        problems += output_problems(self.outputs, OUTPUTS if self.n_fingers == 1 else self.outputs)
         if problems:
             raise InvalidSceneError(problems)
 
     # ------------------------------------------------------------------ the base's parts
+
+    @property
+    def extra_fingers(self) -> tuple:
+        return self.base.extra_fingers
+
+    @property
+    def n_fingers(self) -> int:
+        return self.base.n_fingers
+
+    @property
+    def n_contacts(self) -> int:
+        return self.base.n_fingers
+
+    @property
+    def runtime(self) -> tuple[str, ...]:
+        """``mode, slip, mu`` (one finger), or ``mode1, slip1, mu1, mode2, ...``."""
+        if self.n_fingers == 1:
+            return RUNTIME
+        return tuple(f"{k}{i}" for i in range(1, self.n_fingers + 1) for k in RUNTIME)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return OUTPUTS if self.n_fingers == 1 else fingers_outputs(self.n_fingers)
 
     @property
     def fingertip(self):
@@ -83,7 +117,7 @@ class PlanarModesScene(WithModes):
 
     @property
     def fingertips(self) -> tuple:
-        return (self.base.fingertip,)
+        return self.base.fingertips
 
 
     @property
@@ -93,12 +127,16 @@ class PlanarModesScene(WithModes):
 
     @property
     def params(self) -> dict[str, float]:
-        mu = self.friction.per_contact(1)[0] if self.friction is not None else math.inf
-        return {**self.base.params, "mode": 0.0, "slip": 1.0, "mu": min(mu, 1e300)}
+        k = self.n_fingers
+        mus = self.friction.per_contact(k) if self.friction is not None else (math.inf,) * k
+        own = dict(zip(self.runtime, [v for mu in mus for v in (0.0, 1.0, min(float(mu), 1e300))]))
+        return {**self.base.params, **own}
 
     # ------------------------------------------------------------------ names
     @property
     def state_names(self) -> tuple[str, ...]:
+        if self.n_fingers > 1:
+            return self.base.state_names
         return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", "u0", "u1")
 
     @property
@@ -111,7 +149,7 @@ class PlanarModesScene(WithModes):
         return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
 
     def check_outputs(self) -> tuple[str, ...]:
-        return OUTPUTS
+        return self.outputs
 
     def validate(self) -> None:
         self.base.validate()
@@ -131,14 +169,24 @@ class PlanarModesScene(WithModes):
         return "\n".join(["planar-modes-v1", self.base.key()])
 
     def manifest_extra(self) -> dict:
-        """The kind, and that ``simulate`` runs the modes (``runtime.modes``)."""
-        return {"kind": self.kind, "modes": list(MODES), "param_rules": {"mu": "nonnegative"}}
+        """The kind, and that ``simulate`` runs the modes (``runtime.modes``); with several
+        fingers their number and where the speeds start and how many (``planar_fingers``)."""
+        k = self.n_fingers
+        extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": k,
+                 "param_rules": {m: "nonnegative" for m in self.runtime if m.startswith("mu")}}
+        if k > 1:
+            extra["planar_fingers"] = {"fingers": k, "speeds": [1 + 2 * k, 1 + 2 * k]}
+        return extra
 
     def bounds(self) -> tuple[list, list]:
-        lower: list = [None] * 8
-        upper: list = [None] * 8
-        lower[6], upper[6] = self.base.fingertip.domain
-        lower[7], upper[7] = self.base.object.domain
+        n = len(self.state_names)
+        lower: list = [None] * n
+        upper: list = [None] * n
+        k = self.n_fingers
+        for i, tip in enumerate(self.fingertips):  # (u0_i, u1_i) after q and v
+            j = 2 * (1 + 2 * k) + 2 * i
+            lower[j], upper[j] = tip.domain
+            lower[j + 1], upper[j + 1] = self.base.object.domain
         return lower, upper
 
 

@@ -213,7 +213,7 @@ def sphere_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 
 
 def with_modes(scene, planes=()):
     """``scene`` whose contacts roll, slide (Coulomb) or separate, switching at located events
-    (``docs/conventions.md`` sections 8 and 9): a one-finger 2D scene
+    (``docs/conventions.md`` sections 8 and 9): a 2D scene of one finger or several
     (``model.planar_modes``) or a 3D grasp (``model.grasp3d_modes``), whose object may also
     touch fixed ``planes`` of the world (``world_plane``: a table, a wall)."""
     if isinstance(scene, GraspScene3D):

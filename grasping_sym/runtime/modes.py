@@ -485,10 +485,14 @@ class _GraspRun(_Run):
     (three per contact) changes the speeds by ``-M^-1 A^T P``."""
 
     SLIP = "slip_x"
+    #: rows per contact: the normal and the tangents
+    ROWS = 3
+    #: the manifest's entry of this kind: the fingers, where the speeds start and how many
+    INFO = "grasp_modes"
 
     def __init__(self, model, s, mus, e: float):
         super().__init__(model, s, mus, e)
-        info = model.manifest["grasp_modes"]
+        info = model.manifest[self.INFO]
         self.v0, self.nv = int(info["speeds"][0]), int(info["speeds"][1])
 
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
@@ -519,7 +523,7 @@ class _GraspRun(_Run):
         """A start with a plane of the world apart is the scene's own (its support points solved
         at the build); a finger apart is refused: the grasp starts closed."""
         y = self.outputs(x, self.params([ROLLING] * self.k))
-        n_fingers = int(self.model.manifest["grasp_modes"]["fingers"])
+        n_fingers = int(self.model.manifest[self.INFO]["fingers"])
         open_ = [j for j in range(1, n_fingers + 1) if y[f"gap{j}"] > CONTACT_GAP]
         if open_:
             raise RunArgumentError(f"x0 has finger contact(s) {open_} apart: a grasp with modes starts "
@@ -528,10 +532,10 @@ class _GraspRun(_Run):
         return np.asarray(x, dtype=float)
 
     def _rows(self, j: int) -> list[int]:
-        return [3 * (j - 1), 3 * (j - 1) + 1, 3 * (j - 1) + 2]
+        return list(range(self.ROWS * (j - 1), self.ROWS * j))
 
     def _W(self, y: dict) -> np.ndarray:
-        n = 3 * self.k
+        n = self.ROWS * self.k
         W = np.empty((n, n))
         for r in range(n):
             for c in range(r, n):
@@ -553,7 +557,7 @@ class _GraspRun(_Run):
         edge), every other rolling contact is held (its velocity stays 0), every other sliding
         contact keeps its normal speed 0 with its tangential impulse on its cone's edge against
         its slip. Returns ``(P over every row, W, J V)``."""
-        n3 = 3 * self.k
+        n3 = self.ROWS * self.k
         W, JV = self._W(y), self._JV(y)
         cols, eqs, rhs = [], [], []
         for c in self.contacts:
@@ -561,7 +565,7 @@ class _GraspRun(_Run):
             sliding = (c == j and slide_j is not None) or (c != j and modes[c - 1] == SLIDING)
             if c != j and modes[c - 1] == SEPARATED:
                 continue
-            target = target_j if c == j else np.zeros(3)
+            target = target_j if c == j else np.zeros(self.ROWS)
             if sliding:
                 vt = self.slip_velocity(y, c)
                 d = slide_j if c == j else vt / max(np.linalg.norm(vt), 1e-300)
@@ -607,8 +611,8 @@ class _GraspRun(_Run):
 
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float]:
         """Contact ``j``'s velocity set to 0, the other closed contacts as at an impact."""
-        P, W, JV = self._impulse(y, modes, j, np.zeros(3))
-        return self._apply(x, y, list(range(3 * self.k)), P), float(np.max(np.abs(JV[self._rows(j)])))
+        P, W, JV = self._impulse(y, modes, j, np.zeros(self.ROWS))
+        return self._apply(x, y, list(range(self.ROWS * self.k)), P), float(np.max(np.abs(JV[self._rows(j)])))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse at contact ``j``: stick if
@@ -620,7 +624,7 @@ class _GraspRun(_Run):
         rows = self._rows(j)
         vn = float(JV[rows[0]])
         e = self.e if vn > REST_SPEED else 0.0
-        target = np.array([-e * vn, 0.0, 0.0])
+        target = np.array([-e * vn] + [0.0] * (self.ROWS - 1))
         P, W, JV = self._impulse(y, modes, j, target)
         stuck = bool(np.linalg.norm(P[rows[1:]]) <= mu * P[rows[0]])
         if not stuck:
@@ -640,10 +644,10 @@ class _GraspRun(_Run):
                                     "a pushing normal impulse; the rigid model has no answer here",
                                     self.model.state_names)
         self._check_impulse(t, x, modes, j, P, W, JV, "the impact")
-        after = self._apply(x, y, list(range(3 * self.k)), P)
+        after = self._apply(x, y, list(range(self.ROWS * self.k)), P)
         before_k = float(y["kinetic_energy"])
         after_k = float(self.outputs(after, self.params(modes))["kinetic_energy"])
-        driven = set(self.model.manifest["grasp_modes"].get("driven", []))
+        driven = set(self.model.manifest[self.INFO].get("driven", []))
         pushed = j in driven or any(c in driven and modes[c - 1] != SEPARATED for c in self.contacts)
         # a driven plane in the impact gives energy (it is driven): the test is for the others
         if not pushed and after_k > before_k * (1 + 1e-9) + 1e-15:
@@ -653,8 +657,34 @@ class _GraspRun(_Run):
         return after, float(np.max(np.abs(W @ P))), stuck, e > 0
 
 
+class _FingersRun(_GraspRun):
+    """A 2D scene of several fingers (``model.planar_modes``, ``planar_fingers``): each
+    contact's rows ``(gQ_i, gR_i)`` (``J V = (vn_fixed{i}, vt{i})``), ``W = A M^-1 A^T`` and
+    ``M^-1 A^T`` as the 3D grasp's (``docs/conventions.md`` section 8); a slide's direction is
+    a sign."""
+
+    SLIP = "slip"
+    ROWS = 2
+    INFO = "planar_fingers"
+
+    def slip_velocity(self, y: dict, j: int) -> np.ndarray:
+        return np.array([y[f"vt{j}"]])
+
+    def slip_terms(self, d: np.ndarray, j: int) -> list[tuple[str, float]]:
+        return [(f"vt{j}", d[0])]
+
+    def slip_direction(self, x: np.ndarray, y: dict, j: int, modes=None, slips=None) -> np.ndarray:
+        """A slide from rest of the slip starts along the rolling solution's tangential force
+        (``y``: the outputs with contact ``j`` rolling), as one finger's (``_PlanarRun``)."""
+        return np.array([1.0 if y[f"lam{j}"] >= 0 else -1.0])
+
+    def _JV(self, y: dict) -> np.ndarray:
+        return np.array([y[f"{k}{j}"] for j in self.contacts for k in ("vn_fixed", "vt")])
+
+
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
-_RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun}
+_RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun,
+         "planar_fingers": _FingersRun}
 
 
 def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
@@ -703,7 +733,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
                                "(the loops in C, with which its switches are located by integrating "
                                "again)")
     mus, e = friction_law(model, mu_arg, e_arg)
-    r = _RUNS[model.manifest.get("kind", "body")](model, s, mus, e)
+    kind = model.manifest.get("kind", "body")
+    r = _RUNS["planar_fingers" if "planar_fingers" in model.manifest else kind](model, s, mus, e)
     t_eval = s.t_eval
     r.sched = run_.schedule(model, u, s.method, t_eval)
     x_now, modes, slips = _start(r, np.asarray(x0, dtype=float))
