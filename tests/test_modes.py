@@ -94,6 +94,11 @@ def test_a_dropped_sphere_lands_at_the_free_fall_time_and_stays(flat):
     impact = res.events[0]
     assert (impact["from"], impact["witness"], impact["to"]) == ("separated", "gap", "rolling")
     assert abs(impact["t"] - math.sqrt(2 * h / G)) < 1e-9
+    # an output time at the event itself (the dense output's root and the located one may lie
+    # on either side of it): every output time is reported, in order
+    grid = [0.0, impact["t"], 0.2, 0.3]
+    at = model.simulate(0.3, x0=x0, mu=gs.contact.coulomb(0.5, e=0.0), t_eval=grid, **TIGHT)
+    assert list(at.t) == grid and at.x.shape == (4, len(model.state_names))
     assert res["gap"].min() > -1e-12
     flight = res.t < impact["t"]
     assert np.ptp(res["energy"][flight]) < 1e-9 * res["energy"][0]   # conserved in flight

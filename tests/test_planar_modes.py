@@ -21,9 +21,7 @@ from grasping_sym.errors import (
     InvalidSceneError,
     RunArgumentError,
 )
-from grasping_sym.geometry import library
 from grasping_sym.geometry.curves import T
-from grasping_sym.model.planar import ExtraFinger
 from grasping_sym.runtime import modes
 from grasping_sym.runtime.settings import RunSettings
 
@@ -285,50 +283,3 @@ def test_max_steps_bounds_the_whole_run_not_each_segment(model):
     with pytest.raises(IntegratorError, match="too many steps"):
         model.simulate(0.25, **kw, max_steps=r.stats["n_steps"] - 1)
 
-
-def test_two_fingers_roll_as_the_rolling_model_and_one_slips_at_its_cone():
-    """Two fingers on a pivoted ellipse (tests/test_planar_multifinger.py's pair), each contact
-    in its own mode: all rolling, the right-hand side is the rolling two-finger model's; with
-    finger 2's mu between its cone ratio at the start and its largest, contact 2 slides at the
-    time the rolling model's own cone check stops it, with Coulomb's law, contact 1 still on
-    its constraints, and the energy balance d(K + V)/dt = joints' power - lam2 v_t2."""
-    tip, ellipse = (lambda n: library.circle(0.01, name=n)), \
-        library.ellipse(0.025, 0.018, span=6.2, clockwise=True, name="ellipse")
-    u1 = math.pi + 0.3
-    xm, _ = gs.scenes.planar_finger(tip("tip"), ellipse, name="one", u1_0=-u1).pivot
-    pair = gs.scenes.planar_finger(tip("tip"), ellipse, name="pairm", u1_0=-u1, outputs=("f2", "lam2"),
-                                   extra_fingers=(ExtraFinger(tip("tip2"), base=(2 * xm, 0.0), u1_0=0.35),))
-    rolling = gs.build(pair)
-    model = gs.build(gs.scenes.with_modes(pair))
-    assert model.p_names[:6] == ("mode1", "slip1", "mu1", "mode2", "slip2", "mu2")
-    grid = dict(t_eval=np.linspace(0.0, 0.3, 301), **TOL)
-    free = rolling.simulate(0.3, **grid)
-    for x in free.x[::30]:
-        a, b = model.rhs(x), rolling.rhs(x)
-        assert np.max(np.abs(a - b) / (1 + np.abs(b))) < 2e-12
-    ratio = np.abs(free["lam2"] / free["f2"])
-    assert ratio.argmax() > 100  # contact 2's ratio grows: a mu between slips it mid-run
-    mu2 = 0.5 * (ratio[0] + ratio.max())
-    law = gs.contact.coulomb((0.5, mu2))
-    with pytest.raises(FrictionConeError) as err:
-        rolling.simulate(0.3, mu=law, **grid)
-    res = model.simulate(0.3, mu=law, **grid)
-    (slip,) = res.events
-    assert (slip["contact"], slip["from"], slip["to"], slip["witness"]) == (2, "rolling", "sliding", "cone")
-    assert err.value.contact == 2 and abs(slip["t"] - err.value.t) < 1e-8
-    sliding = res.modes[:, 1] == "sliding"
-    assert sliding.sum() > 100 and (res.modes[:, 0] == "rolling").all()
-    f2, lam2, vt2 = (res[k][sliding] for k in ("normal_force2", "lam2", "vt2"))
-    assert np.max(np.abs(np.abs(lam2) - mu2 * f2)) < 1e-12 * np.max(f2) and np.all(lam2 * vt2 >= 0)
-    assert max(np.max(np.abs(res["Q1"])), np.max(np.abs(res["R1"])), np.max(np.abs(res["gap2"]))) < 1e-12
-    rows = np.flatnonzero(sliding)[1:]
-    t = res.t[rows]
-    E = res["kinetic_energy"][rows] + res["potential_energy"][rows]
-    dissipated = simpson(res["lam2"][rows] * res["vt2"][rows], x=t)
-    assert dissipated > 1e-9
-    assert abs((E[-1] - E[0]) - simpson(res["power"][rows] - res["lam2"][rows] * res["vt2"][rows], x=t)) \
-        < 1e-6 * dissipated
-    x0 = model.initial_state()
-    x0[model.state_names.index("q21")] -= 0.02  # finger 2 pulled back: apart
-    with pytest.raises(RunArgumentError, match="apart"):
-        model.simulate(0.1, x0=x0, mu=law)

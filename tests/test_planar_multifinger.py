@@ -11,15 +11,16 @@ import math
 
 import numpy as np
 import pytest
-from scipy.integrate import cumulative_simpson
+from scipy.integrate import cumulative_simpson, simpson
 
 import grasping_sym as gs
-from grasping_sym.errors import InvalidSceneError
+from grasping_sym.errors import FrictionConeError, InvalidSceneError, RunArgumentError
 from grasping_sym.geometry import library as L
 from grasping_sym.model.planar import ExtraFinger
 from grasping_sym.viz.kinds import write_figures
 
 U1 = math.pi + 0.3       # finger 1 touches the ellipse 0.3 rad below its -x vertex
+TOL = {"rtol": 1e-10, "atol": 1e-12}
 
 
 def _tip(name: str):
@@ -91,6 +92,14 @@ def test_two_finger_scenes_have_default_outputs_and_plot(tmp_path):
     assert [c[0] for c in curves] == [r"$\Delta f$, finger 1", r"$\Delta f$, finger 2"]
 
 
+def _pair():
+    """Two fingers on the ellipse, the stabilisation's gains 0 (shared by the tests below: one
+    build)."""
+    xm, _ = _pivot()
+    return _scene("pair", (ExtraFinger(_tip("tip2"), base=(2 * xm, 0.0), u1_0=0.35),), ("f1", "f2", "lam2"),
+                  gf=0.0, gl=0.0, wf=0.0, wl=0.0)
+
+
 def test_two_fingers_compiled_equal_the_symbolic_reference():
     """The template/compose path for several contacts against SymPy lambdify of the same
     derivation (in doubles, and in 40 digits as the exact value), at states along a run (on
@@ -100,8 +109,7 @@ def test_two_fingers_compiled_equal_the_symbolic_reference():
     from tests.oracles.reference import ReferenceModel
 
     xm, ym = _pivot()
-    scene = _scene("pair", (ExtraFinger(_tip("tip2"), base=(2 * xm, 0.0), u1_0=0.35),), ("f1", "f2"),
-                   gf=0.0, gl=0.0, wf=0.0, wl=0.0)
+    scene = _pair()
     model = gs.build(scene)
     res = model.simulate(0.3, method="radau", rtol=1e-9, atol=1e-12, t_eval=np.linspace(0, 0.3, 31))
     ref = ReferenceModel(scene)
@@ -156,3 +164,47 @@ def test_extra_finger_problems_are_listed():
         _scene("bad", (bad,), ("f3",))
     msg = str(info.value)
     assert "finite numbers" in msg and "outside the object's domain" in msg and "'f3'" in msg
+
+
+def test_two_fingers_with_modes_roll_as_the_rolling_model_and_one_slips_at_its_cone():
+    """Two fingers on the pivoted ellipse (``_pair``), each contact in its own mode
+    (``with_modes``, ``docs/conventions.md`` section 8): all rolling, the right-hand side is
+    the rolling two-finger model's; with finger 2's mu between its cone ratio at the start and
+    its largest, contact 2 slides at the time the rolling model's own cone check stops it,
+    with Coulomb's law, contact 1 still on its constraints, and the energy balance
+    d(K + V)/dt = joints' power - lam2 v_t2."""
+    pair = _pair()
+    rolling = gs.build(pair)
+    model = gs.build(gs.scenes.with_modes(pair))
+    assert model.p_names[:6] == ("mode1", "slip1", "mu1", "mode2", "slip2", "mu2")
+    grid = dict(t_eval=np.linspace(0.0, 0.3, 301), **TOL)
+    free = rolling.simulate(0.3, **grid)
+    for x in free.x[::30]:
+        a, b = model.rhs(x), rolling.rhs(x)
+        assert np.max(np.abs(a - b) / (1 + np.abs(b))) < 2e-12
+    ratio = np.abs(free["lam2"] / free["f2"])
+    assert ratio.argmax() > 100  # contact 2's ratio grows: a mu between slips it mid-run
+    mu2 = 0.5 * (ratio[0] + ratio.max())
+    law = gs.contact.coulomb((0.5, mu2))
+    with pytest.raises(FrictionConeError) as err:
+        rolling.simulate(0.3, mu=law, **grid)
+    res = model.simulate(0.3, mu=law, **grid)
+    (slip,) = res.events
+    assert (slip["contact"], slip["from"], slip["to"], slip["witness"]) == (2, "rolling", "sliding", "cone")
+    assert err.value.contact == 2 and abs(slip["t"] - err.value.t) < 1e-8
+    sliding = res.modes[:, 1] == "sliding"
+    assert sliding.sum() > 100 and (res.modes[:, 0] == "rolling").all()
+    f2, lam2, vt2 = (res[k][sliding] for k in ("normal_force2", "lam2", "vt2"))
+    assert np.max(np.abs(np.abs(lam2) - mu2 * f2)) < 1e-12 * np.max(f2) and np.all(lam2 * vt2 >= 0)
+    assert max(np.max(np.abs(res["Q1"])), np.max(np.abs(res["R1"])), np.max(np.abs(res["gap2"]))) < 1e-12
+    rows = np.flatnonzero(sliding)[1:]
+    t = res.t[rows]
+    E = res["kinetic_energy"][rows] + res["potential_energy"][rows]
+    dissipated = simpson(res["lam2"][rows] * res["vt2"][rows], x=t)
+    assert dissipated > 1e-9
+    assert abs((E[-1] - E[0]) - simpson(res["power"][rows] - res["lam2"][rows] * res["vt2"][rows], x=t)) \
+        < 1e-6 * dissipated
+    x0 = model.initial_state()
+    x0[model.state_names.index("q21")] -= 0.02  # finger 2 pulled back: apart
+    with pytest.raises(RunArgumentError, match="apart"):
+        model.simulate(0.1, x0=x0, mu=law)

@@ -764,6 +764,14 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         t_look = perf_counter()
         found = None if hit is None else _locate(r, p, watched, hit)
         keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
+        if found is not None and found[0] > hit["t"]:  # output times between the dense output's
+            late = t_eval[(t_eval >= hit["t"]) & (t_eval < found[0])]  # root and the event's
+            if len(late):
+                t = np.concatenate([t[:keep], late])
+                X = np.concatenate([X[:keep], [events.state_at(model, r.s, r.sched, p, hit["t_step"], hit["x_step"],
+                                                               float(tm), one_step=True, projection=(None, 0.0))
+                                               for tm in late]])
+                keep = len(t)
         on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
         rows_t.append(t[:keep][on_grid])
         rows_x.append(X[:keep][on_grid])
