@@ -204,6 +204,14 @@ def test_two_fingers_with_modes_roll_as_the_rolling_model_and_one_slips_at_its_c
     assert dissipated > 1e-9
     assert abs((E[-1] - E[0]) - simpson(res["power"][rows] - res["lam2"][rows] * res["vt2"][rows], x=t)) \
         < 1e-6 * dissipated
+    # runs that end at the switch or within ~3e-15 s of it (one of these, measured, locates the
+    # event at its last output time exactly) report every output time
+    for t_final in (*(slip["t"] + k * 1e-16 for k in range(0, 32, 2)), 0.18090392279547146):
+        grid = np.linspace(0.0, t_final, 11)
+        end = model.simulate(t_final, mu=law, t_eval=grid, **TOL)
+        assert list(end.t) == list(grid) and np.all(np.isfinite(end.x))
+    assert model.simulate_many(t_final, mu=law, t_eval=grid, x0=np.tile(end.x[0], (2, 1)), **TOL).x.shape \
+        == (2, 11, len(model.state_names))
     x0 = model.initial_state()
     x0[model.state_names.index("q21")] -= 0.02  # finger 2 pulled back: apart
     with pytest.raises(RunArgumentError, match="apart"):

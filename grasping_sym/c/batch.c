@@ -200,7 +200,9 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
   if (threads)
     for (; started < n_threads - 1; ++started)
       if (pthread_create(&threads[started], NULL, gs_batch_worker, &job)) break;
+  const int watching = gs_watch_suspend(); /* a batch's runs never watch (watch.c) */
   gs_batch_worker(&job); /* the calling thread works too */
+  gs_watch_restore(watching);
   for (long k = 0; k < started; ++k) pthread_join(threads[k], NULL);
   free(threads);
   if (gs_stop_sigint()) {

@@ -386,6 +386,9 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
 #else
 #define gs_watching() 0
 #endif
+/* gs_batch: the watch off during the batch (returns whether it was on), then restored. */
+GS_HIDDEN int gs_watch_suspend(void);
+GS_HIDDEN void gs_watch_restore(int on);
 
 /* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major) ---- */
 #if GS_HAS_JAC

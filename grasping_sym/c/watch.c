@@ -22,14 +22,16 @@
  * a + b t and p[k+m .. k+2m) = 0, as runtime.parameters.with_inputs does) and, for a model
  * whose outputs read the time (gs_out_time), t as one more last entry.
  *
- * The watch is thread-local: gs_batch's threads never watch.
+ * The watch is thread-local, and off during gs_batch (its runs never watch, the calling
+ * thread's included). gs_watch_resume: the next run continues the last one (a table of
+ * inputs restarts the loop at its knots), its witnesses keep what they were armed by.
  */
 #include "gs_internal.h"
 
 #if GS_HAS_OUT
 /* One watch: its witnesses (terms in compressed rows), and the run's state of them. */
 typedef struct {
-  int on, n, in_k, in_m;
+  int on, resume, n, in_k, in_m;
   double dt;
   int ptr[GS_WATCH_MAX + 1], idx[GS_WATCH_TERMS];
   double coef[GS_WATCH_TERMS], tol[GS_WATCH_MAX];
@@ -69,9 +71,10 @@ GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const dou
   const int rc = gs_watch_eval(wk, t0, x0, p, g);
   if (rc) return rc;
   for (int k = 0; k < gs_w.n; ++k) {
-    gs_w.armed[k] = g[k] > gs_w.tol[k];
+    gs_w.armed[k] = (gs_w.resume && gs_w.armed[k]) || g[k] > gs_w.tol[k];
     gs_w.g_prev[k] = g[k];
   }
+  gs_w.resume = 0;
   gs_w.t_prev = t0;
   gs_w.which = -1;
   return 0;
@@ -198,6 +201,7 @@ GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const doubl
   }
   for (long k = 0; k < n; ++k) gs_w.tol[k] = tol[k];
   gs_w.which = -1;
+  gs_w.resume = 0;
   gs_w.on = 1;
   return 0;
 #else
@@ -209,6 +213,34 @@ GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const doubl
 GS_EXPORT void gs_watch_clear(void) {
 #if GS_HAS_OUT
   gs_w.on = 0;
+#endif
+}
+
+/* The next run continues the last one (a piece of a table of inputs after a knot): its
+ * witnesses keep what they were armed by. */
+GS_EXPORT void gs_watch_resume(void) {
+#if GS_HAS_OUT
+  gs_w.resume = 1;
+#endif
+}
+
+/* gs_batch: its runs never watch, the calling thread's too (the watch is off during the
+ * batch and restored after it). */
+GS_HIDDEN int gs_watch_suspend(void) {
+#if GS_HAS_OUT
+  const int on = gs_w.on;
+  gs_w.on = 0;
+  return on;
+#else
+  return 0;
+#endif
+}
+
+GS_HIDDEN void gs_watch_restore(int on) {
+#if GS_HAS_OUT
+  gs_w.on = on;
+#else
+  (void)on;
 #endif
 }
 

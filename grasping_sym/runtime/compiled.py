@@ -165,6 +165,7 @@ class CompiledLibrary:
             lib.gs_watch_set.argtypes = [_long, _dp, _dp, _dp, _dp, _long, _long, _double]
             lib.gs_watch_set.restype = ctypes.c_int
             lib.gs_watch_clear.restype = None
+            lib.gs_watch_resume.restype = None
             lib.gs_watch_result.argtypes = [_dp]
             lib.gs_watch_result.restype = None
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
@@ -552,6 +553,11 @@ class CompiledLibrary:
             raise ValueError(f"gs_watch_set refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
                              f"tol {list(tol)}, inputs {inputs}, dt {dt}): at most 64 "
                              "witnesses of 512 terms in all, indices of the outputs, finite numbers")
+
+    def watch_resume(self) -> None:
+        """The next run continues the last watched one (a piece of a table of inputs): its
+        witnesses keep what they were armed by."""
+        self._lib.gs_watch_resume()
 
     def unwatch(self) -> None:
         """Stop watching (:meth:`watch`)."""

@@ -749,9 +749,24 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         for j in r.contacts:
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
                 _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
-        grid = np.concatenate([[t_now], t_eval[int(np.searchsorted(t_eval, t_now + 1e-15, side="right")):]])
-        if len(grid) < 2:
+        grid = np.concatenate([[t_now], t_eval[int(np.searchsorted(t_eval, t_now, side="right")):]])
+        if len(grid) < 2:  # the run ends at a switch: its last output time, after the switch
+            if t_now in t_eval and t_now > last_t:
+                rows_t.append(np.array([t_now]))
+                rows_x.append(np.asarray(x_now, dtype=float)[None, :])
+                rows_mode.append(np.array([modes]))
+                rows_p.append(p)
             break
+        at_start = _at_start(r, modes, slips, y_now)
+        if at_start is not None:  # a witness already past its event: it switches now
+            name, j = at_start
+            t_ev, x_ev, value_ = t_now, x_now, value(_terms(r, modes, slips, name, j), y_now)
+            recent = _chatter(model, recent, t_ev, x_ev)
+            before = modes[j - 1]
+            modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
+            r.events.append({"t": t_ev, "contact": j, "from": NAMES[before], "to": NAMES[modes[j - 1]],
+                             "witness": name, "value": value_, "reset": reset})
+            continue
         # max_steps and time_limit bound the whole run, whatever its segments
         r.s = dataclasses.replace(s, max_steps=max(s.max_steps - r.stats["n_steps"], 1),
                                   time_limit=None if s.time_limit is None else
@@ -782,12 +797,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         if found is None:
             break
         t_ev, x_ev, name, j, value_ = found
-        recent = [tt for tt in recent if tt > t_ev - SWITCH_WINDOW] + [t_ev]
-        if len(recent) > MAX_SWITCHES:
-            raise ChatteringError(t_ev, x_ev, f"{len(recent)} switches of contact modes within "
-                                  f"{SWITCH_WINDOW:g} s up to t = {t_ev:.9g} s (a Zeno run): the "
-                                  "contact chatters; give a plastic impact (e = 0) or a larger "
-                                  "friction coefficient", model.state_names)
+        recent = _chatter(model, recent, t_ev, x_ev)
         before = modes[j - 1]
         r.t = t_ev
         modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev, hit["armed"])
@@ -816,6 +826,33 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
 
 
+def _chatter(model, recent: list[float], t_ev: float, x_ev: np.ndarray) -> list[float]:
+    """The switches' times within ``SWITCH_WINDOW`` up to ``t_ev``; ``ChatteringError`` when
+    they are more than ``MAX_SWITCHES``."""
+    recent = [tt for tt in recent if tt > t_ev - SWITCH_WINDOW] + [t_ev]
+    if len(recent) > MAX_SWITCHES:
+        raise ChatteringError(t_ev, x_ev, f"{len(recent)} switches of contact modes within "
+                              f"{SWITCH_WINDOW:g} s up to t = {t_ev:.9g} s (a Zeno run): the "
+                              "contact chatters; give a plastic impact (e = 0) or a larger "
+                              "friction coefficient", model.state_names)
+    return recent
+
+
+def _terms(r: _Run, modes, slips, name: str, j: int) -> list[tuple[str, float]]:
+    return next(terms for n, c, terms in r.witnesses(modes, slips) if n == name and c == j)
+
+
+def _at_start(r: _Run, modes, slips, y: dict) -> tuple[str, int] | None:
+    """``(witness, contact)`` of a force or cone witness that starts a segment at or below 0:
+    past its event already (another contact's impact or switch took it there, or it crossed
+    within the dense output's error of the event just made), so it switches at once; it
+    could not be watched (``c/watch.c`` arms it only above 0)."""
+    for name, j, terms in r.witnesses(modes, slips):
+        if _arming(name) == 0.0 and name != "painleve" and not value(terms, y) > 0:
+            return name, j
+    return None
+
+
 def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
     """``(t, X, stats, hit)``: one mode's integration over ``grid``, the C loop watching the
     mode's witnesses (``watched``, ``c/watch.c``) and stopping at the first event: ``hit``
@@ -835,6 +872,8 @@ def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
             g = np.array([a0, *grid[(grid > a0) & (grid < a1)], a1])
             pk = p if r.sched is None else r.model.with_inputs(p, a, b)
             r.stats["chunks"] += 1
+            if k:  # past a knot: the witnesses stay armed as they were
+                lib.watch_resume()
             try:
                 t, X, st = integrators.c_loop(r.model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
                                               max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
@@ -948,8 +987,9 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         vt = r.slip_velocity(y, j)
         # the slip turned past 90 degrees from its start's direction, it did not stop: faster
         # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
-        # event: below -SLIP_SPEED before it was ever above SLIP_SPEED)
-        if np.linalg.norm(vt) > (STOP_SPEED if armed else SLIP_SPEED):
+        # event: below -SLIP_SPEED before it was ever above SLIP_SPEED) and is clearly faster
+        # than that across it (2 SLIP_SPEED; in 2D it is a reversal: a stop)
+        if np.linalg.norm(vt) > (STOP_SPEED if armed else 2 * SLIP_SPEED):
             slips[j - 1] = vt / np.linalg.norm(vt)
             return modes, slips, x, None
         x2, reset = r.stop_slip(x, y, modes, j)
