@@ -283,3 +283,22 @@ def test_max_steps_bounds_the_whole_run_not_each_segment(model):
     with pytest.raises(IntegratorError, match="too many steps"):
         model.simulate(0.25, **kw, max_steps=r.stats["n_steps"] - 1)
 
+
+
+def test_a_witness_past_its_event_at_a_segment_start_is_an_event_there(base, model):
+    """runtime.modes._at_start: a cone or force witness at or below 0 when a segment starts
+    (another contact's impact took it there; c/watch.c arms a witness only above 0, so it
+    would never be watched) is an event at once; a slide's slip witness at 0 (its start from
+    rest) is not, nor is anything at a consistent start."""
+    x = _x0(base)
+    s = RunSettings.__new__(RunSettings)
+    ratio = model.simulate(1e-3, t_eval=[0.0, 1e-3], mu=1.0, **TOL)["cone_ratio"][0]
+    low = modes._PlanarRun(model, s, (0.5 * ratio,), 0.0)    # the start is outside this cone
+    y = low.outputs(x, low.params([modes.ROLLING]))
+    assert modes._at_start(low, [modes.ROLLING], [None], y) == ("cone", 1)
+    high = modes._PlanarRun(model, s, (2.0 * ratio,), 0.0)
+    assert modes._at_start(high, [modes.ROLLING], [None], high.outputs(x, high.params([modes.ROLLING]))) is None
+    d = np.array([1.0])
+    ys = low.outputs(x, low.params([modes.SLIDING], [d]))
+    assert ys["normal_force"] > 0 and ys["vt"] == pytest.approx(0.0, abs=1e-12)
+    assert modes._at_start(low, [modes.SLIDING], [d], ys) is None
