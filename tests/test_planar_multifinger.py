@@ -14,7 +14,7 @@ import pytest
 from scipy.integrate import cumulative_simpson, simpson
 
 import grasping_sym as gs
-from grasping_sym.errors import FrictionConeError, InvalidSceneError, RunArgumentError
+from grasping_sym.errors import ContactModeError, FrictionConeError, InvalidSceneError
 from grasping_sym.geometry import library as L
 from grasping_sym.model.planar import ExtraFinger
 from grasping_sym.viz.kinds import write_figures
@@ -172,7 +172,8 @@ def test_two_fingers_with_modes_roll_as_the_rolling_model_and_one_slips_at_its_c
     the rolling two-finger model's; with finger 2's mu between its cone ratio at the start and
     its largest, contact 2 slides at the time the rolling model's own cone check stops it,
     with Coulomb's law, contact 1 still on its constraints, and the energy balance
-    d(K + V)/dt = joints' power - lam2 v_t2."""
+    d(K + V)/dt = joints' power - lam2 v_t2; finger 2 started apart returns with a plastic
+    impact that holds contact 1."""
     pair = _pair()
     rolling = gs.build(pair)
     model = gs.build(gs.scenes.with_modes(pair))
@@ -212,7 +213,19 @@ def test_two_fingers_with_modes_roll_as_the_rolling_model_and_one_slips_at_its_c
         assert list(end.t) == list(grid) and np.all(np.isfinite(end.x))
     assert model.simulate_many(t_final, mu=law, t_eval=grid, x0=np.tile(end.x[0], (2, 1)), **TOL).x.shape \
         == (2, 11, len(model.state_names))
+    # finger 2 pulled back starts apart (its contact parameters put on the common normal),
+    # returns, and its plastic impact holds contact 1 (a joint impulse with contact 1's rows)
     x0 = model.initial_state()
-    x0[model.state_names.index("q21")] -= 0.02  # finger 2 pulled back: apart
-    with pytest.raises(RunArgumentError, match="apart"):
-        model.simulate(0.1, x0=x0, mu=law)
+    x0[model.state_names.index("q21")] += 0.002
+    hold = gs.contact.coulomb((3.0, 0.5))
+    back = model.simulate(0.05, x0=x0, mu=hold, t_eval=np.linspace(0.0, 0.05, 51), **TOL)
+    (hit,) = back.events
+    assert (hit["contact"], hit["from"], hit["to"], hit["witness"]) == (2, "separated", "rolling", "gap")
+    assert hit["reset"] > 0.01 and back["gap2"][0] > 1e-5 and back["gap2"].min() > -1e-12
+    after = back.t > hit["t"]
+    assert np.abs(back["normal_speed2"][after]).max() < 1e-12 and (back.modes[:, 0] == "rolling").all()
+    assert max(np.abs(back["Q1"]).max(), np.abs(back["R1"]).max()) < 1e-12
+    # with mu1 = 0.5 the same impact would push contact 1 out of its cone: an impulsive slip at
+    # another contact is not built, and is refused by name
+    with pytest.raises(ContactModeError, match="out of its cone"):
+        model.simulate(0.05, x0=x0, mu=law, **TOL)

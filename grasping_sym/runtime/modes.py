@@ -392,27 +392,7 @@ class _PlanarRun(_Run):
     def apart(self, x: np.ndarray) -> np.ndarray:
         """``x`` with its contact parameters on the contours' common normal (``R = 0`` and
         ``delta = 0``, Newton's method on ``(u0, u1)``): a start apart need not give them."""
-        x = np.array(x, dtype=float)
-        p = self.params([SEPARATED])
-
-        def G(u):
-            y = self.outputs(np.concatenate([x[:6], u]), p)
-            return np.array([y["R"], y["tangency_defect"]])
-
-        u = x[6:8].copy()
-        for _ in range(50):
-            g = G(u)
-            if np.max(np.abs(g)) < 1e-14:
-                break
-            h = 1e-7 * np.maximum(1.0, np.abs(u))
-            J = np.column_stack([(G(u + h[k] * np.eye(2)[k]) - g) / h[k] for k in range(2)])
-            u = u - np.linalg.solve(J, g)
-        if not np.max(np.abs(G(u))) < 1e-12:
-            raise RunArgumentError(f"x0 is apart, but no pair of points on a common normal was found "
-                                   f"near u0, u1 = {tuple(x[6:8])} (R, delta = {tuple(G(u))}): give "
-                                   "u0, u1 near the closest points of the contours")
-        x[6:8] = u
-        return x
+        return _on_common_normal(self, np.array(x, dtype=float), 1, 6)
 
     def slip_terms(self, d: np.ndarray, j: int = 1) -> list[tuple[str, float]]:
         return [("vt", d[0])]
@@ -680,6 +660,47 @@ class _FingersRun(_GraspRun):
 
     def _JV(self, y: dict) -> np.ndarray:
         return np.array([y[f"{k}{j}"] for j in self.contacts for k in ("vn_fixed", "vt")])
+
+    def apart(self, x: np.ndarray) -> np.ndarray:
+        """``x`` with each open contact's parameters ``(u0_j, u1_j)`` on the contours' common
+        normal (``_PlanarRun.apart``): a finger may start apart."""
+        x = np.array(x, dtype=float)
+        y = self.outputs(x, self.params([ROLLING] * self.k))
+        for j in self.contacts:
+            if y[f"gap{j}"] > CONTACT_GAP:
+                x = _on_common_normal(self, x, j, 2 * self.nv + 2 * (j - 1))
+        return x
+
+
+def _on_common_normal(r: _Run, x: np.ndarray, j: int, at: int) -> np.ndarray:
+    """``x`` with contact ``j``'s parameters ``x[at:at + 2] = (u0, u1)`` on the contours' common
+    normal (``R = 0``, ``delta = 0``: Newton's method), every contact separated; a named error
+    where none is found near them."""
+    x = np.array(x, dtype=float)
+    p = r.params([SEPARATED] * r.k)
+    rk, dk = r.key("R", j), r.key("tangency_defect", j)
+
+    def G(u):
+        z = x.copy()
+        z[at:at + 2] = u
+        y = r.outputs(z, p)
+        return np.array([y[rk], y[dk]])
+
+    u = x[at:at + 2].copy()
+    for _ in range(50):
+        g = G(u)
+        if np.max(np.abs(g)) < 1e-14:
+            break
+        h = 1e-7 * np.maximum(1.0, np.abs(u))
+        J = np.column_stack([(G(u + h[k] * np.eye(2)[k]) - g) / h[k] for k in range(2)])
+        u = u - np.linalg.solve(J, g)
+    if not np.max(np.abs(G(u))) < 1e-12:
+        names = r.model.state_names[at:at + 2]
+        raise RunArgumentError(f"x0 is apart at contact {j}, but no pair of points on a common normal "
+                               f"was found near {names[0]}, {names[1]} = {tuple(x[at:at + 2])} (R, delta = "
+                               f"{tuple(G(u))}): give them near the closest points of the contours")
+    x[at:at + 2] = u
+    return x
 
 
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
