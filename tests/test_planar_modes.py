@@ -295,7 +295,7 @@ def test_a_witness_past_its_event_at_a_segment_start_is_an_event_there(base, mod
     ratio = model.simulate(1e-3, t_eval=[0.0, 1e-3], mu=1.0, **TOL)["cone_ratio"][0]
     low = modes._PlanarRun(model, s, (0.5 * ratio,), 0.0)    # the start is outside this cone
     y = low.outputs(x, low.params([modes.ROLLING]))
-    assert modes._at_start(low, [modes.ROLLING], [None], y) == ("cone", 1)
+    assert modes._at_start(low, [modes.ROLLING], [None], y)[:2] == ("cone", 1)
     high = modes._PlanarRun(model, s, (2.0 * ratio,), 0.0)
     assert modes._at_start(high, [modes.ROLLING], [None], high.outputs(x, high.params([modes.ROLLING]))) is None
     d = np.array([1.0])

@@ -28,7 +28,7 @@ import casadi as ca
 
 from grasping_sym.derive.planar import derive_template, has_gravity, parameter_values, torque_names
 from grasping_sym.errors import InvalidSceneError
-from grasping_sym.symbolic.contour_functions import FINGERTIP, OBJECT, fingertip_functions, leaf_expressions
+from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi
 
 #: 1/s: the rate at which sliding and separated contact parameters return to the common
@@ -38,6 +38,38 @@ TRACK_GAIN = 200.0
 FORCE_FLOOR = 1e-300
 
 
+def _setup(scene, torques):
+    """The pieces both derivations share: the template of the scene's fingers, the symbols
+    ``x``, ``p``, ``t``, the controller's torques ``tau`` (refused where they read the contact
+    parameters) and whether it reads the time, the translator of the template's SymPy into
+    CasADi with the scene's contours, and the stabilisation's gains ``(gf, gl, wf, wl)``."""
+    base, k = scene.base, scene.n_fingers
+    system = derive_template(False, has_gravity(base), k)
+    names = scene.p_names
+    x = ca.SX.sym("x", len(scene.state_names))
+    p = ca.SX.sym("p", len(names))
+    t = ca.SX.sym("t")
+    nq = 1 + 2 * k
+    tau, _, timed = torques(scene, t, x, p)
+    if ca.depends_on(tau, x[2 * nq:2 * nq + 2 * k]):
+        raise InvalidSceneError(["the controller reads the contact parameters (u0, u1): with contact "
+                                 "modes they are not one point while a contact slides or is open; "
+                                 "write the law on the joints and the object (m.q, m.dq, m.tip, ...)"])
+    values = parameter_values(base)
+    symbols = {s: x[i] for i, s in enumerate(system.state)}
+    taus = torque_names(k)
+    for s in system.params:
+        key = str(s)
+        symbols[s] = tau[taus.index(key)] if key in taus else p[names.index(key)] if key in names \
+            else ca.SX(values[key])
+    leaves = dict(leaf_expressions(OBJECT, base.object))
+    for i, tip in enumerate(base.fingertips, start=1):
+        leaves.update(leaf_expressions(fingertip_functions(i), tip))
+    by_name = {str(s): symbols[s] for s in system.params}
+    gains = tuple(by_name[key] for key in ("gf", "gl", "wf", "wl"))
+    return system, x, p, t, tau, timed, SympyToCasadi(symbols, leaves), gains
+
+
 def derive_planar_modes(scene, torques) -> dict:
     """``{"x", "p", "t", "xdot", "outputs", "reads_time"}`` of a ``model.planar_modes`` scene;
     ``torques(scene, t, x, p) -> (tau, reads the object, reads the time)`` gives the joint
@@ -45,29 +77,9 @@ def derive_planar_modes(scene, torques) -> dict:
     ``derive_planar_fingers_modes``."""
     if scene.n_fingers > 1:
         return derive_planar_fingers_modes(scene, torques)
-    base = scene.base
-    system = derive_template(False, has_gravity(base), 1)
     names = scene.p_names
-    x = ca.SX.sym("x", len(scene.state_names))
-    p = ca.SX.sym("p", len(names))
-    t = ca.SX.sym("t")
-    tau, _, timed = torques(scene, t, x, p)
-    if ca.depends_on(tau, x[6:8]):
-        raise InvalidSceneError(["the controller reads the contact parameters (u0, u1): with contact "
-                                 "modes they are not one point while the contact slides or is open; "
-                                 "write the law on the joints and the object (m.q, m.dq, m.tip, ...)"])
-    values = parameter_values(base)
-    symbols = {s: x[i] for i, s in enumerate(system.state)}
-    taus = torque_names(1)
-    for s in system.params:
-        k = str(s)
-        symbols[s] = tau[taus.index(k)] if k in taus else p[names.index(k)] if k in names \
-            else ca.SX(values[k])
-    leaves = {**leaf_expressions(FINGERTIP, base.fingertip), **leaf_expressions(OBJECT, base.object)}
-    tr = SympyToCasadi(symbols, leaves)
+    system, x, p, t, tau, timed, tr, (gf, gl, wf, wl) = _setup(scene, torques)
     mode, slip, mu = (p[names.index(k)] for k in ("mode", "slip", "mu"))
-    by_name = {str(s): symbols[s] for s in system.params}
-    gf, gl, wf, wl = (by_name[k] for k in ("gf", "gl", "wf", "wl"))
 
     M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
     C = tr(system.constraint)
@@ -140,33 +152,11 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
     rows along the motion (as the rolling model); sliding, its normal row along the common
     normal's motion and Coulomb's ``lam_i = mu_i d_i f_i``; separated, ``f_i = lam_i = 0``.
     ``painleve{i}`` is contact ``i``'s own coefficient of its sliding normal row."""
-    base = scene.base
-    k = base.n_fingers
-    system = derive_template(False, has_gravity(base), k)
+    k = scene.n_fingers
     names = scene.p_names
-    x = ca.SX.sym("x", len(scene.state_names))
-    p = ca.SX.sym("p", len(names))
-    t = ca.SX.sym("t")
+    system, x, p, t, tau, timed, tr, (gf, gl, wf, wl) = _setup(scene, torques)
     nq = 1 + 2 * k
     q, v, u = x[0:nq], x[nq:2 * nq], x[2 * nq:2 * nq + 2 * k]
-    tau, _, timed = torques(scene, t, x, p)
-    if ca.depends_on(tau, u):
-        raise InvalidSceneError(["the controller reads the contact parameters (u0_i, u1_i): with contact "
-                                 "modes they are not one point while a contact slides or is open; "
-                                 "write the law on the joints and the object (m.q, m.dq, m.tip, ...)"])
-    values = parameter_values(base)
-    symbols = {s: x[i] for i, s in enumerate(system.state)}
-    taus = torque_names(k)
-    for s in system.params:
-        key = str(s)
-        symbols[s] = tau[taus.index(key)] if key in taus else p[names.index(key)] if key in names \
-            else ca.SX(values[key])
-    leaves = dict(leaf_expressions(OBJECT, base.object))
-    for i, tip in enumerate(base.fingertips, start=1):
-        leaves.update(leaf_expressions(fingertip_functions(i), tip))
-    tr = SympyToCasadi(symbols, leaves)
-    by_name = {str(s): symbols[s] for s in system.params}
-    gf, gl, wf, wl = (by_name[key] for key in ("gf", "gl", "wf", "wl"))
 
     M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
     C = tr(system.constraint)

@@ -780,8 +780,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
             break
         at_start = _at_start(r, modes, slips, y_now)
         if at_start is not None:  # a witness already past its event: it switches now
-            name, j = at_start
-            t_ev, x_ev, value_ = t_now, x_now, value(_terms(r, modes, slips, name, j), y_now)
+            name, j, terms = at_start
+            t_ev, x_ev, value_ = t_now, x_now, value(terms, y_now)
             recent = _chatter(model, recent, t_ev, x_ev)
             before = modes[j - 1]
             modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
@@ -859,18 +859,14 @@ def _chatter(model, recent: list[float], t_ev: float, x_ev: np.ndarray) -> list[
     return recent
 
 
-def _terms(r: _Run, modes, slips, name: str, j: int) -> list[tuple[str, float]]:
-    return next(terms for n, c, terms in r.witnesses(modes, slips) if n == name and c == j)
-
-
-def _at_start(r: _Run, modes, slips, y: dict) -> tuple[str, int] | None:
-    """``(witness, contact)`` of a force or cone witness that starts a segment at or below 0:
+def _at_start(r: _Run, modes, slips, y: dict) -> tuple[str, int, list] | None:
+    """``(witness, contact, terms)`` of a force or cone witness that starts a segment at or below 0:
     past its event already (another contact's impact or switch took it there, or it crossed
     within the dense output's error of the event just made), so it switches at once; it
     could not be watched (``c/watch.c`` arms it only above 0)."""
     for name, j, terms in r.witnesses(modes, slips):
         if _arming(name) == 0.0 and name != "painleve" and not value(terms, y) > 0:
-            return name, j
+            return name, j, terms
     return None
 
 
@@ -905,7 +901,7 @@ def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
             for key in ("n_steps", "n_rhs"):
                 stats[key] = stats.get(key, 0) + int(st.get(key, 0))
             if "event" in st:
-                hit = {**st["event"], **lib.watch_result(), "p": pk}
+                hit = {**st["event"], **lib.watch_result()}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             x = X[-1]
         return _on_grid(rows_t, rows_x, grid) + (stats, None)
