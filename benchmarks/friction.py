@@ -13,9 +13,10 @@
   held against a reference at rtol 1e-12;
 - the fingers' modes: paper2d's finger slipping (mu = 0.2) and paper3d's grasp slipping and
   dropped onto a table, each against its rolling model's run of the same length and
-  tolerance (no friction limit), and the seconds each build takes; and the same runs with a
-  mu that holds (the model with modes staying rolling) against the rolling model checking
-  the same cone.
+  tolerance (no friction limit), and the seconds each build takes;
+- runs with modes that stay rolling (a mu that holds: paper2d, paper3d, paper3d's grasp over
+  a table) against the rolling model checking the same cone (today's run), with the rolling
+  stretches run by the base scene's rolling model and by the model with modes itself.
 
 Every ratio's baseline is measured in the same run.
 """
@@ -109,7 +110,6 @@ def finger_modes() -> dict:
     cases = (("paper2d finger, mu 0.2", gs.scenes.paper2d(), [], 0.2, 1e-10),
              ("paper3d grasp over a table, mu 0.08", gs.scenes.paper3d(object_surface=ellipsoid), [table],
               gs.contact.coulomb((0.08, 0.08, 0.5)), 1e-9))
-    holding = {"paper2d finger, mu 0.2": 1.0, "paper3d grasp over a table, mu 0.08": (1.0, 1.0, 0.5)}
     for label, base, planes, mu, rtol in cases:
         rolling = gs.build(base)
         t0 = perf_counter()
@@ -120,29 +120,64 @@ def finger_modes() -> dict:
         t_modes = best_per_call(lambda m=model, mu=mu, tol=tol: m.simulate(0.25, mu=mu, **tol), number=1, repeat=3)
         t_roll = best_per_call(lambda r=rolling, tol=tol: r.simulate(0.25, method="radau", **tol), number=1,
                                repeat=3)
-        # a run that stays rolling: the model with modes against the rolling model, both
-        # checking the same cone (mu large enough to hold)
-        held = holding[label]
-        law = gs.contact.coulomb(held) if isinstance(held, tuple) else held
-        fingers = gs.contact.coulomb(held[:2]) if isinstance(held, tuple) else held  # the planes' last
-        still = model.simulate(0.25, mu=law, **tol)
-        roll_still = rolling.simulate(0.25, mu=fingers, method="radau", **tol)
-        t_still = best_per_call(lambda m=model, law=law, tol=tol: m.simulate(0.25, mu=law, **tol), number=1,
-                                repeat=3)
-        t_roll_cone = best_per_call(lambda r=rolling, mu=fingers, tol=tol: r.simulate(0.25, mu=mu, method="radau",
-                                                                                     **tol), number=1, repeat=3)
         out[label] = {"build_s": build, "modes_s": t_modes, "rolling_s": t_roll, "ratio": t_modes / t_roll,
-                      "switches": len(res.events), "switch_s": res.stats["switch_time"],
-                      "rolling_only": {"mu": held, "switches": len(still.events), "modes_s": t_still,
-                                       "rolling_s": t_roll_cone, "ratio": t_still / t_roll_cone,
-                                       "modes_rhs": still.stats["n_rhs"],
-                                       "rolling_rhs": roll_still.stats["n_rhs"]}}
+                      "switches": len(res.events), "switch_s": res.stats["switch_time"]}
+    return out
+
+
+def _interleaved(run, model, baseline) -> dict:
+    """Best times of ``run`` with ``model``'s rolling model, without it, and of ``baseline``,
+    interleaved three times (the machine's drift falls on all three alike)."""
+    times = {"modes": [], "alone": [], "rolling": []}
+    kept = model.rolling
+    for _ in range(3):
+        times["modes"].append(best_per_call(run, number=1, repeat=3))
+        model.rolling = None
+        try:
+            times["alone"].append(best_per_call(run, number=1, repeat=3))
+        finally:
+            model.rolling = kept
+        times["rolling"].append(best_per_call(baseline, number=1, repeat=3))
+    return times
+
+
+def rolling_only() -> dict:
+    """Runs with modes whose contacts all roll throughout (a mu that holds), 0.25 s, 251 output
+    times, radau: the model with modes (its rolling stretches run by the base scene's rolling
+    model, ``Model.rolling``), the same model running them itself, and the rolling model
+    checking the same cone (no modes: today's run)."""
+    out = {}
+    ellipsoid = surface_library.ellipsoid(0.020, 0.025, 0.030, lon=(-2.5, 4.0), name="object ellipsoid")
+    table = gs.scenes.world_plane((0, -0.01, 0), (0, 1, 0), support=(-1.5708, 0.0))
+    cases = (("paper2d", gs.scenes.paper2d(), [], 1.0, 1e-10),
+             ("paper3d", gs.scenes.paper3d(), [], (1.0, 1.0), 1e-9),
+             ("paper3d grasp over a table", gs.scenes.paper3d(object_surface=ellipsoid), [table],
+              (1.0, 1.0, 0.5), 1e-9))
+    for label, base, planes, held, rtol in cases:
+        rolling = gs.build(base)
+        model = gs.build(gs.scenes.with_modes(base, planes=planes))
+        tol = dict(rtol=rtol, atol=rtol / 100, t_eval=np.linspace(0.0, 0.25, 251))
+        law = gs.contact.coulomb(held)
+        fingers = gs.contact.coulomb(held[:base.n_contacts] if isinstance(held, tuple) else held)
+        still = model.simulate(0.25, mu=law, **tol)
+        reference = rolling.simulate(0.25, mu=fingers, method="radau", **tol)
+        times = _interleaved(lambda m=model, law=law, tol=tol: m.simulate(0.25, mu=law, **tol), model,
+                             lambda r=rolling, mu=fingers, tol=tol: r.simulate(0.25, mu=mu, method="radau", **tol))
+        best = {k: min(v) for k, v in times.items()}
+        n = len(base.state_names)
+        out[label] = {"mu": held, "switches": len(still.events),
+                      "rolling_model_segments": still.stats["rolling_model_segments"],
+                      "modes_s": best["modes"], "alone_s": best["alone"], "rolling_s": best["rolling"],
+                      "ratio": best["modes"] / best["rolling"], "alone_ratio": best["alone"] / best["rolling"],
+                      # the base's states (2D: u0 against the shared s)
+                      "max_state_difference": float(np.max(np.abs(still.x[:, :n] - reference.x)))}
     return out
 
 
 def main() -> dict:
     out = {"machine": platform.processor() or platform.machine(), "cone_check": cone_check_cost(),
-           "switches": switches(), "ensembles": ensembles(), "finger_modes": finger_modes()}
+           "switches": switches(), "ensembles": ensembles(), "finger_modes": finger_modes(),
+           "rolling_only": rolling_only()}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "friction.json").write_text(json.dumps(out, indent=1))
     c, s, e = out["cone_check"], out["switches"], out["ensembles"]
@@ -174,16 +209,21 @@ def main() -> dict:
     for k, v in out["finger_modes"].items():
         lines.append(f"| {k} | {v['build_s']:.1f} | {1e3 * v['modes_s']:.1f} | {1e3 * v['rolling_s']:.1f} | "
                      f"{v['ratio']:.2f} | {v['switches']} | {1e3 * v['switch_s']:.2f} |")
-    lines += ["", "### The same runs with a mu that holds: the model with modes staying rolling", "",
-              "Both models check the same cone. The model with modes has no generated Jacobian (radau "
-              "differences its right-hand side) and evaluates its outputs at every step and every "
-              "millisecond of dense output (the witnesses).", "",
-              "| run | mu | switches | with modes (ms) | rolling model (ms) | ratio | rhs evaluations "
-              "(modes / rolling) |", "|---|---|---|---|---|---|---|"]
-    for k, v in out["finger_modes"].items():
-        w = v["rolling_only"]
-        lines.append(f"| {k.split(',')[0]} | {w['mu']} | {w['switches']} | {1e3 * w['modes_s']:.1f} | "
-                     f"{1e3 * w['rolling_s']:.1f} | {w['ratio']:.2f} | {w['modes_rhs']} / {w['rolling_rhs']} |")
+    lines += ["", "## Runs with modes that stay rolling (0.25 s, 251 output times, radau, a mu that holds)", "",
+              "The model with modes runs the stretches where every contact rolls with the base scene's "
+              "rolling model (`Model.rolling`: its generated Jacobian in 2D, none of the other modes' "
+              "branches), watching each contact's `mu f - |F_t|` and `f` at every step's end and every "
+              "millisecond of dense output. A scene with planes of the world has none (the rolling model "
+              "has no gap to them to watch): the model with modes runs it. The baseline is the rolling "
+              "model checking the same cone at its output times (today's run).", "",
+              "| run | mu | switches | stretches run by the rolling model | with modes (ms) | the model "
+              "with modes alone (ms) | rolling model (ms) | ratio | ratio alone | max state difference |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for k, w in out["rolling_only"].items():
+        diff = f"{w['max_state_difference']:.1e}"
+        lines.append(f"| {k} | {w['mu']} | {w['switches']} | {w['rolling_model_segments']} | "
+                     f"{1e3 * w['modes_s']:.2f} | {1e3 * w['alone_s']:.2f} | {1e3 * w['rolling_s']:.2f} | "
+                     f"{w['ratio']:.2f} | {w['alone_ratio']:.2f} | {diff} |")
     lines.append("")
     (RESULTS / "friction.md").write_text("\n".join(lines))
     print("\n".join(lines))

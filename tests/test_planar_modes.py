@@ -4,6 +4,7 @@ event, the energy balance of a slide, the contours' geometry computed here from 
 formulas, and the laws of an impact."""
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 
@@ -41,6 +42,17 @@ def model(base):
 @pytest.fixture(scope="module")
 def rolling(base):
     return gs.build(base)
+
+
+@contextlib.contextmanager
+def _alone(model):
+    """``model`` running every stretch itself: no rolling model (``Model.rolling``) for the
+    stretches where the contact rolls."""
+    kept, model.rolling = model.rolling, None
+    try:
+        yield model
+    finally:
+        model.rolling = kept
 
 
 def _x0(base) -> np.ndarray:
@@ -88,9 +100,10 @@ def test_rolling_mode_is_the_rolling_model(base, model, rolling):
         assert np.max(np.abs(a[:6] - b[:6]) / scale) < 1e-12
         assert abs(b[6] - a[6]) < 1e-12 * abs(a[6]) and abs(b[7] - a[6]) < 1e-12 * abs(a[6])
     te = np.linspace(0.0, 0.3, 31)
-    r = model.simulate(0.3, t_eval=te, **TOL)
+    with _alone(model):  # mode 0 itself, not the rolling model that runs such a run
+        r = model.simulate(0.3, t_eval=te, **TOL)
     r0 = rolling.simulate(0.3, t_eval=te, method="radau", **TOL)
-    assert r.events == [] and set(r.modes) == {"rolling"}
+    assert r.events == [] and set(r.modes) == {"rolling"} and r.stats["rolling_model_segments"] == 0
     assert np.max(np.abs(r.x[:, :6] - r0.x[:, :6])) < 1e-9
 
 
@@ -118,6 +131,24 @@ def test_slip_starts_where_the_rolling_model_leaves_its_cone(base, rolling, slid
     assert np.max(np.abs(np.abs(lam) - 0.2 * f)) < 1e-12 * np.max(f)
     assert np.all(lam * vt >= 0)
     assert np.max(slide["cone_ratio"]) <= 0.2 + 1e-12
+
+
+def test_the_rolling_model_runs_the_rolling_stretches(model, slide):
+    """Where the contact rolls with ``u0 = u1`` (paper2d's one contact parameter), the base
+    scene's rolling model integrates the run (``Model.rolling``), watching its own
+    ``mu f - |lam|`` and ``f`` at every step: the same switches at the same times (1e-9 s) and
+    the same samples (1e-8) as the model with modes run alone. The stick after the slide has
+    ``u0 != u1``: the model with modes runs it."""
+    assert model.rolling is not None
+    assert slide.stats["segments"] == 3 and slide.stats["rolling_model_segments"] == 1
+    with _alone(model):
+        alone = model.simulate(0.25, mu=0.2, t_eval=slide.t, **TOL)
+    assert alone.stats["rolling_model_segments"] == 0
+    assert [(e["from"], e["to"], e["witness"]) for e in alone.events] == \
+        [(e["from"], e["to"], e["witness"]) for e in slide.events]
+    assert max(abs(a["t"] - b["t"]) for a, b in zip(alone.events, slide.events)) < 1e-9
+    assert np.max(np.abs(alone.x - slide.x)) < 1e-8
+    assert (alone.modes == slide.modes).all()
 
 
 def test_a_slide_loses_what_friction_dissipates(slide):

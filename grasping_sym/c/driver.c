@@ -13,7 +13,7 @@
  *                  jac.c: its Jacobian; lu.c: its real and complex LU)
  *   dopri5.c       gs_dopri5
  *   dop853.c       gs_dop853
- *   watch.c        gs_watch_set, gs_watch_clear, gs_watch_result: witnesses watched along
+ *   watch.c        gs_watch_witnesses, gs_watch_clear, gs_watch_result: witnesses watched along
  *                  gs_radau5 / gs_dopri5 / gs_dop853, which stop at their events
  *   stop.c         gs_stop_bind, gs_sigint_ensure, gs_set_time_limit, gs_stop_cause: Ctrl-C
  *                  (one handler for the process, runtime/interrupt.py) and a wall-time

@@ -374,7 +374,7 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 /* The dense output of the step just accepted: x at t (between the step's start and end). */
 typedef void (*gs_interp)(const void* ctx, double t, double* x);
 #if GS_HAS_OUT
-/* Non-zero when this thread's runs watch witnesses (gs_watch_set). */
+/* Non-zero when this thread's runs watch witnesses (gs_watch_witnesses). */
 GS_HIDDEN int gs_watching(void);
 /* The run's start (t0, x0): the witnesses' values there, each armed if > 0. */
 GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p);

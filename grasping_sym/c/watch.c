@@ -1,9 +1,11 @@
 /*
  * grasping_sym driver: witnesses watched along an adaptive run, for the runs with contact
- * modes (runtime/modes.py): gs_watch_set, gs_watch_clear, gs_watch_result.
+ * modes (runtime/modes.py): gs_watch_witnesses, gs_watch_clear, gs_watch_result.
  *
- * A witness is a linear combination of the model's outputs, g = sum_k c_k y[i_k] (a cone's
- * margin mu f - |F_t|, a normal force, a slip velocity along a direction, a gap). With a
+ * A witness is a linear combination of the model's outputs less the length of a vector of
+ * them, g = sum_k c_k y[i_k] - sqrt(sum_m (c_m y[i_m])^2) (the terms flagged as the norm's;
+ * none: a linear combination): a cone's margin mu f - |F_t|, a normal force, a slip
+ * velocity along a direction, a gap. With a
  * watch set on this thread, gs_radau5, gs_dopri5 and gs_dop853 evaluate every witness at
  * the run's start, then after each accepted step at its end and at points of its dense
  * output no farther apart than dt. A witness is armed once it was seen > tol (>= 0, its
@@ -33,7 +35,7 @@
 typedef struct {
   int on, resume, n, in_k, in_m;
   double dt;
-  int ptr[GS_WATCH_MAX + 1], idx[GS_WATCH_TERMS];
+  int ptr[GS_WATCH_MAX + 1], idx[GS_WATCH_TERMS], norm[GS_WATCH_TERMS];
   double coef[GS_WATCH_TERMS], tol[GS_WATCH_MAX];
   int armed[GS_WATCH_MAX];
   double g_prev[GS_WATCH_MAX], t_prev;
@@ -59,9 +61,15 @@ static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p
   const int rc = gs_eval_out(wk, x, pw, y);
   if (rc) return rc;
   for (int k = 0; k < gs_w.n; ++k) {
-    double s = 0.0;
-    for (int j = gs_w.ptr[k]; j < gs_w.ptr[k + 1]; ++j) s += gs_w.coef[j] * y[gs_w.idx[j]];
-    g[k] = s;
+    double s = 0.0, q = 0.0;
+    for (int j = gs_w.ptr[k]; j < gs_w.ptr[k + 1]; ++j) {
+      const double v = gs_w.coef[j] * y[gs_w.idx[j]];
+      if (gs_w.norm[j])
+        q += v * v;
+      else
+        s += v;
+    }
+    g[k] = s - sqrt(q);
   }
   return 0;
 }
@@ -174,13 +182,14 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
 #endif
 
 /* Watch n witnesses in this thread's next runs: witness k is sum_j coef[j] y[idx[j]] over
- * j in [ptr[k], ptr[k + 1]); tol[k] as above; the inputs (a, b) at p[in_k .. in_k + 2
+ * the j in [ptr[k], ptr[k + 1]) with norm[j] 0, less sqrt(sum_j (coef[j] y[idx[j]])^2) over
+ * those with norm[j] 1; tol[k] as above; the inputs (a, b) at p[in_k .. in_k + 2
  * in_m) (in_m = 0: none); watched points at most dt apart (0: the steps' ends only).
  * Returns 0, or GS_ERR_ARGS (nothing set) for a model without outputs, more than
  * GS_WATCH_MAX witnesses or GS_WATCH_TERMS terms, an index out of range or a non-finite
  * number. */
-GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const double* coef,
-                           const double* tol, long in_k, long in_m, double dt) {
+GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const double* coef,
+                           const long* norm, const double* tol, long in_k, long in_m, double dt) {
 #if GS_HAS_OUT
   if (n < 0 || n > GS_WATCH_MAX || !ptr || ptr[0] != 0 || ptr[n] > GS_WATCH_TERMS ||
       !(dt >= 0.0) || !isfinite(dt) || in_m < 0 || in_k < 0 || in_k + 2 * in_m > gs_np)
@@ -188,7 +197,8 @@ GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const doubl
   for (long k = 0; k < n; ++k) {
     if (ptr[k + 1] < ptr[k] || !(tol[k] >= 0.0) || !isfinite(tol[k])) return GS_ERR_ARGS;
     for (long j = ptr[k]; j < ptr[k + 1]; ++j)
-      if (idx[j] < 0 || idx[j] >= gs_ny || !isfinite(coef[j])) return GS_ERR_ARGS;
+      if (idx[j] < 0 || idx[j] >= gs_ny || !isfinite(coef[j]) || (norm[j] != 0 && norm[j] != 1))
+        return GS_ERR_ARGS;
   }
   gs_w.n = (int)n;
   gs_w.in_k = (int)in_k;
@@ -198,6 +208,7 @@ GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const doubl
   for (long j = 0; j < ptr[n]; ++j) {
     gs_w.idx[j] = (int)idx[j];
     gs_w.coef[j] = coef[j];
+    gs_w.norm[j] = (int)norm[j];
   }
   for (long k = 0; k < n; ++k) gs_w.tol[k] = tol[k];
   gs_w.which = -1;
@@ -205,7 +216,7 @@ GS_EXPORT int gs_watch_set(long n, const long* ptr, const long* idx, const doubl
   gs_w.on = 1;
   return 0;
 #else
-  (void)n, (void)ptr, (void)idx, (void)coef, (void)tol, (void)in_k, (void)in_m, (void)dt;
+  (void)n, (void)ptr, (void)idx, (void)coef, (void)norm, (void)tol, (void)in_k, (void)in_m, (void)dt;
   return GS_ERR_ARGS;
 #endif
 }

@@ -173,9 +173,16 @@ class GraspModesScene(WithModes):
         return "\n".join(["grasp3d-modes-v1", self.base.key(),
                           *[repr((w.point, w.normal, w.support)) for w in self.planes]])
 
+    def rolling_map(self) -> dict | None:
+        """``WithModes.rolling_map``: None with planes of the world (the rolling model has no
+        gap to them to watch)."""
+        return None if self.planes else super().rolling_map()
+
     def manifest_extra(self) -> dict:
-        """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are."""
+        """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are,
+        how the base's rolling model runs the stretches where every contact rolls."""
         return {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
+                "rolling_map": self.rolling_map(),
                 "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers,
                                 "driven": [self.n_fingers + m for m, w in enumerate(self.planes, start=1)
                                            if w.motion is not None or w.spin is not None]},

@@ -168,11 +168,20 @@ class PlanarModesScene(WithModes):
     def key(self) -> str:
         return "\n".join(["planar-modes-v1", self.base.key()])
 
+    def rolling_map(self) -> dict | None:
+        """``WithModes.rolling_map``; a base with one contact parameter ``s`` for both contours
+        (``shared_parameter``) is the rolling model of the states with ``u0 = u1 = s``."""
+        if self.n_fingers > 1 or not self.base.shared_parameter:
+            return super().rolling_map()
+        return {"to": [0, 1, 2, 3, 4, 5, 6], "from": [0, 1, 2, 3, 4, 5, 6, 6]}
+
     def manifest_extra(self) -> dict:
         """The kind, and that ``simulate`` runs the modes (``runtime.modes``); with several
-        fingers their number and where the speeds start and how many (``planar_fingers``)."""
+        fingers their number and where the speeds start and how many (``planar_fingers``);
+        how the base's rolling model runs the stretches where every contact rolls
+        (``rolling_map``)."""
         k = self.n_fingers
-        extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": k,
+        extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": k, "rolling_map": self.rolling_map(),
                  "param_rules": {m: "nonnegative" for m in self.runtime if m.startswith("mu")}}
         if k > 1:
             extra["planar_fingers"] = {"fingers": k, "speeds": [1 + 2 * k, 1 + 2 * k]}

@@ -1,5 +1,6 @@
 """What a scene with contact modes takes from the scene it wraps (``model.planar_modes``,
-``model.grasp3d_modes``): its name, controller, friction law and gravity."""
+``model.grasp3d_modes``): its name, controller, friction law and gravity; and how the wrapped
+scene's rolling model runs the stretches where every contact rolls (``rolling_map``)."""
 from __future__ import annotations
 
 from typing import ClassVar
@@ -26,3 +27,15 @@ class WithModes:
     @property
     def gravity(self):
         return self.base.gravity
+
+    def rolling_map(self) -> dict | None:
+        """How the base scene's rolling model (built with this scene by ``gs.build``) runs a
+        stretch of a run in which every contact rolls (``runtime.modes``: the same equations,
+        with its generated Jacobian and none of the other modes' branches): ``to``, the entry
+        of this scene's state that each of the rolling model's is; ``from``, the rolling
+        model's entry that each of this scene's is. Here the two states are one; None where
+        no rolling model can run the scene (a subclass says)."""
+        base, own = tuple(self.base.state_names), tuple(self.state_names)
+        if base != own:
+            return None
+        return {"to": list(range(len(own))), "from": list(range(len(own)))}

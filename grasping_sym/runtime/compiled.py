@@ -160,10 +160,10 @@ class CompiledLibrary:
         lib.gs_stop_cause.restype = ctypes.c_int
         if hasattr(lib, "gs_stop_bind"):  # Ctrl-C stops the C loops: one owner (c/stop.c)
             interrupt.bind(lib)
-        self.can_watch = hasattr(lib, "gs_watch_set")  # (libraries of older versions lack it)
+        self.can_watch = hasattr(lib, "gs_watch_witnesses")  # (libraries of older versions lack it)
         if self.can_watch:
-            lib.gs_watch_set.argtypes = [_long, _dp, _dp, _dp, _dp, _long, _long, _double]
-            lib.gs_watch_set.restype = ctypes.c_int
+            lib.gs_watch_witnesses.argtypes = [_long, _dp, _dp, _dp, _dp, _dp, _long, _long, _double]
+            lib.gs_watch_witnesses.restype = ctypes.c_int
             lib.gs_watch_clear.restype = None
             lib.gs_watch_resume.restype = None
             lib.gs_watch_result.argtypes = [_dp]
@@ -531,26 +531,31 @@ class CompiledLibrary:
         return int(rc), t_fail.value
 
     # -- witnesses watched along a run (c/watch.c) ---------------------------------------
-    def watch(self, terms: Sequence[Sequence[tuple[int, float]]], tol: Sequence[float],
+    def watch(self, terms: Sequence[Sequence[tuple]], tol: Sequence[float],
               inputs: tuple[int, int] = (0, 0), dt: float = 0.0) -> None:
         """Watch witnesses in this thread's next radau5 / dopri5 / dop853 runs until
         :meth:`unwatch`: witness k is ``sum(c * y[i] for i, c in terms[k])`` over the compiled
-        outputs ``y``; an armed witness (once > ``tol[k]``) reaching <= 0, or, when
-        ``tol[k] > 0``, an unarmed one below ``-tol[k]``, stops the run at its event, located on the dense output
-        (the run's ``stats["event"]``: ``t``, ``x`` there, ``x_step`` its step's start;
-        :meth:`watch_result` the rest). ``inputs``: ``(k, m)``, the inputs' ``(a, b)`` at
-        ``p[k:k + 2m]``, taken at each watched time; watched points at most ``dt`` apart."""
+        outputs ``y``, less ``sqrt(sum((c * y[i])**2))`` over its terms given as
+        ``(i, c, True)`` (the norm's: a cone's ``|F_t|``); an armed witness (once > ``tol[k]``)
+        reaching <= 0, or, when ``tol[k] > 0``, an unarmed one below ``-tol[k]``, stops the
+        run at its event, located on the dense output (the run's ``stats["event"]``: ``t``,
+        ``x`` there, ``x_step`` its step's start; :meth:`watch_result` the rest). ``inputs``:
+        ``(k, m)``, the inputs' ``(a, b)`` at ``p[k:k + 2m]``, taken at each watched time;
+        watched points at most ``dt`` apart."""
         if not self.can_watch:
-            raise RuntimeError(f"{self.path} has no gs_watch_set: rebuild the model")
+            raise RuntimeError(f"{self.path} has no gs_watch_witnesses: rebuild the model")
         ptr = np.zeros(len(terms) + 1, dtype=np.int64)
         ptr[1:] = np.cumsum([len(t) for t in terms])
-        idx = np.array([i for t in terms for i, _ in t] or [0], dtype=np.int64)
-        coef = np.array([c for t in terms for _, c in t] or [0.0], dtype=float)
+        flat = [term for t in terms for term in t]
+        idx = np.array([term[0] for term in flat] or [0], dtype=np.int64)
+        coef = np.array([term[1] for term in flat] or [0.0], dtype=float)
+        norm = np.array([int(len(term) > 2 and bool(term[2])) for term in flat] or [0], dtype=np.int64)
         tols = np.ascontiguousarray(tol if len(tol) else [0.0], dtype=float)
-        rc = self._lib.gs_watch_set(len(terms), ptr.ctypes.data, idx.ctypes.data, coef.ctypes.data,
-                                    tols.ctypes.data, int(inputs[0]), int(inputs[1]), float(dt))
+        rc = self._lib.gs_watch_witnesses(len(terms), ptr.ctypes.data, idx.ctypes.data, coef.ctypes.data,
+                                          norm.ctypes.data, tols.ctypes.data, int(inputs[0]), int(inputs[1]),
+                                          float(dt))
         if rc:
-            raise ValueError(f"gs_watch_set refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
+            raise ValueError(f"gs_watch_witnesses refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
                              f"tol {list(tol)}, inputs {inputs}, dt {dt}): at most 64 "
                              "witnesses of 512 terms in all, indices of the outputs, finite numbers")
 

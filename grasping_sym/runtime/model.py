@@ -66,6 +66,10 @@ class Model:
         self.friction = friction
         self.manifest = manifest
         self.start = start
+        #: a model with modes: the base scene's rolling model, which runs the stretches where
+        #: every contact rolls (the manifest's ``rolling_map``; ``gs.build`` sets it); None:
+        #: the model with modes runs every stretch
+        self.rolling = None
         self.name: str = manifest["name"]
         self.state_names: tuple[str, ...] = tuple(manifest["state_names"])
         #: every column of the compiled outputs: the scene's outputs, then those only the

@@ -47,7 +47,7 @@ from grasping_sym.errors import (
     PainleveError,
     RunArgumentError,
 )
-from grasping_sym.runtime import events, failures, integrators
+from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.parameters import complete
@@ -123,6 +123,31 @@ def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
     return mu_, float(e)
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Leg:
+    """What integrates a segment (``_segment``): the model with modes itself, or, where every
+    contact rolls, the base scene's rolling model (``Model.rolling``; the manifest's
+    ``rolling_map``): the same equations with their generated Jacobian and none of the other
+    modes' branches. Its state is ``x[to]`` of the model with modes' ``x``, which is its
+    ``X[..., back]``; ``watched``: its witnesses (the model with modes': ``_Run.witnesses``)."""
+
+    model: object
+    #: each compiled output's column; the inputs' slots in p, ``(first, how many)``
+    col: dict
+    input_slots: tuple[int, int]
+    to: np.ndarray | None = None
+    back: np.ndarray | None = None
+    watched: tuple = ()
+
+    def state(self, x: np.ndarray) -> np.ndarray:
+        """This leg's state of the model with modes' ``x``."""
+        return x if self.to is None else np.asarray(x)[self.to]
+
+    def states(self, X: np.ndarray) -> np.ndarray:
+        """The model with modes' states of this leg's ``X`` (a state, or rows of them)."""
+        return X if self.back is None else np.asarray(X)[..., self.back]
+
+
 class _Run:
     """One run's state: the model, its settings, the parameters per mode; what every kind of
     model with modes shares (a subclass per kind gives its contacts' geometry).
@@ -148,7 +173,9 @@ class _Run:
         #: ``switch_time``: seconds spent locating the switches and making them
         #: segments: one per mode's stretch (the start's and one after each switch); chunks:
         #: the integrations they were run in (one per segment, and per piece of an inputs' table)
-        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "switch_time": 0.0}
+        #: rolling_model_segments: the segments the base scene's rolling model ran (``_Leg``)
+        self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "rolling_model_segments": 0,
+                      "switch_time": 0.0}
         #: each compiled output's column; the inputs' slots in p, ``(first, how many)``
         self.col = {k: i for i, k in enumerate(model.columns)}
         self.input_slots = (names.index(model.input_names[0]), len(model.input_names)) \
@@ -156,6 +183,40 @@ class _Run:
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
+        self.own_leg = _Leg(model, self.col, self.input_slots)
+        self.rolling_leg = self._rolling_leg(getattr(model, "rolling", None), model.manifest.get("rolling_map"))
+
+    def _rolling_leg(self, rolling, where: dict | None) -> _Leg | None:
+        """The leg of the base scene's rolling model (``_Leg``), watching each contact's cone
+        ``mu f - |F_t|`` and normal force on its own outputs; None when there is none, or it
+        cannot (no watch, no tangential forces among its outputs, other inputs)."""
+        if rolling is None or where is None or not rolling.library.can_watch \
+                or tuple(rolling.input_names) != tuple(self.model.input_names):
+            return None
+        found = friction.contacts(rolling)
+        if len(found) != self.k or not all(tangential for _, tangential in found):
+            return None
+        watched = []
+        for j, (fk, tangential) in zip(self.contacts, found):
+            if self.mus[j - 1] != math.inf:
+                watched.append(("cone", j, [(fk, self.mus[j - 1]), *((k, 1.0, True) for k in tangential)]))
+            watched.append(("normal_force", j, [(fk, 1.0)]))
+        names = rolling.p_names
+        slots = (names.index(rolling.input_names[0]), len(rolling.input_names)) if rolling.input_names else (0, 0)
+        return _Leg(rolling, {k: i for i, k in enumerate(rolling.columns)}, slots,
+                    np.array(where["to"], dtype=int), np.array(where["from"], dtype=int), tuple(watched))
+
+    def leg(self, modes, x: np.ndarray) -> _Leg:
+        """The leg that runs a segment from ``x`` with contacts in ``modes``: the rolling
+        model's where every contact rolls and ``x`` is one of its states (a shared contact
+        parameter: ``u0 = u1``, to 1e-12), else the model with modes itself."""
+        leg = self.rolling_leg
+        if leg is None or any(m != ROLLING for m in modes):
+            return self.own_leg
+        x = np.asarray(x, dtype=float)
+        if np.max(np.abs(x[leg.to][leg.back] - x)) > 1e-12 * max(1.0, float(np.max(np.abs(x)))):
+            return self.own_leg
+        return leg
 
     @property
     def contacts(self) -> range:
@@ -180,15 +241,17 @@ class _Run:
                 p[self.i_slip[j - 1]:self.i_slip[j - 1] + len(d)] = d
         return p
 
-    def outputs(self, x: np.ndarray, p: np.ndarray) -> dict[str, float]:
-        """Every output at ``x`` with ``p``, the inputs at ``self.t``."""
+    def outputs(self, x: np.ndarray, p: np.ndarray, model=None) -> dict[str, float]:
+        """Every output of ``model`` (default: the model with modes) at ``x`` with ``p``, the
+        inputs at ``self.t``."""
+        model = self.model if model is None else model
         if self.sched is not None:
-            p = self.model.with_inputs(p, self.sched(self.t))
-        if not self.model.columns:
+            p = model.with_inputs(p, self.sched(self.t))
+        if not model.columns:
             return {}
-        timed = bool(self.model.manifest.get("outputs_time"))
-        y = outputs_.row(self.model, x, complete(self.model, p), self.t if timed else None)
-        return dict(zip(self.model.columns, map(float, y)))
+        timed = bool(model.manifest.get("outputs_time"))
+        y = outputs_.row(model, x, complete(model, p), self.t if timed else None)
+        return dict(zip(model.columns, map(float, y)))
 
     def with_mode(self, x, modes, slips, j: int, mode: int, slip=None) -> dict[str, float]:
         """The outputs at ``x`` with contact ``j`` in ``mode`` (the others as they are)."""
@@ -253,9 +316,12 @@ class _Run:
         return out
 
 
-def value(terms: list[tuple[str, float]], y: dict) -> float:
-    """A witness (``_Run.witnesses``) at one state's outputs ``y``."""
-    return sum(c * y[k] for k, c in terms)
+def value(terms: list[tuple], y: dict) -> float:
+    """A witness (``_Run.witnesses``) at one state's outputs ``y``: ``sum(c * y[k])`` over its
+    terms ``(k, c)``, less ``sqrt(sum((c * y[k])**2))`` over those given as ``(k, c, True)``
+    (a norm: a cone's ``|F_t|`` from its components; ``c/watch.c``)."""
+    linear = sum(term[1] * y[term[0]] for term in terms if len(term) == 2 or not term[2])
+    return linear - math.sqrt(sum((term[1] * y[term[0]]) ** 2 for term in terms if len(term) > 2 and term[2]))
 
 
 class _BodyRun(_Run):
@@ -792,23 +858,32 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         r.s = dataclasses.replace(s, max_steps=max(s.max_steps - r.stats["n_steps"], 1),
                                   time_limit=None if s.time_limit is None else
                                   max(s.time_limit - (perf_counter() - start), 1e-9))
-        watched = r.witnesses(modes, slips)
-        t, X, st, hit = _segment(r, x_now, grid, p, watched)
+        leg = r.leg(modes, x_now)
+        own = leg is r.own_leg
+        watched = r.witnesses(modes, slips) if own else leg.watched
+        pl = p if own else leg.model.default_params
+        t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched)
         r.stats["n_steps"] += int(st.get("n_steps", 0))
         r.stats["n_rhs"] += int(st.get("n_rhs", 0))
         r.stats["segments"] += 1
+        r.stats["rolling_model_segments"] += 0 if own else 1
         t_look = perf_counter()
-        found = None if hit is None else _locate(r, p, watched, hit)
+        found = None if hit is None else _locate(r, leg, pl, watched, hit)
         keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
         if found is not None and found[0] > hit["t"]:  # output times between the dense output's
             late = t_eval[(t_eval >= hit["t"]) & (t_eval < found[0])]  # root and the event's
             if len(late):
                 t = np.concatenate([t[:keep], late])
-                X = np.concatenate([X[:keep], [events.state_at(model, r.s, r.sched, p, hit["t_step"], hit["x_step"],
-                                                               float(tm), one_step=True, projection=(None, 0.0))
+                X = np.concatenate([X[:keep], [events.state_at(leg.model, r.s, r.sched, pl, hit["t_step"],
+                                                               hit["x_step"], float(tm), one_step=True,
+                                                               projection=(None, 0.0))
                                                for tm in late]])
                 keep = len(t)
-        on_grid = np.isin(t[:keep], t_eval) & (t[:keep] > last_t)
+        X = leg.states(X)
+        # the samples are at grid's times (t_eval's) but its first, the segment's start
+        on_grid = t[:keep] > last_t
+        if keep and on_grid[0]:
+            on_grid[0] = bool(t_eval[min(int(np.searchsorted(t_eval, t[0])), len(t_eval) - 1)] == t[0])
         rows_t.append(t[:keep][on_grid])
         rows_x.append(X[:keep][on_grid])
         rows_mode.append(np.tile(modes, (int(on_grid.sum()), 1)))
@@ -818,6 +893,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         if found is None:
             break
         t_ev, x_ev, name, j, value_ = found
+        x_ev = leg.states(x_ev)
         recent = _chatter(model, recent, t_ev, x_ev)
         before = modes[j - 1]
         r.t = t_ev
@@ -832,10 +908,11 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
     outs = {}
     if s.outputs:  # each segment's rows with its parameters (one compiled batch call each)
+        shown = set(model.output_names)
         parts = [outputs_.along(model, tt, xx, pp, r.sched) for tt, xx, pp in zip(rows_t, rows_x, rows_p)
                  if len(tt)]
         outs = {k: np.concatenate([part[k] for part in parts]) if parts else np.zeros(0)
-                for k in model.columns if k in model.output_names}
+                for k in model.columns if k in shown}
     if s.drop_first and len(t_all) and t_all[0] == 0.0:
         t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
         outs = {k: v[1:] for k, v in outs.items()}
@@ -870,32 +947,33 @@ def _at_start(r: _Run, modes, slips, y: dict) -> tuple[str, int, list] | None:
     return None
 
 
-def _segment(r: _Run, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
-    """``(t, X, stats, hit)``: one mode's integration over ``grid``, the C loop watching the
-    mode's witnesses (``watched``, ``c/watch.c``) and stopping at the first event: ``hit``
-    (None: none) holds its witness, its time and state on the dense output, the watched points
-    around it and its step's start (``CompiledLibrary.watch_result``); the samples before it.
+def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
+    """``(t, X, stats, hit)``: one mode's integration over ``grid`` by ``leg`` (from its state
+    ``x``, with its parameters ``p``), the C loop watching the mode's witnesses (``watched``,
+    ``c/watch.c``) and stopping at the first event: ``hit`` (None: none) holds its witness,
+    its time and state on the dense output, the watched points around it and its step's
+    start (``CompiledLibrary.watch_result``); the samples before it (``leg``'s states).
     Restarted at the inputs' knots inside ``grid`` (each piece with its inputs ``a + b t``)."""
-    s, lib = r.s, r.model.library
-    cols = r.col
-    lib.watch([[(cols[k], c) for k, c in terms] for _, _, terms in watched],
+    s, model = r.s, leg.model
+    lib, cols = model.library, leg.col
+    lib.watch([[(cols[term[0]], *term[1:]) for term in terms] for _, _, terms in watched],
               [_arming(name) for name, _, _ in watched],
-              inputs=r.input_slots, dt=WATCH_DT)
+              inputs=leg.input_slots, dt=WATCH_DT)
     try:
         pieces = [(float(grid[0]), float(grid[-1]), None, None)] if r.sched is None else \
             r.sched.segments(float(grid[0]), float(grid[-1]))
         rows_t, rows_x, stats = [], [], {}
         for k, (a0, a1, a, b) in enumerate(pieces):
             g = np.array([a0, *grid[(grid > a0) & (grid < a1)], a1])
-            pk = p if r.sched is None else r.model.with_inputs(p, a, b)
+            pk = p if r.sched is None else model.with_inputs(p, a, b)
             r.stats["chunks"] += 1
             if k:  # past a knot: the witnesses stay armed as they were
                 lib.watch_resume()
             try:
-                t, X, st = integrators.c_loop(r.model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
+                t, X, st = integrators.c_loop(model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
                                               max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
             except IntegratorError as exc:
-                raise failures.classify(r.model, exc) from None
+                raise failures.classify(model, exc) from None
             rows_t.append(t if k == 0 else t[1:])
             rows_x.append(X if k == 0 else X[1:])
             for key in ("n_steps", "n_rhs"):
@@ -918,36 +996,37 @@ def _on_grid(rows_t, rows_x, grid):
     return t[keep], X[keep]
 
 
-def _locate(r: _Run, p: np.ndarray, watched, hit: dict):
+def _locate(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     """``(t, x, witness, contact, value)`` of the event the C loop stopped at (``_segment``'s
-    ``hit``), located on the trajectory integrated again from its step's start
-    (``events.refine``)."""
+    ``hit``), located on the trajectory integrated again by ``leg`` from its step's start
+    (``events.refine``); ``x`` is ``leg``'s state."""
     name, j, terms = watched[hit["which"]]
+    model = leg.model
     level = 0.0 if hit["armed"] else -_arming(name)  # unarmed: it fell below -tol (c/watch.c)
     w = lambda y: value(terms, y) - level  # noqa: E731 - one witness
     t_lo, t_guess, slope = hit["t_lo"], hit["t"], hit["slope"]
     t_step, x_step = hit["t_step"], hit["x_step"]
     if not hit["armed"] and name == "gap":  # it closes again within the interval that opened it
         sk = r.key("normal_speed", j)
-        apex = events.locate(r.model, r.s, r.sched, p, t_step, x_step, hit["t_hi"], lambda y: y[sk])
+        apex = events.locate(model, r.s, r.sched, p, t_step, x_step, hit["t_hi"], lambda y: y[sk])
         r.t = apex[0] if apex is not None else t_step
-        if apex is None or not r.outputs(apex[1], p)[r.key("gap", j)] > 0:
-            raise EventLocationError(hit["t_hi"], hit["x"], f"contact {j}, apart from {t_step:.9g} s, "
+        if apex is None or not r.outputs(apex[1], p, model)[r.key("gap", j)] > 0:
+            raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"contact {j}, apart from {t_step:.9g} s, "
                                      f"returns before {hit['t_hi']:.9g} s, but no time apart is found "
                                      "between: give tighter tolerances", r.model.state_names)
-        found = events.locate(r.model, r.s, r.sched, p, apex[0], apex[1], hit["t_hi"],
+        found = events.locate(model, r.s, r.sched, p, apex[0], apex[1], hit["t_hi"],
                               lambda y: value(terms, y))
     else:
-        found = events.refine(r.model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess,
+        found = events.refine(model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess,
                               slope, w)
     if found is None:
-        raise EventLocationError(hit["t_hi"], hit["x"], f"the {name} witness of contact {j} changes sign "
-                                 f"between {t_lo:.9g} and {hit['t_hi']:.9g} s on the integration's dense "
+        raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"the {name} witness of contact {j} changes "
+                                 f"sign between {t_lo:.9g} and {hit['t_hi']:.9g} s on the integration's dense "
                                  "output, but integrating again does not find where: give tighter "
                                  "tolerances", r.model.state_names)
     tc, xc = float(found[0]), found[1]
     r.t = tc
-    return tc, xc, name, j, float(value(terms, r.outputs(xc, p)))
+    return tc, xc, name, j, float(value(terms, r.outputs(xc, p, model)))
 
 
 def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:

@@ -129,4 +129,13 @@ def manifest_problems(m: object) -> list[str]:
     hold = m.get("start_hold", [])
     if not isinstance(hold, list) or not set(hold) <= set(states):
         out.append("start_hold must list states of the model")
+    rolling = m.get("rolling_map")
+    if rolling is not None and not (
+            isinstance(rolling, dict) and set(rolling) == {"to", "from"}
+            and all(isinstance(v, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in v)
+                    for v in rolling.values())
+            and len(rolling["from"]) == len(states) and all(0 <= i < len(states) for i in rolling["to"])
+            and all(0 <= i < len(rolling["to"]) for i in rolling["from"])):
+        out.append("rolling_map must be {to: indices of the states, from: one index of the rolling "
+                   "model's states per state}")
     return out
