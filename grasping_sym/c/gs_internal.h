@@ -371,6 +371,8 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 #define GS_WATCH_TTOL 1e-9  /* a root on the dense output: to this fraction of its
                                interval (runtime/events.py locates it exactly)         */
 #define GS_WATCH_ITERATIONS 60
+#define GS_WATCH_PROBES 16  /* points of the dense output an unarmed witness's firing
+                             * interval is probed at for a time it was above its tol      */
 /* The dense output of the step just accepted: x at t (between the step's start and end). */
 typedef void (*gs_interp)(const void* ctx, double t, double* x);
 #if GS_HAS_OUT

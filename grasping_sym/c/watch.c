@@ -12,8 +12,10 @@
  * own). An event is an armed witness <= 0 at a watched point, or, when tol > 0, an unarmed
  * one below -tol (a gap that closes again within the interval that opened it; a slip that
  * reverses before it was ever faster than tol: the noise of a slip that starts from rest
- * does not count). Its root (of g, or of g + tol unarmed) between the two watched points is located on the dense output (Illinois' regula falsi, to
- * GS_WATCH_TTOL of the interval), the earliest of the step's events is taken, and the loop
+ * does not count). An unarmed one's interval is first probed on the dense output for a
+ * time it was above tol (gs_watch_probe): one found arms it, and brackets its return to 0.
+ * Its root (of g, or of g + tol unarmed) in its bracket is located on the dense output
+ * (Illinois' regula falsi, to GS_WATCH_TTOL of the interval), the earliest of the step's events is taken, and the loop
  * stops there with GS_EVENT: the output rows before the event are written, row r (r =
  * stats[6]) holds the dense output's state at the event, row r + 1 the state at the start
  * of the step, *t_fail the event's time, and gs_watch_result gives the rest (below).
@@ -129,6 +131,36 @@ static int gs_watch_root(gs_work* wk, int k, double a, double ga, double b, doub
   return 0;
 }
 
+/* An unarmed witness k fired (below -tol at b): the dense output is probed at
+ * GS_WATCH_PROBES - 1 points of (a, b) for a time it was above tol (a gap open for less than
+ * the watched points' spacing, within one step: a short bounce). From the first such point
+ * it is armed, and its bracket becomes the last point above 0 before the first at or below
+ * 0 after it (or b). None: it stays unarmed, the bracket (a, b). */
+static int gs_watch_probe(gs_work* wk, int k, double* a, double* ga, double* b, double* gb,
+                          const double* p, gs_interp interp, const void* ctx, double* x) {
+  double g[GS_WATCH_MAX];
+  const double a0 = *a, b0 = *b;
+  int up = 0;
+  for (int s = 1; s < GS_WATCH_PROBES; ++s) {
+    const double ts = a0 + (b0 - a0) * ((double)s / GS_WATCH_PROBES);
+    interp(ctx, ts, x);
+    const int rc = gs_watch_eval(wk, ts, x, p, g);
+    if (rc) return rc;
+    if (up && !(g[k] > 0.0)) {
+      *b = ts;
+      *gb = g[k];
+      return 0;
+    }
+    if (up || g[k] > gs_w.tol[k]) {
+      up = 1;
+      gs_w.armed[k] = 1;
+      *a = ts;
+      *ga = g[k];
+    }
+  }
+  return 0;
+}
+
 GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_end,
                             const double* p, gs_interp interp, const void* ctx, double* t_ev,
                             double* x_ev) {
@@ -144,24 +176,29 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
     int rc = gs_watch_eval(wk, tj, xj, p, g);
     if (rc) return rc;
     int best = -1;
-    double best_t = tj, best_slope = 0.0;
+    double best_t = tj, best_slope = 0.0, best_a = gs_w.t_prev, best_b = tj;
     for (int k = 0; k < gs_w.n; ++k) {
       if (!gs_watch_fires(k, g[k])) continue;
-      double root, slope;
-      rc = gs_watch_root(wk, k, gs_w.t_prev, gs_w.g_prev[k], tj, g[k], p, interp, ctx, x, &root,
-                         &slope);
+      double a = gs_w.t_prev, ga = gs_w.g_prev[k], b = tj, gb = g[k], root, slope;
+      if (!gs_w.armed[k]) {
+        rc = gs_watch_probe(wk, k, &a, &ga, &b, &gb, p, interp, ctx, x);
+        if (rc) return rc;
+      }
+      rc = gs_watch_root(wk, k, a, ga, b, gb, p, interp, ctx, x, &root, &slope);
       if (rc) return rc;
       if (best < 0 || root < best_t) {
         best = k;
         best_t = root;
         best_slope = slope;
+        best_a = a;
+        best_b = b;
       }
     }
     if (best >= 0) {
       gs_w.which = best;
       gs_w.armed_at_event = gs_w.armed[best];
-      gs_w.t_lo = gs_w.t_prev;
-      gs_w.t_hi = tj;
+      gs_w.t_lo = best_a;
+      gs_w.t_hi = best_b;
       gs_w.slope = best_slope;
       gs_w.t_step = told;
       *t_ev = best_t;

@@ -911,8 +911,11 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         shown = set(model.output_names)
         parts = [outputs_.along(model, tt, xx, pp, r.sched) for tt, xx, pp in zip(rows_t, rows_x, rows_p)
                  if len(tt)]
-        outs = {k: np.concatenate([part[k] for part in parts]) if parts else np.zeros(0)
-                for k in model.columns if k in shown}
+        if len(parts) == 1:
+            outs = {k: v for k, v in parts[0].items() if k in shown}
+        else:
+            outs = {k: np.concatenate([part[k] for part in parts]) if parts else np.zeros(0)
+                    for k in model.columns if k in shown}
     if s.drop_first and len(t_all) and t_all[0] == 0.0:
         t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
         outs = {k: v[1:] for k, v in outs.items()}
