@@ -15,6 +15,7 @@ import grasping_sym as gs
 from grasping_sym.errors import ChatteringError, InvalidSceneError, PainleveError
 from grasping_sym.geometry import surface_library
 from grasping_sym.runtime import modes
+from grasping_sym.runtime.compiled import CompiledLibrary
 
 G, R, M = 9.81, 0.05, 0.1
 TIGHT = dict(rtol=1e-10, atol=1e-12)
@@ -128,6 +129,19 @@ def test_bounces_lose_energy_at_every_impact_and_come_to_rest(flat):
     energy = res["energy"]
     assert np.all(np.diff(energy) <= 1e-9 * energy[0])                # never increases
     assert res.modes[-1] == "rolling" and abs(res.x[-1, 9]) < 1e-9
+
+
+def test_events_are_located_in_c_as_in_python(flat, monkeypatch):
+    """The dropped sphere's impacts located by ``gs_watch_refine`` (the secant steps in C) and
+    by ``runtime.events.refine`` (the same in Python, when C gives none) agree to 1e-13 s."""
+    x0 = flat.initial_state()
+    x0[2] = R + 0.1
+    law = gs.contact.coulomb(0.5, e=0.5)
+    in_c = flat.simulate(0.6, x0=x0, mu=law, **TIGHT)
+    monkeypatch.setattr(CompiledLibrary, "watch_refine", lambda self, *args: None)
+    in_python = flat.simulate(0.6, x0=x0, mu=law, **TIGHT)
+    assert len(in_c.events) == len(in_python.events) == 12
+    assert max(abs(a["t"] - b["t"]) for a, b in zip(in_c.events, in_python.events)) < 1e-13
 
 
 def _ellipsoid(**start):

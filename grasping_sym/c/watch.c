@@ -44,7 +44,7 @@ typedef struct {
   /* the last event: which witness, armed or not, its bracket, the dense output's slope
    * there, the start of its step */
   int which, armed_at_event;
-  double t_lo, t_hi, slope, t_step;
+  double t_lo, t_hi, slope, t_step, t_root;
 } gs_watch_state;
 
 static _Thread_local gs_watch_state gs_w;
@@ -201,6 +201,7 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
       gs_w.t_hi = best_b;
       gs_w.slope = best_slope;
       gs_w.t_step = told;
+      gs_w.t_root = best_t;
       *t_ev = best_t;
       if (best_t == t)
         for (int i = 0; i < gs_nx; ++i) x_ev[i] = y_end[i];
@@ -217,6 +218,111 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
   return 0;
 }
 #endif
+
+#if GS_HAS_OUT
+/* The last event's witness at the state integrated again from the step's start (t_step,
+ * x_step) to t, one step of the loop `method` tried (0 radau5, 1 dopri5, 2 dop853), the watch
+ * off: into *g (less its level: 0 armed, -tol not), the state into x. */
+static int gs_refine_at(int method, double t, const double* x_step, const double* p, double rtol,
+                        double atol, long max_steps, const double* lo, const double* hi,
+                        double* x, double* g) {
+  GS_DECLARE_WORK(wk);
+  const double t_out[2] = {gs_w.t_step, t};
+  double out[3 * gs_nx], st[GS_NSTATS] = {0}, tf = NAN, all[GS_WATCH_MAX];
+  const double h0 = t - gs_w.t_step;
+  long rc;
+  if (!(h0 > 0.0)) {
+    for (int i = 0; i < gs_nx; ++i) x[i] = x_step[i];
+  } else {
+    if (method == 0)
+      rc = gs_radau5(t_out[0], 2, t_out, x_step, p, rtol, atol, h0, max_steps, lo, hi, NULL, 0.0,
+                     out, st, &tf);
+    else if (method == 1)
+      rc = gs_dopri5(t_out[0], 2, t_out, x_step, p, rtol, atol, h0, max_steps, 0, lo, hi, NULL,
+                     0.0, out, st, &tf);
+    else
+      rc = gs_dop853(t_out[0], 2, t_out, x_step, p, rtol, atol, h0, max_steps, 0, lo, hi, NULL,
+                     0.0, out, st, &tf);
+    if (rc != 2) return rc < 0 ? (int)rc : GS_ERR_ARGS;
+    for (int i = 0; i < gs_nx; ++i) x[i] = out[gs_nx + i];
+  }
+  const int rc2 = gs_watch_eval(wk, t, x, p, all);
+  if (rc2) return rc2;
+  const int k = gs_w.which;
+  *g = all[k] - (gs_w.armed_at_event ? 0.0 : -gs_w.tol[k]);
+  if (isnan(*g)) *g = -1e300; /* a blow-up counts as past the event */
+  return 0;
+}
+#endif
+
+/* The last event located on the trajectory integrated again from its step's start (t_step
+ * of gs_watch_result; its state x_step) by the run's loop `method` with the run's p, rtol,
+ * atol, max_steps, lo, hi: secant steps from the dense output's root and slope, each trial
+ * one step from t_step (runtime/events.py's refine, in C), stopped when the next step would
+ * be below ttol s. Returns 0 with the time in *t, the state in x and the witness (less its
+ * level) in *g; 1 when the secant steps do not converge in `steps` or the trajectory
+ * integrated again shows no sign change where it is looked for (the caller takes Brent's
+ * method); < 0 an integration's error code. The watch is off meanwhile. */
+GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p, double rtol,
+                              double atol, long max_steps, const double* lo, const double* hi,
+                              double ttol, long steps, double* t, double* x, double* g) {
+#if GS_HAS_OUT
+  if (gs_w.which < 0 || !(ttol > 0.0) || method < 0 || method > 2)
+    return GS_ERR_ARGS;
+  const int on = gs_watch_suspend();
+  double a = gs_w.t_lo, b = gs_w.t_hi, slope = gs_w.slope, xt[gs_nx];
+  double t1 = fmin(fmax(gs_w.t_root, a), b), g1, g2, t2;
+  int rc = gs_refine_at(method, t1, x_step, p, rtol, atol, max_steps, lo, hi, x, &g1);
+  if (rc) goto done;
+  if (g1 > 0.0)
+    a = t1;
+  else
+    b = t1;
+  t2 = slope < 0.0 && isfinite(slope) ? t1 - g1 / slope : 0.5 * (a + b);
+  if (fabs(t2 - t1) <= ttol && a <= t2 && t2 <= b) { /* the dense output's root was the root */
+    *t = t1;
+    *g = g1;
+    goto done;
+  }
+  rc = 1;
+  for (long it = 0; it < steps; ++it) {
+    if (g1 == 0.0 || b - a <= ttol) { /* x holds t1's state */
+      *t = t1;
+      *g = g1;
+      rc = 0;
+      break;
+    }
+    if (!(a <= t2 && t2 <= b) || t2 == t1) t2 = 0.5 * (a + b);
+    const int r2 = gs_refine_at(method, t2, x_step, p, rtol, atol, max_steps, lo, hi, xt, &g2);
+    if (r2) {
+      rc = r2;
+      break;
+    }
+    if (g2 > 0.0)
+      a = t2;
+    else
+      b = t2;
+    const double t3 = g2 != g1 ? t2 - g2 * (t2 - t1) / (g2 - g1) : 0.5 * (a + b);
+    for (int i = 0; i < gs_nx; ++i) x[i] = xt[i];
+    if (g2 == 0.0 || fabs(t3 - t2) <= ttol) { /* the next secant step would be below ttol */
+      *t = t2;
+      *g = g2;
+      rc = 0;
+      break;
+    }
+    t1 = t2;
+    g1 = g2;
+    t2 = t3;
+  }
+done:
+  gs_watch_restore(on);
+  return rc;
+#else
+  (void)method, (void)x_step, (void)p, (void)rtol, (void)atol, (void)max_steps, (void)lo, (void)hi,
+      (void)ttol, (void)steps, (void)t, (void)x, (void)g;
+  return GS_ERR_ARGS;
+#endif
+}
 
 /* Watch n witnesses in this thread's next runs: witness k is sum_j coef[j] y[idx[j]] over
  * the j in [ptr[k], ptr[k + 1]) with norm[j] 0, less sqrt(sum_j (coef[j] y[idx[j]])^2) over

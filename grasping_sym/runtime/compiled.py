@@ -168,6 +168,9 @@ class CompiledLibrary:
             lib.gs_watch_resume.restype = None
             lib.gs_watch_result.argtypes = [_dp]
             lib.gs_watch_result.restype = None
+            lib.gs_watch_refine.argtypes = [ctypes.c_int, _dp, _dp, _double, _double, _long, _dp, _dp,
+                                            _double, _long, _dp, _dp, _dp]
+            lib.gs_watch_refine.restype = ctypes.c_int
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
         lib.gs_con_info.restype = ctypes.c_int
         nc = _long()
@@ -577,6 +580,26 @@ class CompiledLibrary:
         self._lib.gs_watch_result(out.ctypes.data)
         return {"which": int(out[0]), "armed": bool(out[1]), "t_lo": float(out[2]),
                 "t_hi": float(out[3]), "slope": float(out[4]), "t_step": float(out[5])}
+
+    def watch_refine(self, method: str, x_step: Any, p: Any, rtol: float, atol: float, max_steps: int,
+                     lo: np.ndarray | None, hi: np.ndarray | None, ttol: float,
+                     steps: int) -> tuple[float, np.ndarray, float] | None:
+        """The last watched event located on the trajectory integrated again from its step's
+        start (state ``x_step``) by the run's loop (``method``, ``p``, tolerances, bounds):
+        secant steps from the dense output's root, each trial one step from the step's start,
+        stopped when the next would be below ``ttol`` s (``gs_watch_refine``; what
+        ``runtime.events.refine`` does, in C). ``(t, x)``, or None when ``steps`` secant steps
+        do not converge, the sign change is not there, or an integration fails (the caller
+        takes the slower way); ``(t, x, g)`` with ``g`` the witness there less its level (0
+        armed, ``-tol`` not)."""
+        x0 = c_loops.as_vector(x_step, self.nx, "x_step")
+        pa = self._p(p)
+        t, g = _double(math.nan), _double(math.nan)
+        x = np.empty(self.nx)
+        rc = self._lib.gs_watch_refine(c_loops.ADAPTIVE_CODES[method], x0.ctypes.data, self._ptr(pa),
+                                       float(rtol), float(atol), int(max_steps), self._ptr(lo), self._ptr(hi),
+                                       float(ttol), int(steps), ctypes.byref(t), x.ctypes.data, ctypes.byref(g))
+        return (t.value, x, g.value) if rc == 0 else None
 
     # -- constraints and projection -------------------------------------------------
     def batch(self, method: str, t_out: np.ndarray, X0: np.ndarray, P: np.ndarray | None, *,

@@ -395,7 +395,7 @@ class _BodyRun(_Run):
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
         """The contact velocity set to 0 (the impulse that does it); the largest change."""
         K, vc, rc, _ = self.contact(y)
-        P = np.linalg.solve(K, -vc)
+        P = _solve3(K, -vc)
         return self._apply(x, P, rc), float(np.max(np.abs(vc)))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
@@ -407,7 +407,7 @@ class _BodyRun(_Run):
         vn = float(np.dot(n, vc))
         e = self.e if -vn > REST_SPEED else 0.0
         target = -e * vn * n
-        P = np.linalg.solve(K, target - vc)
+        P = _solve3(K, target - vc)
         Pn = float(np.dot(P, n))
         Pt = P - Pn * n
         vt = vc - vn * n
@@ -774,6 +774,17 @@ _RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRu
          "planar_fingers": _FingersRun}
 
 
+def _solve3(K: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``K^-1 b`` for a 3 x 3 ``K`` by Cramer's rule on Python floats (``np.linalg.solve``
+    spends ~10 us on its checks, a switch's largest part); a singular ``K`` gives inf or NaN."""
+    (a, b_, c), (d, e, f), (g, h, i) = K.tolist()
+    u, v, w = b.tolist()
+    det = a * (e * i - f * h) - b_ * (d * i - f * g) + c * (d * h - e * g)
+    return np.array([u * (e * i - f * h) - b_ * (v * i - f * w) + c * (v * h - e * w),
+                     a * (v * i - f * w) - u * (d * i - f * g) + c * (d * w - v * g),
+                     a * (e * w - v * h) - b_ * (d * w - v * g) + u * (d * h - e * g)]) / det
+
+
 def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
     """The fixed point of ``d -> v(d)/|v(d)|`` from ``d`` (``along(d) -> (v, small)``): where
     ``|v| <= small`` (nothing to follow: on the cone's edge) the direction is kept."""
@@ -982,7 +993,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
             for key in ("n_steps", "n_rhs"):
                 stats[key] = stats.get(key, 0) + int(st.get(key, 0))
             if "event" in st:
-                hit = {**st["event"], **lib.watch_result()}
+                hit = {**st["event"], **lib.watch_result(), "p": pk}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             x = X[-1]
         return _on_grid(rows_t, rows_x, grid) + (stats, None)
@@ -1019,9 +1030,13 @@ def _locate(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
                                      "between: give tighter tolerances", r.model.state_names)
         found = events.locate(model, r.s, r.sched, p, apex[0], apex[1], hit["t_hi"],
                               lambda y: value(terms, y))
-    else:
-        found = events.refine(model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess,
-                              slope, w)
+    else:  # in C (gs_watch_refine), else the same in Python, with Brent's method behind it
+        found = model.library.watch_refine(r.s.method, x_step, hit["p"], r.s.rtol, r.s.atol, r.s.max_steps,
+                                           model.lower, model.upper, events.TIME_TOL, events.SECANT_STEPS)
+        if found is not None:  # the witness there, less its level, comes with it
+            r.t = found[0]
+            return found[0], found[1], name, j, found[2] + level
+        found = events.refine(model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess, slope, w)
     if found is None:
         raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"the {name} witness of contact {j} changes "
                                  f"sign between {t_lo:.9g} and {hit['t_hi']:.9g} s on the integration's dense "
@@ -1101,6 +1116,8 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
     else:
         modes[j - 1], slips[j - 1] = ROLLING, None
         modes[j - 1], slips[j - 1] = r.contact_start(t, x2, modes, slips, j)
+    if r.k == 1:  # no other contact to hit at once
+        return modes, slips, x2, reset
     y2 = r.outputs(x2, r.params(modes, slips))
     for i in r.contacts:
         if i != j and modes[i - 1] == SEPARATED and not y2[r.key("gap", i)] > CONTACT_GAP \
