@@ -26,7 +26,7 @@ import numpy as np
 from grasping_sym import __version__
 from grasping_sym.errors import CompileError, GraspingSymError
 from grasping_sym.runtime.integrators import METHODS
-from grasping_sym.runtime.settings import run_settings
+from grasping_sym.runtime.settings import DEFAULT_TOLERANCES, run_settings
 from grasping_sym.store import paths as cache
 from grasping_sym.store import safety
 from grasping_sym.sweeps import check_store, parse_range, sweep
@@ -80,16 +80,14 @@ def _scene_factory(name: str):
     return scenes[name]
 
 
-#: Tolerances of ``simulate`` where the scene's ``simulate_defaults`` name none.
-DEFAULT_TOLERANCES = (1e-10, 1e-12)
-
-
 def simulate_settings(args: argparse.Namespace, scene) -> tuple[float, str, float, float]:
     """``(t_final, method, rtol, atol)``: the values given on the command line, else the
-    scene's defaults (``scene.simulate_defaults``: simulated time, integrator, tolerances)."""
+    scene's defaults (``scene.simulate_defaults``: simulated time, integrator, tolerances),
+    those ``simulate`` takes (the manifest's ``defaults``; the method's own tolerances,
+    ``runtime.settings.DEFAULT_TOLERANCES``, where the scene names none)."""
     d = scene.simulate_defaults
     method = args.method or d["method"]
-    rtol, atol = d["tolerances"].get(method, DEFAULT_TOLERANCES)
+    rtol, atol = d["tolerances"].get(method, DEFAULT_TOLERANCES.get(method, (1e-10, 1e-12)))
     return (args.t_final or d["t_final"], method, args.rtol or rtol, args.atol or atol)
 
 

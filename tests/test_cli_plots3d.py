@@ -47,7 +47,7 @@ def test_simulate_3d_writes_csv_and_figures(factory, tmp_path, capsys):
         assert _png_has_content(path), name
         assert f"figure           {path}" in captured.out  # the list of written files
     assert f"figures          {len(FIGURES_3D)} PNG files" in captured.out
-    assert "radau, t_final 0.3 s" in captured.out  # the 3D default integrator
+    assert "dop853, t_final 0.3 s" in captured.out  # the 3D default integrator
     assert "max residual" in captured.out and "trace 1" in captured.out and "min f1" in captured.out
     assert "[grasping-sym]" in captured.err
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(["trajectory.csv", *FIGURES_3D])
@@ -59,12 +59,14 @@ def test_simulate_defaults_depend_on_the_scene_kind():
     def settings(scene, *extra):
         return cli.simulate_settings(parse(["simulate", scene.name, "--out", "x", *extra]), scene)
 
-    assert settings(paper2d()) == (3.0, "cvodes", 1e-10, 1e-12)  # unchanged 2D defaults
-    assert settings(paper2d(), "--method", "radau") == (3.0, "radau", 1e-10, 1e-12)
-    assert settings(paper3d()) == (5.0, "radau", 1e-6, 1e-9)
+    # simulate's own defaults (the manifest's "defaults"): radau in 2D, dop853 in 3D
+    assert settings(paper2d()) == (3.0, "radau", 1e-6, 1e-9)
+    assert settings(paper2d(), "--method", "cvodes") == (3.0, "cvodes", 1e-10, 1e-12)
+    assert settings(paper3d()) == (5.0, "dop853", 1e-7, 1e-9)
+    assert settings(paper3d(), "--method", "radau") == (5.0, "radau", 1e-6, 1e-9)
     assert settings(paper3d(), "--method", "cvodes") == (5.0, "cvodes", 1e-10, 1e-12)
     assert settings(pivot3d(), "--t-final", "2", "--rtol", "1e-5", "--atol", "1e-7") == \
-        (2.0, "radau", 1e-5, 1e-7)
+        (2.0, "dop853", 1e-5, 1e-7)
 
 
 @pytest.mark.parametrize("n", [3, 7, 64, 5000])

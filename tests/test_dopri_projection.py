@@ -100,6 +100,23 @@ def test_dopri5_dense_output(gains_model, unstabilised_reference):
     assert _err(res.x[::10], ref) <= 1e-8
 
 
+def test_a_default_explicit_method_that_finds_a_run_stiff_falls_back_to_radau(paper2d_model, monkeypatch):
+    """A model whose own method (the manifest's ``defaults``) is dop853, on paper2d, stiff for it
+    at rtol 1e-6: ``simulate()`` runs radau instead, the same run as asked of radau, and says
+    why; ``simulate_many()`` likewise; the method asked for by name still stops by name."""
+    model = paper2d_model
+    monkeypatch.setitem(model.manifest, "defaults", {"method": "dop853", "rtol": 1e-6, "atol": 1e-9})
+    res = model.simulate(T_FINAL)
+    assert res.method == "radau" and "the system is stiff" in res.stats["fallback"]
+    asked = model.simulate(T_FINAL, method="radau", rtol=1e-6, atol=1e-9)
+    assert np.array_equal(res.x, asked.x)
+    with pytest.raises(IntegratorError, match="the system is stiff"):
+        model.simulate(T_FINAL, method="dop853", rtol=1e-6, atol=1e-9)
+    batch = model.simulate_many(T_FINAL, x0=np.tile(model.initial_state(), (2, 1)))
+    assert batch.method == "radau" and batch.ok.all() and "2 runs stiff" in batch.fallback
+    assert np.array_equal(batch.x_final[0], asked.x[-1])
+
+
 def test_dopri5_reports_paper2d_stiff_at_loose_tolerance(paper2d_model):
     """At rtol 1e-6 the step is stability-limited (h |lambda| ~ 3.3 at h ~ 1.1 ms): DOPRI5 says
     the system is stiff instead of integrating at the stability limit."""

@@ -13,7 +13,9 @@
  * one below -tol (a gap that closes again within the interval that opened it; a slip that
  * reverses before it was ever faster than tol: the noise of a slip that starts from rest
  * does not count). An unarmed one's interval is first probed on the dense output for a
- * time it was above tol (gs_watch_probe): one found arms it, and brackets its return to 0.
+ * time it was above tol (gs_watch_probe, for the witnesses flagged so: a gap, whose tol is
+ * far above the dense output's error; not a slip's, whose tol is its noise): one found arms
+ * it, and brackets its return to 0.
  * Its root (of g, or of g + tol unarmed) in its bracket is located on the dense output
  * (Illinois' regula falsi, to GS_WATCH_TTOL of the interval), the earliest of the step's events is taken, and the loop
  * stops there with GS_EVENT: the output rows before the event are written, row r (r =
@@ -39,7 +41,7 @@ typedef struct {
   double dt;
   int ptr[GS_WATCH_MAX + 1], idx[GS_WATCH_TERMS], norm[GS_WATCH_TERMS];
   double coef[GS_WATCH_TERMS], tol[GS_WATCH_MAX];
-  int armed[GS_WATCH_MAX];
+  int armed[GS_WATCH_MAX], probe[GS_WATCH_MAX];
   double g_prev[GS_WATCH_MAX], t_prev;
   /* the last event: which witness, armed or not, its bracket, the dense output's slope
    * there, the start of its step */
@@ -180,7 +182,7 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
     for (int k = 0; k < gs_w.n; ++k) {
       if (!gs_watch_fires(k, g[k])) continue;
       double a = gs_w.t_prev, ga = gs_w.g_prev[k], b = tj, gb = g[k], root, slope;
-      if (!gs_w.armed[k]) {
+      if (!gs_w.armed[k] && gs_w.probe[k]) {
         rc = gs_watch_probe(wk, k, &a, &ga, &b, &gb, p, interp, ctx, x);
         if (rc) return rc;
       }
@@ -326,13 +328,14 @@ done:
 
 /* Watch n witnesses in this thread's next runs: witness k is sum_j coef[j] y[idx[j]] over
  * the j in [ptr[k], ptr[k + 1]) with norm[j] 0, less sqrt(sum_j (coef[j] y[idx[j]])^2) over
- * those with norm[j] 1; tol[k] as above; the inputs (a, b) at p[in_k .. in_k + 2
+ * those with norm[j] 1; tol[k] and probe[k] (0 or 1) as above; the inputs (a, b) at p[in_k .. in_k + 2
  * in_m) (in_m = 0: none); watched points at most dt apart (0: the steps' ends only).
  * Returns 0, or GS_ERR_ARGS (nothing set) for a model without outputs, more than
  * GS_WATCH_MAX witnesses or GS_WATCH_TERMS terms, an index out of range or a non-finite
  * number. */
 GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const double* coef,
-                           const long* norm, const double* tol, long in_k, long in_m, double dt) {
+                           const long* norm, const double* tol, const long* probe, long in_k,
+                           long in_m, double dt) {
 #if GS_HAS_OUT
   if (n < 0 || n > GS_WATCH_MAX || !ptr || ptr[0] != 0 || ptr[n] > GS_WATCH_TERMS ||
       !(dt >= 0.0) || !isfinite(dt) || in_m < 0 || in_k < 0 || in_k + 2 * in_m > gs_np)
@@ -353,13 +356,16 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
     gs_w.coef[j] = coef[j];
     gs_w.norm[j] = (int)norm[j];
   }
-  for (long k = 0; k < n; ++k) gs_w.tol[k] = tol[k];
+  for (long k = 0; k < n; ++k) {
+    gs_w.tol[k] = tol[k];
+    gs_w.probe[k] = probe[k] != 0;
+  }
   gs_w.which = -1;
   gs_w.resume = 0;
   gs_w.on = 1;
   return 0;
 #else
-  (void)n, (void)ptr, (void)idx, (void)coef, (void)norm, (void)tol, (void)in_k, (void)in_m, (void)dt;
+  (void)n, (void)ptr, (void)idx, (void)coef, (void)norm, (void)tol, (void)probe, (void)in_k, (void)in_m, (void)dt;
   return GS_ERR_ARGS;
 #endif
 }

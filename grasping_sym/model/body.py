@@ -92,7 +92,7 @@ class BodyScene:
     start_param_names: ClassVar[tuple[str, ...]] = ()
     input_names: ClassVar[tuple[str, ...]] = ()
     simulate_defaults: ClassVar[dict] = {"t_final": 1.0, "method": "radau",
-                                         "tolerances": {"radau": (1e-10, 1e-12)}}
+                                         "tolerances": {}}
 
     def __post_init__(self) -> None:
         for k in ("plane_point", "plane_normal", "gravity", "position", "velocity", "omega", "support"):

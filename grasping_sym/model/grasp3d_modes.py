@@ -73,7 +73,7 @@ class GraspModesScene(WithModes):
     kind: ClassVar[str] = "grasp3d_modes"
     dimension: ClassVar[int] = 3
     simulate_defaults: ClassVar[dict] = {"t_final": 1.0, "method": "radau",
-                                         "tolerances": {"radau": (1e-9, 1e-11)}}
+                                         "tolerances": {}}
 
     def __post_init__(self) -> None:
         b = self.base

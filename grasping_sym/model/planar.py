@@ -412,7 +412,7 @@ class PlanarFingerScene:
     # ------------------------------------------------------------------ scene protocol
     #: What ``grasping-sym simulate`` does by default: simulated time (s), integrator and
     #: its tolerances (none given: the integrator's own defaults).
-    simulate_defaults: ClassVar[dict] = {"t_final": 3.0, "method": "cvodes", "tolerances": {}}
+    simulate_defaults: ClassVar[dict] = {"t_final": 3.0, "method": "radau", "tolerances": {}}
 
     def manifest_extra(self) -> dict:
         """What this kind of scene adds to its manifest: a start solved at run time

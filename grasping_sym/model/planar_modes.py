@@ -66,7 +66,7 @@ class PlanarModesScene(WithModes):
     start_param_names: ClassVar[tuple[str, ...]] = ("xm", "ym")
     shared_parameter: ClassVar[bool] = False
     simulate_defaults: ClassVar[dict] = {"t_final": 1.0, "method": "radau",
-                                         "tolerances": {"radau": (1e-10, 1e-12)}}
+                                         "tolerances": {}}
 
     def __post_init__(self) -> None:
         b = self.base

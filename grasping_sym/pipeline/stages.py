@@ -151,11 +151,22 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         **({"rhs_guarded": guarded[0].name()} if guarded else {}),
         # compiled outputs the user did not ask for: only the run-time checks read them
         **({"check_outputs": list(hidden)} if hidden else {}),
+        "defaults": _run_defaults(scene),
         **scene.manifest_extra(),
     }
     stored.write_manifest(directory, manifest)
     manifest["timings"] = timings
     return manifest
+
+
+def _run_defaults(scene) -> dict:
+    """The method and tolerances ``simulate``, ``simulate_many``, sweeps and the command line
+    take when given none (the scene's ``simulate_defaults``; tolerances None: the method's own,
+    ``runtime.settings.DEFAULT_TOLERANCES``)."""
+    d = getattr(scene, "simulate_defaults", {})
+    method = d.get("method", "radau")
+    rtol, atol = d.get("tolerances", {}).get(method, (None, None))
+    return {"method": method, "rtol": rtol, "atol": atol}
 
 
 def with_check_outputs(scene) -> tuple[object, tuple[str, ...]]:

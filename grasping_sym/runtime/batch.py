@@ -25,7 +25,7 @@ from grasping_sym.runtime import c_loops, friction, modes
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
-from grasping_sym.runtime.settings import RunSettings, numbers_array, slip_mode
+from grasping_sym.runtime.settings import RunSettings, numbers_array, run_defaults, slip_mode
 
 #: The methods ``simulate_many`` runs (the loops in C).
 METHODS = ("radau", "dopri5", "dop853", "rk4")
@@ -33,6 +33,8 @@ METHODS = ("radau", "dopri5", "dop853", "rk4")
 MAX_THREADS = 1024
 #: ``BatchResult.status`` values besides 0 (success) and the C loops' codes (-1 ... -9).
 REFUSED, EVENT = -10, -11
+#: the status of a run an explicit method found stiff
+_STIFF = -8
 STATUS = {0: "ok", -1: "non-finite state", -2: "contact left its contour", -3: "evaluation error",
           -5: "step size too small", -6: "too many steps", -7: "projection failed",
           -8: "stiff (explicit method)", -9: "stopped (time limit)", REFUSED: "initial state refused",
@@ -71,6 +73,9 @@ class BatchResult:
     modes
         A model with contact modes: each run's modes at the output times
         (``SimulationResult.modes``; None for a run that failed); else None.
+    fallback
+        None, or why the batch ran again with radau (the model's own explicit method found
+        runs stiff; ``simulate_many``'s ``method`` None).
     """
 
     x_final: np.ndarray
@@ -87,6 +92,7 @@ class BatchResult:
     wall_time: float = 0.0
     events: list | None = None
     modes: list | None = None
+    fallback: str | None = None
 
     @property
     def ok(self) -> np.ndarray:
@@ -126,11 +132,27 @@ def default_threads() -> int:
 
 
 def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = None, u=None,
-                  method: str = "radau", rtol: float | None = None, atol: float | None = None, t_eval=None,
+                  method: str | None = None, rtol: float | None = None, atol: float | None = None, t_eval=None,
                   h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float = False,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None, mu=None, slip: str = "stop", e=None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
+    given = dict(x0=x0, params=params, u=u, rtol=rtol, atol=atol, t_eval=t_eval, h=h, max_steps=max_steps,
+                 project=project, outputs=outputs, checks=checks, threads=threads, time_limit=time_limit,
+                 mu=mu, slip=slip, e=e)
+    method, rtol, atol, chosen = run_defaults(model, method, rtol, atol)
+    res = _simulate_many(model, t_final, method=method, **{**given, "rtol": rtol, "atol": atol})
+    if chosen and method != "radau" and np.any(res.status == _STIFF):
+        # the model's own explicit method found runs stiff: the batch again with radau
+        again = _simulate_many(model, t_final, method="radau", **{**given, "rtol": rtol, "atol": atol})
+        again.fallback = f"radau: {method} found {int(np.sum(res.status == _STIFF))} runs stiff"
+        return again
+    return res
+
+
+def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, atol, t_eval, h, max_steps,
+                   project, outputs, checks, threads, time_limit, mu, slip, e) -> BatchResult:
+    """``simulate_many`` with its method chosen."""
     start = perf_counter()
     if method not in METHODS:
         raise RunArgumentError(f"simulate_many runs the loops in C, method one of {METHODS}; got {method!r} "

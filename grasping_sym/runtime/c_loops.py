@@ -278,6 +278,7 @@ def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarra
     err = IntegratorError(tf, x_good, reason, lib.state_names)
     err.code = int(rc)  # type: ignore[attr-defined]
     err.stats = stats  # type: ignore[attr-defined]
+    err.stiff = rc == _ERR_STIFF  # type: ignore[attr-defined]
     if rc in (_ERR_NONFINITE, _ERR_BOUNDS, _ERR_PROJECT):
         err.x_rejected = x_bad  # type: ignore[attr-defined]
     err.trajectory = (t_arr[:r].copy(), out[:r].copy())  # type: ignore[attr-defined]

@@ -162,7 +162,7 @@ class CompiledLibrary:
             interrupt.bind(lib)
         self.can_watch = hasattr(lib, "gs_watch_witnesses")  # (libraries of older versions lack it)
         if self.can_watch:
-            lib.gs_watch_witnesses.argtypes = [_long, _dp, _dp, _dp, _dp, _dp, _long, _long, _double]
+            lib.gs_watch_witnesses.argtypes = [_long, _dp, _dp, _dp, _dp, _dp, _dp, _long, _long, _double]
             lib.gs_watch_witnesses.restype = ctypes.c_int
             lib.gs_watch_clear.restype = None
             lib.gs_watch_resume.restype = None
@@ -535,7 +535,7 @@ class CompiledLibrary:
 
     # -- witnesses watched along a run (c/watch.c) ---------------------------------------
     def watch(self, terms: Sequence[Sequence[tuple]], tol: Sequence[float],
-              inputs: tuple[int, int] = (0, 0), dt: float = 0.0) -> None:
+              inputs: tuple[int, int] = (0, 0), dt: float = 0.0, probe: Sequence[bool] = ()) -> None:
         """Watch witnesses in this thread's next radau5 / dopri5 / dop853 runs until
         :meth:`unwatch`: witness k is ``sum(c * y[i] for i, c in terms[k])`` over the compiled
         outputs ``y``, less ``sqrt(sum((c * y[i])**2))`` over its terms given as
@@ -544,7 +544,9 @@ class CompiledLibrary:
         run at its event, located on the dense output (the run's ``stats["event"]``: ``t``,
         ``x`` there, ``x_step`` its step's start; :meth:`watch_result` the rest). ``inputs``:
         ``(k, m)``, the inputs' ``(a, b)`` at ``p[k:k + 2m]``, taken at each watched time;
-        watched points at most ``dt`` apart."""
+        watched points at most ``dt`` apart; ``probe[k]``: an unarmed witness k's firing
+        interval is probed on the dense output for a time it was above ``tol[k]`` (default
+        none)."""
         if not self.can_watch:
             raise RuntimeError(f"{self.path} has no gs_watch_witnesses: rebuild the model")
         ptr = np.zeros(len(terms) + 1, dtype=np.int64)
@@ -554,9 +556,10 @@ class CompiledLibrary:
         coef = np.array([term[1] for term in flat] or [0.0], dtype=float)
         norm = np.array([int(len(term) > 2 and bool(term[2])) for term in flat] or [0], dtype=np.int64)
         tols = np.ascontiguousarray(tol if len(tol) else [0.0], dtype=float)
+        probes = np.array([int(bool(v)) for v in probe] + [0] * (len(terms) - len(probe)) or [0], dtype=np.int64)
         rc = self._lib.gs_watch_witnesses(len(terms), ptr.ctypes.data, idx.ctypes.data, coef.ctypes.data,
-                                          norm.ctypes.data, tols.ctypes.data, int(inputs[0]), int(inputs[1]),
-                                          float(dt))
+                                          norm.ctypes.data, tols.ctypes.data, probes.ctypes.data, int(inputs[0]),
+                                          int(inputs[1]), float(dt))
         if rc:
             raise ValueError(f"gs_watch_witnesses refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
                              f"tol {list(tol)}, inputs {inputs}, dt {dt}): at most 64 "

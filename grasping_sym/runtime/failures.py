@@ -16,7 +16,7 @@ from grasping_sym.errors import ContactLeftContourError, IntegratorError
 #: Fraction of a contour's domain crossed in one rejected step that names a blow-up.
 BLOW_UP_JUMP = 0.25
 #: What a renamed error keeps of the integrator's.
-_CARRIED = ("t_rejected", "x_rejected", "trajectory", "code", "stats")
+_CARRIED = ("t_rejected", "x_rejected", "trajectory", "code", "stats", "stiff")
 
 
 def check_bounds(model, t: float, x: np.ndarray, previous=None) -> None:
@@ -132,6 +132,7 @@ def blow_up(model, err: IntegratorError, method: str, h: float) -> IntegratorErr
         f"{step} because the system is stiff (large CSM gains); reduce h or use 'radau' or "
         "'cvodes'", model.state_names)
     _carry(err, new)
+    new.stiff = True  # type: ignore[attr-defined]
     return new
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from grasping_sym.errors import RunArgumentError
+from grasping_sym.errors import IntegratorError, RunArgumentError
 from grasping_sym.runtime import batch, external, fastpath, modes, parameters, portable
 from grasping_sym.runtime import friction as friction_
 from grasping_sym.runtime import outputs as outputs_
@@ -27,6 +27,7 @@ from grasping_sym.runtime.settings import (  # noqa: F401 - their old home (cli,
     RunSettings,
     flags,
     real,
+    run_defaults,
     run_settings,
     slip_mode,
     tolerances,
@@ -263,7 +264,7 @@ class Model:
         return self._guarded
 
     # ------------------------------------------------------------------ simulate
-    def simulate(self, t_final: float, *, x0=None, method: str = "radau",
+    def simulate(self, t_final: float, *, x0=None, method: str | None = None,
                  rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
                  outputs: bool = True, checks: bool = True,
@@ -275,7 +276,13 @@ class Model:
         Parameters
         ----------
         method
-            ``'radau'`` (the default: adaptive Radau IIA of order 5, whole loop in C on the
+            None (the default): the model's own, measured the fastest reliable for its kind of
+            scene (the manifest's ``defaults``, from the scene's ``simulate_defaults``:
+            ``'radau'`` in 2D, ``'dop853'`` at rtol 1e-7, atol 1e-9 for a 3D grasp, 1.8 to 2.9
+            times faster than radau there at the same error: ``benchmarks/results/tolerances.md``),
+            with its tolerances where none are given; a run that this default finds stiff runs
+            again with radau (``stats["fallback"]`` says why). Or
+            ``'radau'`` (adaptive Radau IIA of order 5, whole loop in C on the
             compiled right-hand side and Jacobian; much less per-step overhead than CVODES,
             best at moderate tolerances: its default rtol 1e-6, atol 1e-9 gives a final-state
             error of 6e-12 on ``paper2d`` in under 1 ms with output every ms and the outputs;
@@ -294,9 +301,9 @@ class Model:
             ``'rk4'``, ``'radau'``, ``'dopri5'`` and ``'dop853'`` check the contact
             parameters after every step.
         rtol, atol
-            Tolerances of the adaptive methods; None: the method's defaults
-            (``DEFAULT_TOLERANCES``: radau 1e-6 / 1e-9, dopri5 1e-8 / 1e-10, dop853 1e-8 /
-            1e-10, cvodes and idas 1e-10 / 1e-12).
+            Tolerances of the adaptive methods; None: the model's with its own method, else the
+            method's defaults (``DEFAULT_TOLERANCES``: radau 1e-6 / 1e-9, dopri5 1e-8 / 1e-10,
+            dop853 1e-8 / 1e-10, cvodes and idas 1e-10 / 1e-12).
         max_steps
             The most steps a run may take, in total: for 'cvodes' and 'idas' the step
             attempts, counted in C as the run goes (``c/budget.c``), so a run stops as soon
@@ -393,6 +400,7 @@ class Model:
         """
         short = (t_eval is not None and params is None and u is None and time_limit is None
                  and (not outputs or not self.columns) and slip == "stop" and not self.manifest.get("modes"))
+        method, rtol, atol, chosen = run_defaults(self, method, rtol, atol)
         plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks, mu, self.friction) \
             if short else None
         if plan_key is not None:  # runtime.fastpath: settings a previous call accepted, straight to C
@@ -413,14 +421,26 @@ class Model:
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")
         s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
         x0, own_start = run_.start_state(self, x0)
-        res = run_.run(self, s, x0, own_start, self.params(params), u)
+        try:
+            res = run_.run(self, s, x0, own_start, self.params(params), u)
+        except IntegratorError as exc:
+            if not (chosen and getattr(exc, "stiff", False)):
+                raise
+            # the model's own explicit method found this run stiff: radau, as the error says
+            s = RunSettings.check(self, t_final, method="radau", rtol=rtol, atol=atol, t_eval=t_eval, h=h,
+                                  max_steps=max_steps, project=project, outputs=outputs, checks=checks,
+                                  time_limit=time_limit)
+            s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
+            res = run_.run(self, s, x0, own_start, self.params(params), u)
+            res.stats["fallback"] = f"radau: {exc.reason}"
+            return res
         if short:  # the settings and x0 passed: later calls may take the short way
             fastpath.remember(self, plan_key, s)
             if checks:
                 fastpath.checked(self, None if own_start else x0)
         return res
 
-    def simulate_many(self, t_final: float, *, x0=None, params=None, u=None, method: str = "radau",
+    def simulate_many(self, t_final: float, *, x0=None, params=None, u=None, method: str | None = None,
                       rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
                       max_steps: int = 1_000_000, project: bool | float = False,
                       outputs: bool = False, checks: bool = True, threads: int | None = None,
@@ -445,8 +465,10 @@ class Model:
             Constant inputs, ``(n_inputs,)`` or ``(N, n_inputs)``, or one table of
             ``grasping_sym.runtime.inputs`` for every run.
         method, rtol, atol, h, max_steps, project, checks, time_limit
-            As for ``simulate`` (the loops in C: 'radau', 'dopri5', 'dop853', 'rk4'); ``time_limit`` is
-            for the whole batch (runs not finished by then get status -9).
+            As for ``simulate`` (the loops in C: 'radau', 'dopri5', 'dop853', 'rk4'; None: the
+            model's own, and when it finds runs stiff the batch runs again with radau,
+            ``BatchResult.fallback``); ``time_limit`` is for the whole batch (runs not finished by
+            then get status -9).
         t_eval
             Output times common to every run: ``x`` (``(N, m, n_states)``) and the outputs are
             kept there; without, only the final states are.

@@ -972,7 +972,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
     lib, cols = model.library, leg.col
     lib.watch([[(cols[term[0]], *term[1:]) for term in terms] for _, _, terms in watched],
               [_arming(name) for name, _, _ in watched],
-              inputs=leg.input_slots, dt=WATCH_DT)
+              inputs=leg.input_slots, dt=WATCH_DT, probe=[name == "gap" for name, _, _ in watched])
     try:
         pieces = [(float(grid[0]), float(grid[-1]), None, None)] if r.sched is None else \
             r.sched.segments(float(grid[0]), float(grid[-1]))

@@ -114,6 +114,19 @@ def slip_mode(slip) -> str:
     return slip
 
 
+def run_defaults(model, method, rtol, atol) -> tuple[str, float | None, float | None, bool]:
+    """``(method, rtol, atol, chosen)``: with no method given, the model's own (the manifest's
+    ``defaults``, from its scene: measured the fastest reliable for its kind) and its
+    tolerances where none are given (``chosen`` True: a stiff run may fall back to radau,
+    ``Model.simulate``); else the method given, and None where no tolerance is (the
+    method's ``DEFAULT_TOLERANCES``)."""
+    if method is not None:
+        return method, rtol, atol, False
+    d = model.manifest.get("defaults") or {}
+    return (d.get("method", "radau"), d.get("rtol") if rtol is None else rtol,
+            d.get("atol") if atol is None else atol, True)
+
+
 def tolerances(method: str, rtol, atol) -> tuple:
     """``(rtol, atol)`` with the method's defaults where None."""
     d = DEFAULT_TOLERANCES.get(method, (1e-10, 1e-12))
