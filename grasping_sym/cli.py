@@ -204,7 +204,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     info = model.build_info
     _say(f"simulating {scene.name} for {t_final:g} s with {method}")
     t0 = time.perf_counter()
-    result = model.simulate(t_final, method=method, rtol=rtol, atol=atol, h=args.h,
+    # no --method: the model's own, as simulate() takes it (a stiff run falls back to radau)
+    result = model.simulate(t_final, method=args.method, rtol=rtol, atol=atol, h=args.h,
                             params=params or None)
     sim_wall = time.perf_counter() - t0
     csv_path = result.write_csv(out / "trajectory.csv")
@@ -454,8 +455,9 @@ def make_parser() -> argparse.ArgumentParser:
                    help="what the figure shows: a final state (e.g. theta, the default), "
                         "settle_<state> (settling time), min_<output> (e.g. min_f, the smallest "
                         "normal force), max_<output>, or failure")
-    p.add_argument("--method", choices=("radau", "dopri5", "dop853", "rk4"), default="radau",
-                   help="integrator (default radau)")
+    p.add_argument("--method", choices=("radau", "dopri5", "dop853", "rk4"), default=None,
+                   help="integrator (default: the model's own, as simulate_many's: radau in 2D, dop853 "
+                        "for a 3D grasp)")
     p.add_argument("--rtol", type=_positive_float, default=None,
                    help="relative tolerance (default: the method's, radau 1e-6)")
     p.add_argument("--atol", type=_positive_float, default=None,

@@ -55,6 +55,7 @@ from grasping_sym.runtime import friction, modes
 from grasping_sym.runtime.batch import default_threads
 from grasping_sym.runtime.checks import first_crossing
 from grasping_sym.runtime.model import Model
+from grasping_sym.runtime.settings import run_defaults
 from grasping_sym.runtime.start import start_point
 
 #: Points per task by default: about ``TASKS_PER_THREAD`` tasks per worker thread, within
@@ -461,6 +462,9 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
     else:
         fixed = friction.resolve(model, mu)
     with_mu = fixed is not None or "mu" in g.names
+    # the model's own method and tolerances where none are given, resolved once: every chunk
+    # runs the same, and the store says which (a point that method finds stiff is recorded)
+    method, rtol, atol, _ = run_defaults(model, method, rtol, atol)
     task = {"grid": g, "roles": roles, "t_final": float(t_final),
             "measures": _measures(model, tuple(outputs), tuple(measures), with_mu),
             "samples": int(samples), "settle_tol": float(settle_tol),

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -149,6 +150,19 @@ def test_the_rolling_model_runs_the_rolling_stretches(model, slide):
     assert max(abs(a["t"] - b["t"]) for a, b in zip(alone.events, slide.events)) < 1e-9
     assert np.max(np.abs(alone.x - slide.x)) < 1e-8
     assert (alone.modes == slide.modes).all()
+
+
+def test_a_failure_while_the_rolling_model_runs_names_the_model_with_modes_state(model):
+    """A run stopped (max_steps) in a stretch the rolling model integrates reports the model with
+    modes' state (u0, u1, not the rolling model's s): its state, its trajectory; and a model
+    sent to another process keeps its rolling model."""
+    with pytest.raises(IntegratorError, match="too many steps") as err:
+        model.simulate(0.1, max_steps=5)
+    names = model.state_names
+    assert len(err.value.x) == len(names) and "u0=" in str(err.value) and "s=" not in str(err.value)
+    assert err.value.trajectory[1].shape[1] == len(names)
+    sent = pickle.loads(pickle.dumps(model))
+    assert sent.rolling is not None and sent.rolling.state_names == model.rolling.state_names
 
 
 def test_a_slide_loses_what_friction_dissipates(slide):

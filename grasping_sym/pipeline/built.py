@@ -28,10 +28,11 @@ class BuiltModel(Model):
 
     def __reduce__(self):
         """Pickled as the runtime model is (``runtime.portable``), with a layered model's
-        structure files and its friction law, and restored by ``restore``: it compiles the C
-        where the receiver's platform cannot load the library sent."""
+        structure files, its friction law and a model with modes' rolling model
+        (``Model.rolling``), and restored by ``restore``: it compiles the C where the
+        receiver's platform cannot load the library sent."""
         return restore, (portable.payload(self, structure=_structure_files(self.manifest)),
-                         self.friction)
+                         self.friction, self.rolling)
 
     def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
         """The closed loop as a CasADi Function with exact derivatives of any order
@@ -67,14 +68,17 @@ class BuiltModel(Model):
 
 
 
-def restore(data: dict, friction=None) -> BuiltModel:
+def restore(data: dict, friction=None, rolling=None) -> BuiltModel:
     """The model ``data`` describes (``runtime.portable.restore``), compiled here if need be,
     with the friction law it was sent with (a copy of the one this process restored when the
-    laws differ: the law is read at run time, the compiled model is shared)."""
+    laws differ: the law is read at run time, the compiled model is shared) and its rolling
+    model (a model with modes)."""
     model = portable.restore(data, _compile_here, BuiltModel)
     if model.friction != friction:
         model = copy.copy(model)
         model.friction = friction
+    if rolling is not None:
+        model.rolling = rolling
     return model
 
 

@@ -285,7 +285,7 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
     model = BuiltModel(directory, manifest, lib, start, scene)
     if manifest.get("rolling_map") is not None:  # a model with modes: its base's rolling model too
         say(f"building {scene.base.name}, the rolling model of the stretches where every contact rolls")
-        model.rolling = _build(scene.base, progress=progress)
+        model.rolling = _build(scene.base, progress=progress, force=force)
         info["rolling_model"] = model.rolling.build_info["total"]
     info["total"] = time.perf_counter() - t0
     model.build_info = info

@@ -132,7 +132,7 @@ def blow_up(model, err: IntegratorError, method: str, h: float) -> IntegratorErr
         f"{step} because the system is stiff (large CSM gains); reduce h or use 'radau' or "
         "'cvodes'", model.state_names)
     _carry(err, new)
-    new.stiff = True  # type: ignore[attr-defined]
+    new.stiff = method in ("dopri5", "dop853")  # type: ignore[attr-defined]
     return new
 
 

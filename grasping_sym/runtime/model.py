@@ -10,6 +10,7 @@ library (``runtime.external``).
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -421,15 +422,18 @@ class Model:
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")
         s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
         x0, own_start = run_.start_state(self, x0)
+        began = time.perf_counter()
         try:
             res = run_.run(self, s, x0, own_start, self.params(params), u)
         except IntegratorError as exc:
-            if not (chosen and getattr(exc, "stiff", False)):
+            if not (chosen and s.method != "radau" and getattr(exc, "stiff", False)):
                 raise
-            # the model's own explicit method found this run stiff: radau, as the error says
+            # the model's own explicit method found this run stiff: radau, as the error says,
+            # in the time the first try left
+            left = None if time_limit is None else max(time_limit - (time.perf_counter() - began), 1e-9)
             s = RunSettings.check(self, t_final, method="radau", rtol=rtol, atol=atol, t_eval=t_eval, h=h,
                                   max_steps=max_steps, project=project, outputs=outputs, checks=checks,
-                                  time_limit=time_limit)
+                                  time_limit=left)
             s.mu, s.slip = friction_.resolve(self, mu), slip_mode(slip)
             res = run_.run(self, s, x0, own_start, self.params(params), u)
             res.stats["fallback"] = f"radau: {exc.reason}"

@@ -987,7 +987,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 t, X, st = integrators.c_loop(model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
                                               max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
             except IntegratorError as exc:
-                raise failures.classify(model, exc) from None
+                raise _in_own_state(r, leg, failures.classify(model, exc)) from None
             rows_t.append(t if k == 0 else t[1:])
             rows_x.append(X if k == 0 else X[1:])
             for key in ("n_steps", "n_rhs"):
@@ -999,6 +999,22 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         return _on_grid(rows_t, rows_x, grid) + (stats, None)
     finally:
         lib.unwatch()
+
+
+def _in_own_state(r: _Run, leg: _Leg, err: IntegratorError) -> IntegratorError:
+    """``err`` of a segment ``leg`` ran, in the model with modes' state and names (its state,
+    its rejected state and its trajectory mapped back from the rolling model's)."""
+    if leg.back is None or type(err) not in (IntegratorError, ContactLeftContourError):
+        return err
+    new = type(err)(err.t, None if err.x is None else leg.states(err.x), err.reason, r.model.state_names)
+    for key in ("code", "stats", "stiff", "t_rejected"):
+        if hasattr(err, key):
+            setattr(new, key, getattr(err, key))
+    if getattr(err, "x_rejected", None) is not None:
+        new.x_rejected = leg.states(err.x_rejected)  # type: ignore[attr-defined]
+    if getattr(err, "trajectory", None) is not None:
+        new.trajectory = (err.trajectory[0], leg.states(err.trajectory[1]))  # type: ignore[attr-defined]
+    return new
 
 
 def _on_grid(rows_t, rows_x, grid):
