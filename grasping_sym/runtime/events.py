@@ -21,7 +21,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
 from grasping_sym.errors import IntegratorError
 from grasping_sym.runtime import integrators
@@ -34,6 +33,15 @@ TIME_TOL = 1e-14
 
 #: Most secant steps of ``refine`` before it falls back to Brent's method.
 SECANT_STEPS = 8
+
+
+def _brentq():
+    """``scipy.optimize.brentq``, imported when an event is located by it: SciPy's optimize
+    takes 0.39 s to import, the whole runtime's import otherwise 0.11 s (``gs.load``,
+    ``gs.build`` of a cached model)."""
+    from scipy.optimize import brentq  # noqa: PLC0415 - lazy: SciPy (0.39 s), only to locate an event
+
+    return brentq
 
 
 def state_at(model, s, sched, p, t0: float, x0: np.ndarray, t: float, one_step: bool = False,
@@ -122,7 +130,7 @@ def refine(model, s, sched, p, t_step: float, x_step: np.ndarray, t_lo: float, t
         # no convergence: Brent's method between the sides found
         if not (g(a) > 0 and not g(b) > 0):
             return None
-        t = brentq(g, a, b, xtol=TIME_TOL, maxiter=200)
+        t = _brentq()(g, a, b, xtol=TIME_TOL, maxiter=200)
     except (IntegratorError, ValueError, RuntimeError):
         return None
     return t, x_at(t)
@@ -151,7 +159,7 @@ def locate(model, s, sched, p, t0: float, x0: np.ndarray, t1: float,
             return t0, x0
         if g(t1) > 0:
             return None
-        t = brentq(g, t0, t1, xtol=TIME_TOL, maxiter=200)
+        t = _brentq()(g, t0, t1, xtol=TIME_TOL, maxiter=200)
     except (IntegratorError, ValueError, RuntimeError):
         return None
     return t, x_at(t)
