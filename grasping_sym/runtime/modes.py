@@ -7,8 +7,10 @@ segment per mode by the run's C loop (``METHODS``: radau, dopri5, dop853), which
 mode's witnesses itself (``c/watch.c``) at every step's end and at points of its dense output
 at most ``WATCH_DT`` s apart (so a sparse ``t_eval`` misses no switch that lasts longer), and
 stops at the first sign change, found on the dense output; the event is then located on the
-trajectory integrated again from that step's start (``runtime.events.refine``), where the run
-switches (``docs/conventions.md`` section 7):
+trajectory integrated again from that step's start (``gs_watch_refine`` in C, else
+``runtime.events.refine``), where the run switches (``docs/conventions.md`` section 7). A
+segment in which every contact rolls is integrated by the base scene's rolling model where
+the model has one (``Model.rolling``, ``_Leg``; sections 8 and 9):
 
 - rolling: ``mu f - |F_t|`` reaching 0 -> sliding, the slip starting where the sliding
   equations accelerate it (the fixed point of ``d -> a_t(d)/|a_t(d)|`` from
