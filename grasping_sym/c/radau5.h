@@ -30,18 +30,13 @@ static const double gs_rd_P[3][3] = {
     {1.0 / 3.0, -8.0 / 3.0, 10.0 / 3.0}};
 
 /* Tuning constants (defaults of Hairer's RADAU5 unless noted; override with -D;
- * tuned on paper2d: THETA_TARGET, JAC_AT, FNEWT and THET are ours).  Compiling with
+ * tuned on paper2d: THETA_TARGET, JAC_AT and FNEWT are ours).  Compiling with
  * -DGS_RADAU_DEBUG prints per-step diagnostics to stderr. */
 #ifndef GS_RADAU_NIT
 #define GS_RADAU_NIT 7 /* maximum Newton iterations per step                      */
 #endif
 #ifndef GS_RADAU_THET
-/* Re-evaluate J after a step whose Newton rate exceeds THET. RADAU5's 0.001 is for a cheap
- * Jacobian; 0.1 (its advice where J is costly) measured faster on both papers at every rtol
- * (paper2d 3 s at 1e-8 / 1e-9 / 1e-10: 0.70 / 1.18 / 3.9 ms against 0.91 / 1.58 / 4.9;
- * paper3d, J by differences: 9.6 ms against 17.4 at 1e-6, 26 against 34 at 1e-8), the final
- * state as accurate (1e-13 to 6e-12). */
-#define GS_RADAU_THET 0.1
+#define GS_RADAU_THET 0.001 /* re-evaluate J after a step whose Newton rate > THET */
 #endif
 #ifndef GS_RADAU_SAFE
 #define GS_RADAU_SAFE 0.9 /* safety factor of the step-size selection            */
