@@ -286,7 +286,7 @@ class Model:
             ``'radau'`` (adaptive Radau IIA of order 5, whole loop in C on the
             compiled right-hand side and Jacobian; much less per-step overhead than CVODES,
             best at moderate tolerances: its default rtol 1e-6, atol 1e-9 gives a final-state
-            error of 6e-12 on ``paper2d`` in under 1 ms with output every ms and the outputs;
+            error of 2e-11 on ``paper2d`` in about 1 ms with output every ms and the outputs;
             keep atol >= ~1e-10 since tighter absolute tolerances on near-zero velocities hit
             rounding noise), ``'cvodes'`` (adaptive implicit BDF through CasADi, the
             SUNDIALS reference), ``'idas'``, ``'rk4'`` (fixed step ``h`` s, loop in C),
