@@ -277,6 +277,13 @@ def test_tolerances_that_accept_any_step_and_empty_batches_are_refused(paper2d_m
         paper2d_model.simulate_many(0.05, rtol=5.0)
     with pytest.raises(RunArgumentError, match=r"simulate_many: no runs \(x0 empty\)"):
         paper2d_model.simulate_many(0.05, x0=np.empty((0, len(paper2d_model.state_names))))
+    # below 100 eps the C loops' error estimate is rounding: refused by name, every way in
+    for method in ("radau", "dop853"):
+        with pytest.raises(RunArgumentError, match=r"rtol = 1e-15 is below 2.22e-14 .* give rtol >= 2.22e-14"):
+            paper2d_model.simulate(0.05, method=method, rtol=1e-15)
+    with pytest.raises(RunArgumentError, match=r"rtol = 1e-15 is below 2.22e-14"):
+        paper2d_model.simulate_many(0.05, rtol=1e-15)
+    assert paper2d_model.simulate(0.05, rtol=2.3e-14, atol=1e-14).t[-1] == 0.05
 
 
 def test_a_domain_exit_names_the_state(short_model):

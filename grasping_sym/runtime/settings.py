@@ -127,6 +127,11 @@ def run_defaults(model, method, rtol, atol) -> tuple[str, float | None, float | 
             d.get("atol") if atol is None else atol, True)
 
 
+#: The smallest rtol the C loops (radau, dopri5, dop853) take: 100 times the double's epsilon
+#: (they raised a smaller one to it silently; ``run_settings`` refuses it by name).
+RTOL_FLOOR = 100 * 2.220446049250313e-16
+
+
 def tolerances(method: str, rtol, atol) -> tuple:
     """``(rtol, atol)`` with the method's defaults where None."""
     d = DEFAULT_TOLERANCES.get(method, (1e-10, 1e-12))
@@ -149,6 +154,12 @@ def run_settings(method: str, t_final, rtol, atol, h, max_steps, time_limit) -> 
         if not time_limit > 0:
             raise RunArgumentError(f"time_limit = {time_limit!r} must be > 0 (seconds of wall time) or None")
     _tolerances_below_one(rtol, atol)
+    if method in ("radau", "dopri5", "dop853") and rtol < RTOL_FLOOR:
+        raise RunArgumentError(f"rtol = {rtol!r} is below {RTOL_FLOOR:.3g} (100 times the double's epsilon), "
+                               f"where {method}'s error estimate is its own rounding (its C loop would raise "
+                               f"it to that silently): give rtol >= {RTOL_FLOOR:.3g}; paper2d's and paper3d's "
+                               "final states reach their rounding floor (1e-13) from rtol 1e-8 to 1e-10 "
+                               "(benchmarks/results/tolerances.md)")
     if method == "rk4":
         positive("h", h, "the RK4 step (s); stable below ~9e-4 s for paper2d's CSM gains")
     if isinstance(max_steps, (bool, np.bool_)) or not isinstance(max_steps, numbers.Integral) \
