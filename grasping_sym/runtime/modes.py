@@ -141,6 +141,15 @@ class _Leg:
     back: np.ndarray | None = None
     watched: tuple = ()
 
+    @classmethod
+    def of(cls, model, to=None, back=None, watched=()) -> _Leg:
+        """``model``'s leg: its outputs' columns and its inputs' slots read from it."""
+        names = model.p_names
+        slots = (names.index(model.input_names[0]), len(model.input_names)) if model.input_names else (0, 0)
+        return cls(model, {k: i for i, k in enumerate(model.columns)}, slots,
+                   None if to is None else np.array(to, dtype=int),
+                   None if back is None else np.array(back, dtype=int), tuple(watched))
+
     def state(self, x: np.ndarray) -> np.ndarray:
         """This leg's state of the model with modes' ``x``."""
         return x if self.to is None else np.asarray(x)[self.to]
@@ -178,14 +187,10 @@ class _Run:
         #: rolling_model_segments: the segments the base scene's rolling model ran (``_Leg``)
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "rolling_model_segments": 0,
                       "switch_time": 0.0}
-        #: each compiled output's column; the inputs' slots in p, ``(first, how many)``
-        self.col = {k: i for i, k in enumerate(model.columns)}
-        self.input_slots = (names.index(model.input_names[0]), len(model.input_names)) \
-            if model.input_names else (0, 0)
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
-        self.own_leg = _Leg(model, self.col, self.input_slots)
+        self.own_leg = _Leg.of(model)
         self.rolling_leg = self._rolling_leg(getattr(model, "rolling", None), model.manifest.get("rolling_map"))
 
     def _rolling_leg(self, rolling, where: dict | None) -> _Leg | None:
@@ -203,10 +208,7 @@ class _Run:
             if self.mus[j - 1] != math.inf:
                 watched.append(("cone", j, [(fk, self.mus[j - 1]), *((k, 1.0, True) for k in tangential)]))
             watched.append(("normal_force", j, [(fk, 1.0)]))
-        names = rolling.p_names
-        slots = (names.index(rolling.input_names[0]), len(rolling.input_names)) if rolling.input_names else (0, 0)
-        return _Leg(rolling, {k: i for i, k in enumerate(rolling.columns)}, slots,
-                    np.array(where["to"], dtype=int), np.array(where["from"], dtype=int), tuple(watched))
+        return _Leg.of(rolling, where["to"], where["from"], watched)
 
     def leg(self, modes, x: np.ndarray) -> _Leg:
         """The leg that runs a segment from ``x`` with contacts in ``modes``: the rolling
