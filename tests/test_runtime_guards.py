@@ -127,6 +127,18 @@ def test_time_limit_stops_every_method(slow_model, method):
     assert time.perf_counter() - t0 < 1.5
 
 
+@pytest.mark.parametrize("method", ["cvodes", "idas", "radau"])
+def test_a_deadline_left_behind_stops_no_later_run(slow_model, method):
+    """A run without a time limit ignores a deadline an earlier run left set (as one did when
+    a signal landed between a SUNDIALS run's stop and its clean-up: the next run, with no
+    limit, failed at once on the stale deadline)."""
+    import time
+    slow_model.library._lib.gs_set_time_limit(1e-9)
+    time.sleep(1e-3)
+    r = slow_model.simulate(0.01, method=method)
+    assert r.t[-1] == 0.01 and np.all(np.isfinite(r.x))
+
+
 @pytest.mark.parametrize("method", ["cvodes", "idas"])
 def test_time_limit_stops_sundials_in_another_thread(slow_model, method):
     """No signal handler outside the main thread: the step budget in C reads the deadline

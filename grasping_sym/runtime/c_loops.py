@@ -44,16 +44,15 @@ _double = ctypes.c_double
 
 @contextlib.contextmanager
 def stoppable(lib, time_limit: float | None):
-    """Around a C loop: ``time_limit`` seconds of wall time for it (none: nothing is called).
-    Ctrl-C needs nothing here: the process's one SIGINT handler (``c/stop.c``, owned by
-    ``runtime/interrupt.py`` and put back in front at every loop's start) stops the loop,
-    which returns ``GS_ERR_INTERRUPT``; :func:`stop_error` says
-    why."""
-    if not time_limit:
-        yield
-        return
+    """Around a C loop (or a SUNDIALS run, whose step budget reads the same deadline):
+    ``time_limit`` seconds of wall time for it, or none. The deadline is set on entry either
+    way, so that none left behind by an earlier run stops this one. Ctrl-C needs nothing here:
+    the process's one SIGINT handler (``c/stop.c``, owned by ``runtime/interrupt.py`` and put
+    back in front at every loop's start) stops the loop, which returns ``GS_ERR_INTERRUPT``;
+    :func:`stop_error` says why. No Python signal handler is involved, so nothing can raise
+    between the loop's return and the deadline's reset."""
     c = lib._lib
-    c.gs_set_time_limit(float(time_limit))
+    c.gs_set_time_limit(float(time_limit) if time_limit else 0.0)
     try:
         yield
     finally:

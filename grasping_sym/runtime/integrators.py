@@ -25,7 +25,6 @@ import io
 import math
 import os
 import re
-import signal
 import sys
 import tempfile
 import threading
@@ -52,36 +51,6 @@ RECOVERY_MAX_STEPS = 20_000
 #: CasADi integrators kept per model and thread (one per method, tolerances and output grid): the least
 #: recently used beyond this many are dropped (each holds ~150 kB).
 INTEGRATOR_CACHE_SIZE = 8
-
-
-class _Watch:
-    timeout = False
-
-
-@contextlib.contextmanager
-def _watch(time_limit: float | None):
-    """A wall-time limit for a CasADi integrator call in the main thread: CasADi polls Python's
-    signals while SUNDIALS runs and stops with an error when a handler raises; this SIGALRM
-    handler notes why, so that the caller raises the time limit's error instead of retrying the
-    run. Elsewhere (and always, besides) the step budget in C (``c/budget.c``) reads the time
-    limit. Ctrl-C needs nothing here: the step budget stops the run on the process's one
-    SIGINT flag (``runtime/interrupt.py``); no SIGINT handler is swapped."""
-    w = _Watch()
-    if not time_limit or threading.current_thread() is not threading.main_thread():
-        yield w
-        return
-
-    def on_alarm(signum, frame):
-        w.timeout = True
-        raise TimeoutError
-
-    old_alarm = signal.signal(signal.SIGALRM, on_alarm)
-    signal.setitimer(signal.ITIMER_REAL, float(time_limit))
-    try:
-        yield w
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0.0)
-        signal.signal(signal.SIGALRM, old_alarm)
 
 
 _THREAD = threading.local()
@@ -219,7 +188,7 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     xa = np.append(x0, 0.0) if augmented(model, method) else x0
     lib = model.library
     start = time.perf_counter()
-    with _watch(time_limit) as watch, c_loops.stoppable(lib, time_limit):
+    with c_loops.stoppable(lib, time_limit):
         lib.budget_begin(max_steps)
         try:
             out = integ(x0=xa, p=p)
@@ -230,11 +199,11 @@ def sundials(model, method: str, x0: np.ndarray, t_eval: np.ndarray, p: np.ndarr
     if failure is not None:
         if interrupt.requested() or lib.budget_hit() == 2 and lib._lib.gs_stop_cause() == 1:
             raise interrupt.interrupted(f"{method} stopped by Ctrl-C") from None
-        if watch.timeout or lib.budget_hit() == 2:
+        if lib.budget_hit() == 2 and time_limit:
             raise IntegratorError(lib.budget_last_t(), None, f"{method}: the wall-time limit "
                                   f"of {time_limit:g} s was reached (raise time_limit, or "
                                   "loosen the tolerances)", model.state_names) from None
-        if lib.budget_hit():
+        if lib.budget_hit() == 1:
             raise _failure(model, method, x0, t_eval, p, rtol, atol, max_steps, str(failure),
                            at=(lib.budget_last_t(), f"more than max_steps = {max_steps} step "
                                "attempts in total (raise max_steps, or loosen rtol/atol)")
