@@ -26,6 +26,7 @@ import sympy as sp
 
 from grasping_sym.errors import ControllerError, GraspingSymError
 from grasping_sym.geometry.expressions import to_expression
+from grasping_sym.model.law_keys import function_definition
 from grasping_sym.symbolic.translate import SympyToCasadi
 
 __all__ = ["Controller", "damping", "feedforward", "law", "orientation2d", "paper2d", "paper3d",
@@ -36,10 +37,12 @@ class Controller:
     """A control law (see the module's docstring). ``name`` labels it in reprs and
     manifests; what a model's code depends on is the law's expressions, not its name.
     ``dimension``: 2 or 3 for a law written for the scenes of one dimension (its quantities),
-    None for any scene."""
+    None for any scene. ``preset``: a preset's name and parameters (its definition, its code
+    being the package's); a law of the user's is defined by its function's code
+    (:attr:`definition`)."""
 
     def __init__(self, fn: Callable, name: str = "law", terms: tuple[Controller, ...] = (),
-                 dimension: int | None = None):
+                 dimension: int | None = None, preset: str | None = None):
         if not callable(fn):
             raise TypeError(f"a controller's law must be a function of the model's quantities, "
                             f"got {type(fn).__name__}")
@@ -47,6 +50,21 @@ class Controller:
         self.name = name
         self.dimension = dimension
         self.terms = terms or (self,)
+        self._preset = preset
+
+    @property
+    def definition(self) -> str | None:
+        """The law's definition as text, read without running it (``model.law_keys``): a
+        preset's name and parameters, else its function's code and the values it reads;
+        None where that cannot be read whole (``gs.build`` then keys the law by its
+        expressions)."""
+        if len(self.terms) > 1:
+            parts = [t.definition for t in self.terms]
+            return None if None in parts else "sum(" + ", ".join(parts) + ")"
+        if self._preset is not None:
+            return f"preset {self._preset}"
+        text = function_definition(self._fn)
+        return None if text is None else f"law dimension={self.dimension}\n{text}"
 
     def torques(self, m) -> list:
         """The law's joint torques at the quantities ``m``: one SX column per finger. Raises
@@ -190,7 +208,7 @@ def paper2d() -> Controller:
         fd, r, c = m.param("fd"), m.param("r"), m.param("c")
         return [-c * dq - J.T @ ((fd / r) * (tip - m.pivot)) + g
                 for dq, J, tip, g in zip(m.dq, m.J, m.tip, m.gravity_torque)]
-    return Controller(paper, "paper2d", dimension=2)
+    return Controller(paper, "paper2d", dimension=2, preset="paper2d")
 
 
 def paper3d() -> Controller:
@@ -216,13 +234,14 @@ def paper3d() -> Controller:
                 pull = pull + (m.param("k_center") / N) * (r_bar - m.param("r_bar0"))
             out.append(-c * dq - J.T @ pull + g)
         return out
-    return Controller(paper, "paper3d", dimension=3)
+    return Controller(paper, "paper3d", dimension=3, preset="paper3d")
 
 
 def damping(c: float) -> Controller:
     """Joint damping ``-c q'`` on every joint (``c`` in N m s, finite, >= 0)."""
     c = _number("damping c", c, "N m s", minimum=0.0)
-    return Controller(lambda m: [-c * dq for dq in m.dq], f"damping({c:g})")
+    return Controller(lambda m: [-c * dq for dq in m.dq], f"damping({c:g})",
+                      preset=f"damping({c!r})")
 
 
 def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
@@ -263,7 +282,8 @@ def feedforward(torques: Sequence | Mapping, t=None) -> Controller:
                 raise ControllerError(f"feedforward has {len(exprs)} torques; the model has {n} joints")
             vals = [tr(e) for e in exprs]
         return m.column(vals)
-    return Controller(ff, "feedforward")
+    given = exprs if fixed is None else sorted(fixed.items())
+    return Controller(ff, "feedforward", preset=f"feedforward({sp.srepr(tsym)}, {sp.srepr(given)})")
 
 
 def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0,
@@ -289,7 +309,8 @@ def orientation2d(theta_d: float, gain: float, damping_gain: float = 0.0,
         cols = [0 * dq for dq in m.dq]
         cols[0] = m.J[0].T @ (force * e)
         return cols
-    return paper2d() + Controller(orient, f"orientation2d({theta_d:g})", dimension=2)
+    return paper2d() + Controller(orient, f"orientation2d({theta_d:g})", dimension=2,
+                                 preset=f"orientation2d({theta_d!r}, {k!r}, {kd!r}, {fmax!r})")
 
 
 def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: float = 2e-3,
@@ -348,4 +369,6 @@ def turn3d(angle: float, gain: float, damping_gain: float = 0.0, max_torque: flo
             d = tip - centre
             cols.append(J.T @ ((couple / N) * ca.cross(A, d) / ca.dot(d, d)))
         return cols
-    return paper3d() + Controller(turn, f"turn3d({angle:g})", dimension=3)
+    return paper3d() + Controller(turn, f"turn3d({angle:g})", dimension=3, preset=(
+        f"turn3d({angle!r}, {k!r}, {kd!r}, {mmax!r}, {a.tolist()!r}, "
+        f"{None if ref is None else ref.tolist()!r})"))

@@ -170,8 +170,10 @@ class GraspModesScene(WithModes):
                             for w in self.planes]])
 
     def key(self) -> str:
-        return "\n".join(["grasp3d-modes-v1", self.base.key(),
-                          *[repr((w.point, w.normal, w.support)) for w in self.planes]])
+        """The code's key (the planes' motions too: a driven plane's place at the start moves
+        the start), the base's whole definition and the planes' supports."""
+        return "\n".join([self.code_key(), self.base.key(),
+                          *[repr(w.support) for w in self.planes]])
 
     def rolling_map(self) -> dict | None:
         """``WithModes.rolling_map``: None with planes of the world (the rolling model has no

@@ -2,7 +2,7 @@
 
 One path for every scene: a scene meets one protocol (``name``, ``state_names``,
 ``outputs``, ``runtime``, ``params``, ``start_param_names``, ``code_key()``, ``key()``,
-``hashed_sources``, ``start_sources``, ``casadi_functions()``, ``solve_start()``,
+``casadi_functions()``, ``solve_start()``,
 ``bounds()``, ``manifest_extra()``, ``sympy_op_counts()``, ``structure_templates()``; and for
 the command line ``simulate_defaults``, ``write_figures()``, ``summary_lines()``), and
 
@@ -24,6 +24,12 @@ Layers are cached apart, each under its own hash:
   run-time values the start fixes such as the 2D pivot), under ``starts/<key>.json`` in the
   code's directory (``runtime.stored``). A new start reuses the compiled code.
 
+The hash of the code reads the controller's expressions (the law is run to make them), and a
+2D scene's state names sample its contours: a tenth of a second. A build that found a
+scene's model keeps what it found under the scene's definition (``definition_key``: the
+scene's ``key()`` and its law's definition, no expression made), in
+``<cache root>/definitions/``, so that a build of the same definition is a lookup.
+
 Stages (timed in ``Model.build_info``): hash; load the cached library, else compile the
 committed C, else derive and write C, then compile; then the start, from the cache or solved.
 """
@@ -33,6 +39,7 @@ import dataclasses
 import errno
 import hashlib
 import logging
+import re
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -43,6 +50,7 @@ from grasping_sym.assemble.controller import controller_function, controller_key
 from grasping_sym.assemble.functions import guarded_rhs
 from grasping_sym.emit import cwriter, lanes
 from grasping_sym.errors import CacheWriteError, GraspingSymError
+from grasping_sym.model.control import PAPER
 from grasping_sym.pipeline.built import BuiltModel, compile_library, compiled_manifest
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
@@ -55,6 +63,10 @@ from grasping_sym.toolchain.library import model_defines, outputs_read_time
 Progress = Callable[[str], None]
 log = logging.getLogger(__name__)
 
+#: The shared directory of the definition keys (``store.paths.SHARED_DIRS``).
+DEFINITIONS = "definitions"
+_HEX64 = re.compile(r"[0-9a-f]{64}")
+
 #: The 4-lane rhs (radau's three stage evaluations in one call, ``codegen.lanes``) is made
 #: for right-hand sides up to this many instructions: planar scenes (paper2d: ~1.5k); the 3D
 #: rhs (14k) is left without, radau is not the 3D method of choice.
@@ -64,6 +76,46 @@ LANES_MAX_INSTRUCTIONS = 5000
 def _code_key(scene) -> str:
     """The scene's code key with its controller's (the hash of the law's expressions)."""
     return f"{scene.code_key()}|controller={controller_key(scene)}"
+
+
+def definition_key(scene) -> str | None:
+    """The hash of the scene's whole definition (its name, ``code_key()`` and ``key()``: its
+    code's and its start's)
+    with its controller's definition (``Controller.definition``: a preset's name and
+    parameters, a law's code), the package's sources and version: computed without running the
+    law or deriving anything, so that a cached scene is found at the cost of a lookup
+    (``definitions/<key>.json`` maps it to the code hash and the start key). None for a law
+    whose definition cannot be read (then the law's expressions key the build)."""
+    law = scene.controller
+    text = "none" if law is None else "paper" if law == PAPER else law.definition
+    if text is None:
+        return None
+    parts = ["definition", type(scene).__name__, scene.name, scene.code_key(), scene.key(),
+             f"controller={text}"]
+    return cache.content_hash("\n".join(parts), __version__)["hash"]
+
+
+def _definitions(root: Path) -> Path:
+    return safety.ensure_dir(root / DEFINITIONS, root=root)
+
+
+def _known(root: Path, key: str) -> dict | None:
+    """What a build of the scene of definition ``key`` recorded (``definition_key``): its
+    code hash and start key, or None."""
+    path = _definitions(root) / f"{key[:32]}.json"
+    if not path.exists():
+        return None
+    safety.check_file(path)
+    known = stored.read_json(path)
+    if known is None or known.get("key") != key or not all(
+            isinstance(known.get(k), str) and _HEX64.fullmatch(known[k]) for k in ("hash", "start_key")):
+        return None
+    return known
+
+
+def _remember(root: Path, key: str, digest: str, start: str) -> None:
+    stored.write_json(_definitions(root) / f"{key[:32]}.json",
+                      {"key": key, "hash": digest, "start_key": start})
 
 
 def code_hash(scene) -> dict:
@@ -199,10 +251,11 @@ def _constraints_entry(cm, state_names) -> dict:
             "velocity_states": [state_names[i] for i in info["velocity_states"]]}
 
 
-def _start(scene, directory: Path, say: Progress) -> tuple[dict, str]:
-    """The scene's start record: from the cache, from the committed files, or solved."""
-    key = start_key(scene)
-    shape = {"state_names": list(scene.state_names), "start_param_names": list(scene.start_param_names)}
+def _start(scene, directory: Path, say: Progress, key: str,
+           state_names: list[str]) -> tuple[dict, str]:
+    """The scene's start record of start key ``key``: from the cache, from the committed
+    files, or solved."""
+    shape = {"state_names": list(state_names), "start_param_names": list(scene.start_param_names)}
     cached = stored.read_json(directory / stored.STARTS_DIR / f"{key[:16]}.json")
     if cached is not None and cached.get("key") == key and not stored.start_problems(cached, shape):
         return cached, "cache"
@@ -246,8 +299,10 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
     """``build`` without the translation of cache write failures."""
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
-    digest = code_hash(scene)["hash"]
     root = cache.cache_root()
+    definition = definition_key(scene)
+    known = _known(root, definition) if definition is not None and not force else None
+    digest = known["hash"] if known else code_hash(scene)["hash"]
     directory = safety.ensure_dir(cache.cache_dir(scene.name, digest), root=root)
     lib = directory / library_name(scene.name)
     safety.check_tree(directory, (stored.MANIFEST, stored.START, lib.name))
@@ -277,10 +332,15 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
         stored.write_manifest(directory, manifest)
         info["compile"] = time.perf_counter() - t_c
     t_s = time.perf_counter()
-    start, info["start_source"] = _start(scene, directory, say)
+    skey = known["start_key"] if known else start_key(scene)
+    start, info["start_source"] = _start(scene, directory, say, skey,
+                                         manifest["state_names"] if known else scene.state_names)
     if info["start_source"] != "cache" or stored.read_json(directory / stored.START) != start:
         write_start(directory, start)
     info["start"] = time.perf_counter() - t_s
+    if definition is not None and not known:
+        _remember(root, definition, digest, skey)
+    info["key"] = "definition" if known else "expressions"
     info["rewrites"] = {**manifest.get("rewrites", {}), "vector_libm": bool(vector_libm())}
     model = BuiltModel(directory, manifest, lib, start, scene)
     if manifest.get("rolling_map") is not None:  # a model with modes: its base's rolling model too

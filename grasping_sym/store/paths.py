@@ -17,11 +17,11 @@ import os
 import re
 import shutil
 import stat
+import sys
 from collections.abc import Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from functools import lru_cache
-from importlib import metadata
 from importlib.resources import files
 from pathlib import Path
 
@@ -54,14 +54,19 @@ ABOVE_THE_BUILD = ("viz", "sweeps.py", "cli.py")
 
 
 def _tree_files() -> list[Path]:
-    """Every source file of the package that can shape generated code, in a fixed order."""
+    """Every source file of the package that can shape generated code, in a fixed order (by
+    their relative paths' parts)."""
     out = []
-    for path in sorted(PACKAGE_DIR.rglob("*")):
-        rel = path.relative_to(PACKAGE_DIR)
-        if path.suffix in (".py", ".c", ".h") and path.is_file() and "__pycache__" not in rel.parts \
-                and rel.parts[0] not in (*ABOVE_THE_BUILD, "generated"):
-            out.append(path)
-    return out
+    skip = {*ABOVE_THE_BUILD, "generated"}
+    for top, dirs, names in os.walk(PACKAGE_DIR):
+        here = Path(top)
+        dirs[:] = [d for d in dirs if d != "__pycache__" and not (here == PACKAGE_DIR and d in skip)]
+        for name in names:
+            if name.endswith((".py", ".c", ".h")) and not (here == PACKAGE_DIR and name in skip):
+                path = here / name
+                if path.is_file():
+                    out.append(path)
+    return sorted(out, key=lambda p: p.relative_to(PACKAGE_DIR).parts)
 
 
 @lru_cache(maxsize=1)
@@ -108,8 +113,13 @@ def cache_root() -> Path:
 
 @lru_cache(maxsize=1)
 def casadi_version() -> str:
-    """CasADi's version, read from its distribution's metadata: the store (and so the runtime)
-    never imports CasADi for it."""
+    """CasADi's version: the imported module's when CasADi is imported, else read from its
+    distribution's metadata (the store, and so the runtime, never imports CasADi for it)."""
+    loaded = sys.modules.get("casadi")
+    version = getattr(loaded, "__version__", None)
+    if isinstance(version, str):
+        return version
+    from importlib import metadata  # noqa: PLC0415 - 13 ms, only when CasADi is not imported
     return metadata.version("casadi")
 
 
@@ -149,6 +159,7 @@ SHARED_DIRS = {
     "structures": re.compile(r"gs_structure_[0-9a-f]{12}"),  # codegen.structure_cache
     "templates": re.compile(r"(planar|finger)-[\w.+-]+\.json"),  # codegen.templates
     "objects": re.compile(r"driver-[0-9a-f]{16}"),  # codegen.objects
+    "definitions": re.compile(r"[0-9a-f]{32}\.json"),  # pipeline.stages (definition_key)
 }
 #: The files an unfinished build (no manifest yet) may have left in a model's directory.
 _BUILD_FILE = re.compile(r"[\w.+-]+\.(c|h|json|so|o|dylib|lock)")

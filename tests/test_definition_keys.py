@@ -1,0 +1,110 @@
+"""A cached scene is found by its definition (``pipeline.stages.definition_key``): the law's
+definition read from its code (``model.law_keys``), never by running it. What is read must
+tell apart every two laws that differ, and the model found must be the one the law's
+expressions key."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import grasping_sym as gs
+from grasping_sym.model import controllers
+from grasping_sym.model.law_keys import function_definition, value_definition
+from grasping_sym.pipeline import stages
+
+GAIN = 0.5
+
+
+def _law_of(c):
+    return gs.controllers.law(lambda m: [-c * dq for dq in m.dq], name="extra")
+
+
+def _reads_global(m):
+    return [-GAIN * dq for dq in m.dq]
+
+
+def _with_default(m, k=0.1):
+    return [-k * dq for dq in m.dq]
+
+
+class _Gains:
+    k = 0.1
+
+
+def test_a_laws_definition_changes_with_everything_it_reads(monkeypatch):
+    assert _law_of(0.1).definition == _law_of(0.1).definition
+    assert _law_of(0.1).definition != _law_of(0.2).definition  # a closure's value
+    assert _law_of(0.1).definition != _law_of(np.float64(0.1)).definition  # and its type
+    before = gs.controllers.law(_reads_global).definition
+    monkeypatch.setitem(globals(), "GAIN", 0.25)
+    assert gs.controllers.law(_reads_global).definition != before  # a global's value
+    a = function_definition(_with_default)
+    _with_default.__defaults__ = (0.2,)
+    try:
+        assert function_definition(_with_default) != a  # a default
+    finally:
+        _with_default.__defaults__ = (0.1,)
+    # bytecode: the same names, another operation
+    assert function_definition(lambda m: m.q + 1) != function_definition(lambda m: m.q - 1)
+    # arrays by content; a helper function by its own definition
+    w = np.array([1.0, 2.0])
+    assert value_definition(w) != value_definition(w * 2)
+
+    def helper(x):
+        return 2 * x
+
+    def helper2(x):
+        return 3 * x
+
+    def calls(h):
+        return lambda m: h(m.q)
+
+    assert function_definition(calls(helper)) != function_definition(calls(helper2))
+    # presets by name and parameters, sums by their terms
+    assert controllers.damping(0.1).definition != controllers.damping(0.2).definition
+    assert (controllers.paper2d() + controllers.damping(0.1)).definition \
+        != (controllers.damping(0.1) + controllers.paper2d()).definition
+    assert controllers.turn3d(0.3, 1e-2).definition != controllers.turn3d(0.3, 1e-2, axis=(0, 1, 0)).definition
+
+
+def test_what_cannot_be_read_whole_gives_no_definition():
+    g = _Gains()
+    assert gs.controllers.law(lambda m: [-g.k * dq for dq in m.dq]).definition is None
+    assert value_definition(pytest) is None  # a module that is not a fixed library's
+    assert value_definition({"k": g}) is None
+    assert (controllers.paper2d() + gs.controllers.law(lambda m: [g.k * m.dq[0]])).definition is None
+
+
+def test_a_cached_scene_is_found_without_running_its_law(monkeypatch):
+    scene = gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.004))
+    first = gs.build(scene)
+    # the definition found the model the law's expressions key
+    assert stages.code_hash(scene)["hash"] == first.manifest["hash"]
+
+    def never(*a, **k):
+        raise AssertionError("the law was run or its expressions hashed")
+
+    monkeypatch.setattr(controllers.Controller, "torques", never)
+    monkeypatch.setattr(stages, "controller_key", never)
+    again = gs.build(gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.004)))
+    assert again.build_info["key"] == "definition" and again.build_info["source"] == "cache"
+    assert again.directory == first.directory
+    np.testing.assert_array_equal(again.initial_state(), first.initial_state())
+    # another gain is another definition: it is not found, and needs the law
+    with pytest.raises(AssertionError, match="the law was run"):
+        gs.build(gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.008)))
+
+
+def test_another_gain_builds_another_model_and_an_unreadable_law_still_builds():
+    a = gs.build(gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.004)))
+    b = gs.build(gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.008)))
+    assert a.directory != b.directory
+    x = a.initial_state().copy()
+    x[3:6] = [0.1, -0.2, 0.3]  # moving: the extra damping shows
+    assert not np.allclose(a.rhs(x)[3:6], b.rhs(x)[3:6], rtol=1e-6)
+    g = _Gains()
+    g.k = 0.004
+    scene = gs.scenes.paper2d(controller=controllers.paper2d()
+                              + gs.controllers.law(lambda m: [-g.k * dq for dq in m.dq]))
+    c = gs.build(scene)
+    assert c.build_info["key"] == "expressions" and c.directory == a.directory
