@@ -6,7 +6,7 @@ contours sampled for its state names), measured in the same run.
 
     python -m benchmarks.cached_build     # writes benchmarks/results/cached_build.md and .json
 
-Each row: a fresh interpreter with the package and the scene's modules imported (the import
+Each row: a fresh interpreter with the package and its build pipeline imported (the import
 is reported apart), the scene constructed, then ``gs.build(scene)`` timed, with the cache the
 first build of the row filled. Medians of ``RUNS`` processes.
 """
@@ -87,8 +87,8 @@ def main() -> None:
         f"Medians of {RUNS} fresh processes, in ms. *by expressions*: the law run and its "
         "expressions hashed to find the model (every cached build before the definition key); "
         "*by definition*: the scene's keys and the law's definition read without running it, "
-        "in the same run. *import*: `import grasping_sym` and the pipeline; *scene*: "
-        "constructing the scene object (SymPy's import included: 0.25-0.3 s of it).",
+        "in the same run. *import*: `import grasping_sym` and the pipeline (SymPy and CasADi "
+        "with it); *scene*: constructing the scene object.",
         "",
         "| scene | import ms | scene ms | `gs.build` by expressions ms | `gs.build` by definition ms "
         "| ratio |",

@@ -172,10 +172,13 @@ def pivot3d(**overrides) -> "GraspScene3D":
 
 
 def _axis_angle(axis, angle: float) -> tuple:
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415 - lazy: SciPy (0.15 s) only for a 3D start rotation
-
+    """The rotation matrix of ``angle`` (rad) about ``axis`` (Rodrigues' formula; SciPy's
+    spatial module would cost 0.2-0.4 s to import for it)."""
     a = np.asarray(axis, float)
-    return tuple(map(tuple, Rotation.from_rotvec(angle * a / np.linalg.norm(a)).as_matrix()))
+    a = a / np.linalg.norm(a)
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    r = np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+    return tuple(map(tuple, r))
 
 
 BUILTIN.update({"paper3d": paper3d, "pivot3d": pivot3d})
