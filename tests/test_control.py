@@ -97,6 +97,28 @@ def test_a_user_law_reads_named_quantities(closed_loop):
         np.testing.assert_allclose(mine.rhs(x), closed_loop.rhs(x), rtol=1e-12, atol=1e-10)
 
 
+def test_outputs_picked_by_name_are_rows_of_the_whole_function(torque_model):
+    """casadi_function("outputs", outputs=...): the rows named, in that order, with the whole
+    function's values and derivatives; names the model lacks, or rows of another function,
+    are refused by name."""
+    names = torque_model.output_names
+    pick = ("lam", "f")
+    rows = [names.index(k) for k in pick]
+    whole = torque_model.casadi_function("outputs")
+    part = torque_model.casadi_function("outputs", outputs=pick)
+    u = np.array([2e-3, -1e-3])
+    for x in _states_on_the_motion(torque_model, n=2):
+        np.testing.assert_array_equal(np.ravel(part(x, u, [])), np.ravel(whole(x, u, []))[rows])
+        # the two Jacobians are two expressions (evaluated in another order): rounding apart
+        np.testing.assert_allclose(np.array(part.jacobian()(x, u, [], 0)[0]),
+                                   np.array(whole.jacobian()(x, u, [], 0)[0])[rows], rtol=1e-11,
+                                   atol=1e-12)
+    with pytest.raises(ValueError, match=r"outputs = \['nope'\]: give one or more"):
+        torque_model.casadi_function("outputs", outputs=["nope"])
+    with pytest.raises(ValueError, match="picks rows of the 'outputs' function"):
+        torque_model.casadi_function("ode", outputs=["f"])
+
+
 def test_casadi_function_matches_the_compiled_model_and_finite_differences(torque_model):
     f = torque_model.casadi_function()
     assert (f.name_in(), f.name_out()) == (["x", "u", "p"], ["xdot"])

@@ -144,7 +144,7 @@ def test_a_damaged_compiled_functions_library_is_rebuilt_not_loaded():
 
     model = gs.build(_example("ocp_paper2d").scene())
     model.casadi_function("constraints", compiled=True)  # compiled (or found) here
-    lib = next((model.directory / "casadi_api").glob("api-*.so"))
+    lib = next((model.directory / "casadi_api").glob("api-constraints-*.so"))
     record = lib.with_suffix(".json")
     good = stored.read_json(record)["sha256"]
     data = bytearray(lib.read_bytes())

@@ -131,6 +131,22 @@ def test_bounces_lose_energy_at_every_impact_and_come_to_rest(flat):
     assert res.modes[-1] == "rolling" and abs(res.x[-1, 9]) < 1e-9
 
 
+def test_a_run_that_ends_at_or_just_after_an_impact_ends_there(flat):
+    """A run whose last output time is the located impact's, or within its location tolerance
+    after it (no method can step that short), ends with the state after the impact; one that
+    ends later steps on. (A run ending 1e-16 s after the impact stopped with 'step size fell
+    below the minimum'.)"""
+    x0 = flat.initial_state()
+    x0[2] = R + 0.1
+    law = gs.contact.coulomb(0.5, e=0.5)
+    t1 = flat.simulate(0.2, x0=x0, mu=law, **TIGHT).events[0]["t"]
+    for dt in (0.0, 1e-16, 2e-14, 1e-9):
+        r = flat.simulate(t1 + dt, x0=x0, mu=law, t_eval=[0.0, t1 + dt], **TIGHT)
+        assert r.t[-1] == t1 + dt and len(r.events) == 1, dt
+        assert abs(r.events[0]["t"] - t1) < 1e-13
+        assert r.x[-1, 9] > 0.5 * math.sqrt(2 * G * 0.1) * 0.99  # rebounding: after the impact
+
+
 def test_events_are_located_in_c_as_in_python(flat, monkeypatch):
     """The dropped sphere's impacts located by ``gs_watch_refine`` (the secant steps in C) and
     by ``runtime.events.refine`` (the same in Python, when C gives none) agree to 1e-13 s."""

@@ -32,7 +32,17 @@ from grasping_sym.store import safety
 from grasping_sym.store.platform import library_tag
 from grasping_sym.toolchain.compiler import compile_shared
 
-__all__ = ["public_functions"]
+__all__ = ["DERIVATIVE_OPTIONS", "output_rows", "public_functions"]
+
+#: How CasADi differentiates the public functions inside a problem (measured on paper3d's
+#: optimal control, docs/guide.md): many forward directions at once (an NLP's constraint
+#: Jacobian) through the function's symbolic Jacobian (``jac_penalty`` 0.5: for more than about
+#: half as many directions as inputs), one reverse direction (a gradient) by reverse mode, and
+#: the reverse function's directions (the Hessian of the Lagrangian) through its own symbolic
+#: Jacobian. CasADi's defaults (``jac_penalty`` 2: forward directions one by one) cost paper3d's
+#: problem 4 times as much. (Common subexpression elimination on the derivatives,
+#: ``cse``, costs its set-up 12 s and its solve nothing measurable.)
+DERIVATIVE_OPTIONS = {"jac_penalty": 0.5, "reverse_options": {"jac_penalty": 0}}
 
 
 def force_names(scene) -> tuple[str, ...]:
@@ -69,16 +79,26 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
     head = [t] if time else []
     hnames = ["t"] if time else []
     out = {"ode": ca.Function(f"{scene.name}_ode", [*head, x, u, p], [xdot],
-                              [*hnames, "x", "u", "p"], ["xdot"])}
+                              [*hnames, "x", "u", "p"], ["xdot"], DERIVATIVE_OPTIONS)}
     C = cm.constraints(x, full)[0]
     out["constraints"] = ca.Function(f"{scene.name}_contact_constraints", [x, p], [C],
-                                     ["x", "p"], ["C"])
+                                     ["x", "p"], ["C"], DERIVATIVE_OPTIONS)
     y = cm.outputs(x, ca.vertcat(full, tt) if reads_time else full)
     if own:
         out["outputs"] = ca.Function(f"{scene.name}_outputs_of", [*head, x, u, p], [y[:len(own)]],
-                                     [*hnames, "x", "u", "p"], ["y"])
+                                     [*hnames, "x", "u", "p"], ["y"], DERIVATIVE_OPTIONS)
     out["cone"] = _cone(scene, y, [*head, x, u, p], [*hnames, "x", "u", "p"])
     return out
+
+
+def output_rows(fn: ca.Function, names: list[str], rows: list[int]) -> ca.Function:
+    """``fn`` (an ``outputs`` function, SX) with only the outputs ``rows`` (named ``names``):
+    the others, and their derivatives, are never evaluated."""
+    args = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    y = fn.call(args)[0][rows]
+    tag = hashlib.sha256(",".join(names).encode()).hexdigest()[:8]
+    return ca.Function(f"{fn.name()}_{tag}", args, [y], fn.name_in(), fn.name_out(),
+                       DERIVATIVE_OPTIONS)
 
 
 def _cone(scene, y: ca.SX, args: list, names: list) -> ca.Function:
@@ -98,7 +118,7 @@ def _cone(scene, y: ca.SX, args: list, names: list) -> ca.Function:
         f.append(at[k])
         margin.append(mu[i] ** 2 * at[k] ** 2 - sum(t ** 2 for t in tang))
     return ca.Function(f"{scene.name}_cone", [*args, mu], [ca.vertcat(*f), ca.vertcat(*margin)],
-                       [*names, "mu"], ["f", "margin"])
+                       [*names, "mu"], ["f", "margin"], DERIVATIVE_OPTIONS)
 
 
 def derivative_functions(g: ca.Function) -> list[ca.Function]:
@@ -112,26 +132,35 @@ def derivative_functions(g: ca.Function) -> list[ca.Function]:
 
 def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: None) -> dict:
     """``fns`` evaluated by compiled C: their C and their derivatives'
-    (:func:`derivative_functions`) written, compiled once into ``directory`` (a file named by
-    the hash of the C, the compiler and the instruction set; its SHA-256 recorded beside it
-    and checked before every load) and loaded through ``casadi.external``."""
-
-
-    cg = ca.CodeGenerator("gs_casadi_api.c", {"with_header": False, "casadi_int": "long long int"})
+    (:func:`derivative_functions`) written, one file each (compiled side by side), into one
+    library in ``directory`` (named by the functions and the hash of the C, the compiler and
+    the instruction set;
+    its SHA-256 recorded beside it and checked before every load), loaded through
+    ``casadi.external``."""
+    texts = []
     for g in fns.values():
         for d in derivative_functions(g):
+            cg = ca.CodeGenerator(f"{d.name()}.c", {"with_header": False,
+                                                     "casadi_int": "long long int"})
             cg.add(d)
-    text = cg.dump()
-    digest = hashlib.sha256(f"{text}|{library_tag()}".encode()).hexdigest()[:20]
+            texts.append((d.name(), cg.dump()))
+    whole = "\n".join(f"{name}\n{text}" for name, text in texts)
+    digest = hashlib.sha256(f"{whole}|{library_tag()}".encode()).hexdigest()[:20]
     directory = Path(directory)
-    lib = directory / f"api-{digest}.so"
-    record = directory / f"api-{digest}.json"
+    stem = f"api-{'-'.join(fns)}-{digest}"
+    lib = directory / f"{stem}.so"
+    record = directory / f"{stem}.json"
     safety.check_tree(directory, (lib.name, record.name))
     want = (stored.read_json(record) or {}).get("sha256")  # None: absent or unreadable
     if want is None or not lib.exists() or safety.sha256_file(lib) != want:
-        say(f"compiling {len(fns)} CasADi functions and their derivatives ({len(text) // 1000} kB of C)")
-        src = safety.write_text(directory / f"api-{digest}.c", text)
-        compile_shared([src], lib, extra_flags=("-O1",))
+        say(f"compiling {len(fns)} CasADi functions and their derivatives "
+            f"({len(whole) // 1000} kB of C in {len(texts)} files)")
+        sources = [safety.write_text(directory / f"{stem}-{i}.c", text)
+                   for i, (_, text) in enumerate(texts)]
+        try:
+            compile_shared(sources, lib, extra_flags=("-O1",))
+        finally:
+            for src in sources:
+                src.unlink(missing_ok=True)
         stored.write_json(record, {"sha256": safety.sha256_file(lib)})
-        src.unlink()
     return {k: ca.external(g.name(), str(lib)) for k, g in fns.items()}

@@ -34,7 +34,8 @@ class BuiltModel(Model):
         return restore, (portable.payload(self, structure=_structure_files(self.manifest)),
                          self.friction, self.rolling)
 
-    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
+    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False,
+                        outputs=None):
         """The closed loop as a CasADi Function with exact derivatives of any order
         (``assemble.casadi_api``): ``"ode"`` ``(x, u, p) -> xdot`` (default),
         ``"constraints"`` ``(x, p) -> C``, ``"outputs"`` ``(x, u, p) -> y`` or ``"cone"``
@@ -43,6 +44,14 @@ class BuiltModel(Model):
         from slipping, ``mu`` one per contact); ``u`` the inputs
         (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
         start's values the model's. With ``time`` the ode and outputs take the time first.
+        ``outputs`` (with ``"outputs"``): the names of the outputs to give, in that order (the
+        others, and their derivatives, are never evaluated: what a problem that constrains a
+        few of them needs).
+
+        The functions tell CasADi how to differentiate them inside a problem
+        (``casadi_api.DERIVATIVE_OPTIONS``): called once per collocation point, not through
+        ``Function.map``, they take the constraint Jacobian and the Hessian of the Lagrangian
+        through symbolic Jacobians (``examples/ocp_paper3d.py``).
 
         ``compiled=True``: the same functions evaluated by C compiled from them, with their
         Jacobian, forward, reverse and forward-over-reverse derivatives
@@ -52,20 +61,42 @@ class BuiltModel(Model):
         Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
         scene = self.scene
         if scene is None:  # restored in another process: no scene was sent
-            return super().casadi_function(which, time=time, compiled=compiled)
-        key = (which, time, bool(compiled))
-        if key not in self._public:
-            fns = casadi_api.public_functions(scene, self.start_params, time=time)
-            if compiled:
-                where = safety.ensure_dir(self.directory / "casadi_api", root=self.directory)
-                fns = casadi_api.compiled_functions(fns, where)
-            for k, f in fns.items():
-                self._public[(k, time, bool(compiled))] = f
-        if key not in self._public:
+            return super().casadi_function(which, time=time, compiled=compiled, outputs=outputs)
+        picked = _picked_outputs(self, which, outputs)
+        key = (which, time, bool(compiled), picked)
+        if key in self._public:
+            return self._public[key]
+        whole = (which, time, False, None)
+        if whole not in self._public:
+            for k, f in casadi_api.public_functions(scene, self.start_params, time=time).items():
+                self._public[(k, time, False, None)] = f
+        if whole not in self._public:
             raise ValueError(f"which = {which!r}: choose 'ode', 'constraints', 'cone' or 'outputs' "
                              "(the latter only for a model with outputs)")
-        return self._public[key]
+        fn = self._public[whole]
+        if picked is not None:
+            fn = casadi_api.output_rows(fn, list(picked),
+                                        [self.output_names.index(k) for k in picked])
+        if compiled:
+            where = safety.ensure_dir(self.directory / "casadi_api", root=self.directory)
+            fn = casadi_api.compiled_functions({which: fn}, where)[which]
+        self._public[key] = fn
+        return fn
 
+
+def _picked_outputs(model, which: str, outputs) -> tuple[str, ...] | None:
+    """``outputs`` checked: None, or a tuple of the model's output names (with ``"outputs"``)."""
+    if outputs is None:
+        return None
+    if which != "outputs":
+        raise ValueError(f"outputs= picks rows of the 'outputs' function, not of {which!r}: "
+                         "ask casadi_function('outputs', outputs=[...])")
+    names = (outputs,) if isinstance(outputs, str) else tuple(outputs)
+    unknown = [k for k in names if k not in model.output_names]
+    if unknown or not names:
+        raise ValueError(f"outputs = {list(names)!r}: give one or more of the model's outputs "
+                         f"{list(model.output_names)}")
+    return names
 
 
 def restore(data: dict, friction=None, rolling=None) -> BuiltModel:

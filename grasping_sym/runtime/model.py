@@ -237,7 +237,8 @@ class Model:
         Y = outputs_.at_rows(self, X, p)
         return {k: Y[k] for k in self.output_names}
 
-    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False):
+    def casadi_function(self, which: str = "ode", *, time: bool = False, compiled: bool = False,
+                        outputs=None):
         """The closed loop as a CasADi Function: it needs the scene, so it is a method of a
         model made by ``gs.build`` (``pipeline.built.BuiltModel.casadi_function``); a model
         from ``gs.load`` (or one sent to another process) names that."""

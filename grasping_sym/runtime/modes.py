@@ -852,11 +852,14 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
                 _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
         grid = np.concatenate([[t_now], t_eval[int(np.searchsorted(t_eval, t_now, side="right")):]])
-        if len(grid) < 2:  # the run ends at a switch: its last output time, after the switch
-            if t_now in t_eval and t_now > last_t:
-                rows_t.append(np.array([t_now]))
-                rows_x.append(np.asarray(x_now, dtype=float)[None, :])
-                rows_mode.append(np.array([modes]))
+        if grid[-1] - t_now <= _END_AT_SWITCH * max(1.0, abs(t_now)):
+            # the run ends at a switch, or within the event's location tolerance after it (no
+            # step can be that short): its last output times, the state after the switch
+            ends = [tm for tm in grid if tm > last_t and (tm > t_now or tm in t_eval)]
+            if ends:
+                rows_t.append(np.array(ends, dtype=float))
+                rows_x.append(np.tile(np.asarray(x_now, dtype=float), (len(ends), 1)))
+                rows_mode.append(np.tile(modes, (len(ends), 1)))
                 rows_p.append(p)
             break
         at_start = _at_start(r, modes, slips, y_now)
@@ -940,6 +943,11 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
+
+
+#: A run whose last output time is within this (relative to the time, at least 1 s) after a
+#: switch ends at the switch: 4 times the events' location tolerance (``events.TIME_TOL``).
+_END_AT_SWITCH = 4 * events.TIME_TOL
 
 
 def _chatter(model, recent: list[float], t_ev: float, x_ev: np.ndarray) -> list[float]:
