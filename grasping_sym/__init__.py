@@ -28,10 +28,11 @@ _LAZY = {
     "sweep": ("grasping_sym.sweeps", "sweep"),
     "viz": ("grasping_sym.viz", None),
     "contact": ("grasping_sym.contact", None),
+    "quality": ("grasping_sym.quality", None),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "controllers", "inputs", "sweep", "viz", "contact", "__version__"]
+           "controllers", "inputs", "sweep", "viz", "contact", "quality", "__version__"]
 
 
 def __getattr__(name: str):

@@ -9,6 +9,7 @@ import copy
 from pathlib import Path
 
 from grasping_sym.assemble import casadi_api, structure_cache
+from grasping_sym.pipeline import quality_along
 from grasping_sym.runtime import portable
 from grasping_sym.runtime.model import Model
 from grasping_sym.store import safety
@@ -82,6 +83,15 @@ class BuiltModel(Model):
             fn = casadi_api.compiled_functions({which: fn}, where)[which]
         self._public[key] = fn
         return fn
+
+    def grasp_quality(self, result, mu=None, *, length: float | None = None, edges: int | None = None):
+        """Grasp quality at every output time of ``result``, a run of this 3D grasp
+        (``pipeline.quality_along``): Ferrari and Canny's epsilon of the exact contact points
+        and normals (``gs.quality``: ``epsilon_lower``, ``epsilon_upper``), ``force_closure``
+        and, from the run's outputs, the smallest cone margin ``mu f - |F_t|``
+        (``cone_margin_min``, N)."""
+        kw = {} if edges is None else {"edges": edges}
+        return quality_along.grasp_quality(self, result, mu, length=length, **kw)
 
 
 def _picked_outputs(model, which: str, outputs) -> tuple[str, ...] | None:

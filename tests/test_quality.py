@@ -1,0 +1,141 @@
+"""Grasp quality (``gs.quality``) against cases worked by hand: Ferrari and Canny's epsilon of
+contacts on a disk and on a sphere, with the torque measured per radius (``length = R``)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from grasping_sym import quality
+
+R = 0.03
+
+
+def _ring(n: int, dim: int) -> np.ndarray:
+    th = 2 * np.pi * np.arange(n) / n
+    e = np.column_stack([np.cos(th), np.sin(th)])
+    return e if dim == 2 else np.column_stack([e, np.zeros(n)])
+
+
+@pytest.mark.parametrize("mu", [0.1, 0.2, 0.5])
+def test_three_contacts_at_120_degrees_on_a_disk(mu):
+    """2D, inward normals ``-e_i``: a unit normal force with tangential part ``s t_i`` makes
+    the torque ``R s`` about the centre, so the edges' wrenches are ``(-e_i +- mu t_i, +-mu)``:
+    the two triangles at torque ``+-mu`` are facets of their hull, both at distance ``mu`` from
+    the origin, and the side facets lie farther for these ``mu``: epsilon = mu."""
+    e = _ring(3, 2)
+    q = quality.epsilon(R * e, -e, mu, length=R)
+    assert q.lower == q.upper and abs(q.lower - mu) < 1e-12
+    assert q.force_closure is True
+
+
+def test_frictionless_contacts_cannot_resist_a_torque():
+    e = _ring(3, 2)
+    assert quality.epsilon(R * e, -e, 0.0, length=R).upper == 0.0
+    assert quality.epsilon(R * e, -e, 0.0, length=R).force_closure is False
+    e3 = _ring(3, 3)
+    assert quality.epsilon(R * e3, -e3, 0.0, length=R).force_closure is False
+
+
+@pytest.mark.parametrize("mu", [0.3, 1.0])
+def test_two_antipodal_contacts_on_a_disk(mu):
+    """2D: the four edge wrenches ``(-1, mu, mu)``, ``(-1, -mu, -mu)``, ``(1, -mu, mu)``,
+    ``(1, mu, -mu)`` sum to 0; each face of their tetrahedron lies on a plane like
+    ``mu x + y + z = mu``: epsilon = mu / sqrt(2 + mu^2) (Nguyen: two antipodal contacts with
+    friction close a planar grasp)."""
+    e = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    q = quality.epsilon(R * e, -e, mu, length=R)
+    assert abs(q.lower - mu / math.sqrt(2 + mu * mu)) < 1e-12 and q.force_closure
+
+
+@pytest.mark.parametrize("mu", [0.3, 1.0])
+def test_two_antipodal_point_contacts_on_a_sphere_leave_the_spin_free(mu):
+    """3D: no contact force has a moment about the line through two antipodal points, so the
+    spin about it is resisted by nothing whatever the friction: epsilon = 0."""
+    e = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    q = quality.epsilon(R * e, -e, mu, length=R)
+    assert q.lower == 0.0 and abs(q.upper) < 1e-12 and q.force_closure is False
+    # the support function is 0 both ways along that spin
+    spin = np.array([[0, 0, 0, 1.0, 0, 0], [0, 0, 0, -1.0, 0, 0]])
+    np.testing.assert_allclose(quality.support(R * e, -e, mu, spin, length=R), 0.0, atol=1e-15)
+
+
+def test_three_contacts_on_a_sphere_are_bounded_and_the_bounds_close_in():
+    """3D, three contacts at 120 degrees on the equator: a pure torque about the x axis pairs
+    with the contacts' forces ``x x e_i``, along z, tangential: ``h = mu sqrt(3) / 2``
+    exactly, so epsilon is at most that; the inscribed and circumscribed cones bound it, more
+    tightly with more edges; and no direction's exact support value is below the lower bound."""
+    mu = 0.5
+    e = _ring(3, 3)
+    torque_x = np.array([[0, 0, 0, 1.0, 0, 0]])
+    assert abs(quality.support(R * e, -e, mu, torque_x, length=R)[0] - mu * math.sqrt(3) / 2) < 1e-15
+    q8 = quality.epsilon(R * e, -e, mu, length=R, edges=8)
+    q16 = quality.epsilon(R * e, -e, mu, length=R, edges=16)
+    assert 0 < q8.lower <= q16.lower <= q16.upper <= q8.upper <= mu * math.sqrt(3) / 2
+    assert q16.upper - q16.lower <= mu * (1 / math.cos(math.pi / 16) - 1) * 2
+    u = np.random.default_rng(3).normal(size=(20000, 6))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    assert quality.support(R * e, -e, mu, u, length=R).min() >= q16.lower
+
+
+def test_the_grasp_matrix_maps_contact_forces_to_the_wrench():
+    """Its columns are the wrenches of the frame's unit forces: ``G f`` is the sum of the
+    contacts' forces and of their moments (over ``length``) about the centre."""
+    rng = np.random.default_rng(1)
+    e = _ring(3, 3)
+    c = np.array([0.01, -0.02, 0.005])
+    G = quality.grasp_matrix(R * e + c, -e, centre=c, length=0.05)
+    assert G.shape == (6, 9)
+    f_local = rng.normal(size=9)
+    n = -e
+    forces = []
+    for i in range(3):  # rebuild the world forces from the frame G uses: its columns
+        frame = G[:3, 3 * i:3 * i + 3]
+        assert np.allclose(frame.T @ frame, np.eye(3)) and np.allclose(frame[:, 0], n[i])
+        forces.append(frame @ f_local[3 * i:3 * i + 3])
+    force = sum(forces)
+    moment = sum(np.cross(R * e[i], forces[i]) for i in range(3)) / 0.05
+    np.testing.assert_allclose(G @ f_local, np.concatenate([force, moment]), atol=1e-14)
+
+
+def test_bad_contacts_are_refused_by_name():
+    e = _ring(3, 3)
+    with pytest.raises(ValueError, match="unit vectors"):
+        quality.epsilon(R * e, -2 * e, 0.5)
+    with pytest.raises(ValueError, match=r"give k contacts"):
+        quality.epsilon(R * e, -e[:, :2], 0.5)
+    with pytest.raises(ValueError, match="mu = -0.1"):
+        quality.epsilon(R * e, -e, -0.1)
+    with pytest.raises(ValueError, match="edges = 2"):
+        quality.epsilon(R * e, -e, 0.5, edges=2)
+
+
+def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_model):
+    """``BuiltModel.grasp_quality``: the contact points, carried to the object's frame, satisfy
+    the ellipsoid's equation (semi-axes 20, 25, 30 mm) and the normals are its implicit
+    gradient's, turned inward; two point contacts leave the spin about the line through them
+    free: epsilon = 0 and no force closure at every output time; the smallest cone margin is
+    that of the run's own forces."""
+    from grasping_sym.pipeline.quality_along import _rotations, contacts_along
+
+    model = paper3d_model
+    res = model.simulate(0.5, t_eval=np.linspace(0.0, 0.5, 6))
+    c, p, n = contacts_along(model, res)
+    names = list(model.state_names)
+    rot = _rotations(res.x[:, [names.index(k) for k in ("qw", "qx", "qy", "qz")]])
+    axes = np.array([0.020, 0.025, 0.030])
+    for i in range(2):
+        body = np.einsum("nji,nj->ni", rot, p[:, i] - c)  # R^T (p - c)
+        np.testing.assert_allclose(np.sum((body / axes) ** 2, axis=1), 1.0, atol=1e-12)
+        grad = np.einsum("nij,nj->ni", rot, body / axes ** 2)
+        np.testing.assert_allclose(n[:, i], -grad / np.linalg.norm(grad, axis=1, keepdims=True),
+                                   atol=1e-12)
+    q = model.grasp_quality(res, mu=0.5)
+    assert np.all(q["epsilon_lower"] == 0.0) and np.all(np.abs(q["epsilon_upper"]) < 1e-12)
+    assert np.all(q["force_closure"] == 0.0)
+    margin = np.minimum(0.5 * res["f1"] - np.hypot(res["lam1"], res["eta1"]),
+                        0.5 * res["f2"] - np.hypot(res["lam2"], res["eta2"]))
+    np.testing.assert_array_equal(q["cone_margin_min"], margin)
+    with pytest.raises(ValueError, match="give mu"):
+        model.grasp_quality(res)
