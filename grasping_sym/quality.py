@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Quality", "epsilon", "grasp_matrix", "primitive_wrenches", "support"]
+__all__ = ["Quality", "epsilon", "grasp_matrix", "internal_forces", "primitive_wrenches", "support"]
 
 #: The edges of the polyhedral cones bounding a 3D friction cone (``epsilon``): the bounds
 #: are then at most 8 % of ``mu`` apart. The hulls of 6D points grow fast: 3 contacts of 8
@@ -103,6 +103,27 @@ def grasp_matrix(points, normals, centre=None, length: float | None = None) -> n
     frames = [n, t1] if t2 is None else [n, t1, t2]
     blocks = [np.stack([_wrench(p[i], e[i], c, rho) for e in frames], axis=1) for i in range(len(p))]
     return np.concatenate(blocks, axis=1)
+
+
+def internal_forces(points, forces, centre=None) -> np.ndarray:
+    """The internal part of the contact forces ``forces`` (k, d) at ``points`` (k, d), world
+    frame: their projection on the null space of the wrench map (the forces with no net force
+    and no net moment about ``centre``: the grasp's squeeze), ``(k, d)``. For two contacts
+    it is ``+-((F1 - F2) . e) e / 2``, ``e`` the unit vector from one contact to the other."""
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    f = np.atleast_2d(np.asarray(forces, dtype=float))
+    if p.ndim != 2 or p.shape[1] not in (2, 3) or f.shape != p.shape:
+        raise ValueError(f"points {p.shape} and forces {f.shape}: give k contacts as two (k, 2) "
+                         "or (k, 3) arrays")
+    c = p.mean(axis=0) if centre is None else np.asarray(centre, dtype=float)
+    d = p.shape[1]
+    eye = np.eye(d)
+    # the wrench map on world force components (the moment unscaled: the null space is the same)
+    cols = [_wrench(np.broadcast_to(p[i], (d, d)), eye, c, 1.0).T for i in range(len(p))]
+    G = np.concatenate(cols, axis=1)
+    stacked = f.reshape(-1)
+    internal = stacked - np.linalg.pinv(G, rcond=1e-12) @ (G @ stacked)
+    return internal.reshape(p.shape)
 
 
 def _length(p: np.ndarray, c: np.ndarray, length: float | None) -> float:

@@ -136,6 +136,35 @@ def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_m
     assert np.all(q["force_closure"] == 0.0)
     margin = np.minimum(0.5 * res["f1"] - np.hypot(res["lam1"], res["eta1"]),
                         0.5 * res["f2"] - np.hypot(res["lam2"], res["eta2"]))
-    np.testing.assert_array_equal(q["cone_margin_min"], margin)
+    np.testing.assert_allclose(q["cone_margin_min"], margin, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="give mu"):
         model.grasp_quality(res)
+
+
+def test_the_contact_forces_move_the_object_as_newton_says_and_squeeze_it(paper3d_model):
+    """The world contact forces read from the run's outputs (``contact_forces``: ``f`` along
+    the normal into the object, ``(lam, eta)`` along the fingertip's tangents from the frame
+    angle ``psi``) and gravity give the object's acceleration of the compiled model:
+    ``m v' = F1 + F2 + m g``, to rounding. Their internal part is, for two contacts, the
+    squeeze along the line between them, ``+-((F1 - F2) . e) e / 2``."""
+    from grasping_sym.pipeline.quality_along import contact_forces, contacts_along
+
+    model = paper3d_model
+    res = model.simulate(0.5, t_eval=np.linspace(0.0, 0.5, 6))
+    forces = contact_forces(model, res)
+    names = list(model.state_names)
+    iv = [names.index(k) for k in ("vx", "vy", "vz")]
+    m, g = model.scene.mass, np.array(model.scene.gravity)
+    for row, x in enumerate(res.x):
+        accel = model.rhs(x)[iv]
+        np.testing.assert_allclose(m * accel, forces[row].sum(axis=0) + m * g, rtol=0, atol=1e-12)
+    _, points, _ = contacts_along(model, res)
+    q = model.grasp_quality(res, mu=0.5)
+    for row in range(len(res.t)):
+        e = points[row, 1] - points[row, 0]
+        e /= np.linalg.norm(e)
+        half = 0.5 * (forces[row, 0] - forces[row, 1]) @ e * e
+        np.testing.assert_allclose(quality.internal_forces(points[row], forces[row]),
+                                   [half, -half], rtol=0, atol=1e-12)
+        assert abs(q["internal_force"][row] - math.sqrt(2) * np.linalg.norm(half)) < 1e-12
+    assert q["internal_force"].min() > 1.0  # the grasp law squeezes: about 3 N along the line

@@ -1,8 +1,9 @@
 """Grasp quality along a run of a 3D grasp (``BuiltModel.grasp_quality``): at every output
 time, the exact contact points and normals, from the object's pose and each contact's
 surface coordinates (``u_o{i}, v_o{i}``) on the object's surface, and ``gs.quality``'s
-epsilon and force closure of them; with a friction coefficient, the smallest cone margin
-``mu f - |F_t|`` over the contacts (N). Conventions: ``docs/conventions.md``, "Grasp quality".
+epsilon and force closure of them; from the run's contact forces (its outputs), the smallest
+cone margin ``mu f - |F_t|`` over the contacts and the internal (squeezing) force, N.
+Conventions: ``docs/conventions.md``, "Grasp quality".
 """
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 
 from grasping_sym import quality
 
-__all__ = ["contacts_along", "grasp_quality"]
+__all__ = ["contact_forces", "contacts_along", "grasp_quality"]
 
 
 def _rotations(qs: np.ndarray) -> np.ndarray:
@@ -51,12 +52,14 @@ def contacts_along(model, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def grasp_quality(model, result, mu=None, *, length: float | None = None,
                   edges: int = quality.EDGES) -> dict[str, np.ndarray]:
-    """``{"t", "epsilon_lower", "epsilon_upper", "force_closure", "cone_margin_min"}`` along
-    ``result`` (module docstring): ``force_closure`` 1 (closed), 0 (not) or NaN (the bounds
-    straddle 0); ``mu``: one coefficient or one per contact (default the model's friction
-    law); ``length``: the torque scale (default the largest distance of a contact from the
-    centre at the start). ``cone_margin_min`` needs the run's outputs (``f{i}``, ``lam{i}``,
-    ``eta{i}``)."""
+    """``{"t", "epsilon_lower", "epsilon_upper", "force_closure", "cone_margin_min",
+    "internal_force"}`` along ``result`` (module docstring): ``force_closure`` 1 (closed), 0
+    (not) or NaN (the bounds straddle 0); ``mu``: one coefficient or one per contact (default
+    the model's friction law); ``length``: the torque scale (default the largest distance of a
+    contact from the centre at the start). ``cone_margin_min`` (N) and ``internal_force`` (N:
+    the norm of the contact forces' internal part, ``quality.internal_forces``; two fingers
+    squeezing with ``F`` along the line between the contacts: ``sqrt(2) F``) need the run's
+    outputs (``f{i}``, ``lam{i}``, ``eta{i}``)."""
     if mu is None:
         law = getattr(model, "friction", None)
         if law is None:
@@ -77,9 +80,36 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
         closed.append(np.nan if fc is None else float(fc))
     out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": np.array(lower),
            "epsilon_upper": np.array(upper), "force_closure": np.array(closed)}
-    names = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
-    if all(all(n in result.outputs for n in row) for row in names):
-        margins = [mus[i] * result[f] - np.hypot(result[lam], result[eta])
-                   for i, (f, lam, eta) in enumerate(names)]
-        out["cone_margin_min"] = np.min(np.stack(margins, axis=1), axis=1)
+    forces = contact_forces(model, result)
+    if forces is not None:
+        f_n = np.einsum("nki,nki->nk", forces, normals)
+        f_t = np.linalg.norm(forces - f_n[..., None] * normals, axis=-1)
+        out["cone_margin_min"] = np.min(mus[None] * f_n - f_t, axis=1)
+        out["internal_force"] = np.array([np.linalg.norm(quality.internal_forces(p, f, c))
+                                          for c, p, f in zip(centres, points, forces)])
     return out
+
+
+def contact_forces(model, result) -> np.ndarray | None:
+    """The contact forces on the object ``(n, k, 3)``, world frame, N, from the run's outputs:
+    ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md section 6: ``n`` the fingertip's
+    outward normal, into the object; ``x_f = cos(psi) x_o - sin(psi) y_o`` and
+    ``y_f = -sin(psi) x_o - cos(psi) y_o`` the fingertip's tangents, from the object's
+    ``x_o, y_o`` and the frame angle ``psi{i}``); None when the run has no such outputs."""
+    scene = model.scene
+    k = len(scene.fingers)
+    cols = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
+    if not all(all(n in result.outputs for n in row) for row in cols):
+        return None
+    names = list(result.state_names)
+    X = np.asarray(result.x, dtype=float)
+    rot = _rotations(X[:, [names.index(q) for q in ("qw", "qx", "qy", "qz")]])
+    out = []
+    for i, (f, lam, eta) in enumerate(cols, start=1):
+        geo = scene.object_surface.evaluate(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")])
+        n_o, x_o, y_o = (np.einsum("nij,nj->ni", rot, geo[key]) for key in ("normal", "x", "y"))
+        psi = X[:, names.index(f"psi{i}")][:, None]
+        x_f = np.cos(psi) * x_o - np.sin(psi) * y_o
+        y_f = -np.sin(psi) * x_o - np.cos(psi) * y_o
+        out.append(-result[f][:, None] * n_o + result[lam][:, None] * x_f + result[eta][:, None] * y_f)
+    return np.stack(out, axis=1)
