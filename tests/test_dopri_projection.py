@@ -117,6 +117,24 @@ def test_a_default_explicit_method_that_finds_a_run_stiff_falls_back_to_radau(pa
     assert np.array_equal(batch.x_final[0], asked.x[-1])
 
 
+def test_a_batch_runs_again_with_radau_only_the_runs_found_stiff(gains_model, monkeypatch):
+    """Of two runs of paper2d with dop853 as the model's own method, the one with the CSM gains
+    is stiff for it and the one without is not: only the first runs again with radau (as the
+    same run asked of radau), the second keeps dop853's result; ``stats['radau']`` says which."""
+    model = gains_model
+    monkeypatch.setitem(model.manifest, "defaults", {"method": "dop853", "rtol": 1e-6, "atol": 1e-9})
+    gains = {k: np.array([float(model.default_params[model.param_names.index(k)]), 0.0])
+             for k in ZERO_GAINS}
+    batch = model.simulate_many(T_FINAL, params=gains)
+    assert batch.ok.all() and "1 runs stiff (of 2" in batch.fallback and batch.method == "dop853"
+    assert batch.stats["radau"].tolist() == [True, False]
+    stiff = model.simulate(T_FINAL, method="radau", rtol=1e-6, atol=1e-9,
+                           params={k: v[0] for k, v in gains.items()})
+    calm = model.simulate(T_FINAL, method="dop853", rtol=1e-6, atol=1e-9, params=ZERO_GAINS)
+    np.testing.assert_array_equal(batch.x_final[0], stiff.x[-1])
+    np.testing.assert_array_equal(batch.x_final[1], calm.x[-1])
+
+
 def test_dopri5_reports_paper2d_stiff_at_loose_tolerance(paper2d_model):
     """At rtol 1e-6 the step is stability-limited (h |lambda| ~ 3.3 at h ~ 1.1 ms): DOPRI5 says
     the system is stiff instead of integrating at the stability limit."""

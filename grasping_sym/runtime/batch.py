@@ -74,8 +74,9 @@ class BatchResult:
         A model with contact modes: each run's modes at the output times
         (``SimulationResult.modes``; None for a run that failed); else None.
     fallback
-        None, or why the batch ran again with radau (the model's own explicit method found
-        runs stiff; ``simulate_many``'s ``method`` None).
+        None, or why runs ran again with radau (the model's own explicit method found them
+        stiff; ``simulate_many``'s ``method`` None): those runs only, ``stats["radau"]``
+        marks them; ``method`` is radau when they are all.
     """
 
     x_final: np.ndarray
@@ -142,11 +143,63 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                  mu=mu, slip=slip, e=e)
     method, rtol, atol, chosen = run_defaults(model, method, rtol, atol)
     res = _simulate_many(model, t_final, method=method, **{**given, "rtol": rtol, "atol": atol})
-    if chosen and method != "radau" and np.any(res.status == _STIFF):
-        # the model's own explicit method found runs stiff: the batch again with radau
-        again = _simulate_many(model, t_final, method="radau", **{**given, "rtol": rtol, "atol": atol})
-        again.fallback = f"radau: {method} found {int(np.sum(res.status == _STIFF))} runs stiff"
-        return again
+    stiff = np.flatnonzero(res.status == _STIFF)
+    if chosen and method != "radau" and stiff.size:
+        # the model's own explicit method found runs stiff: those runs again with radau
+        start = perf_counter()
+        sub = _runs_of(given, stiff, len(res))
+        again = _simulate_many(model, t_final, method="radau", **{**sub, "rtol": rtol, "atol": atol})
+        res = _merged(res, again, stiff)
+        res.wall_time += perf_counter() - start
+        if stiff.size == len(res):
+            res.method = "radau"
+        res.fallback = (f"radau: {method} found {stiff.size} runs stiff (of {len(res)}; "
+                        "stats['radau'] marks them)")
+    return res
+
+
+def _runs_of(given: dict, idx: np.ndarray, n: int) -> dict:
+    """``simulate_many``'s arguments ``given`` for the runs ``idx`` of ``n``: the per-run
+    arrays (``x0`` (N, n_states), ``params``' and ``mu``'s (N,...), ``u`` (N, m)) cut to them,
+    the shared values as they are."""
+    def rows(v, ndim: int):
+        return np.asarray(v)[idx] if v is not None and np.ndim(v) == ndim and len(v) == n else v
+
+    out = dict(given)
+    out["x0"] = rows(given["x0"], 2)
+    params = given["params"]
+    if isinstance(params, Mapping):
+        out["params"] = {k: rows(v, 1) for k, v in params.items()}
+    u = given["u"]
+    out["u"] = u if u is None or hasattr(u, "segments") else rows(u, 2)
+    mu = given["mu"]
+    if mu is not None and not isinstance(mu, (tuple, numbers.Real)) and not hasattr(mu, "per_contact") \
+            and np.ndim(mu) >= 1:
+        out["mu"] = np.asarray(mu)[idx]
+    return out
+
+
+def _merged(res: BatchResult, again: BatchResult, idx: np.ndarray) -> BatchResult:
+    """``res`` with its runs ``idx`` replaced by ``again``'s (the same runs, in order); the
+    counters of either method kept (0 where a run's method has none), ``stats['radau']``
+    marking the runs replaced."""
+    res.x_final[idx] = again.x_final
+    res.status[idx] = again.status
+    res.errors[idx] = again.errors
+    if res.x is not None and again.x is not None:
+        res.x[idx] = again.x
+    for k, v in again.outputs.items():
+        if k in res.outputs:
+            res.outputs[k][idx] = v
+    n = len(res)
+    for k, v in again.stats.items():
+        if k not in res.stats:
+            res.stats[k] = np.zeros((n, *np.shape(v)[1:]), dtype=np.asarray(v).dtype)
+        res.stats[k][idx] = v
+    for k in res.stats:
+        if k not in again.stats:
+            res.stats[k][idx] = 0
+    res.stats["radau"] = np.isin(np.arange(n), idx)
     return res
 
 

@@ -471,9 +471,9 @@ class Model:
             ``grasping_sym.runtime.inputs`` for every run.
         method, rtol, atol, h, max_steps, project, checks, time_limit
             As for ``simulate`` (the loops in C: 'radau', 'dopri5', 'dop853', 'rk4'; None: the
-            model's own, and when it finds runs stiff the batch runs again with radau,
-            ``BatchResult.fallback``); ``time_limit`` is for the whole batch (runs not finished by
-            then get status -9).
+            model's own, and the runs it finds stiff run again with radau, the others kept,
+            ``BatchResult.fallback`` and ``stats["radau"]``); ``time_limit`` is for the whole
+            batch (runs not finished by then get status -9).
         t_eval
             Output times common to every run: ``x`` (``(N, m, n_states)``) and the outputs are
             kept there; without, only the final states are.
