@@ -9,7 +9,7 @@ import copy
 from pathlib import Path
 
 from grasping_sym.assemble import casadi_api, structure_cache
-from grasping_sym.pipeline import quality_along
+from grasping_sym.pipeline.quality_along import grasp_quality as _grasp_quality
 from grasping_sym.runtime import portable
 from grasping_sym.runtime.model import Model
 from grasping_sym.store import safety
@@ -91,7 +91,7 @@ class BuiltModel(Model):
         and, from the run's outputs, the smallest cone margin ``mu f - |F_t|``
         (``cone_margin_min``, N)."""
         kw = {} if edges is None else {"edges": edges}
-        return quality_along.grasp_quality(self, result, mu, length=length, **kw)
+        return _grasp_quality(self, result, mu, length=length, **kw)
 
 
 def _picked_outputs(model, which: str, outputs) -> tuple[str, ...] | None:
