@@ -11,7 +11,7 @@ The closed loop is called once per collocation point (not through ``Function.map
 then differentiates each call as the model's functions ask (``casadi_api.DERIVATIVE_OPTIONS``):
 the constraint Jacobian through the function's symbolic Jacobian, the Hessian of the
 Lagrangian through the symbolic Jacobian of its reverse derivative. Through a map it takes
-every direction one by one, four times the work (42 s instead of 10 s on a 2-core machine).
+every direction one by one, four times the work (42 s instead of 11 s on a 2-core machine).
 The normal forces are the outputs function cut to them (``outputs=``), so that the derivatives
 of the 13 outputs the problem does not constrain are never made.
 

@@ -5,8 +5,9 @@ quality".
 A contact at ``p`` with unit normal ``n`` (pointing into the object: the direction a finger
 pushes) and Coulomb coefficient ``mu`` transmits the forces ``f = s (n + t)``, ``s >= 0``,
 ``t`` perpendicular to ``n`` with ``|t| <= mu``. Its wrench on the object about the point
-``c`` (the object's centre) is ``(f, (p - c) x f / rho)``: the torque divided by a length
-``rho`` (default the largest ``|p - c|``), so that forces and torques are measured alike.
+``c`` (the object's centre: give it; default the contacts' mean) is ``(f, (p - c) x f /
+rho)``: the torque divided by a length ``rho`` (default the largest ``|p - c|``), so that
+forces and torques are measured alike.
 
 - ``W``: the convex hull of every contact's wrenches of unit normal force (``s = 1``), the
   wrenches the grasp exerts when the normal forces sum to at most 1 (Ferrari and Canny's
@@ -14,8 +15,8 @@ pushes) and Coulomb coefficient ``mu`` transmits the forces ``f = s (n + t)``, `
 - ``epsilon``: the signed radius of the largest ball about the origin inside ``W``,
   ``min over unit directions u of h_W(u)``, ``h_W`` the support function; positive: the
   grasp resists every wrench (force closure), and a wrench of size ``epsilon`` in the worst
-  direction needs normal forces summing to 1; zero or negative: some wrench it cannot resist
-  (negative: the origin lies that far outside ``W``, as a lower bound of the distance).
+  direction needs normal forces summing to 1; zero: some wrench is resisted by nothing;
+  negative: the origin lies that far outside ``W`` (every contact pushing one way).
 
 In 2D a friction cone has two edges: ``W`` is a polygon's hull and ``epsilon`` exact. In 3D
 the circular cone is bounded by the polyhedral cones of ``edges`` edges inscribed in it and
@@ -68,7 +69,7 @@ def _checked(points, normals, mu, centre):
     m = np.broadcast_to(np.asarray(mu, dtype=float), (len(p),)).copy()
     if np.any(~np.isfinite(m)) or np.any(m < 0):
         raise ValueError(f"mu = {mu!r}: give finite coefficients >= 0, one or one per contact")
-    c = np.zeros(p.shape[1]) if centre is None else np.asarray(centre, dtype=float)
+    c = p.mean(axis=0) if centre is None else np.asarray(centre, dtype=float)
     if c.shape != (p.shape[1],) or not np.all(np.isfinite(c)):
         raise ValueError(f"centre = {centre!r}: give a finite point of the contacts' dimension")
     return p, n, m, c
@@ -154,27 +155,39 @@ def primitive_wrenches(points, normals, mu, centre=None, length: float | None = 
     return np.concatenate(rows, axis=0)
 
 
+def _distance(w: np.ndarray) -> float:
+    """The distance from the origin to the hull of the rows of ``w``: the least ``|w^T l|``
+    over weights ``l >= 0`` summing to 1 (non-negative least squares with the sum as one more,
+    heavily weighted row; the weights then scaled to sum to 1 exactly)."""
+    from scipy.optimize import nnls  # noqa: PLC0415 - only for an origin outside the hull
+
+    scale = float(np.max(np.abs(w))) or 1.0
+    heavy = 1e4 * scale
+    a = np.vstack([w.T, np.full((1, len(w)), heavy)])
+    b = np.concatenate([np.zeros(w.shape[1]), [heavy]])
+    lam, _ = nnls(a, b, maxiter=50 * len(w))
+    lam = lam / lam.sum()
+    return float(np.linalg.norm(w.T @ lam))
+
+
 def _inradius(w: np.ndarray) -> float:
-    """``min over unit u of h(u)`` for the hull of the rows of ``w`` when the origin is inside
-    (the nearest facet's distance), else the nearest facet plane's signed distance (<= 0; its
-    magnitude at most the origin's distance from the hull). A hull of lower dimension than
-    the space has a direction with ``h(u) = h(-u) = 0``: its value is ``min(0, that in its
-    span)``."""
+    """``min over unit u of h(u)`` for the hull of the rows of ``w``: with the origin inside,
+    the nearest facet's distance; outside, minus the origin's distance from the hull (to
+    1e-8 of the wrenches' size); a hull of lower dimension than the space (some ``u`` has
+    ``h(u) = h(-u) = 0``) holding the origin: 0."""
     from scipy.spatial import ConvexHull, QhullError  # noqa: PLC0415 - 0.2 s, only here
 
-    _, sv, vt = np.linalg.svd(w, full_matrices=False)
-    rank = int(np.sum(sv > 1e-12 * max(sv[0], 1e-300)))
-    flat = rank < w.shape[1]
-    if flat:
-        if rank <= 1:
-            return 0.0 if rank == 0 else min(0.0, float(min(np.max(w @ vt[0]), np.max(-(w @ vt[0])))))
-        w = w @ vt[:rank].T
+    outside = _distance(w)
+    if outside > 1e-9 * (float(np.max(np.abs(w))) or 1.0):
+        return -outside
+    _, sv, _ = np.linalg.svd(w, full_matrices=False)
+    if int(np.sum(sv > 1e-12 * max(sv[0], 1e-300))) < w.shape[1]:
+        return 0.0
     try:
         hull = ConvexHull(w)
-    except QhullError:  # degenerate within qhull's precision: flat
+    except QhullError:  # flat within qhull's precision
         return 0.0
-    value = float(np.min(-hull.equations[:, -1]))  # unit normals: the planes' distances
-    return min(0.0, value) if flat else value
+    return max(0.0, float(np.min(-hull.equations[:, -1])))  # unit normals: planes' distances
 
 
 def support(points, normals, mu, directions, centre=None, length: float | None = None) -> np.ndarray:
@@ -201,9 +214,7 @@ def epsilon(points, normals, mu, centre=None, length: float | None = None,
     """Ferrari and Canny's epsilon of the contacts (module docstring), as ``Quality(lower,
     upper)``: exact in 2D; in 3D the values of the polyhedral cones of ``edges`` edges
     inscribed in the friction cones (``lower``: their hull lies inside ``W``) and circumscribed
-    about them (``upper``: their hull holds ``W``). Where the origin lies outside a hull, its
-    value is the nearest facet plane's signed distance (negative; its magnitude at most the
-    origin's distance from that hull)."""
+    about them (``upper``: their hull holds ``W``)."""
     if not (isinstance(edges, int) and edges >= 3):
         raise ValueError(f"edges = {edges!r}: give an integer >= 3")
     p, n, m, c = _checked(points, normals, mu, centre)

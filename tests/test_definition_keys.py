@@ -67,12 +67,55 @@ def test_a_laws_definition_changes_with_everything_it_reads(monkeypatch):
     assert controllers.turn3d(0.3, 1e-2).definition != controllers.turn3d(0.3, 1e-2, axis=(0, 1, 0)).definition
 
 
+class _Law:
+    def __init__(self, k):
+        self.k = k
+
+    def torques(self, m):
+        return [-self.k * dq for dq in m.dq]
+
+
+def _imports(m):
+    from json import loads  # a module the user may edit: not read
+    return [loads("0.1") * dq for dq in m.dq]
+
+
+def _reads_globals(m):
+    return [globals()["GAIN"] * dq for dq in m.dq]
+
+
+def _reads_a_missing_name(m):
+    return [MISSING * dq for dq in m.dq]  # noqa: F821 - the point: a name read at run time
+
+
 def test_what_cannot_be_read_whole_gives_no_definition():
     g = _Gains()
     assert gs.controllers.law(lambda m: [-g.k * dq for dq in m.dq]).definition is None
     assert value_definition(pytest) is None  # a module that is not a fixed library's
     assert value_definition({"k": g}) is None
     assert (controllers.paper2d() + gs.controllers.law(lambda m: [g.k * m.dq[0]])).definition is None
+    # a bound method: its instance is not read (two gains, one text, were they read as code)
+    assert gs.controllers.law(_Law(1.0).torques).definition is None
+    for fn in (_imports, _reads_globals, _reads_a_missing_name):
+        assert gs.controllers.law(fn).definition is None, fn.__name__
+
+
+def test_a_law_that_names_itself_is_read_once_and_the_text_is_the_same_in_every_process():
+    """A law whose function reads the law itself (through a global) has a definition; a set
+    among its constants is written sorted, so the text does not change with the string hash's
+    seed from one process to the next."""
+    import subprocess
+    import sys
+
+    script = ("import hashlib, grasping_sym as gs\n"
+              "def f(m):\n"
+              "    return [m.dq[0] if 'a' in {'a', 'b', 'c', 'd'} else 0 * LAW.name]\n"
+              "LAW = gs.controllers.law(f)\n"
+              "print(hashlib.sha256(LAW.definition.encode()).hexdigest())\n")
+    seen = {subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
+                           env={**__import__("os").environ, "PYTHONHASHSEED": str(seed)}).stdout
+            for seed in (1, 2, 3)}
+    assert len(seen) == 1 and len(next(iter(seen)).strip()) == 64
 
 
 def test_a_cached_scene_is_found_without_running_its_law(monkeypatch):

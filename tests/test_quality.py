@@ -38,6 +38,18 @@ def test_frictionless_contacts_cannot_resist_a_torque():
     assert quality.epsilon(R * e3, -e3, 0.0, length=R).force_closure is False
 
 
+def test_contacts_that_all_push_one_way_hold_nothing_by_the_origins_distance():
+    """2D, three contacts on a line all pushing +y (mu 0.2) about the middle one: every edge
+    wrench has unit y force, so ``W`` lies in the plane ``f_y = 1`` and holds ``(0, 1, 0)``
+    (the middle contact's normal force): the origin is at distance 1 outside, epsilon = -1.
+    The same contacts moved by 3 m, the centre with them, give the same."""
+    points = np.array([[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]])
+    normals = np.tile([0.0, 1.0], (3, 1))
+    for shift in (0.0, 3.0):
+        q = quality.epsilon(points + shift, normals, 0.2, centre=[shift, shift])
+        assert abs(q.lower + 1.0) < 1e-9 and q.force_closure is False
+
+
 @pytest.mark.parametrize("mu", [0.3, 1.0])
 def test_two_antipodal_contacts_on_a_disk(mu):
     """2D: the four edge wrenches ``(-1, mu, mu)``, ``(-1, -mu, -mu)``, ``(1, -mu, mu)``,

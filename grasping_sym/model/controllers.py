@@ -58,12 +58,20 @@ class Controller:
         preset's name and parameters, else its function's code and the values it reads;
         None where that cannot be read whole (``gs.build`` then keys the law by its
         expressions)."""
+        return self.definition_in(frozenset())
+
+    def definition_in(self, seen: frozenset) -> str | None:
+        """:attr:`definition`, within the reading of the laws and functions ``seen`` (ids):
+        a law that names itself is read once."""
+        if id(self) in seen:
+            return f"<recursion {self.name}>"
+        seen = seen | {id(self)}
         if len(self.terms) > 1:
-            parts = [t.definition for t in self.terms]
+            parts = [t.definition_in(seen) for t in self.terms]
             return None if None in parts else "sum(" + ", ".join(parts) + ")"
         if self._preset is not None:
             return f"preset {self._preset}"
-        text = function_definition(self._fn)
+        text = function_definition(self._fn, seen)
         return None if text is None else f"law dimension={self.dimension}\n{text}"
 
     def torques(self, m) -> list:

@@ -6,16 +6,20 @@ A preset (``model.controllers``) is its name and parameters (its code is the pac
 which the cache key covers). A law of the user's own (``gs.controllers.law(fn)``) is its
 function's code, read from the code object: its bytecode, constants and names, its defaults,
 the values its closure holds and the values of the globals it names, followed into the
-functions and laws it calls. Only values whose text fixes them are read: numbers, strings,
+functions and laws it calls (plain functions only: a bound method's instance or a partial's
+arguments are not read). Only values whose text fixes them are read: numbers, strings,
 ``None``, tuples, lists and dicts of them, NumPy arrays, SymPy expressions, functions (their own
 definitions), laws, and the modules of libraries whose contents the user does not edit
 (``FIXED_MODULES``: by name and version). Anything else (an object of the user's, a module of
-the user's, a value that cannot be read) gives no definition (``None``): the build then keys
-the law by its expressions, as it always may.
+the user's, a value that cannot be read, an import of a module not among those, a name found
+neither in the function's globals nor among the builtins, a call that reaches names at run
+time: ``UNREADABLE``) gives no definition (``None``): the build then keys the law by its
+expressions, as it always may.
 """
 from __future__ import annotations
 
 import builtins
+import dis
 import hashlib
 import sys
 import types
@@ -33,13 +37,19 @@ _PLAIN = (type(None), bool, int, float, complex, str, bytes)
 
 def function_definition(fn: Callable, _seen: frozenset = frozenset()) -> str | None:
     """The text of ``fn``'s definition (the module's docstring), or None where it cannot be
-    read whole."""
-    code = getattr(fn, "__code__", None)
-    if not isinstance(code, types.CodeType):
+    read whole: anything but a plain function (a bound method's instance, a partial's
+    arguments are not read), a global name found neither in its globals nor among the
+    builtins, an import of a module not in ``FIXED_MODULES``, a call that reaches names
+    at run time (``UNREADABLE``)."""
+    if not isinstance(fn, types.FunctionType):
         return None
+    code = fn.__code__
     if id(fn) in _seen:  # a function that calls itself: its text is already being read
         return f"<recursion {code.co_qualname}>"
     seen = _seen | {id(fn)}
+    globals_read = _globals_read(code)
+    if globals_read is None:
+        return None
     parts = [_code_text(code)]
     for name, cell in zip(code.co_freevars, fn.__closure__ or ()):
         try:
@@ -56,8 +66,8 @@ def function_definition(fn: Callable, _seen: frozenset = frozenset()) -> str | N
         if text is None:
             return None
         parts.append(f"{label}={text}")
-    namespace = getattr(fn, "__globals__", {})
-    for name in sorted(_names(code)):
+    namespace = fn.__globals__
+    for name in sorted(globals_read):
         if name in namespace:
             text = value_definition(namespace[name], seen)
             if text is None:
@@ -65,8 +75,34 @@ def function_definition(fn: Callable, _seen: frozenset = frozenset()) -> str | N
             parts.append(f"global {name}={text}")
         elif hasattr(builtins, name):
             parts.append(f"builtin {name}")
-        # else: an attribute's name (``ca.tanh``): fixed by the value it is read from
+        else:  # a name the law would fail on, or find only at run time
+            return None
     return "\n".join(parts)
+
+
+#: Builtins that reach values by a name given at run time: a law calling one is not read.
+UNREADABLE = frozenset({"globals", "vars", "locals", "eval", "exec", "compile", "__import__",
+                        "getattr", "setattr", "delattr", "open", "input"})
+
+
+def _globals_read(code: types.CodeType) -> set[str] | None:
+    """The global names ``code`` (and the code nested in it) reads, or None when it imports a
+    module not in ``FIXED_MODULES`` or reads a name of ``UNREADABLE``."""
+    names: set[str] = set()
+    for ins in dis.get_instructions(code):
+        if ins.opname in ("LOAD_GLOBAL", "LOAD_NAME"):
+            names.add(ins.argval)
+        elif ins.opname == "IMPORT_NAME" and str(ins.argval).partition(".")[0] not in FIXED_MODULES:
+            return None
+    if names & UNREADABLE:
+        return None
+    for c in code.co_consts:
+        if isinstance(c, types.CodeType):
+            inner = _globals_read(c)
+            if inner is None:
+                return None
+            names |= inner
+    return names
 
 
 def value_definition(value, _seen: frozenset = frozenset()) -> str | None:
@@ -104,9 +140,9 @@ def value_definition(value, _seen: frozenset = frozenset()) -> str | None:
         if module.partition(".")[0] not in FIXED_MODULES | {"builtins", "_operator", "operator"}:
             return None
         return f"builtin {module}.{value.__qualname__}"
-    definition = getattr(value, "definition", None)
-    if definition is not None and type(value).__module__ == "grasping_sym.model.controllers":
-        return f"law {definition}"  # a Controller: its own definition
+    if type(value).__module__ == "grasping_sym.model.controllers" and hasattr(value, "definition_in"):
+        text = value.definition_in(_seen)  # a Controller: its own definition
+        return None if text is None else f"law {text}"
     sympy = sys.modules.get("sympy")
     if sympy is not None and isinstance(value, sympy.Basic):
         return f"sympy {sympy.srepr(value)}"
@@ -114,22 +150,19 @@ def value_definition(value, _seen: frozenset = frozenset()) -> str | None:
 
 
 def _code_text(code: types.CodeType) -> str:
-    """A code object's bytecode, constants (nested code objects read the same way) and names."""
-    consts = []
-    for c in code.co_consts:
-        if isinstance(c, types.CodeType):
-            consts.append(f"<code {_code_text(c)}>")
-        else:
-            consts.append(repr(c))
-    return (f"code {code.co_qualname} {code.co_code.hex()} consts=({', '.join(consts)}) "
+    """A code object's bytecode, constants (nested code objects read the same way, sets
+    sorted: their order changes with the string hash's seed) and names."""
+    return (f"code {code.co_qualname} {code.co_code.hex()} "
+            f"consts=({', '.join(_const_text(c) for c in code.co_consts)}) "
             f"names={code.co_names} vars={code.co_varnames} free={code.co_freevars} "
             f"cell={code.co_cellvars}")
 
 
-def _names(code: types.CodeType) -> set[str]:
-    """The names ``code`` and the code nested in it look up: globals, and attributes."""
-    names = set(code.co_names)
-    for c in code.co_consts:
-        if isinstance(c, types.CodeType):
-            names |= _names(c)
-    return names
+def _const_text(c) -> str:
+    if isinstance(c, types.CodeType):
+        return f"<code {_code_text(c)}>"
+    if isinstance(c, (frozenset, set)):
+        return f"{type(c).__name__}({{{', '.join(sorted(_const_text(v) for v in c))}}})"
+    if isinstance(c, tuple):
+        return f"({', '.join(_const_text(v) for v in c)},)"
+    return repr(c)

@@ -92,7 +92,7 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
 
 def contact_forces(model, result) -> np.ndarray | None:
     """The contact forces on the object ``(n, k, 3)``, world frame, N, from the run's outputs:
-    ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md section 6: ``n`` the fingertip's
+    ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md sections 6 and 10: ``n`` the fingertip's
     outward normal, into the object; ``x_f = cos(psi) x_o - sin(psi) y_o`` and
     ``y_f = -sin(psi) x_o - cos(psi) y_o`` the fingertip's tangents, from the object's
     ``x_o, y_o`` and the frame angle ``psi{i}``); None when the run has no such outputs."""

@@ -148,6 +148,8 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
         # the model's own explicit method found runs stiff: those runs again with radau
         start = perf_counter()
         sub = _runs_of(given, stiff, len(res))
+        if time_limit is not None:  # the limit is the whole call's: what is left of it
+            sub["time_limit"] = max(float(time_limit) - res.wall_time, 1e-9)
         again = _simulate_many(model, t_final, method="radau", **{**sub, "rtol": rtol, "atol": atol})
         res = _merged(res, again, stiff)
         res.wall_time += perf_counter() - start
