@@ -25,10 +25,10 @@ def _rotations(qs: np.ndarray) -> np.ndarray:
     ], axis=1)
 
 
-def contacts_along(model, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(centres, points, normals)`` at every row of ``result``: the object's centre
-    ``(n, 3)``, the contacts' points ``(n, k, 3)`` and their unit normals into the object
-    ``(n, k, 3)`` (the surface's outward normal, turned around), world frame, m."""
+def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
+    """``(centres, frames)``: the object's centre ``(n, 3)`` at every row of ``result`` and,
+    per contact, its surface point and its frame ``normal`` (outward), ``x``, ``y`` carried to
+    the world (``(n, 3)`` each), the surface evaluated once for every use."""
     scene = model.scene
     names = list(result.state_names)
     pose = ("x", "y", "z", "qw", "qx", "qy", "qz")
@@ -39,15 +39,23 @@ def contacts_along(model, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     X = np.asarray(result.x, dtype=float)
     c = X[:, [names.index(k) for k in pose[:3]]]
     rot = _rotations(X[:, [names.index(k) for k in pose[3:]]])
-    k = len(scene.fingers)
-    points, normals = [], []
-    for i in range(1, k + 1):
-        u, v = X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")]
-        geo = scene.object_surface.evaluate(u, v)
-        points.append(c + np.einsum("nij,nj->ni", rot, geo["point"]))
-        out = np.einsum("nij,nj->ni", rot, geo["normal"])
-        normals.append(-out / np.linalg.norm(out, axis=1, keepdims=True))
-    return c, np.stack(points, axis=1), np.stack(normals, axis=1)
+    frames = []
+    for i in range(1, len(scene.fingers) + 1):
+        geo = scene.object_surface.evaluate(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")])
+        world = {key: np.einsum("nij,nj->ni", rot, geo[key]) for key in ("point", "normal", "x", "y")}
+        world["point"] = c + world["point"]
+        frames.append(world)
+    return c, frames
+
+
+def contacts_along(model, result, frames=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(centres, points, normals)`` at every row of ``result``: the object's centre
+    ``(n, 3)``, the contacts' points ``(n, k, 3)`` and their unit normals into the object
+    ``(n, k, 3)`` (the surface's outward normal, turned around), world frame, m. ``frames``:
+    ``_frames``' (made here when not given)."""
+    c, frames = _frames(model, result) if frames is None else frames
+    normals = [-f["normal"] / np.linalg.norm(f["normal"], axis=1, keepdims=True) for f in frames]
+    return c, np.stack([f["point"] for f in frames], axis=1), np.stack(normals, axis=1)
 
 
 def grasp_quality(model, result, mu=None, *, length: float | None = None,
@@ -66,7 +74,8 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
             raise ValueError("grasp_quality needs a friction coefficient: give mu (one, or one "
                              "per contact), or build the scene with friction=gs.contact.coulomb(mu)")
         mu = law.mu
-    centres, points, normals = contacts_along(model, result)
+    frames = _frames(model, result)
+    centres, points, normals = contacts_along(model, result, frames)
     k = points.shape[1]
     mus = np.broadcast_to(np.asarray(mu, dtype=float), (k,))
     if length is None:
@@ -80,7 +89,7 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
         closed.append(np.nan if fc is None else float(fc))
     out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": np.array(lower),
            "epsilon_upper": np.array(upper), "force_closure": np.array(closed)}
-    forces = contact_forces(model, result)
+    forces = contact_forces(model, result, frames)
     if forces is not None:
         f_n = np.einsum("nki,nki->nk", forces, normals)
         f_t = np.linalg.norm(forces - f_n[..., None] * normals, axis=-1)
@@ -90,26 +99,24 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
     return out
 
 
-def contact_forces(model, result) -> np.ndarray | None:
+def contact_forces(model, result, frames=None) -> np.ndarray | None:
     """The contact forces on the object ``(n, k, 3)``, world frame, N, from the run's outputs:
-    ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md sections 6 and 10: ``n`` the fingertip's
-    outward normal, into the object; ``x_f = cos(psi) x_o - sin(psi) y_o`` and
+    ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md sections 6 and 10: ``n`` the
+    fingertip's outward normal, into the object; ``x_f = cos(psi) x_o - sin(psi) y_o`` and
     ``y_f = -sin(psi) x_o - cos(psi) y_o`` the fingertip's tangents, from the object's
-    ``x_o, y_o`` and the frame angle ``psi{i}``); None when the run has no such outputs."""
-    scene = model.scene
-    k = len(scene.fingers)
+    ``x_o, y_o`` and the frame angle ``psi{i}``); None when the run has no such outputs.
+    ``frames``: ``_frames``' (made here when not given)."""
+    k = len(model.scene.fingers) if model.scene is not None else 0
     cols = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
     if not all(all(n in result.outputs for n in row) for row in cols):
         return None
+    _, frames = _frames(model, result) if frames is None else frames
     names = list(result.state_names)
     X = np.asarray(result.x, dtype=float)
-    rot = _rotations(X[:, [names.index(q) for q in ("qw", "qx", "qy", "qz")]])
     out = []
-    for i, (f, lam, eta) in enumerate(cols, start=1):
-        geo = scene.object_surface.evaluate(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")])
-        n_o, x_o, y_o = (np.einsum("nij,nj->ni", rot, geo[key]) for key in ("normal", "x", "y"))
+    for i, ((f, lam, eta), fr) in enumerate(zip(cols, frames), start=1):
         psi = X[:, names.index(f"psi{i}")][:, None]
-        x_f = np.cos(psi) * x_o - np.sin(psi) * y_o
-        y_f = -np.sin(psi) * x_o - np.cos(psi) * y_o
-        out.append(-result[f][:, None] * n_o + result[lam][:, None] * x_f + result[eta][:, None] * y_f)
+        x_f = np.cos(psi) * fr["x"] - np.sin(psi) * fr["y"]
+        y_f = -np.sin(psi) * fr["x"] - np.cos(psi) * fr["y"]
+        out.append(-result[f][:, None] * fr["normal"] + result[lam][:, None] * x_f + result[eta][:, None] * y_f)
     return np.stack(out, axis=1)
