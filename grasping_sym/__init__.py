@@ -29,10 +29,11 @@ _LAZY = {
     "viz": ("grasping_sym.viz", None),
     "contact": ("grasping_sym.contact", None),
     "quality": ("grasping_sym.quality", None),
+    "hands": ("grasping_sym.model.hands", None),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "controllers", "inputs", "sweep", "viz", "contact", "quality", "__version__"]
+           "controllers", "inputs", "sweep", "viz", "contact", "quality", "hands", "__version__"]
 
 
 def __getattr__(name: str):

@@ -55,8 +55,18 @@ class IntegratorError(GraspingSymError, RuntimeError):
         super().__init__(f"integration failed at t = {self.t:.6g} s: {reason}; state: {state}")
 
 
-class ContactLeftContourError(IntegratorError):
+class StateLeftDomainError(IntegratorError):
+    """A state component left its declared bounds, at the step where it happened: a contact
+    its contour's domain (``ContactLeftContourError``) or a joint its limits
+    (``JointLimitError``)."""
+
+
+class ContactLeftContourError(StateLeftDomainError):
     """The contact point reached the end of a contour's declared domain."""
+
+
+class JointLimitError(StateLeftDomainError):
+    """A joint reached one end of its ``limits`` (``model.chains.RevoluteJoint``)."""
 
 
 class InvalidSurfaceError(ProblemsError):

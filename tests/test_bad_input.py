@@ -289,6 +289,5 @@ def test_tolerances_that_accept_any_step_and_empty_batches_are_refused(paper2d_m
 def test_a_domain_exit_names_the_state(short_model):
     """The C loops name the state that left its contour's domain, not only its index."""
     for method in ("radau", "rk4"):
-        with pytest.raises(ContactLeftContourError, match=r"state component 6 left \[-0.006, 0.006\] "
-                                                          r"\(s = -0\.006"):
+        with pytest.raises(ContactLeftContourError, match=r"s = -0\.006\d* left \[-0.006, 0.006\]"):
             short_model.simulate(1.0, method=method)

@@ -101,14 +101,14 @@ def test_bad_arguments(paper2d_model):
 @pytest.mark.parametrize("name", ["radau5", "dopri5"])
 def test_initial_state_refused_in_c(paper2d_model, name):
     """The C integrators check x0 themselves (finite, inside the bounds) before any step
-    or output row; the wrapper names the state component."""
+    or output row; the wrapper names the state."""
     lib = paper2d_model.library
     lo, hi = paper2d_model.lower, paper2d_model.upper
     i = int(np.flatnonzero(np.isfinite(hi))[0])
     x0 = paper2d_model.initial_state()
     outside = x0.copy()
     outside[i] = hi[i] + 1e-3
-    with pytest.raises(IntegratorError, match=rf"initial state: state component {i} left"):
+    with pytest.raises(IntegratorError, match=rf"initial state: {paper2d_model.state_names[i]} = \S+ left"):
         getattr(lib, name)(outside, [0.0, 0.5], lo=lo, hi=hi)
     nan = x0.copy()
     nan[1] = np.nan

@@ -3,11 +3,12 @@
 Conventions (Arimoto & Yoshida 2011, section 2; docs/conventions.md section 2; ``model.chains``):
 
 Fingers. ``Rot(a, q) = I + sin q [a]x + (1 - cos q) [a]x^2`` (Rodrigues, exact); link frames
-``R_k = R_(k-1) Rot(a_k, q_k)`` map link-k coordinates to the inertial frame O-xyz. The fingertip
-frame is ``Pi_i = R_n tip_rotation`` and its centre ``r_i(q)`` (the paper's ``O_i``). Velocities:
+``R_k = R_(k-1) F_k Rot(a_k, q_k)`` (``F_k`` the joint's fixed frame, identity unless given) map
+link-k coordinates to the inertial frame O-xyz. The fingertip frame is ``Pi_i = R_n tip_rotation``
+and its centre ``r_i(q)`` (the paper's ``O_i``). Velocities:
 
     r_i' = J_i(q) q',        J_i = dr_i/dq^T                       (paper eq 38)
-    omega_i = W_i(q) q',     W_i = [R_0 a_1, R_1 a_2, ..., R_(n-1) a_n]   (world frame)
+    omega_i = W_i(q) q',     W_i = [R_0 F_1 a_1, ..., R_(n-1) F_n a_n]   (world frame)
 
 ``W_i`` is the angular-velocity Jacobian of the fingertip in the inertial frame: the paper's
 ``W1``, ``W2`` of eq (39), which are ``-W_i`` for the presets (the paper's finger angular
@@ -47,6 +48,7 @@ runs of seconds, so no drift accumulates. The orthonormality error of ``R(quat)`
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -148,6 +150,11 @@ class FingerKinematics:
     J: sp.Matrix
     W: sp.Matrix
     params: dict[sp.Symbol, float] = field(default_factory=dict)
+    #: the same chain with its first joint's fixed frame ``B`` taken as the identity and its
+    #: base at the origin, when ``B`` is given: the world quantities above are ``B`` times
+    #: (plus ``base``) these, and the kinetic energy is these' (a rotation of the whole finger
+    #: changes no speed), so its simplification never meets ``B``'s irrational entries
+    local: FingerKinematics | None = None
 
     def point_jacobian(self, p_tip: sp.Matrix) -> sp.Matrix:
         """Jacobian (3 x n, m/rad) of the material point at ``p_tip`` (fingertip frame, m).
@@ -180,6 +187,8 @@ def finger_kinematics(chain: FingerChain, symbolic: bool = False) -> FingerKinem
     -------
     FingerKinematics
     """
+    if chain.joints[0].frame is not None:
+        return _in_base_frame(chain, symbolic)
     name = chain.name
     n = chain.n
     q = sp.Matrix(sp.symbols(" ".join(f"q{name}{k}" for k in range(1, n + 1)), real=True,
@@ -193,6 +202,8 @@ def finger_kinematics(chain: FingerChain, symbolic: bool = False) -> FingerKinem
     rotations, positions, axes, coms, com_jacs, link_ws, masses, inertias = ([] for _ in range(8))
     W = sp.zeros(3, n)
     for k, joint in enumerate(chain.joints, start=1):
+        if joint.frame is not None:  # the joint's fixed frame F_k (model.chains)
+            R = R * sp.Matrix(3, 3, [exact(x) for row in joint.frame for x in row])
         axis_world = R * unit_axis(joint.axis)
         W = W.copy()
         W[:, k - 1] = axis_world
@@ -233,6 +244,27 @@ def finger_kinematics(chain: FingerChain, symbolic: bool = False) -> FingerKinem
         link_W=tuple(link_ws), masses=tuple(masses), inertias=tuple(inertias), Pi=Pi, r=r,
         J=r.jacobian(q), W=W, params=params,
     )
+
+
+def _in_base_frame(chain: FingerChain, symbolic: bool) -> FingerKinematics:
+    """``finger_kinematics`` of a chain whose first joint has a fixed frame ``B``: the chain
+    derived in that frame (``FingerKinematics.local``), then turned by ``B`` and moved to
+    ``base``."""
+    first = chain.joints[0]
+    local = finger_kinematics(dataclasses.replace(
+        chain, base=(0.0, 0.0, 0.0), joints=(dataclasses.replace(first, frame=None), *chain.joints[1:])),
+        symbolic)
+    B = sp.Matrix(3, 3, [exact(x) for row in first.frame for x in row])
+    base = exact_vector(chain.base)
+    return FingerKinematics(
+        chain=chain, q=local.q, dq=local.dq, link_rotations=tuple(B * R for R in local.link_rotations),
+        joint_positions=tuple(base + B * p for p in local.joint_positions),
+        joint_axes=tuple(B * a for a in local.joint_axes),
+        com_positions=tuple(base + B * c for c in local.com_positions),
+        com_jacobians=tuple(B * Jc for Jc in local.com_jacobians),
+        link_W=tuple(B * W for W in local.link_W), masses=local.masses, inertias=local.inertias,
+        Pi=B * local.Pi, r=base + B * local.r, J=B * local.J, W=B * local.W, params=local.params,
+        local=local)
 
 
 @dataclass(frozen=True, eq=False)
@@ -285,8 +317,9 @@ def finger_dynamics(kin: FingerKinematics, gravity: Sequence[Scalar] | None = No
     """
     q, dq = kin.q, kin.dq
     kinetic = sp.Integer(0)
-    for m, Jc, Wk, R, I_k in zip(kin.masses, kin.com_jacobians, kin.link_W,
-                                 kin.link_rotations, kin.inertias):
+    moving = kin.local or kin  # the speeds in the finger's own base frame (FingerKinematics.local)
+    for m, Jc, Wk, R, I_k in zip(moving.masses, moving.com_jacobians, moving.link_W,
+                                 moving.link_rotations, moving.inertias):
         vc = Jc * dq
         wk = R.T * (Wk * dq)  # body-frame angular velocity of link k
         kinetic += m * vc.dot(vc) / 2 + (wk.T * I_k * wk)[0, 0] / 2

@@ -3,11 +3,12 @@
 Frames (all right-handed, SI units):
 
 - inertial frame O-xyz; gravity of the 3D scene along -y (docs/conventions.md section 2);
-- link ``k`` (k = 1..n) of a chain has the frame ``R_k = R_(k-1) Rot(a_k, q_k)`` with
-  ``R_0 = I`` (the base frame is parallel to O-xyz) and ``Rot(a, q)`` the right-handed rotation
-  by the angle ``q`` about the unit axis ``a`` (Rodrigues). The joint axis ``a_k`` is given in the
-  frame of the previous link (link ``k-1``; the base frame for the first joint), which is the
-  same as in link ``k``'s own frame since a rotation leaves its axis fixed;
+- link ``k`` (k = 1..n) of a chain has the frame ``R_k = R_(k-1) F_k Rot(a_k, q_k)`` with
+  ``R_0 = I`` (the base frame is parallel to O-xyz), ``F_k`` the joint's fixed ``frame``
+  (identity unless given: a URDF joint origin's rotation) and ``Rot(a, q)`` the right-handed
+  rotation by the angle ``q`` about the unit axis ``a`` (Rodrigues). The joint axis ``a_k`` is
+  given in the joint's frame ``R_(k-1) F_k``, which is the same as in link ``k``'s own frame
+  since a rotation leaves its axis fixed;
 - joint 1 sits at ``base``; joint ``k+1`` at ``p_(k+1) = p_k + R_k vector_k``; the fingertip
   centre is ``r = p_(n+1) + R_n tip_offset`` and the fingertip frame is
   ``Pi = R_n tip_rotation`` (the frame in which the fingertip surface is given).
@@ -101,6 +102,15 @@ class RevoluteJoint:
     inertia
         kg m^2, 3x3 inertia about the centre of mass in this link's frame; ``None`` for the
         uniform rod ``mass |vector|^2 / 12 (I - d d^T)``.
+    frame
+        The fixed rotation from the previous link's frame to the frame in which this joint
+        turns (a URDF joint origin's ``rpy``): link ``k``'s frame is
+        ``R_k = R_(k-1) frame_k Rot(a_k, q_k)``; ``axis``, ``vector``, ``com`` and ``inertia``
+        are then in link ``k``'s frame. ``None``: the identity.
+    limits
+        rad, ``(lower, upper)``: the joint's range; a run that reaches either end stops with
+        ``JointLimitError`` at the step where it happens. ``None``: no limit (a continuous
+        joint).
     """
 
     axis: Vec3
@@ -108,6 +118,8 @@ class RevoluteJoint:
     mass: float
     com: Vec3 | None = None
     inertia: Mat3 | None = None
+    limits: tuple[float, float] | None = None
+    frame: Mat3 | None = None
 
     @property
     def length(self) -> float:
@@ -262,9 +274,24 @@ def _check_joint(joint: RevoluteJoint, label: str, problems: list[str]) -> Revol
         if mass == 0 and (length > 0 or (inertia is not None and np.any(np.array(inertia) != 0))):
             problems.append(f"{label}: mass 0 kg is allowed only for a massless coincident joint "
                             f"(vector 0 and no inertia); got length {length} m; give a positive mass")
+    frame = None
+    if joint.frame is not None:
+        frame = _mat3(joint.frame)
+        arr = None if frame is None else np.array(frame)
+        if arr is None or not np.all(np.isfinite(arr)) or \
+                float(np.max(np.abs(arr.T @ arr - np.eye(3)))) > 1e-9 or np.linalg.det(arr) < 0:
+            problems.append(f"{label}: frame {joint.frame!r} must be a rotation (3x3, R^T R = I, "
+                            "det +1) or None")
+    limits = None
+    if joint.limits is not None:
+        limits = _vec(joint.limits, 2)
+        if limits is None or not limits[0] < limits[1]:
+            problems.append(f"{label}: limits {joint.limits!r} must be two finite angles (rad), "
+                            "lower < upper, or None for a joint without limits")
     if len(problems) > start:
         return None
-    return RevoluteJoint(axis=axis, vector=vector, mass=mass, com=com, inertia=inertia)
+    return RevoluteJoint(axis=axis, vector=vector, mass=mass, com=com, inertia=inertia, limits=limits,
+                         frame=frame)
 
 
 def finger1(

@@ -355,13 +355,26 @@ class GraspScene3D:
         parameter's value must meet (``Model.params`` checks it)."""
         return {"kind": "grasp3d", "formulation": self.formulation,
                 "param_rules": {k: "positive" if k in ("fd", "c") else "nonnegative"
-                                for k in self.runtime}}
+                                for k in self.runtime},
+                **({"joint_limits": list(self.joint_limits())} if self.joint_limits() else {})}
+
+    def joint_limits(self) -> dict[str, tuple[float, float]]:
+        """rad, ``{joint state name: (lower, upper)}`` of every joint that has limits."""
+        return {name: joint.limits
+                for f in self.fingers
+                for name, joint in zip(f.chain.joint_names, f.chain.joints)
+                if joint.limits is not None}
 
     def bounds(self) -> tuple[list, list]:
         """Per-state bounds (None: unbounded): the surface coordinates of each contact stay
-        inside their surfaces' domains."""
+        inside their surfaces' domains, and each joint with ``limits`` inside them (the
+        manifest's ``joint_limits`` names those joints: the run-time checks stop there with
+        ``JointLimitError``)."""
         lower: list = [None] * len(self.state_names)
         upper: list = [None] * len(self.state_names)
+        for name, (lo, hi) in self.joint_limits().items():
+            k = self.state_names.index(name)
+            lower[k], upper[k] = lo, hi
         for i, f in enumerate(self.fingers, start=1):
             for name, (lo, hi) in ((f"u_f{i}", f.tip.domain[0]), (f"v_f{i}", f.tip.domain[1]),
                                    (f"u_o{i}", self.object_surface.domain[0]),

@@ -188,7 +188,8 @@ class GraspModesScene(WithModes):
                 "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers,
                                 "driven": [self.n_fingers + m for m, w in enumerate(self.planes, start=1)
                                            if w.motion is not None or w.spin is not None]},
-                "param_rules": {f"mu{i}": "nonnegative" for i in range(1, self.n_contacts + 1)}}
+                "param_rules": {f"mu{i}": "nonnegative" for i in range(1, self.n_contacts + 1)},
+                **({"joint_limits": list(self.base.joint_limits())} if self.base.joint_limits() else {})}
 
     def bounds(self) -> tuple[list, list]:
         lower, upper = self.base.bounds()

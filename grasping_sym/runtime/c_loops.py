@@ -287,7 +287,7 @@ def _failure(lib, method: str, c_name: str, rc: int, tf: float, t_arr: np.ndarra
 def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None,
               names=None) -> str:
     """Empty string if ``x`` is finite and in bounds (``None``: unbounded), else the reason,
-    naming the state (``names``, the state names) and its index."""
+    naming the state (``names``, the state names)."""
     if (np.isfinite(x).all() and (lo is None or (x >= lo).all())
             and (hi is None or (x <= hi).all())):
         return ""
@@ -297,7 +297,7 @@ def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None,
     hi = np.full(x.shape, np.inf) if hi is None else hi
     i = int(np.flatnonzero((x < lo) | (x > hi))[0])
     name = names[i] if names is not None and i < len(names) else "value"
-    return f"state component {i} left [{lo[i]:g}, {hi[i]:g}] ({name} = {x[i]:.6g})"
+    return f"{name} = {x[i]:.6g} left [{lo[i]:g}, {hi[i]:g}]"
 
 
 def nonfinite(x: np.ndarray, names=None) -> str:

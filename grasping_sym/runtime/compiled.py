@@ -351,8 +351,8 @@ class CompiledLibrary:
         ------
         IntegratorError
             If a state becomes non-finite (reason mentions "non-finite") or a
-            component leaves its bounds (reason ``"state component <i> left
-            [lo, hi]..."``).  ``err.t`` and ``err.x`` are the last good time and
+            component leaves its bounds (reason ``"<name> = <value> left
+            [lo, hi]"``).  ``err.t`` and ``err.x`` are the last good time and
             state (the failing step starts there); ``err.t_rejected``,
             ``err.x_rejected`` hold the rejected step's end, and
             ``err.trajectory`` the stored ``(t, X)`` up to ``err.t``.

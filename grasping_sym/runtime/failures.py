@@ -1,4 +1,5 @@
-"""A failed integration named: where a contact left its contour, or that the state blew up.
+"""A failed integration named: where a contact left its contour or a joint reached its limit,
+or that the state blew up.
 
 The C loops check the contact parameters after every step; SUNDIALS, run through CasADi, is
 seen only at the output times, so an exit between two outputs is located by running the
@@ -11,7 +12,12 @@ import math
 
 import numpy as np
 
-from grasping_sym.errors import ContactLeftContourError, IntegratorError
+from grasping_sym.errors import (
+    ContactLeftContourError,
+    IntegratorError,
+    JointLimitError,
+    StateLeftDomainError,
+)
 
 #: Fraction of a contour's domain crossed in one rejected step that names a blow-up.
 BLOW_UP_JUMP = 0.25
@@ -19,26 +25,41 @@ BLOW_UP_JUMP = 0.25
 _CARRIED = ("t_rejected", "x_rejected", "trajectory", "code", "stats", "stiff")
 
 
+def left_domain(model, t: float, x, i: int, where: str) -> StateLeftDomainError:
+    """The error of state component ``i`` outside its bounds at ``t`` (``x`` the last good
+    state, ``where`` says where it was found): ``JointLimitError`` for a joint with limits
+    (the manifest's ``joint_limits``), else ``ContactLeftContourError``."""
+    name, lo, hi = model.state_names[i], model.lower[i], model.upper[i]
+    if name in model.joint_limits:
+        return JointLimitError(
+            t, x, f"joint {name} reached its limits [{lo:.6g}, {hi:.6g}] rad ({where}); "
+            "the finger cannot go on: change the motion or the law, or widen the joint's limits "
+            "(RevoluteJoint.limits; a URDF joint's <limit>)", model.state_names)
+    return ContactLeftContourError(
+        t, x, f"contact parameter {name} left the contour's domain [{lo:.6g}, {hi:.6g}] "
+        f"({where}); extend the contour's domain or shorten the simulation", model.state_names)
+
+
+def _first_out(model, x) -> int | None:
+    bad = np.flatnonzero((np.asarray(x) < model.lower) | (np.asarray(x) > model.upper))
+    return int(bad[0]) if bad.size else None
+
+
 def check_bounds(model, t: float, x: np.ndarray, previous=None) -> None:
-    """Raise ``ContactLeftContourError`` when ``x`` is outside a contour's domain (at the
-    crossing interpolated from ``previous = (t, x)``, when given)."""
-    bad = np.flatnonzero((x < model.lower) | (x > model.upper))
-    if bad.size == 0:
+    """Raise ``ContactLeftContourError`` (``JointLimitError`` for a joint) when ``x`` is
+    outside a contour's domain or a joint's limits (at the crossing interpolated from
+    ``previous = (t, x)``, when given)."""
+    i = _first_out(model, x)
+    if i is None:
         return
-    i = int(bad[0])
     t_cross, x_good = t, x
     if previous is not None:
         tp, xp = previous
         bound = model.lower[i] if x[i] < model.lower[i] else model.upper[i]
         frac = (bound - xp[i]) / (x[i] - xp[i])
         t_cross, x_good = tp + frac * (t - tp), xp
-    raise ContactLeftContourError(
-        t_cross, x_good,
-        f"contact parameter {model.state_names[i]} = {x[i]:.6g} left the contour's domain "
-        f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}] (crossing at about t = {t_cross:.6g} s); "
-        "extend the contour's domain or shorten the simulation",
-        model.state_names,
-    )
+    raise left_domain(model, t_cross, x_good, i, f"{model.state_names[i]} = {x[i]:.6g}, crossing at "
+                      f"about t = {t_cross:.6g} s")
 
 
 def exit_at_failure(model, exc: IntegratorError, t_eval: np.ndarray, p, rtol: float,
@@ -72,30 +93,30 @@ def locate_exit(model, exc: ContactLeftContourError, t0: float, x0: np.ndarray, 
                              lo=model.lower, hi=model.upper)
     except IntegratorError as inner:
         if getattr(inner, "code", None) == -2:  # GS_ERR_BOUNDS
-            bad = np.asarray(getattr(inner, "x_rejected", inner.x), dtype=float)
-            out = np.flatnonzero((bad < model.lower) | (bad > model.upper))
-            what = exc.reason.split(" (crossing at")[0]
-            if out.size:
-                i = int(out[0])
-                what = (f"contact parameter {model.state_names[i]} left the contour's domain "
-                        f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}]")
-            located = ContactLeftContourError(
-                inner.t, inner.x,
-                what + f" (in the Radau step from t = "
-                f"{inner.t:.9g} s, found between the outputs at {t0:.6g} and {t1:.6g} s); "
-                "extend the contour's domain or shorten the simulation",
-                model.state_names)
+            i = _first_out(model, getattr(inner, "x_rejected", inner.x))
+            if i is None:
+                return exc
+            located = left_domain(model, inner.t, inner.x, i,
+                                  f"in the Radau step from t = {inner.t:.9g} s, found between "
+                                  f"the outputs at {t0:.6g} and {t1:.6g} s")
             located.x_rejected = getattr(inner, "x_rejected", None)
             return located
     return exc
 
 
 def classify(model, exc: IntegratorError) -> IntegratorError:
-    """A C loop's "left [...]" failure as a ``ContactLeftContourError``; others unchanged."""
+    """A C loop's "left [...]" failure as a ``ContactLeftContourError`` (a contact reached the
+    end of a contour's domain) or a ``JointLimitError``; others unchanged."""
     if "left [" in exc.reason:
-        new = ContactLeftContourError(exc.t, exc.x, exc.reason + ": the contact point "
-                                      "reached the end of a contour's domain",
-                                      model.state_names)
+        bad = getattr(exc, "x_rejected", None)
+        bad = exc.x if bad is None else bad
+        i = _first_out(model, bad) if bad is not None else None
+        if i is not None and model.state_names[i] in model.joint_limits:
+            new = left_domain(model, exc.t, exc.x, i, exc.reason)
+        else:
+            new = ContactLeftContourError(exc.t, exc.x, exc.reason + ": the contact point "
+                                          "reached the end of a contour's domain",
+                                          model.state_names)
         _carry(exc, new)
         return new
     return exc
@@ -107,7 +128,7 @@ def blow_up(model, err: IntegratorError, method: str, h: float) -> IntegratorErr
     that one step (a contact reaching the end of its contour creeps up to it), or went
     non-finite is a numerical blow-up: name it as such (an explicit method beyond its
     stability limit, i.e. a stiff system)."""
-    if not isinstance(err, ContactLeftContourError):
+    if not isinstance(err, StateLeftDomainError):
         return err
     x_bad = getattr(err, "x_rejected", None)
     if x_bad is None:

@@ -92,6 +92,8 @@ class Model:
                                         *[0.0] * len(coefficients)], dtype=float)
         self.lower = np.array([-math.inf if v is None else v for v in manifest["lower"]])
         self.upper = np.array([math.inf if v is None else v for v in manifest["upper"]])
+        #: the joints whose bounds are their limits (a run stops there with ``JointLimitError``)
+        self.joint_limits: frozenset[str] = frozenset(manifest.get("joint_limits", ()))
         self.library_path = Path(library_path)
         self.library = CompiledLibrary(self.library_path, self.state_names,
                                        default_p=self.default_params if self.p_names else None)
@@ -390,6 +392,8 @@ class Model:
             The integrator failed (time, state and reason in the message).
         ContactLeftContourError
             The contact point reached the end of a contour's domain.
+        JointLimitError
+            A joint reached one end of its limits (``RevoluteJoint.limits``).
         ContactOpenedError
             The normal force ``f`` reached 0 (``err.t``, ``err.force``): the contact opens.
         FrictionConeError

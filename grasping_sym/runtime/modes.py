@@ -46,8 +46,10 @@ from grasping_sym.errors import (
     EventLocationError,
     GraspingSymError,
     IntegratorError,
+    JointLimitError,
     PainleveError,
     RunArgumentError,
+    StateLeftDomainError,
 )
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
@@ -1016,7 +1018,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
 def _in_own_state(r: _Run, leg: _Leg, err: IntegratorError) -> IntegratorError:
     """``err`` of a segment ``leg`` ran, in the model with modes' state and names (its state,
     its rejected state and its trajectory mapped back from the rolling model's)."""
-    if leg.back is None or type(err) not in (IntegratorError, ContactLeftContourError):
+    if leg.back is None or type(err) not in (IntegratorError, ContactLeftContourError, JointLimitError):
         return err
     new = type(err)(err.t, None if err.x is None else leg.states(err.x), err.reason, r.model.state_names)
     for key in ("code", "stats", "stiff", "t_rejected"):
@@ -1183,7 +1185,7 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
             res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i])
         except (GraspingSymError, ValueError) as exc:
             status[i] = -11 if isinstance(exc, ContactModeError) else \
-                -2 if isinstance(exc, ContactLeftContourError) else \
+                -2 if isinstance(exc, StateLeftDomainError) else \
                 -10 if isinstance(exc, ValueError) else -3
             errors[i] = f"{type(exc).__name__}: {exc}"
             continue

@@ -10,7 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from grasping_sym.errors import ContactLeftContourError, IntegratorError, RunArgumentError
+from grasping_sym.errors import (
+    ContactLeftContourError,
+    IntegratorError,
+    RunArgumentError,
+    StateLeftDomainError,
+)
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
@@ -180,7 +185,7 @@ def _sundials_exits(model, t, X, excursions, p, start, checks, rtol, atol) -> No
     for i in range(len(t)):
         try:
             failures.check_bounds(model, t[i], X[i], previous=(t[i - 1], X[i - 1]) if i else None)
-        except ContactLeftContourError as found:
+        except StateLeftDomainError as found:
             exc = failures.locate_exit(model, found, t[i - 1], X[i - 1], t[i], p, rtol, atol) \
                 if i else found
             _raise(model, exc, t[:i], X[:i], p, start, checks)

@@ -1,0 +1,198 @@
+"""Hands read from URDF (``gs.hands.from_urdf``), against models and kinematics computed
+without it: the papers' fingers written as URDF give paper3d's equations, TriFinger Pro's
+published geometry gives yourdfpy's own forward kinematics, masses and kinetic energy, and
+joint limits stop a run by name where the joint crosses them."""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+import yourdfpy
+
+import grasping_sym as gs
+from grasping_sym.derive import spatial
+from grasping_sym.errors import JointLimitError
+from grasping_sym.model import chains
+from grasping_sym.model.hands import URDFError
+
+DATA = Path(__file__).parent / "data"
+PAPER = DATA / "paper_fingers.urdf"
+TRIFINGER = DATA / "trifinger_pro.urdf"
+TRIFINGER_TIPS = {"1": "finger_tip_link_0", "2": "finger_tip_link_120", "3": "finger_tip_link_240"}
+
+
+def _paper3d_from(hand):
+    ref = gs.scenes.paper3d()
+    fingers = tuple(hand.finger(f.chain.name, f.q0, f.object_contact, f.tip_contact) for f in ref.fingers)
+    return dataclasses.replace(ref, name="paper3d_urdf", fingers=fingers)
+
+
+@pytest.fixture(scope="module")
+def paper_models():
+    hand = gs.hands.from_urdf(PAPER, tips={"1": "tip1", "2": "tip2"})
+    return hand, gs.build(gs.scenes.paper3d()), gs.build(_paper3d_from(hand))
+
+
+def test_the_papers_fingers_written_as_urdf_load_back_into_paper3ds_model(paper_models):
+    """Chains equal to the presets but for the rods' inertias written out and the joint
+    limits; the compiled right-hand side equal to paper3d's to 1e-14 relative at random
+    states around its start."""
+    hand, ref, urdf = paper_models
+    assert hand.joints == {"q11": "joint11", "q12": "joint12", "q21": "joint21", "q22": "joint22",
+                           "q23": "joint23"}
+    for chain, preset in zip(hand.chains, (chains.finger1(), chains.finger2())):
+        assert (chain.base, chain.tip_offset, chain.tip_rotation) == \
+            (preset.base, preset.tip_offset, preset.tip_rotation)
+        for joint, rod in zip(chain.joints, preset.joints):
+            assert (joint.axis, joint.vector, joint.mass) == (rod.axis, rod.vector, rod.mass)
+            if rod.mass > 0:
+                d = np.asarray(rod.vector) / rod.length
+                np.testing.assert_allclose(joint.com, rod.com_local, rtol=0, atol=1e-18)
+                np.testing.assert_allclose(joint.inertia, rod.mass * rod.length**2 / 12 * (np.eye(3) - np.outer(d, d)),
+                                           rtol=1e-15, atol=0)
+    assert hand.chains[0].joints[0].limits == (-1.0, 0.541)
+    assert hand.chains[0].joints[1].limits is None
+    assert urdf.state_names == ref.state_names
+    rng = np.random.default_rng(7)
+    x0 = ref.initial_state()
+    worst = 0.0
+    for _ in range(20):
+        x = x0 + 0.02 * rng.standard_normal(x0.size)
+        a, b = ref.rhs(x), urdf.rhs(x)
+        worst = max(worst, float(np.max(np.abs(a - b)) / np.max(np.abs(a))))
+    assert worst < 1e-14, worst
+
+
+def test_a_joint_limit_stops_the_run_by_name_where_the_joint_crosses_it(paper_models):
+    """joint11's upper limit 0.541 rad: paper3d's motion crosses it early (q11 starts at
+    0.536 and rises to 0.544 at 0.06 s); the run stops there with ``JointLimitError`` naming q11, at the step where
+    the rolling model without limits crosses 0.541."""
+    _, ref, urdf = paper_models
+    free = ref.simulate(0.2, t_eval=np.linspace(0.0, 0.2, 20001))
+    q11 = free["q11"]
+    k = int(np.argmax(q11 > 0.541))
+    assert k > 0, "the unlimited run must cross 0.541 rad for this test"
+    t_cross = free.t[k - 1] + (0.541 - q11[k - 1]) / (q11[k] - q11[k - 1]) * (free.t[k] - free.t[k - 1])
+    for method in ("radau", "dop853"):
+        with pytest.raises(JointLimitError, match=r"joint q11 reached its limits \[-1, 0\.541\]") as info:
+            urdf.simulate(0.2, method=method)
+        err = info.value
+        i = urdf.state_names.index("q11")
+        assert err.x[i] <= 0.541 and err.t <= t_cross + 1e-9
+        assert t_cross - err.t < 5e-3, (method, err.t, t_cross)
+    x = urdf.initial_state()
+    x[urdf.state_names.index("q11")] = 0.6
+    with pytest.raises(JointLimitError, match="q11"):
+        urdf.simulate(0.01, x0=x)
+
+
+def _frame(urdf_robot, link):
+    return urdf_robot.get_transform(frame_to=link, frame_from=urdf_robot.base_link)
+
+
+def test_trifinger_pro_gives_yourdfpys_kinematics_masses_and_kinetic_energy():
+    """At random joint angles inside the limits: each fingertip's centre and frame from the
+    derivation equal yourdfpy's forward kinematics (1e-13 m); each finger's mass is its
+    links' (the tip link fixed to the lower link included); the potential energy and the
+    kinetic energy equal sums over yourdfpy's link frames (velocities by central
+    differences of its forward kinematics)."""
+    hand = gs.hands.from_urdf(TRIFINGER, tips=TRIFINGER_TIPS)
+    robot = yourdfpy.URDF.load(str(TRIFINGER), load_meshes=False, build_collision_scene_graph=False)
+    assert len(hand.chains) == 3 and all(c.n == 3 for c in hand.chains)
+    for c in hand.chains:
+        assert c.total_mass == pytest.approx(0.26 + 0.25 + 0.021 + 0.031, rel=1e-15)
+        assert [j.limits for j in c.joints] == [(-0.33, 1.0), (0.0, 1.57), (-2.7, 0.0)]
+    g = (0.0, 0.0, -9.81)
+    rng = np.random.default_rng(3)
+    links = {}  # finger -> [(link, mass, com, inertia in the link frame)], from the file
+    for finger, chain in zip("123", hand.chains):
+        kin = spatial.finger_kinematics(chain)
+        dyn = spatial.finger_dynamics(kin, gravity=g, simplify=False)
+        syms = [*kin.q, *kin.dq]
+        r, Pi, K, P = (sp.lambdify(syms, sp.N(e, 20))  # exact rationals to floats
+                       for e in (kin.r, kin.Pi, dyn.kinetic_energy, dyn.potential_energy))
+        names = [hand.joints[n] for n in chain.joint_names]
+        links[finger] = [(robot.link_map[ln].name, robot.link_map[ln].inertial)
+                         for ln in (robot.joint_map[n].child for n in names)] + \
+            [(TRIFINGER_TIPS[finger], robot.link_map[TRIFINGER_TIPS[finger]].inertial)]
+        for _ in range(5):
+            q = np.array([rng.uniform(*j.limits) for j in chain.joints])
+            dq = rng.uniform(-2, 2, 3)
+            cfg = dict(zip(names, q))
+            robot.update_cfg(cfg)
+            T = _frame(robot, TRIFINGER_TIPS[finger])
+            np.testing.assert_allclose(np.ravel(r(*q, *dq)), T[:3, 3], rtol=0, atol=1e-13)
+            np.testing.assert_allclose(np.asarray(Pi(*q, *dq), float), T[:3, :3], rtol=0, atol=1e-13)
+
+            h = 1e-6
+            plus, minus, here = (_bodies(robot, names, links[finger], qq) for qq in (q + h * dq, q - h * dq, q))
+            kinetic = potential = 0.0
+            for (m, cp, Rp, _), (_, cm, Rm, _), (_, c0, R0, inertia) in zip(plus, minus, here):
+                v = (cp - cm) / (2 * h)
+                W = (Rp - Rm) / (2 * h) @ R0.T
+                w = np.array([W[2, 1], W[0, 2], W[1, 0]])
+                kinetic += 0.5 * m * v @ v + 0.5 * w @ (R0 @ inertia @ R0.T) @ w
+                potential -= m * np.dot(g, c0)
+            assert float(K(*q, *dq)) == pytest.approx(kinetic, rel=1e-8)
+            assert float(P(*q, *dq)) == pytest.approx(potential, rel=1e-12, abs=1e-15)
+
+
+def _bodies(robot, names, links, q):
+    """``(mass, centre of mass, inertial frame, inertia)`` of each link, from yourdfpy's
+    forward kinematics at the joint angles ``q``."""
+    robot.update_cfg(dict(zip(names, q)))
+    out = []
+    for link, inertial in links:
+        T = _frame(robot, link) @ inertial.origin
+        out.append((inertial.mass, T[:3, 3], T[:3, :3], inertial.inertia))
+    return out
+
+
+def _write(tmp_path, body: str, name="hand.urdf") -> Path:
+    path = tmp_path / name
+    path.write_text(f'<?xml version="1.0"?>\n<robot name="bad">\n{body}\n</robot>\n')
+    return path
+
+
+FINGER = """
+  <link name="base"/>
+  <link name="a"><inertial><mass value="0.1"/><origin xyz="0 0.05 0"/>
+    <inertia ixx="1e-5" iyy="1e-6" izz="1e-5" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="tip">{tip}</link>
+  <joint name="j1" type="{kind}"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>{limit}</joint>
+  <joint name="j2" type="fixed"><parent link="a"/><child link="tip"/><origin xyz="0 0.1 0"/></joint>
+"""
+SPHERE = '<collision><geometry><sphere radius="0.01"/></geometry></collision>'
+LIMIT = '<limit lower="-1" upper="1" effort="1" velocity="1"/>'
+
+
+def test_what_cannot_be_read_as_a_hand_is_refused_by_name(tmp_path):
+    """Each bad file or argument names the problem and its fix; nothing is guessed."""
+    ok = _write(tmp_path, FINGER.format(tip=SPHERE, kind="revolute", limit=LIMIT))
+    assert gs.hands.from_urdf(ok, tips={"1": "tip"}).chains[0].joints[0].limits == (-1.0, 1.0)
+    cases = {
+        "cannot be read as URDF": _write(tmp_path, "<link", "broken.urdf"),
+        "is prismatic": _write(tmp_path, FINGER.format(tip=SPHERE, kind="prismatic", limit=LIMIT), "p.urdf"),
+        "has no <limit lower upper>": _write(tmp_path, FINGER.format(tip=SPHERE, kind="revolute", limit=""),
+                                             "l.urdf"),
+        r"exactly one collision sphere or cylinder .*it has: box": _write(
+            tmp_path, FINGER.format(tip='<collision><geometry><box size="1 1 1"/></geometry></collision>',
+                                    kind="continuous", limit=""), "b.urdf"),
+    }
+    for message, path in cases.items():
+        with pytest.raises(URDFError, match=message):
+            gs.hands.from_urdf(path, tips={"1": "tip"})
+    with pytest.raises(URDFError, match="tip link 'nowhere' of finger '1' is not in the file"):
+        gs.hands.from_urdf(ok, tips={"1": "nowhere"})
+    with pytest.raises(URDFError, match="must be alphanumeric"):
+        gs.hands.from_urdf(ok, tips={"f-1": "tip"})
+    with pytest.raises(URDFError, match="moves both finger '1' and finger '2'"):
+        gs.hands.from_urdf(ok, tips={"1": "tip", "2": "a"})
+    # a tip without a usable collision takes the surface the user gives
+    boxed = cases[r"exactly one collision sphere or cylinder .*it has: box"]
+    hand = gs.hands.from_urdf(boxed, tips={"1": "tip"},
+                              surfaces={"1": gs.scenes.surface_library.sphere(0.02)})
+    assert hand.tips[0].name == "sphere" and hand.chains[0].joints[0].limits is None
