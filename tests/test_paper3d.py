@@ -244,21 +244,29 @@ def test_model_contains_only_what_the_scene_needs(tmp_path):
 
 def test_finger_templates_are_committed_and_equal_a_fresh_derivation():
     """3D structure templates: the built-in scenes' finger chains load from the committed
-    templates (no SymPy), and evaluate as a fresh SymPy derivation does."""
+    templates (no SymPy), each derived at the origin in its own frame (``template_of``);
+    placed at its base (``finger_sx``) it evaluates as a fresh SymPy derivation of the whole
+    chain does (1e-15 relative)."""
     import casadi as ca
 
     from grasping_sym.derive import finger_templates
-    from grasping_sym.derive.grasp3d import finger_function
+    from grasping_sym.derive.grasp3d import finger_function, finger_sx, template_of
 
     scene = gs.scenes.paper3d()
     g = tuple(scene.gravity)
     rng = np.random.default_rng(5)
     for f in scene.fingers:
-        fn, source = finger_templates.finger_template(f.chain, g, lambda: pytest.fail("derived again"))
+        n = f.chain.n
+        fn, source = finger_templates.finger_template(*template_of(f.chain, g),
+                                                      lambda: pytest.fail("derived again"))
         assert source == "committed"
-        fresh = finger_function(f.chain, g)
-        for _ in range(3):
-            q, dq = rng.uniform(-1, 1, f.chain.n), rng.uniform(-2, 2, f.chain.n)
-            for a, b in zip(fn(q, dq), fresh(q, dq)):
-                np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
         assert isinstance(fn, ca.Function) and fn.n_out() == 9
+        q_sx, dq_sx = ca.SX.sym("q", n), ca.SX.sym("dq", n)
+        placed = finger_sx(f.chain, g, q_sx, dq_sx)
+        fresh = finger_function(f.chain, g)
+        placed_fn = ca.Function("placed", [q_sx, dq_sx], [placed[k] for k in fresh.name_out()])
+        for _ in range(3):
+            q, dq = rng.uniform(-1, 1, n), rng.uniform(-2, 2, n)
+            for name, a, b in zip(fresh.name_out(), placed_fn(q, dq), fresh(q, dq)):
+                a, b = np.asarray(a), np.asarray(b)
+                np.testing.assert_allclose(a, b, rtol=0, atol=1e-15 * max(1.0, np.max(np.abs(b))), err_msg=name)

@@ -24,7 +24,7 @@ from grasping_sym.assemble import scene_functions
 from grasping_sym.assemble.functions import sympy_op_counts
 from grasping_sym.derive import body_plane, finger_templates, start3d
 from grasping_sym.derive.bodies3d import rotation_of
-from grasping_sym.derive.grasp3d import finger_function
+from grasping_sym.derive.grasp3d import finger_function, template_of
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.model import kinds
@@ -70,9 +70,9 @@ def _grasp3d_rolling_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
 
 
 def _grasp3d_templates(scene) -> list[tuple[str, str, object]]:
-    g = None if scene.gravity is None else tuple(float(v) for v in scene.gravity)
-    return [(finger_templates.finger_template_name(f.chain, g), finger_templates.finger_template_key(f.chain, g),
-             lambda chain=f.chain: finger_function(chain, g)) for f in scene.fingers]
+    used = dict.fromkeys(template_of(f.chain, scene.gravity) for f in scene.fingers)
+    return [(finger_templates.finger_template_name(chain, g), finger_templates.finger_template_key(chain, g),
+             lambda chain=chain, g=g: finger_function(chain, g)) for chain, g in used]
 
 
 def _body_functions(scene, progress=None, layers: bool = True):

@@ -8,6 +8,7 @@ state ``x`` as a :class:`Bodies` record: what every later stage of the closed lo
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -53,11 +54,56 @@ def finger_function(chain, gravity) -> ca.Function:
 def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
     """The finger's kinematics and dynamics as SX in ``q, dq``: its template (derived with
     SymPy once per chain and gravity, and stored, ``derive.finger_templates``)
-    evaluated on ``q, dq``."""
+    evaluated on ``q, dq``.
+
+    The template is the chain derived in its first joint's fixed frame ``B``
+    (``RevoluteJoint.frame``, the identity when it has none: a hand's fingers placed around a
+    palm have one), at the origin and under the gravity ``B^T g`` seen there
+    (:func:`template_of`); it is turned and moved here: positions ``base + B (.)``, frames and
+    Jacobians ``B (.)``, the inertia matrix and Coriolis terms unchanged, the potential energy
+    less ``M g . base``. Fingers equal up to their placement (a TriFinger's three) share one
+    derivation."""
     g = None if gravity is None else tuple(float(v) for v in gravity)
+    template, _ = template_of(chain, g)
+    if template != chain:
+        return _placed(chain, g, q, dq)
     fn, _ = finger_template(chain, g, lambda: finger_function(chain, g))
     outs = fn.call([q, dq])
     return {fn.name_out(i): outs[i] for i in range(fn.n_out())}
+
+
+def local_chain(chain):
+    """``chain`` in its first joint's fixed frame: that frame the identity, the base at the
+    origin, the name ``"0"`` (so that fingers equal up to their placement are one chain)."""
+    first = chain.joints[0]
+    return dataclasses.replace(chain, name="0", base=(0.0, 0.0, 0.0),
+                               joints=(dataclasses.replace(first, frame=None), *chain.joints[1:]))
+
+
+def template_of(chain, gravity) -> tuple:
+    """The chain and gravity of the finger template that ``finger_sx`` uses for ``chain``
+    under ``gravity``: the local chain (:func:`local_chain`) and the gravity ``B^T g`` seen
+    in its first joint's fixed frame ``B`` (the identity when it has none)."""
+    g = None if gravity is None else tuple(float(v) for v in gravity)
+    frame = chain.joints[0].frame
+    if frame is not None and g is not None:
+        g = tuple(float(v) + 0.0 for v in np.array(frame, dtype=float).T @ np.array(g))
+    return local_chain(chain), g
+
+
+def _placed(chain, g, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
+    """``finger_sx`` of a chain that is not its own template (``finger_sx``'s docstring)."""
+    B = np.eye(3) if chain.joints[0].frame is None else np.array(chain.joints[0].frame, dtype=float)
+    base = np.array(chain.base, dtype=float)
+    out = finger_sx(*template_of(chain, g), q, dq)
+    Bm, bm = ca.DM(B), ca.DM(base)
+    placed = {"r": bm + ca.mtimes(Bm, out["r"]), "Pi": ca.mtimes(Bm, out["Pi"]),
+              "J": ca.mtimes(Bm, out["J"]), "W": ca.mtimes(Bm, out["W"]),
+              "joints": ca.repmat(bm, 1, out["joints"].size2()) + ca.mtimes(Bm, out["joints"])}
+    if "P" in out:  # -sum m g . (base + B c) = P_local - M g . base
+        mass = sum(j.mass for j in chain.joints)
+        placed["P"] = out["P"] - mass * float(np.dot(g, base))
+    return {**out, **placed}
 
 
 def surface_sx(surface: ParametricSurface, u, v, extra: bool = False) -> dict[str, ca.SX]:

@@ -45,6 +45,7 @@ from grasping_sym.derive.bodies3d import (  # noqa: F401 - their import path for
     finger_sx,
     state_slices,
     surface_sx,
+    template_of,
 )
 from grasping_sym.derive.grasp3d_paper import FRAME_GAIN, PAPER  # noqa: F401 - FRAME_GAIN: its path
 from grasping_sym.derive.loop3d import (  # noqa: F401 - their import path for the floors above
