@@ -20,8 +20,8 @@ from grasping_sym.model.hands import URDFError
 
 DATA = Path(__file__).parent / "data"
 PAPER = DATA / "paper_fingers.urdf"
-TRIFINGER = DATA / "trifinger_pro.urdf"
-TRIFINGER_TIPS = {"1": "finger_tip_link_0", "2": "finger_tip_link_120", "3": "finger_tip_link_240"}
+TRIFINGER = gs.hands.TRIFINGER_URDF
+TRIFINGER_TIPS = gs.hands.TRIFINGER_TIPS
 
 
 def _paper3d_from(hand):
@@ -37,22 +37,15 @@ def paper_models():
 
 
 def test_the_papers_fingers_written_as_urdf_load_back_into_paper3ds_model(paper_models):
-    """Chains equal to the presets but for the rods' inertias written out and the joint
-    limits; the compiled right-hand side equal to paper3d's to 1e-14 relative at random
-    states around its start."""
+    """The chains equal the presets but for the joint limits (the rods' inertias, written
+    out in the file, read back as rods); the compiled right-hand side equals paper3d's to
+    1e-14 relative at random states around its start (the same structure is reused: limits
+    are bounds, not equations)."""
     hand, ref, urdf = paper_models
     assert hand.joints == {"q11": "joint11", "q12": "joint12", "q21": "joint21", "q22": "joint22",
                            "q23": "joint23"}
     for chain, preset in zip(hand.chains, (chains.finger1(), chains.finger2())):
-        assert (chain.base, chain.tip_offset, chain.tip_rotation) == \
-            (preset.base, preset.tip_offset, preset.tip_rotation)
-        for joint, rod in zip(chain.joints, preset.joints):
-            assert (joint.axis, joint.vector, joint.mass) == (rod.axis, rod.vector, rod.mass)
-            if rod.mass > 0:
-                d = np.asarray(rod.vector) / rod.length
-                np.testing.assert_allclose(joint.com, rod.com_local, rtol=0, atol=1e-18)
-                np.testing.assert_allclose(joint.inertia, rod.mass * rod.length**2 / 12 * (np.eye(3) - np.outer(d, d)),
-                                           rtol=1e-15, atol=0)
+        assert chains.without_limits(chain) == preset
     assert hand.chains[0].joints[0].limits == (-1.0, 0.541)
     assert hand.chains[0].joints[1].limits is None
     assert urdf.state_names == ref.state_names
@@ -138,6 +131,45 @@ def test_trifinger_pro_gives_yourdfpys_kinematics_masses_and_kinetic_energy():
                 potential -= m * np.dot(g, c0)
             assert float(K(*q, *dq)) == pytest.approx(kinetic, rel=1e-8)
             assert float(P(*q, *dq)) == pytest.approx(potential, rel=1e-12, abs=1e-15)
+
+
+def test_the_trifinger_scene_holds_its_rounded_cube_in_force_closure():
+    """``gs.scenes.trifinger()``: three fingertips on a free rounded cube under gravity. Along
+    0.3 s: every contact pushes (f > 0.5 N), no joint reaches its limits, the object's
+    momentum changes by the contact forces and its weight (m v' = F1 + F2 + F3 + m g, 1e-9 N
+    at the output times, with v' from the run's own rhs), and with mu = 0.5 the three
+    contacts are in force closure with a positive epsilon, as three inward pushes 120
+    degrees apart are."""
+    from grasping_sym.pipeline.quality_along import contact_forces
+
+    model = gs.build(gs.scenes.trifinger())
+    res = model.simulate(0.3, t_eval=np.linspace(0.0, 0.3, 7))
+    for i in (1, 2, 3):
+        assert res[f"f{i}"].min() > 0.5
+    names = model.state_names
+    for name, (lo, hi) in model.scene.joint_limits().items():
+        assert lo < res[name].min() and res[name].max() < hi, name
+    forces = contact_forces(model, res)  # (rows, contacts, 3)
+    m, g = model.scene.mass, np.array(model.scene.gravity)
+    k_v = [names.index(k) for k in ("vx", "vy", "vz")]
+    for row, x in enumerate(res.x):
+        np.testing.assert_allclose(m * model.rhs(x)[k_v], forces[row].sum(axis=0) + m * g, rtol=0, atol=1e-9)
+    quality = model.grasp_quality(res, mu=0.5)
+    assert np.all(quality["force_closure"]) and np.all(quality["epsilon_lower"] > 0)
+
+
+def test_the_solid_superquadrics_inertia_is_the_ellipsoids_at_n_2_and_a_sampled_bodys_at_n_4():
+    from grasping_sym.model.inertia import solid_ellipsoid_inertia, solid_superquadric_inertia
+
+    np.testing.assert_allclose(solid_superquadric_inertia(0.3, 0.02, 0.03, 0.04, 2),
+                               solid_ellipsoid_inertia(0.3, 0.02, 0.03, 0.04), rtol=1e-14)
+    a, b, c, n, mass = 0.02, 0.03, 0.05, 4, 0.7
+    rng = np.random.default_rng(11)
+    p = rng.uniform(-1.0, 1.0, (2_000_000, 3)) * (a, b, c)
+    p = p[np.sum((p / (a, b, c)) ** n, axis=1) <= 1.0]
+    sampled = mass * np.array([np.mean(p[:, 1] ** 2 + p[:, 2] ** 2), np.mean(p[:, 0] ** 2 + p[:, 2] ** 2),
+                               np.mean(p[:, 0] ** 2 + p[:, 1] ** 2)])
+    np.testing.assert_allclose(np.diag(solid_superquadric_inertia(mass, a, b, c, n)), sampled, rtol=2e-3)
 
 
 def _bodies(robot, names, links, q):

@@ -74,10 +74,11 @@ def finger_sx(chain, gravity, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
 
 def local_chain(chain):
     """``chain`` in its first joint's fixed frame: that frame the identity, the base at the
-    origin, the name ``"0"`` (so that fingers equal up to their placement are one chain)."""
-    first = chain.joints[0]
+    origin, the name ``"0"``, no joint limits (so that fingers equal up to their placement
+    are one chain)."""
+    joints = tuple(dataclasses.replace(j, limits=None) for j in chain.joints)
     return dataclasses.replace(chain, name="0", base=(0.0, 0.0, 0.0),
-                               joints=(dataclasses.replace(first, frame=None), *chain.joints[1:]))
+                               joints=(dataclasses.replace(joints[0], frame=None), *joints[1:]))
 
 
 def template_of(chain, gravity) -> tuple:

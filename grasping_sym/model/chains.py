@@ -33,6 +33,7 @@ is a *coincident* joint (finger 2's joints 21 and 22 share one point, as in the 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -226,6 +227,14 @@ class FingerChain:
     def total_mass(self) -> float:
         """kg, sum of the link masses."""
         return sum(j.mass for j in self.joints)
+
+
+def without_limits(chain: FingerChain) -> FingerChain:
+    """``chain`` with no joint limits: what its equations depend on (limits are bounds a run
+    checks, never terms of the equations)."""
+    if all(j.limits is None for j in chain.joints):
+        return chain
+    return dataclasses.replace(chain, joints=tuple(dataclasses.replace(j, limits=None) for j in chain.joints))
 
 
 def _check_joint(joint: RevoluteJoint, label: str, problems: list[str]) -> RevoluteJoint | None:

@@ -19,7 +19,10 @@ axes). The fingertip frame is the tip link's frame composed with the origin of i
 sphere or cylinder; the sphere is centred there, the cylinder runs along its z axis. Entries
 of a fixed rotation within 4 ulp of 0 or +-1 (``cos(pi/2)`` in an ``rpy``) are taken as exact,
 so that a frame turned by a multiple of pi/2 stays an exact permutation in the derivation; a
-fixed rotation equal to the identity is left out (``frame=None``).
+fixed rotation equal to the identity is left out (``frame=None``), and a link whose centre of
+mass and inertia are a uniform rod's along it to 4 ulp is read as the rod (``com`` and
+``inertia`` None, as ``RevoluteJoint`` writes one), so that it is the same chain as one typed
+in.
 
 Joint limits: a ``revolute`` joint's ``<limit lower upper>`` becomes ``RevoluteJoint.limits``
 (a run stops at them with ``JointLimitError``); a ``continuous`` joint has none. Prismatic,
@@ -30,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +45,12 @@ from grasping_sym.geometry.curves import PlanarCurve, T
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain, RevoluteJoint
 from grasping_sym.model.grasp3d import Finger3D
+from grasping_sym.model.hand_poses import facing, tip_pose  # noqa: F401 - gs.hands.tip_pose, .facing
 
+#: TriFinger Pro as published (``grasping_sym/data/trifinger_pro.urdf``: our URDF of the
+#: published geometry, with a 0.01 m collision sphere as its fingertip) and its tip links.
+TRIFINGER_URDF = resources.files("grasping_sym") / "data" / "trifinger_pro.urdf"
+TRIFINGER_TIPS = {"1": "finger_tip_link_0", "2": "finger_tip_link_120", "3": "finger_tip_link_240"}
 #: Joint types a finger chain can hold (``continuous``: a revolute joint without limits).
 MOVING = ("revolute", "continuous")
 #: A fixed rotation's entry this close to 0 or +-1 is taken as exact (4 ulp of 1).
@@ -280,8 +289,22 @@ def _joint(pending, vector, finger, links, children, on_path, problems) -> Revol
     axis, limits, frame, child = pending
     mass, com, inertia = _rigid_body(child, links, children, on_path, finger, problems)
     com_k, inertia_k = (_tuple(com), _tuple_rows(inertia)) if mass > 0 else (None, None)
+    if mass > 0 and _is_rod(mass, com, inertia, np.asarray(vector, dtype=float)):
+        com_k, inertia_k = None, None  # the uniform rod's, as RevoluteJoint writes it
     return RevoluteJoint(axis=axis, vector=_tuple(vector), mass=mass, com=com_k, inertia=inertia_k,
                          limits=limits, frame=frame)
+
+
+def _is_rod(mass: float, com, inertia, vector) -> bool:
+    """Whether ``com`` and ``inertia`` are the uniform rod's along ``vector`` (centre at
+    mid-length, ``mass |vector|^2 / 12 (I - d d^T)``) to within 4 ulp of their scales."""
+    length = float(np.linalg.norm(vector))
+    if length == 0.0:
+        return False
+    d = vector / length
+    rod = mass * length**2 / 12 * (np.eye(3) - np.outer(d, d))
+    return bool(np.all(np.abs(com - vector / 2) <= _SNAP * length)
+                and np.all(np.abs(inertia - rod) <= _SNAP * np.max(np.abs(rod))))
 
 
 def _rigid_body(link_name, links, children, on_path, finger, problems):

@@ -6,6 +6,8 @@ and axes are that frame's.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -26,3 +28,20 @@ def solid_ellipsoid_inertia(mass: float, a: float, b: float, c: float) -> np.nda
         ``2/5 mass r^2`` on the diagonal.
     """
     return mass / 5 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+
+
+def solid_superquadric_inertia(mass: float, a: float, b: float, c: float, n: int) -> np.ndarray:
+    """Inertia (kg m^2, 3x3) of the solid ``|x/a|^n + |y/b|^n + |z/c|^n <= 1`` of uniform
+    density about its centre, in its axes (``surface_library.superquadric``'s body).
+
+    Over the unit body ``|x|^n + |y|^n + |z|^n <= 1`` (Dirichlet's integral)
+
+        int |x|^p |y|^q |z|^r dV = 8 G((p+1)/n) G((q+1)/n) G((r+1)/n) / (n^3 G((p+q+r+3)/n + 1))
+
+    (``G`` the gamma function), so ``int x^2 dV / V = k = G(3/n) G(3/n + 1) / (G(1/n)
+    G(5/n + 1))`` (times ``a^2`` for the scaled body) and the inertia is
+    ``mass k diag(b^2 + c^2, a^2 + c^2, a^2 + b^2)``: ``k = 1/5`` for ``n = 2`` (the
+    ellipsoid), and ``k -> 1/3`` as ``n`` grows (the box of half-sides ``a, b, c``).
+    """
+    k = math.gamma(3 / n) * math.gamma(3 / n + 1) / (math.gamma(1 / n) * math.gamma(5 / n + 1))
+    return mass * k * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])

@@ -13,12 +13,12 @@ from grasping_sym.model import chains
 from grasping_sym.model.body import BodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.model.grasp3d_modes import GraspModesScene, WorldPlane
-from grasping_sym.model.inertia import solid_ellipsoid_inertia
+from grasping_sym.model.inertia import solid_ellipsoid_inertia, solid_superquadric_inertia  # noqa: F401 - gs.scenes.*
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
 from grasping_sym.model.planar_modes import PlanarModesScene
 
 __all__ = ["BUILTIN", "GraspModesScene", "PlanarModesScene", "WorldPlane", "body_on_plane", "paper2d",
-           "paper3d", "pivot3d", "planar_finger", "sphere_on_incline", "with_modes", "world_plane"]
+           "paper3d", "pivot3d", "planar_finger", "sphere_on_incline", "trifinger", "with_modes", "world_plane"]
 
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
     from grasping_sym.model.grasp3d import GraspScene3D
@@ -179,6 +179,71 @@ def _axis_angle(axis, angle: float) -> tuple:
     k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     r = np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
     return tuple(map(tuple, r))
+
+
+#: The rounded cube of ``trifinger``: a superquadric of exponent 4 and half-side 0.035 m
+#: (TriFinger's cubes are 0.065 m), 0.08 kg.
+TRIFINGER_CUBE: tuple[float, int, float] = (0.035, 4, 0.08)
+#: rad, the start guess of every TriFinger finger: TriFinger's own initial position.
+TRIFINGER_Q0: tuple[float, float, float] = (0.0, 0.9, -1.7)
+
+
+def trifinger(object_surface=None, *, mass: float | None = None, inertia=None, **overrides) -> "GraspScene3D":
+    """TriFinger Pro (the published geometry: ``gs.hands.TRIFINGER_URDF``) holding a free
+    object under gravity, its three fingertips on it.
+
+    Every value, chosen because a hand's URDF says nothing of a grasp (SI units):
+
+    - the hand: ``gs.hands.from_urdf(TRIFINGER_URDF, tips=TRIFINGER_TIPS)``, three fingers of
+      three joints 120 degrees apart about z, with their published soft joint limits (a run
+      that reaches one stops with ``JointLimitError``) and fingertip spheres of 0.010 m;
+    - the object: by default a rounded cube, ``superquadric(0.035, 0.035, 0.035, n=4)``,
+      0.08 kg, the inertia of the solid (``solid_superquadric_inertia``); another surface,
+      ``mass`` and ``inertia`` may be given (an inertia is needed with another surface);
+    - the start: every finger near ``TRIFINGER_Q0`` (TriFinger's initial position), the
+      object's centre guessed at the fingertips' mean there, each contact guessed where the
+      line between that centre and the fingertip centre meets the surfaces (``hands.facing``);
+    - gravity 9.81 m/s^2 along -z (the URDF's world: z up), compensated by the controller;
+    - controller: ``fd = 0.5 N``, ``r_ctrl = 0.035 m``, ``c = 0.02 N m s``,
+      ``k_center = 200 N/m``; torsional friction ``spin_damping = 2e-5 N m s``;
+    - stabilisation gain 100 1/s: at 300 (paper3d's) dop853's step is held by it (315 steps
+      for 1 s at rtol 1e-8, 15 ms); at 100, 89 steps and 4.6 ms, the final state 3.5e-11
+      from a reference at 1e-12 (measured; ``benchmarks/urdf_hand.py``).
+
+    Any field of ``GraspScene3D`` may be overridden by keyword.
+    """
+    from grasping_sym.model import hand_poses, hands  # noqa: PLC0415 - yourdfpy only for a hand
+
+    hand = hands.from_urdf(hands.TRIFINGER_URDF, tips=hands.TRIFINGER_TIPS)
+    if object_surface is None:
+        half, n, default_mass = TRIFINGER_CUBE
+        object_surface = surface_library.superquadric(half, half, half, n=n, name="rounded cube")
+        mass = default_mass if mass is None else mass
+        inertia = solid_superquadric_inertia(mass, half, half, half, n) if inertia is None else inertia
+    elif mass is None or inertia is None:
+        raise InvalidSceneError([f"trifinger(object_surface={getattr(object_surface, 'name', object_surface)!r}): "
+                                 "give its mass= (kg) and inertia= (kg m^2, about its centre, "
+                                 "e.g. gs.scenes.solid_ellipsoid_inertia(...))"])
+    tips = [hand_poses.tip_pose(chain, TRIFINGER_Q0) for chain in hand.chains]
+    centre = np.mean([r for r, _ in tips], axis=0)
+    fingers = tuple(
+        hand.finger(chain.name, TRIFINGER_Q0,
+                    object_contact=hand_poses.facing(r - centre),
+                    tip_contact=hand_poses.facing(Pi.T @ (centre - r)))
+        for chain, (r, Pi) in zip(hand.chains, tips))
+    kwargs = dict(
+        name="trifinger", fingers=fingers, object_surface=object_surface, mass=mass,
+        inertia=inertia, support="free", position=tuple(float(v) for v in centre),
+        gravity=(0.0, 0.0, -9.81), fd=0.5, c=0.02, r_ctrl=0.035, k_center=200.0, gain=100.0,
+        spin_damping=2e-5, outputs=TRIFINGER_OUTPUTS)
+    kwargs.update(overrides)
+    return GraspScene3D(**kwargs)
+
+
+#: Outputs of ``trifinger``.
+TRIFINGER_OUTPUTS = ("constraint_residual", "f1", "lam1", "eta1", "f2", "lam2", "eta2", "f3", "lam3",
+                     "eta3", "kinetic_energy", "potential_energy", "power", "object_speed",
+                     "object_angular_speed")
 
 
 BUILTIN.update({"paper3d": paper3d, "pivot3d": pivot3d})
