@@ -77,6 +77,15 @@ class InvalidSurfaceError(ProblemsError):
         super().__init__(f"surface '{name}'", problems)
 
 
+class URDFError(ProblemsError):
+    """A URDF file cannot be read as a hand (``gs.hands.from_urdf``); lists every problem
+    and its fix."""
+
+    def __init__(self, path, problems: list[str]):
+        self.path = str(path)
+        super().__init__(f"URDF file '{path}'", problems)
+
+
 class InvalidBodyError(ProblemsError):
     """A body (finger chain or free object) has invalid parameters; lists every problem."""
 

@@ -71,18 +71,19 @@ def contour_functions(leaves: list[list], slots: tuple[Slot, ...], reads: Reads,
     return _by_kind(x, {"L": L, "dL": dL}, reads, f"{name}_{CONTOUR_LEAVES.what}")
 
 
-def jets_functions(surfaces, slots: tuple[Slot, ...], reads: Reads, nx: int, name: str
-                   ) -> dict[str, ca.Function]:
+def jets_functions(surfaces, slots: tuple[Slot, ...], reads: Reads, nx: int, name: str,
+                   body: tuple[float, ...] = ()) -> dict[str, ca.Function]:
     """Per function kind of a 3D structure, ``<name>_jets_<kind> (x) -> J``: the entries of
     the contour slots' jets (``structure3d.jet_values``; slot ``s`` of surface ``surfaces[s]``
-    at its states ``u, v``) that the structure's function of that kind reads
+    at its states ``u, v``), then of the object's mass properties ``body``
+    (``structure3d.body_values``), that the structure's function of that kind reads
     (``reads[kind]["J"]``)."""
     x = ca.SX.sym("x", nx)
     jets = []
     for surface, slot in zip(surfaces, slots):
         u, v = (x[i] for i in slot.states)
         jets.append(jet_values(surface_sx(surface, u, v), u, v))
-    return _by_kind(x, {"J": ca.vertcat(*jets)}, reads, f"{name}_{SURFACE_JETS.what}")
+    return _by_kind(x, {"J": ca.vertcat(*jets, ca.DM(list(body)))}, reads, f"{name}_{SURFACE_JETS.what}")
 
 
 def _by_kind(x: ca.SX, values: dict, reads: Reads, prefix: str) -> dict[str, ca.Function]:

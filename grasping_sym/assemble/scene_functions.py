@@ -29,7 +29,7 @@ from grasping_sym.assemble.structure import (
     fold_pattern,
     structure_functions,
 )
-from grasping_sym.assemble.structure3d import Grasp3DStructureSpec, structure3d_functions
+from grasping_sym.assemble.structure3d import Grasp3DStructureSpec, body_values, structure3d_functions
 from grasping_sym.assemble.structure_cache import StructureRecord
 from grasping_sym.derive.body_plane import derive_body_plane
 from grasping_sym.derive.grasp3d import derive_grasp3d
@@ -165,7 +165,7 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
 
     def jets(record):
         return jets_functions(surfaces, record.slots, record.reads, len(scene.state_names),
-                              scene.name)
+                              scene.name, body=tuple(body_values(scene.mass, scene.inertia)))
 
     cm, _, record, timings = _in_layers(scene, spec, make, jets, ctrl, say,
                                         "the surfaces' jets (SymPy forms, CasADi AD)")

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import casadi as ca
+import numpy as np
 
 from grasping_sym.assemble.functions import sx_model
 from grasping_sym.assemble.structure import (
@@ -35,9 +36,10 @@ from grasping_sym.assemble.structure import (
 )
 from grasping_sym.derive.grasp3d import derive_grasp3d, surface_sx
 from grasping_sym.geometry.surface_library import sphere
+from grasping_sym.model.inertia import inertia_pattern
 
-__all__ = ["JET_FIRST", "JET_SECOND", "Grasp3DStructureSpec", "jet_size", "jet_values",
-           "structure3d_functions"]
+__all__ = ["JET_FIRST", "JET_SECOND", "Grasp3DStructureSpec", "body_values", "inertia_pattern",
+           "jet_size", "jet_values", "structure3d_functions"]
 
 #: Quantities the loop differentiates twice: second-order jets.
 JET_SECOND = ("S", "x", "y", "n")
@@ -107,12 +109,29 @@ def _taylor(jet: ca.SX, du, dv) -> dict[str, ca.SX]:
     return out
 
 
+def body_values(mass: float, inertia) -> list[float]:
+    """The object's mass properties as the structure reads them, after the slots' jets in
+    ``J``: its mass, then its inertia's diagonal, then (a full inertia) ``xy, xz, yz``."""
+    H = np.asarray(inertia, dtype=float)
+    off = [H[0, 1], H[0, 2], H[1, 2]]
+    return [float(mass), *map(float, np.diag(H)), *(map(float, off) if inertia_pattern(H) == "full" else ())]
+
+
+def _body(J: ca.SX, pattern: str) -> tuple[ca.SX, ca.SX]:
+    """``(mass, inertia)`` from the body entries of ``J`` (:func:`body_values`)."""
+    m, d = J[0], J[1:4]
+    if pattern == "diagonal":
+        return m, ca.diag(d)
+    xy, xz, yz = J[4], J[5], J[6]
+    return m, ca.vertcat(ca.horzcat(d[0], xy, xz), ca.horzcat(xy, d[1], yz), ca.horzcat(xz, yz, d[2]))
+
+
 @dataclass(frozen=True)
 class Grasp3DStructureSpec(StructureSpec):
-    """What a 3D structure's code depends on: the scene's code key without its name and its
-    surfaces (:meth:`model.grasp3d.GraspScene3D.structure_key`)."""
+    """What a 3D structure's code depends on: the scene's code key without its name, its
+    surfaces and its object's mass properties (:meth:`model.grasp3d.GraspScene3D.structure_key`)."""
 
-    TAG = "grasp3d-structure-v2"
+    TAG = "grasp3d-structure-v3"
 
     text: str
 
@@ -123,10 +142,13 @@ class Grasp3DStructureSpec(StructureSpec):
 def structure3d_functions(scene, name: str) -> StructureFunctions:
     """The structure of the 3D ``scene`` (regular formulation) as SX functions ``<name>_*``:
     the model's signatures with a last input ``J``, the entries each takes of the slots' jets
-    (slot ``2 i``: contact ``i``'s fingertip, ``2 i + 1`` the object there)."""
+    (slot ``2 i``: contact ``i``'s fingertip, ``2 i + 1`` the object there) and, after them,
+    of the object's mass properties (:func:`body_values`)."""
     n_slots = 2 * scene.n_contacts
     size = jet_size()
-    J = ca.SX.sym("J", n_slots * size)
+    pattern = inertia_pattern(scene.inertia)
+    n_body = len(body_values(scene.mass, scene.inertia))
+    J = ca.SX.sym("J", n_slots * size + n_body)
     ustar = ca.SX.sym("uv_copy", 2 * n_slots)
     coords = [None] * (2 * n_slots)
 
@@ -136,7 +158,8 @@ def structure3d_functions(scene, name: str) -> StructureFunctions:
         coords[2 * slot], coords[2 * slot + 1] = u, v
         return _taylor(J[slot * size:(slot + 1) * size], u - ustar[2 * slot], v - ustar[2 * slot + 1])
 
-    system = derive_grasp3d(scene, surface_fn=provider, torque_inputs=True)
+    system = derive_grasp3d(scene, surface_fn=provider, torque_inputs=True,
+                            mass_properties=_body(J[n_slots * size:], pattern))
     same = ca.vertcat(*coords)
 
     def exact(*exprs):
@@ -164,7 +187,7 @@ def structure3d_functions(scene, name: str) -> StructureFunctions:
                               constraints=pruned["constraints"], start=pruned.get("start"),
                               layout=SURFACE_JETS, slots=slots, reads=reads,
                               output_names=tuple(scene.outputs), constraint_info=cm.constraint_info,
-                              start_names=cm.start_names, n_leaves=n_slots * size)
+                              start_names=cm.start_names, n_leaves=n_slots * size + n_body)
 
 
 def _prune(f: ca.Function, k_in: int, n_p: int) -> tuple[ca.Function, list[int]]:

@@ -197,10 +197,15 @@ class Bodies:
     zb_dot: ca.SX
     zb_dot_lin: ca.SX
     Vs: ca.SX
+    #: kg and kg m^2 (object frame): the object's mass and inertia, numbers or, in a
+    #: structure (``assemble.structure3d``), inputs
+    mass: ca.SX | float = 0.0
+    inertia: ca.SX | ca.DM | None = None
 
 
-def bodies(scene: GraspScene3D, x: ca.SX, n_eta: int) -> Bodies:
-    """The bodies at state ``x``, whose contacts have ``n_eta`` states each."""
+def bodies(scene: GraspScene3D, x: ca.SX, n_eta: int, mass_properties=None) -> Bodies:
+    """The bodies at state ``x``, whose contacts have ``n_eta`` states each; the object's
+    ``(mass, inertia)`` are ``mass_properties`` when given (SX inputs), else the scene's."""
     free = scene.free
     sl = state_slices(scene)
     q, quat, dq, om = x[sl["q"]], x[sl["quat"]], x[sl["dq"]], x[sl["om"]]
@@ -219,8 +224,10 @@ def bodies(scene: GraspScene3D, x: ca.SX, n_eta: int) -> Bodies:
     zb_dot_lin = ca.vertcat(dq, vel, Eq @ om) if free else ca.vertcat(dq, Eq @ om)
     zb_dot = ca.vertcat(dq, vel, quat_dot) if free else ca.vertcat(dq, quat_dot)
     Vs = ca.vertcat(dq, vel, om) if free else ca.vertcat(dq, om)
+    mass, inertia = mass_properties or (float(scene.mass), ca.DM(np.asarray(scene.inertia)))
     return Bodies(x=x, fingers=fingers, quat=quat, om=om, pos=pos, vel=vel, R=R, etas=etas,
-                  gravity=g, zb=zb, zb_dot=zb_dot, zb_dot_lin=zb_dot_lin, Vs=Vs)
+                  gravity=g, zb=zb, zb_dot=zb_dot, zb_dot_lin=zb_dot_lin, Vs=Vs, mass=mass,
+                  inertia=inertia)
 
 
 def rotation_class():

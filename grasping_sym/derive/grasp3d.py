@@ -111,13 +111,14 @@ FORMULATIONS = {"regular": REGULAR, "paper": PAPER}
 
 # ------------------------------------------------------------------ the closed loop
 def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = False,
-                   torques=None) -> ConstrainedSystem:
+                   torques=None, mass_properties=None) -> ConstrainedSystem:
     """The scene's closed loop as a :class:`~grasping_sym.derive.system.ConstrainedSystem` of SX.
 
     ``surface_fn(slot, surface, u, v, extra)`` gives a contour slot's point, frame and forms
     (the dict of :func:`surface_sx`; slot ``2 i`` is contact ``i``'s fingertip, ``2 i + 1``
     the object there); default :func:`surface_sx` itself. A structure passes the surfaces'
-    values as inputs instead (``assemble.structure3d``).
+    values as inputs instead (``assemble.structure3d``), and the object's mass and inertia
+    (``mass_properties``: SX, default the scene's numbers).
 
     ``p`` holds the run-time parameters ``scene.runtime``, then ``scene.start_param_names``:
     ``r_bar0`` (m), the mean of the fingertip centres at the start, where the centre spring
@@ -131,7 +132,7 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = F
     x, t = ca.SX.sym("x", len(scene.state_names)), ca.SX.sym("t")
     p_names = _param_names(scene, torque_inputs)
     p = ca.SX.sym("p", len(p_names))
-    b = bodies(scene, x, form.n_eta)
+    b = bodies(scene, x, form.n_eta, mass_properties)
     surface_fn = surface_fn or (lambda slot, s, u, v, extra: surface_sx(s, u, v, extra))
     cs = contacts(scene, b, form, surface_fn)
     C = ca.vertcat(*[c.gap for c in cs])

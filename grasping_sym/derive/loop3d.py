@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import casadi as ca
-import numpy as np
 import sympy as sp
 
 from grasping_sym.derive import contact3d as c3
@@ -134,10 +133,9 @@ def constraint_derivatives(C: ca.SX, b: Bodies, eta: ca.SX, eta_rates: ca.SX):
 
 def dynamics(scene: GraspScene3D, b: Bodies) -> tuple[ca.SX, ca.SX]:
     """``(M, h)``: ``M = diag(G_1..G_N, [m I], H)``, ``h = (h_i + dP_i/dq_i, [-m g], omega x H omega)``."""
-    H = ca.DM(np.asarray(scene.inertia))
-    m = float(scene.mass)
+    H, m = b.inertia, b.mass
     g = b.gravity
-    blocks = [fin.G for fin in b.fingers] + ([m * ca.DM.eye(3)] if scene.free else []) + [H]
+    blocks = [fin.G for fin in b.fingers] + ([m * ca.SX.eye(3)] if scene.free else []) + [H]
     M = ca.diagcat(*blocks)
     h_f = [fin.h + (fin.dP if g is not None else 0) for fin in b.fingers]
     h_obj = ([-m * ca.DM(g) if g is not None else ca.DM.zeros(3)] if scene.free else [])
@@ -203,8 +201,7 @@ def outputs(scene: GraspScene3D, b: Bodies, cs: list[Contact], C: ca.SX, mu: ca.
 
 
 def _energies(scene: GraspScene3D, b: Bodies) -> dict[str, ca.SX]:
-    H = ca.DM(np.asarray(scene.inertia))
-    m = float(scene.mass)
+    H, m = b.inertia, b.mass
     ke = sum((0.5 * fin.dq.T @ fin.G @ fin.dq for fin in b.fingers), 0.5 * b.om.T @ H @ b.om)
     pe = ca.SX(0)
     if scene.free:

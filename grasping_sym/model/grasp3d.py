@@ -40,6 +40,7 @@ from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain, without_limits
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
 from grasping_sym.model.control import input_names as _input_names
+from grasping_sym.model.inertia import inertia_pattern
 from grasping_sym.names import name_problems, names_tuple, output_problems
 
 FORMULATIONS = ("regular", "paper")
@@ -308,9 +309,10 @@ class GraspScene3D:
     def structure_key(self) -> str:
         """What the code depends on besides the scene's name and its surfaces: the text of
         its structure layer (``codegen.structure3d``). Joint limits are not in it: they are
-        bounds the run checks (``bounds``), not equations."""
-        parts = ["grasp3d-v3", self.support, self.formulation, repr(self.mass),
-                 repr(self.inertia), repr(None if self.free else self.position), repr(self.gravity),
+        bounds the run checks (``bounds``), not equations; nor the object's mass and inertia
+        (inputs of the structure: only the inertia's pattern, diagonal or full, is)."""
+        parts = ["grasp3d-v4", self.support, self.formulation, inertia_pattern(self.inertia),
+                 repr(None if self.free else self.position), repr(self.gravity),
                  repr(self.gain), repr(self.spin_damping), ",".join(self.outputs),
                  ",".join(self.runtime), repr(self.start_param_names),
                  *[repr(without_limits(f.chain)) for f in self.fingers]]

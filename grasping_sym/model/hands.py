@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from grasping_sym.errors import InvalidBodyError
+from grasping_sym.errors import InvalidBodyError, URDFError  # noqa: F401 - gs.hands.URDFError
 from grasping_sym.geometry import surface_library
 from grasping_sym.geometry.curves import PlanarCurve, T
 from grasping_sym.geometry.surfaces import ParametricSurface
@@ -55,13 +55,6 @@ TRIFINGER_TIPS = {"1": "finger_tip_link_0", "2": "finger_tip_link_120", "3": "fi
 MOVING = ("revolute", "continuous")
 #: A fixed rotation's entry this close to 0 or +-1 is taken as exact (4 ulp of 1).
 _SNAP = 4 * np.finfo(float).eps
-
-
-class URDFError(InvalidBodyError):
-    """A URDF file cannot be read as a hand; lists every problem and its fix."""
-
-    def __init__(self, path, problems: list[str]):
-        super().__init__(f"URDF {path}", problems)
 
 
 @dataclass(frozen=True)

@@ -45,3 +45,10 @@ def solid_superquadric_inertia(mass: float, a: float, b: float, c: float, n: int
     """
     k = math.gamma(3 / n) * math.gamma(3 / n + 1) / (math.gamma(1 / n) * math.gamma(5 / n + 1))
     return mass * k * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+
+
+def inertia_pattern(inertia) -> str:
+    """``"diagonal"`` or ``"full"``: the structural pattern of a 3x3 inertia, which compiled
+    code depends on (its values are inputs of a 3D structure, ``assemble.structure3d``)."""
+    H = np.asarray(inertia, dtype=float)
+    return "diagonal" if not np.any(H - np.diag(np.diag(H))) else "full"
