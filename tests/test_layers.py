@@ -164,7 +164,7 @@ def test_unit_speed_leaves_are_folded_into_the_structure():
 
 
 # ------------------------------------------------------------------------------ 3D
-def _surface_pair_scene(name: str, semi_axes=(0.022, 0.025, 0.028), tip=0.009):
+def _surface_pair_scene(name: str, semi_axes=(0.022, 0.025, 0.028), tip=0.009, **kw):
     import dataclasses
 
     from grasping_sym.geometry import surface_library as sl
@@ -173,7 +173,7 @@ def _surface_pair_scene(name: str, semi_axes=(0.022, 0.025, 0.028), tip=0.009):
         name=name, object_surface=sl.ellipsoid(*semi_axes, lon=(-math.pi / 2, 3 * math.pi / 2),
                                                name="object"),
         fingers=tuple(dataclasses.replace(f, tip=sl.sphere(tip, name=f"tip{i}"))
-                      for i, f in enumerate(base.fingers)))
+                      for i, f in enumerate(base.fingers)), **kw)
 
 
 def test_3d_layered_functions_equal_the_single_piece_derivation():
@@ -204,12 +204,41 @@ def test_3d_layered_functions_equal_the_single_piece_derivation():
 
 
 def test_a_new_3d_surface_pair_reuses_the_structure():
+    """Other surfaces, and another object mass and inertia (inputs of the structure, after
+    the jets): the same compiled structure, and the rhs of the single piece derived with
+    those numbers as constants (1e-11)."""
+    from grasping_sym.model.inertia import solid_ellipsoid_inertia
+
     a = gs.build(_surface_pair_scene("layers_pair_a"))
-    b = gs.build(_surface_pair_scene("layers_pair_b", semi_axes=(0.021, 0.026, 0.03), tip=0.01))
+    scene_b = _surface_pair_scene("layers_pair_b", semi_axes=(0.021, 0.026, 0.03), tip=0.01, mass=0.055,
+                                  inertia=solid_ellipsoid_inertia(0.055, 0.021, 0.026, 0.03))
+    b = gs.build(scene_b)
     assert a.manifest["structure"] == b.manifest["structure"]
     assert b.build_info["structure_source"] == "cache"
+    one, p = _single_piece(scene_b), np.asarray(b.default_params, float)
+    x0 = np.asarray(b.initial_state(), float)
+    for x in (x0, x0 + np.random.default_rng(2).normal(0.0, 1e-3, x0.size)):
+        ref = _dense(one.rhs(0, x, [], p, [])[0]).ravel()
+        np.testing.assert_allclose(b.rhs(x), ref, rtol=1e-11, atol=1e-11 * np.abs(ref).max())
     res = b.simulate(0.2, method="dopri5", project=True, rtol=1e-8, atol=1e-11)
     assert np.all(np.isfinite(res.x)) and res.outputs["constraint_residual"].max() < 1e-9
+
+
+def test_a_full_inertia_reaches_the_structure_whole():
+    """``body_values`` and the structure's reading of them (``_body``) give back a full
+    (non-diagonal) inertia and the mass exactly; a diagonal one is read from 4 entries."""
+    from grasping_sym.assemble import structure3d
+
+    rot = np.array(gs.scenes._axis_angle((1.0, 2.0, 3.0), 0.7))
+    H = rot @ np.diag([2e-5, 3e-5, 4e-5]) @ rot.T
+    values = structure3d.body_values(0.07, H)
+    assert len(values) == 7 and structure3d.inertia_pattern(H) == "full"
+    m, H_sx = structure3d._body(ca.DM(values), "full")
+    assert float(m) == 0.07 and np.array_equal(np.asarray(ca.DM(H_sx)), np.array([[H[0, 0], H[0, 1], H[0, 2]],
+                                                                                   [H[0, 1], H[1, 1], H[1, 2]],
+                                                                                   [H[0, 2], H[1, 2], H[2, 2]]]))
+    diag = structure3d.body_values(0.07, np.diag([1.0, 2.0, 3.0]))
+    assert diag == [0.07, 1.0, 2.0, 3.0]
 
 
 def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
