@@ -30,10 +30,11 @@ _LAZY = {
     "contact": ("grasping_sym.contact", None),
     "quality": ("grasping_sym.quality", None),
     "hands": ("grasping_sym.model.hands", None),
+    "export": ("grasping_sym.export", None),
 }
 
 __all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
-           "controllers", "inputs", "sweep", "viz", "contact", "quality", "hands", "__version__"]
+           "controllers", "inputs", "sweep", "viz", "contact", "quality", "hands", "export", "__version__"]
 
 
 def __getattr__(name: str):
