@@ -67,7 +67,8 @@ def ours(scene, model) -> dict:
         walls.append(time.perf_counter() - start)
     pos = np.column_stack([res["x"], res["y"], res["z"]])
     stray = max(float(np.max(np.abs(res[k]))) for k in ("z", "q21", "qx", "qy"))
-    return {"out_of_plane": stray, "label": "grasping_sym (radau, default tolerances)", "t": t, "pos": pos,
+    method = model.manifest["defaults"]["method"]  # what simulate() runs without arguments
+    return {"out_of_plane": stray, "label": f"grasping_sym ({method}, default tolerances)", "t": t, "pos": pos,
             "held": True, "creep_um_s": _creep(t, pos),
             "violation_m": float(np.max(res["constraint_residual"])),
             "wall_per_s": min(walls) / T_FINAL}
