@@ -70,6 +70,18 @@ def test_turn3d_turns_the_held_ellipsoid(tmp_path):
     assert out["f_min"] > 2.0 and out["drift"].max() < 5e-3  # held: firm contacts, centre within 5 mm
 
 
+def test_trifinger_turns_the_rounded_cube_in_force_closure(tmp_path):
+    """The URDF hand turns its cube to within 5 mrad of 0.3 rad in 2 s, every contact
+    pushing, no joint at a limit, and the grasp in force closure with epsilon between its
+    bounds all along (a positive lower bound: the grasp resists every wrench)."""
+    ex = _example("trifinger_turn")
+    out = ex.main(str(tmp_path / "trifinger_turn.png"))
+    assert abs(out["phi_end"] - ex.ANGLE) < 5e-3
+    assert out["f_min"] > 1.0 and out["joint_room"] > 0.05 and out["closure"]
+    assert np.all(out["eps_lower"] > 0.1) and np.all(out["eps_lower"] <= out["eps_upper"])
+    assert (tmp_path / "trifinger_turn.png").stat().st_size > 10_000
+
+
 def test_ocp_paper3d_turns_the_held_ellipsoid_on_a_coarse_mesh():
     """The 3D example's problem on a coarse mesh (3 intervals of degree 2: the example's own,
     8 of degree 3, takes 40 s): IPOPT solves it, and the compiled model re-simulating the
