@@ -375,3 +375,70 @@ def test_cache_clear_never_follows_a_link_named_like_an_entry(cache, tmp_path):
     (entry / "linked.json").symlink_to(outside / "manifest.json")  # a link inside an entry
     assert [p.name for p in gs_cache.clear(["paper2d"])] == [entry.name]
     assert not entry.exists() and (outside / "manifest.json").is_file()
+
+
+def test_an_exclusive_lock_lets_one_holder_in_at_a_time_and_refuses_a_link(tmp_path):
+    """``safety.exclusive``: a second thread enters only after the first has left; a lock
+    path that is a symbolic link is refused by name."""
+    import threading
+
+    from grasping_sym.store import safety
+
+    order, inside = [], threading.Event()
+
+    def first():
+        with safety.exclusive(tmp_path / ".x.lock"):
+            order.append("first in")
+            inside.set()
+            threading.Event().wait(0.2)  # hold it while the second thread tries
+            order.append("first out")
+
+    def second():
+        inside.wait()
+        with safety.exclusive(tmp_path / ".x.lock"):
+            order.append("second in")
+
+    threads = [threading.Thread(target=first), threading.Thread(target=second)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert order == ["first in", "first out", "second in"]
+    (tmp_path / ".link.lock").symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(UnsafeCacheError, match="symbolic link"):
+        with safety.exclusive(tmp_path / ".link.lock"):
+            pass
+
+
+def test_concurrent_builds_compile_a_directorys_objects_once(tmp_path, monkeypatch):
+    """Two threads asking for the same objects: one compiles, the other waits and finds
+    them (``toolchain.objects.cached_objects``)."""
+    import threading
+
+    from grasping_sym.toolchain import objects
+
+    calls = []
+
+    def fake_compile(sources, out, *args, **kwargs):
+        calls.append(1)
+        threading.Event().wait(0.1)
+        built = []
+        for src in sources:
+            obj = Path(out) / f"{Path(src).stem}.o"
+            obj.write_bytes(b"object")
+            built.append(obj)
+        return built
+
+    monkeypatch.setattr(objects, "compile_objects", fake_compile)
+    src = tmp_path / "a.c"
+    src.write_text("int a;\n")
+    out_dir = tmp_path / "objs"
+    out_dir.mkdir(mode=0o700)
+    results = []
+    threads = [threading.Thread(target=lambda: results.append(objects.cached_objects([src], out_dir)))
+               for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert calls == [1] and results[0] == results[1] == [out_dir / "a.o"]

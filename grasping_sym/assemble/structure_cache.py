@@ -228,6 +228,17 @@ def ensure(spec: StructureSpec, make: Callable[[str], tuple[StructureFunctions, 
     record = _complete(directory, digest)
     if record is not None:
         return record, directory, "cache"
+    # one process or thread writes a structure at a time: a concurrent build of the same
+    # structure waits and finds it done instead of deriving it again
+    with safety.exclusive(_entries() / f".{name}.lock"):
+        record = _complete(directory, digest)
+        if record is not None:
+            return record, directory, "cache"
+        return _write(spec, make, say, name, digest, directory)
+
+
+def _write(spec, make, say, name: str, digest: str, directory: Path) -> tuple[StructureRecord, Path, str]:
+    """``ensure``'s structure copied from the committed ones or derived and written now."""
     committed = cache.generated_dir() / DIR / name
     if not _AFRESH.get() and (cm := _complete(committed, digest, trusted=True)) is not None:
         _install(directory, lambda d: [shutil.copyfile(committed / f, d / f)

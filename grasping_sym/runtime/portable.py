@@ -16,7 +16,6 @@ processes you trust (your own Dask workers and client).
 """
 from __future__ import annotations
 
-import fcntl
 import hashlib
 from collections.abc import Callable
 from pathlib import Path
@@ -64,8 +63,7 @@ def _materialise(data: dict, compile: Compile | None, make):
     root = cache.cache_root()
     directory = safety.ensure_dir(cache.cache_dir(name, manifest["hash"]), root=root)
     lib = directory / library_name(name)
-    with open(safety.write_bytes(directory / ".restore.lock", b""), "rb") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # one process per machine compiles, the others wait
+    with safety.exclusive(directory / ".restore.lock"):  # one process compiles, the others wait
         here = stored.read_manifest(directory)
         if here is not None and here.get("hash") == manifest["hash"] and not manifest_problems(here) \
                 and safety.library_problem(lib, here) is None:

@@ -20,18 +20,21 @@ kept in its manifest and checked before every load (:func:`library_problem`).
 from __future__ import annotations
 
 import errno
+import fcntl
 import hashlib
 import os
 import shutil
 import stat
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from grasping_sym.errors import CacheWriteError, CorruptCacheError, UnsafeCacheError
 
 __all__ = ["CacheWriteError", "CorruptCacheError", "UnsafeCacheError", "check_file",
-           "check_tree", "clean_stale", "ensure_dir", "is_temporary", "library_problem", "sha256_file",
-           "write_bytes", "write_text"]
+           "check_tree", "clean_stale", "ensure_dir", "exclusive", "is_temporary", "library_problem",
+           "sha256_file", "write_bytes", "write_text"]
 
 #: Temporary files and directories of an interrupted build older than this (s) are removed.
 STALE_AFTER = 3600.0
@@ -120,6 +123,29 @@ def write_bytes(path: Path, data: bytes) -> Path:
             raise CacheWriteError(path, exc) from exc
         raise
     return path
+
+
+@contextmanager
+def exclusive(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the file ``path`` (created if missing, never through a
+    link, checked as the cache's files are) for the ``with`` block: one process or thread at
+    a time compiles what the others then find done. ``flock``: the system releases it when
+    the holder ends, however it ends. The file is never replaced (a replaced lock file would
+    let two holders lock two files)."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o600)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise UnsafeCacheError(path, "it is a symbolic link") from None
+        raise
+    try:
+        if (problem := _problem(os.fstat(fd), want_dir=False)) is not None:
+            raise UnsafeCacheError(path, problem)
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def write_text(path: Path, text: str) -> Path:

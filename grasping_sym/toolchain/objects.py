@@ -185,17 +185,30 @@ def cached_objects(sources: Sequence[Path], directory: Path,
                    include_dirs: Sequence[str] = (), quick: Sequence[Path] = (),
                    at_once: int | None = None) -> list[Path]:
     """The object files ``<directory>/<stem>.o`` of ``sources``: checked (``runtime.safety``)
-    when there, else compiled now (in parallel, each installed atomically, so concurrent
-    builds agree; ``quick``: sources compiled with ``compiler.QUICK_FLAGS``; ``at_once``: at
-    most that many compilers at a time). ``directory`` must exist and be the caller's to fill."""
+    when there, else compiled now (in parallel, each installed atomically; one process or
+    thread compiles a directory's objects while the others wait for them; ``quick``: sources
+    compiled with ``compiler.QUICK_FLAGS``; ``at_once``: at most that many compilers at a
+    time). ``directory`` must exist and be the caller's to fill."""
     objects = [Path(directory) / f"{Path(src).stem}.o" for src in sources]
-    if all(os.path.lexists(o) for o in objects):
-        for o in objects:
-            safety.check_file(o)
+    if _present(objects):
         return objects
-    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        built = compile_objects(sources, Path(tmp), defines, include_dirs, quick=quick,
-                                at_once=at_once)
-        for obj, final in zip(built, objects):
-            os.replace(obj, final)
+    # one compiler per directory at a time: a concurrent build of the same code waits and
+    # finds the objects done instead of compiling them again
+    with safety.exclusive(Path(directory) / ".objects.lock"):
+        if _present(objects):
+            return objects
+        with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+            built = compile_objects(sources, Path(tmp), defines, include_dirs, quick=quick,
+                                    at_once=at_once)
+            for obj, final in zip(built, objects):
+                os.replace(obj, final)
     return objects
+
+
+def _present(objects: list[Path]) -> bool:
+    """Whether every object file is there (each checked, ``store.safety``)."""
+    if not all(os.path.lexists(o) for o in objects):
+        return False
+    for o in objects:
+        safety.check_file(o)
+    return True
