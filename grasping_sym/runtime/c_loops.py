@@ -301,14 +301,13 @@ def violation(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None,
 
 
 def nonfinite(x: np.ndarray, names=None) -> str:
-    """``state component(s) [i, ...] (name, ...)``: the non-finite entries of ``x``, by index
-    and, given the state names, by name (at most ten listed)."""
+    """The non-finite entries of ``x`` by state name (at most ten listed), or, without the
+    state names, ``state component(s) [i, ...]``."""
     idx = np.flatnonzero(~np.isfinite(x)).tolist()
     more = f", ... {len(idx)} in all" if len(idx) > 10 else ""
-    text = f"state component(s) {idx[:10]}"[:-1] + more + "]"
     if names is not None and len(names) == len(x):
-        text += " (" + ", ".join(names[i] for i in idx[:10]) + (", ..." if more else "") + ")"
-    return text
+        return ", ".join(names[i] for i in idx[:10]) + more
+    return f"state component(s) {idx[:10]}"[:-1] + more + "]"
 
 
 def projection_stats(stats_a) -> dict:
