@@ -18,6 +18,7 @@ import sys
 import numpy as np
 
 import grasping_sym as gs
+from grasping_sym.runtime.result import rotations
 
 ANGLE = 0.3                        # rad, about the vertical
 AXIS = (0.0, 0.0, 1.0)             # TriFinger's world: z up
@@ -27,14 +28,9 @@ T_FINAL = 2.0
 
 
 def rotation(model, X) -> np.ndarray:
-    """The object's rotation matrices along the rows ``X`` (from its unit quaternion)."""
+    """The object's rotation matrices along the state rows ``X``."""
     k = model.state_names.index("qw")
-    q = X[:, k:k + 4] / np.linalg.norm(X[:, k:k + 4], axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+    return rotations(X[:, k:k + 4])
 
 
 def run() -> dict:

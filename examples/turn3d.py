@@ -15,6 +15,7 @@ import sys
 import numpy as np
 
 import grasping_sym as gs
+from grasping_sym.runtime.result import rotations
 
 ANGLE = 0.2                       # rad
 AXIS = (0.0, 0.0, 1.0)            # across the grasp (the grasp line runs along x)
@@ -23,15 +24,9 @@ T_FINAL = 3.0
 
 
 def rotation(model, X) -> np.ndarray:
-    """The object's rotation matrices along the rows ``X`` (from its unit quaternion)."""
+    """The object's rotation matrices along the state rows ``X``."""
     k = model.state_names.index("qw")
-    w, x, y, z = (X[:, k + i] for i in range(4))
-    n = np.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+    return rotations(X[:, k:k + 4])
 
 
 def run() -> dict:

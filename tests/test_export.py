@@ -86,6 +86,8 @@ def test_paper3d_in_mujoco_starts_at_the_consistent_start_and_the_paper_law_hold
         np.testing.assert_allclose(d.site_xpos[m.site(f"tip{i}").id], tip_pose(f.chain, q)[0], rtol=0, atol=1e-15)
     # a run replayed in MuJoCo: its rows as qpos put the fingertips where the run has them
     res = paper3d_model.simulate(0.05, t_eval=[0.0, 0.05])
+    # the object's rotation along the run, from its quaternion, is MuJoCo's at the start
+    np.testing.assert_allclose(res.object_rotations()[0], d.xmat[body].reshape(3, 3), rtol=0, atol=1e-12)
     rows = export.qpos(paper3d_model, res)
     np.testing.assert_allclose(rows[0], d.qpos, rtol=0, atol=1e-12)
     replay = mujoco.MjData(m)
@@ -124,4 +126,8 @@ def test_a_surface_that_is_no_primitive_is_a_mesh_of_its_chart():
 def test_what_cannot_be_exported_is_refused_by_name():
     with pytest.raises(InvalidSceneError, match="writes 3D grasps"):
         export.mjcf(gs.scenes.paper2d())
+    flat = gs.SimulationResult(t=np.zeros(1), x=np.zeros((1, 2)), state_names=("theta", "omega"), outputs={},
+                               method="radau")
+    with pytest.raises(KeyError, match="no object quaternion"):
+        flat.object_rotations()
     np.testing.assert_allclose(export.quaternion(np.diag([1.0, -1.0, -1.0])), [0.0, 1.0, 0.0, 0.0])

@@ -129,13 +129,12 @@ def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_m
     gradient's, turned inward; two point contacts leave the spin about the line through them
     free: epsilon = 0 and no force closure at every output time; the smallest cone margin is
     that of the run's own forces."""
-    from grasping_sym.pipeline.quality_along import _rotations, contacts_along
+    from grasping_sym.pipeline.quality_along import contacts_along
 
     model = paper3d_model
     res = model.simulate(0.5, t_eval=np.linspace(0.0, 0.5, 6))
     c, p, n = contacts_along(model, res)
-    names = list(model.state_names)
-    rot = _rotations(res.x[:, [names.index(k) for k in ("qw", "qx", "qy", "qz")]])
+    rot = res.object_rotations()
     axes = np.array([0.020, 0.025, 0.030])
     for i in range(2):
         body = np.einsum("nji,nj->ni", rot, p[:, i] - c)  # R^T (p - c)

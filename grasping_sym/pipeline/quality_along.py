@@ -10,19 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from grasping_sym import quality
+from grasping_sym.runtime.result import rotations
 
 __all__ = ["contact_forces", "contacts_along", "grasp_quality"]
-
-
-def _rotations(qs: np.ndarray) -> np.ndarray:
-    """Body-to-world rotation matrices of the quaternions ``(w, x, y, z)`` (rows)."""
-    q = qs / np.linalg.norm(qs, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=1)
 
 
 def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
@@ -38,7 +28,7 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
                          "qz) made by gs.build; this model is not one")
     X = np.asarray(result.x, dtype=float)
     c = X[:, [names.index(k) for k in pose[:3]]]
-    rot = _rotations(X[:, [names.index(k) for k in pose[3:]]])
+    rot = rotations(X[:, [names.index(k) for k in pose[3:]]])
     frames = []
     for i in range(1, len(scene.fingers) + 1):
         geo = scene.object_surface.evaluate(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")])

@@ -19,6 +19,24 @@ FORMAT = "grasping_sym.SimulationResult/1"
 _NAMES_OK: set[tuple[str, ...]] = set()
 
 
+#: The quaternion states of a 3D object, scalar first.
+QUATERNION = ("qw", "qx", "qy", "qz")
+
+
+def rotations(quaternions) -> np.ndarray:
+    """``(n, 3, 3)`` body-to-world rotation matrices of the quaternions ``(w, x, y, z)``
+    (rows; normalised first): ``SimulationResult.object_rotations``, or of a state's
+    quaternion, e.g. ``rotations(x0[None, k:k + 4])``."""
+    q = np.atleast_2d(np.asarray(quaternions, dtype=float))
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=1)
+
+
 @dataclass
 class SimulationResult:
     """A trajectory and its outputs.
@@ -83,6 +101,15 @@ class SimulationResult:
             return self.outputs[name]
         raise KeyError(f"{name!r} is neither a state {self.state_names} nor an output "
                        f"{tuple(self.outputs)}")
+
+    def object_rotations(self) -> np.ndarray:
+        """``(n, 3, 3)``: the 3D object's rotation (body to world) at every row, from its
+        quaternion states ``qw, qx, qy, qz`` normalised (:func:`rotations`)."""
+        missing = [k for k in QUATERNION if k not in self.state_names]
+        if missing:
+            raise KeyError(f"this run has no object quaternion (states {list(QUATERNION)}; missing "
+                           f"{missing}): object_rotations() is for a 3D object's run")
+        return rotations(self.x[:, [self.state_names.index(k) for k in QUATERNION]])
 
     def write_csv(self, path: Path | str) -> Path:
         """Write ``t``, the states and the outputs as columns (header row first)."""
