@@ -133,7 +133,30 @@ def test_trifinger_pro_gives_yourdfpys_kinematics_masses_and_kinetic_energy():
             assert float(P(*q, *dq)) == pytest.approx(potential, rel=1e-12, abs=1e-15)
 
 
-def test_the_trifinger_scene_holds_its_rounded_cube_in_force_closure():
+@pytest.fixture(scope="module")
+def trifinger():
+    return gs.build(gs.scenes.trifinger())
+
+
+def test_a_sweep_measures_the_least_grasp_quality_of_each_run(trifinger, tmp_path):
+    """``gs.sweep(..., measures=["min:epsilon"])`` over mu: each point's value is the least
+    lower bound of epsilon along that run's samples, as ``grasp_quality`` of the same run gives
+    it; more friction, a larger epsilon. Without mu the measure is refused by name."""
+    ds = gs.sweep(trifinger, {"mu": [0.3, 0.6]}, 0.2, store=tmp_path / "quality.zarr",
+                  measures=["min:epsilon"], samples=5, progress=False)
+    values = np.asarray(ds["min_epsilon"]).ravel()
+    for mu, value in zip((0.3, 0.6), values):
+        res = trifinger.simulate(0.2, t_eval=np.linspace(0.0, 0.2, 5))
+        direct = float(np.min(trifinger.grasp_quality(res, mu=mu)["epsilon_lower"]))
+        assert value == pytest.approx(direct, rel=1e-6)
+    assert 0 < values[0] < values[1]
+    here = {"r_bar0_x": [trifinger.start_params["r_bar0_x"]]}
+    with pytest.raises(ValueError, match="'min:epsilon' \\(with mu, for a 3D grasp"):
+        gs.sweep(trifinger, here, 0.1, store=tmp_path / "no_mu.zarr", measures=["min:epsilon"],
+                 progress=False)
+
+
+def test_the_trifinger_scene_holds_its_rounded_cube_in_force_closure(trifinger):
     """``gs.scenes.trifinger()``: three fingertips on a free rounded cube under gravity. Along
     0.3 s: every contact pushes (f > 0.5 N), no joint reaches its limits, the object's
     momentum changes by the contact forces and its weight (m v' = F1 + F2 + F3 + m g, 1e-9 N
@@ -142,7 +165,7 @@ def test_the_trifinger_scene_holds_its_rounded_cube_in_force_closure():
     degrees apart are."""
     from grasping_sym.pipeline.quality_along import contact_forces
 
-    model = gs.build(gs.scenes.trifinger())
+    model = trifinger
     res = model.simulate(0.3, t_eval=np.linspace(0.0, 0.3, 7))
     for i in (1, 2, 3):
         assert res[f"f{i}"].min() > 0.5
