@@ -246,6 +246,20 @@ def test_what_cannot_be_read_as_a_hand_is_refused_by_name(tmp_path):
         gs.hands.from_urdf(ok, tips={"f-1": "tip"})
     with pytest.raises(URDFError, match="moves both finger '1' and finger '2'"):
         gs.hands.from_urdf(ok, tips={"1": "tip", "2": "a"})
+    # a collision cylinder (radius 8 mm, length 30 mm, turned by its origin) is its side, in
+    # the fingertip frame at the collision's origin: every point 8 mm from its z axis
+    cylinder = ('<collision><origin xyz="0 0.01 0" rpy="1.5707963267948966 0 0"/>'
+                '<geometry><cylinder radius="0.008" length="0.03"/></geometry></collision>')
+    hand = gs.hands.from_urdf(_write(tmp_path, FINGER.format(tip=cylinder, kind="revolute", limit=LIMIT),
+                                     "cyl.urdf"), tips={"1": "tip"})
+    (u0, u1), (v0, v1) = hand.tips[0].domain
+    uu, vv = np.meshgrid(np.linspace(u0, u1, 7), np.linspace(v0, v1, 5))
+    points = hand.tips[0].evaluate(uu, vv)["point"]
+    np.testing.assert_allclose(np.hypot(points[..., 0], points[..., 1]), 0.008, rtol=1e-14)
+    assert (v0, v1) == (-0.015, 0.015)
+    chain = hand.chains[0]
+    np.testing.assert_allclose(chain.joints[-1].vector, (0.0, 0.11, 0.0), atol=1e-16)  # 0.1 + 0.01
+    np.testing.assert_allclose(np.asarray(chain.tip_rotation) @ (0.0, 0.0, 1.0), (0.0, -1.0, 0.0), atol=1e-16)
     # a tip without a usable collision takes the surface the user gives
     boxed = cases[r"exactly one collision sphere or cylinder .*it has: box"]
     hand = gs.hands.from_urdf(boxed, tips={"1": "tip"},
