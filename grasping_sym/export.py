@@ -215,12 +215,17 @@ def _sphere_fit(points: np.ndarray) -> tuple[np.ndarray, float | None]:
 def _ellipsoid_fit(points: np.ndarray) -> np.ndarray | None:
     """The semi-axes ``(a, b, c)`` of the ellipsoid ``(x/a)^2 + (y/b)^2 + (z/c)^2 = 1`` in the
     surface's own axes through ``points`` (least squares in ``1/a^2, 1/b^2, 1/c^2``), None
-    unless every point is on it to 1e-9."""
+    unless every point is on it to 1e-9 and they reach half of every semi-axis."""
     k, *_ = np.linalg.lstsq(points * points, np.ones(len(points)), rcond=None)
     if np.any(k <= 0):
         return None
     residual = np.max(np.abs((points * points) @ k - 1.0))
-    return 1.0 / np.sqrt(k) if residual <= 1e-9 else None
+    axes = 1.0 / np.sqrt(k)
+    # the samples must reach half of every semi-axis (a chart stopping short of the poles
+    # reaches 0.96 of it at latitude 1.3): a cylinder's side fits an "ellipsoid" with an axis
+    # of ~1e6 m along its own (a coefficient ~1e-12), which no sample comes near
+    reach = np.max(np.abs(points), axis=0)
+    return axes if residual <= 1e-9 and np.all(axes <= 2.0 * reach) else None
 
 
 def quaternion(R: np.ndarray) -> np.ndarray:
@@ -246,18 +251,22 @@ def quaternion(R: np.ndarray) -> np.ndarray:
 
 
 def paper_law(model):
-    """The paper's grasp law (``gs.controllers`` preset ``paper``) in MuJoCo's terms, for a
-    MuJoCo model of ``model`` (:func:`mjcf`): ``law(mj_model, mj_data)`` writes into
-    ``qfrc_applied`` the joint torques ``-c q' - J_i^T [(fd / r_ctrl) sum_j (r_i - r_j) +
-    (k_center / N)(r_bar - r_bar0)]`` from the fingertip sites ``tip{i}`` and their
+    """The paper's grasp law (``gs.controllers.paper3d``, the scenes' default) in MuJoCo's
+    terms, for a MuJoCo model of ``model`` (:func:`mjcf`): ``law(mj_model, mj_data)`` writes
+    into ``qfrc_applied`` the joint torques ``-c q' - J_i^T [(fd / r_ctrl) sum_j (r_i - r_j) +
+    (k_center / N)(r_bar - r_bar0)]`` (one finger: ``(fd / r_ctrl)(r_1 - position)``, toward
+    the scene's ``position``, as the law's) from the fingertip sites ``tip{i}`` and their
     Jacobians (gravity is compensated by ``gravcomp``). Call it before each ``mj_step``."""
     import mujoco  # noqa: PLC0415 - MuJoCo only for a user who runs the export
 
     scene = model.scene
-    law = getattr(scene.controller, "name", scene.controller)
-    if law not in ("paper", None):
-        raise InvalidSceneError([f"paper_law: the scene's law is {law!r}; only the paper's law has "
-                                 "a MuJoCo form here: write yours on mujoco's sites and Jacobians"])
+    law = scene.controller
+    preset = law if law is None or isinstance(law, str) else getattr(law, "preset", None)
+    if preset not in ("paper", "paper3d", None):
+        raise InvalidSceneError([f"paper_law: the scene's law is {getattr(law, 'name', law)!r}; only the "
+                                 "paper's law has a MuJoCo form here: write yours on mujoco's sites "
+                                 "and Jacobians"])
+    anchor = np.asarray(scene.position, dtype=float)  # one finger pulls toward it (the law's)
     fd, c, k_center = (float(scene.params[k]) for k in ("fd", "c", "k_center"))
     r_ctrl = float(scene.r_ctrl)
     start = dict(model.start_params)
@@ -277,7 +286,10 @@ def paper_law(model):
         tau = np.zeros(m.nv)
         for i, s in enumerate(sites):
             mujoco.mj_jacSite(m, d, jac, None, s)
-            pull = (fd / r_ctrl) * sum((r[i] - r[j] for j in range(n) if j != i), np.zeros(3))
+            if n == 1:
+                pull = (fd / r_ctrl) * (r[0] - anchor)
+            else:
+                pull = (fd / r_ctrl) * sum((r[i] - r[j] for j in range(n) if j != i), np.zeros(3))
             if k_center:
                 pull = pull + (k_center / n) * (r_bar - r_bar0)
             tau -= jac.T @ pull

@@ -442,3 +442,22 @@ def test_concurrent_builds_compile_a_directorys_objects_once(tmp_path, monkeypat
     for t in threads:
         t.join()
     assert calls == [1] and results[0] == results[1] == [out_dir / "a.o"]
+
+
+def test_cache_clear_knows_the_lock_of_a_structure_being_written(cache):
+    """A structure's lock file (``structures/.gs_structure_<hash12>.lock``, left after its
+    writing) is the package's: `cache clear` removes the structures with it, and still refuses
+    a file of another name there."""
+    from grasping_sym.store import safety
+
+    root, _ = cache
+    with safety.exclusive(root / "structures" / ".gs_structure_0123456789ab.lock"):
+        pass
+    from grasping_sym.store.paths import entries
+
+    made, foreign = entries(root)
+    assert foreign == [] and root / "structures" in made
+    (root / "structures" / "notes.txt").write_text("mine")
+    assert root / "structures" in entries(root)[1]
+    (root / "structures" / "notes.txt").unlink()
+    assert cli_main(["cache", "clear"]) == 0 and not (root / "structures").exists()

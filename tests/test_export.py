@@ -123,6 +123,42 @@ def test_a_surface_that_is_no_primitive_is_a_mesh_of_its_chart():
     assert half * (1 - 1e-6) < radius[0] and radius[-1] < half * 3 ** 0.25 * (1 + 1e-6)
 
 
+def test_one_fingers_paper_law_pulls_toward_the_scenes_position_as_the_package_law_does():
+    """pivot3d (one finger, a pivoted object: a ball joint) under ``paper_law``, the law given
+    as the preset ``gs.controllers.paper3d()``: the torques are ``-J^T (fd / r_ctrl)(r_1 -
+    position)`` on MuJoCo's own site and Jacobian (the package law's anchor for one finger),
+    not the empty sum over other fingers."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    model = gs.build(gs.scenes.pivot3d())
+    m, d = _loaded(model)
+    assert m.jnt_type[m.joint("object").id] == mujoco.mjtJoint.mjJNT_BALL
+    scene = replace(model.scene, controller=gs.controllers.paper3d())
+    export.paper_law(SimpleNamespace(scene=scene, start_params=model.start_params))(m, d)
+    site = m.site("tip1").id
+    jac = np.zeros((3, m.nv))
+    mujoco.mj_jacSite(m, d, jac, None, site)
+    pull = (scene.params["fd"] / scene.r_ctrl) * (d.site_xpos[site] - np.asarray(scene.position))
+    dofs = [m.joint(n).dofadr[0] for n in scene.fingers[0].chain.joint_names]
+    expected = (-jac.T @ pull)[dofs] - scene.params["c"] * d.qvel[dofs]
+    assert np.linalg.norm(expected) > 1e-3
+    np.testing.assert_allclose(d.qfrc_applied[dofs], expected, rtol=1e-12)
+
+
+def test_a_cylinders_side_is_no_ellipsoid():
+    """The least-squares ellipsoid through a cylinder's side has an axis no sample comes near
+    (~1e6 m along its own): refused, so the side is written as a mesh; an ellipsoid's chart
+    samples to latitude 1.3 give its semi-axes."""
+    u, v = np.meshgrid(np.linspace(-np.pi, np.pi, 24), np.linspace(-0.015, 0.015, 24))
+    side = np.stack([0.008 * np.cos(u), 0.008 * np.sin(u), v], axis=-1).reshape(-1, 3)
+    assert export._ellipsoid_fit(side) is None
+    lat = np.linspace(-1.3, 1.3, 24)[:, None]
+    shell = np.stack([0.02 * np.cos(lat) * np.cos(u), 0.025 * np.cos(lat) * np.sin(u),
+                      0.03 * np.sin(lat) * np.ones_like(u)], axis=-1).reshape(-1, 3)
+    np.testing.assert_allclose(export._ellipsoid_fit(shell), (0.02, 0.025, 0.03), rtol=1e-9)
+
+
 def test_what_cannot_be_exported_is_refused_by_name():
     with pytest.raises(InvalidSceneError, match="writes 3D grasps"):
         export.mjcf(gs.scenes.paper2d())

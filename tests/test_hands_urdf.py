@@ -240,6 +240,11 @@ def test_what_cannot_be_read_as_a_hand_is_refused_by_name(tmp_path):
     for message, path in cases.items():
         with pytest.raises(URDFError, match=message):
             gs.hands.from_urdf(path, tips={"1": "tip"})
+    loop = ('<link name="base"/><link name="a"/><link name="b"/>'
+            '<joint name="ab" type="fixed"><parent link="a"/><child link="b"/></joint>'
+            '<joint name="ba" type="fixed"><parent link="b"/><child link="a"/></joint>')
+    with pytest.raises(URDFError, match="loop back to link"):
+        gs.hands.from_urdf(_write(tmp_path, loop, "loop.urdf"), tips={"1": "a"}, base="base")
     with pytest.raises(URDFError, match="tip link 'nowhere' of finger '1' is not in the file"):
         gs.hands.from_urdf(ok, tips={"1": "nowhere"})
     with pytest.raises(URDFError, match="must be alphanumeric"):

@@ -133,8 +133,10 @@ def from_urdf(path, tips: Mapping[str, str], *, surfaces: Mapping[str, Parametri
     children: dict[str, list] = {}
     for j in robot.joints:
         children.setdefault(j.parent, []).append(j)
+    problems = _tree_problems(robot, links)
+    if problems:
+        raise URDFError(path, problems)
     roots = [name for name in links if name not in by_child]
-    problems: list[str] = []
     if base is None:
         if len(roots) != 1:
             raise URDFError(path, [f"has {len(roots)} root links {roots}; name the one fixed in "
@@ -193,6 +195,31 @@ def from_urdf(path, tips: Mapping[str, str], *, surfaces: Mapping[str, Parametri
         raise URDFError(path, problems)
     return Hand(name=robot.name, chains=tuple(chains), tips=tuple(surfs),
                 tip_links=tuple(tips.values()), joints=joint_names)
+
+
+def _tree_problems(robot, links) -> list[str]:
+    """What keeps the file's links and joints from being a tree: a joint naming a link the
+    file lacks, a link with two parent joints, a loop of joints."""
+    problems, parents = [], {}
+    for j in robot.joints:
+        for role, link in (("parent", j.parent), ("child", j.child)):
+            if link not in links:
+                problems.append(f"joint {j.name!r} names the {role} link {link!r}, which the file lacks")
+        parents.setdefault(j.child, []).append(j.name)
+    problems += [f"link {child!r} is the child of joints {names}: a URDF's links form a tree, one "
+                 "parent joint each" for child, names in parents.items() if len(names) > 1]
+    if problems:
+        return problems
+    up = {j.child: j.parent for j in robot.joints}
+    for start in links:
+        seen, link = set(), start
+        while link in up:
+            if link in seen:
+                return [f"the joints loop back to link {link!r}: a URDF's links form a tree, without "
+                        "loops (close a loop with a constraint of your own, not a joint)"]
+            seen.add(link)
+            link = up[link]
+    return []
 
 
 def _path(by_child, base: str, tip: str):

@@ -182,7 +182,7 @@ def _axis_angle(axis, angle: float) -> tuple:
 
 
 #: The rounded cube of ``trifinger``: a superquadric of exponent 4 and half-side 0.035 m
-#: (TriFinger's cubes are 0.065 m), 0.08 kg.
+#: (0.07 m across; TriFinger's cubes are 0.065 m), 0.08 kg.
 TRIFINGER_CUBE: tuple[float, int, float] = (0.035, 4, 0.08)
 #: rad, the start guess of every TriFinger finger: TriFinger's own initial position.
 TRIFINGER_Q0: tuple[float, float, float] = (0.0, 0.9, -1.7)

@@ -35,7 +35,8 @@ MAX_THREADS = 1024
 REFUSED, EVENT = -10, -11
 #: the status of a run an explicit method found stiff
 _STIFF = -8
-STATUS = {0: "ok", -1: "non-finite state", -2: "contact left its contour", -3: "evaluation error",
+STATUS = {0: "ok", -1: "non-finite state", -2: "a contact left its contour or a joint reached a limit",
+          -3: "evaluation error",
           -5: "step size too small", -6: "too many steps", -7: "projection failed",
           -8: "stiff (explicit method)", -9: "stopped (time limit)", REFUSED: "initial state refused",
           EVENT: "event along the run"}

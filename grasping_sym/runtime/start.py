@@ -194,10 +194,10 @@ def solve_start(model, values: dict[str, float], branch: str = "start") -> Start
             "kind of scene (the paper's moving-frame formulation) cannot solve a start at run "
             "time; give the new start in the scene and build it, or use formulation='regular'")
     target = {names.index(k): float(v) for k, v in values.items()}
-    for i, v in target.items():  # a given contact parameter outside its domain: refused now
+    for i, v in target.items():  # a given value outside its bounds: refused now
         if not model.lower[i] <= v <= model.upper[i]:
             raise UnreachableStartError(
-                f"initial_state: the given {names[i]} = {v:.6g} is outside its contour's domain "
+                f"initial_state: the given {names[i]} = {v:.6g} is outside {_bounds_of(model, i)} "
                 f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}]: give a value inside it")
     free = _free(model, info, values, len(conditions))
     speeds = [names.index(k) for k in info["velocity_states"] if k not in values]
@@ -255,11 +255,17 @@ def _free(model, info, values, n_conditions) -> list[int]:
 
 
 def _contact(model, x) -> dict[str, float]:
-    """The contact parameters at ``x``: the position states with a contour's domain."""
+    """The contact parameters at ``x``: the position states with a contour's domain (not the
+    joints with limits)."""
     positions = (model.manifest.get("constraints") or {}).get("position_states", model.state_names)
     names = model.state_names
-    return {k: float(x[names.index(k)]) for k in positions
-            if math.isfinite(model.lower[names.index(k)]) or math.isfinite(model.upper[names.index(k)])}
+    return {k: float(x[names.index(k)]) for k in positions if k not in model.joint_limits and (
+        math.isfinite(model.lower[names.index(k)]) or math.isfinite(model.upper[names.index(k)]))}
+
+
+def _bounds_of(model, i: int) -> str:
+    """What bounds state ``i``: its joint's limits or its contour's domain."""
+    return "its joint's limits" if model.state_names[i] in model.joint_limits else "its contour's domain"
 
 
 def _orientation(J: np.ndarray) -> int:
@@ -505,6 +511,6 @@ def _check_domain(model, x: np.ndarray) -> None:
     if bad.size:
         i = int(bad[0])
         raise UnreachableStartError(
-            f"initial_state: the consistent pose puts the contact parameter "
-            f"{model.state_names[i]} = {x[i]:.6g} outside its contour's domain "
-            f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}]: choose values nearer the scene's start")
+            f"initial_state: the consistent pose puts {model.state_names[i]} = {x[i]:.6g} outside "
+            f"{_bounds_of(model, i)} [{model.lower[i]:.6g}, {model.upper[i]:.6g}]: choose values "
+            "nearer the scene's start")

@@ -156,7 +156,8 @@ def committed_dir(name: str) -> Path:
 _MODEL_DIR = re.compile(r"(?P<scene>[^/\\]+)-(?P<hash>[0-9a-f]{16})")
 #: Shared directories at the root, and the names of what the package keeps in each.
 SHARED_DIRS = {
-    "structures": re.compile(r"gs_structure_[0-9a-f]{12}"),  # codegen.structure_cache
+    # codegen.structure_cache: a structure's directory, and the lock of its writing
+    "structures": re.compile(r"gs_structure_[0-9a-f]{12}|\.gs_structure_[0-9a-f]{12}\.lock"),
     "templates": re.compile(r"(planar|finger)-[\w.+-]+\.json"),  # codegen.templates
     "objects": re.compile(r"driver-[0-9a-f]{16}"),  # codegen.objects
     "definitions": re.compile(r"[0-9a-f]{32}\.json"),  # pipeline.stages (definition_key)
