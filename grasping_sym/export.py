@@ -119,14 +119,6 @@ def qpos(model, result) -> np.ndarray:
     return rows
 
 
-def joint_positions(model_or_scene) -> dict[str, float]:
-    """rad, ``{joint state: angle}`` of the written start (MuJoCo's ``qpos`` of each hinge,
-    by the same names)."""
-    scene = getattr(model_or_scene, "scene", None) or model_or_scene
-    q, _, _ = _start(model_or_scene, scene)
-    return dict(q)
-
-
 def _start(model_or_scene, scene) -> tuple[list, np.ndarray, np.ndarray]:
     """The joint angles, the object's position and quaternion (w, x, y, z) to write."""
     names = [n for f in scene.fingers for n in f.chain.joint_names]
