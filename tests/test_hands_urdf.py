@@ -7,13 +7,13 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
-import sympy as sp
 import yourdfpy
 
 import grasping_sym as gs
-from grasping_sym.derive import spatial
+from grasping_sym.derive.bodies3d import finger_sx
 from grasping_sym.errors import JointLimitError
 from grasping_sym.model import chains
 from grasping_sym.model.hands import URDFError
@@ -102,11 +102,10 @@ def test_trifinger_pro_gives_yourdfpys_kinematics_masses_and_kinetic_energy():
     rng = np.random.default_rng(3)
     links = {}  # finger -> [(link, mass, com, inertia in the link frame)], from the file
     for finger, chain in zip("123", hand.chains):
-        kin = spatial.finger_kinematics(chain)
-        dyn = spatial.finger_dynamics(kin, gravity=g, simplify=False)
-        syms = [*kin.q, *kin.dq]
-        r, Pi, K, P = (sp.lambdify(syms, sp.N(e, 20))  # exact rationals to floats
-                       for e in (kin.r, kin.Pi, dyn.kinetic_energy, dyn.potential_energy))
+        # the derivation the build uses: the finger's template, placed (derive.bodies3d)
+        qs, dqs = ca.SX.sym("q", chain.n), ca.SX.sym("dq", chain.n)
+        out = finger_sx(chain, g, qs, dqs)
+        fn = ca.Function("finger", [qs, dqs], [out["r"], out["Pi"], out["G"], out["P"]])
         names = [hand.joints[n] for n in chain.joint_names]
         links[finger] = [(robot.link_map[ln].name, robot.link_map[ln].inertial)
                          for ln in (robot.joint_map[n].child for n in names)] + \
@@ -117,8 +116,9 @@ def test_trifinger_pro_gives_yourdfpys_kinematics_masses_and_kinetic_energy():
             cfg = dict(zip(names, q))
             robot.update_cfg(cfg)
             T = _frame(robot, TRIFINGER_TIPS[finger])
-            np.testing.assert_allclose(np.ravel(r(*q, *dq)), T[:3, 3], rtol=0, atol=1e-13)
-            np.testing.assert_allclose(np.asarray(Pi(*q, *dq), float), T[:3, :3], rtol=0, atol=1e-13)
+            r, Pi, G, P = (np.asarray(v) for v in fn(q, dq))
+            np.testing.assert_allclose(r.ravel(), T[:3, 3], rtol=0, atol=1e-13)
+            np.testing.assert_allclose(Pi, T[:3, :3], rtol=0, atol=1e-13)
 
             h = 1e-6
             plus, minus, here = (_bodies(robot, names, links[finger], qq) for qq in (q + h * dq, q - h * dq, q))
@@ -129,8 +129,8 @@ def test_trifinger_pro_gives_yourdfpys_kinematics_masses_and_kinetic_energy():
                 w = np.array([W[2, 1], W[0, 2], W[1, 0]])
                 kinetic += 0.5 * m * v @ v + 0.5 * w @ (R0 @ inertia @ R0.T) @ w
                 potential -= m * np.dot(g, c0)
-            assert float(K(*q, *dq)) == pytest.approx(kinetic, rel=1e-8)
-            assert float(P(*q, *dq)) == pytest.approx(potential, rel=1e-12, abs=1e-15)
+            assert 0.5 * dq @ G @ dq == pytest.approx(kinetic, rel=1e-8)
+            assert P.item() == pytest.approx(potential, rel=1e-12, abs=1e-15)
 
 
 @pytest.fixture(scope="module")

@@ -48,7 +48,6 @@ runs of seconds, so no drift accumulates. The orthonormality error of ``R(quat)`
 """
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -150,11 +149,6 @@ class FingerKinematics:
     J: sp.Matrix
     W: sp.Matrix
     params: dict[sp.Symbol, float] = field(default_factory=dict)
-    #: the same chain with its first joint's fixed frame ``B`` taken as the identity and its
-    #: base at the origin, when ``B`` is given: the world quantities above are ``B`` times
-    #: (plus ``base``) these, and the kinetic energy is these' (a rotation of the whole finger
-    #: changes no speed), so its simplification never meets ``B``'s irrational entries
-    local: FingerKinematics | None = None
 
     def point_jacobian(self, p_tip: sp.Matrix) -> sp.Matrix:
         """Jacobian (3 x n, m/rad) of the material point at ``p_tip`` (fingertip frame, m).
@@ -187,8 +181,6 @@ def finger_kinematics(chain: FingerChain, symbolic: bool = False) -> FingerKinem
     -------
     FingerKinematics
     """
-    if chain.joints[0].frame is not None:
-        return _in_base_frame(chain, symbolic)
     name = chain.name
     n = chain.n
     q = sp.Matrix(sp.symbols(" ".join(f"q{name}{k}" for k in range(1, n + 1)), real=True,
@@ -246,27 +238,6 @@ def finger_kinematics(chain: FingerChain, symbolic: bool = False) -> FingerKinem
     )
 
 
-def _in_base_frame(chain: FingerChain, symbolic: bool) -> FingerKinematics:
-    """``finger_kinematics`` of a chain whose first joint has a fixed frame ``B``: the chain
-    derived in that frame (``FingerKinematics.local``), then turned by ``B`` and moved to
-    ``base``."""
-    first = chain.joints[0]
-    local = finger_kinematics(dataclasses.replace(
-        chain, base=(0.0, 0.0, 0.0), joints=(dataclasses.replace(first, frame=None), *chain.joints[1:])),
-        symbolic)
-    B = sp.Matrix(3, 3, [exact(x) for row in first.frame for x in row])
-    base = exact_vector(chain.base)
-    return FingerKinematics(
-        chain=chain, q=local.q, dq=local.dq, link_rotations=tuple(B * R for R in local.link_rotations),
-        joint_positions=tuple(base + B * p for p in local.joint_positions),
-        joint_axes=tuple(B * a for a in local.joint_axes),
-        com_positions=tuple(base + B * c for c in local.com_positions),
-        com_jacobians=tuple(B * Jc for Jc in local.com_jacobians),
-        link_W=tuple(B * W for W in local.link_W), masses=local.masses, inertias=local.inertias,
-        Pi=B * local.Pi, r=base + B * local.r, J=B * local.J, W=B * local.W, params=local.params,
-        local=local)
-
-
 @dataclass(frozen=True, eq=False)
 class FingerDynamics:
     """Lagrangian pieces of one finger: ``G(q) q'' + h(q, q') + dP/dq = u``.
@@ -317,9 +288,8 @@ def finger_dynamics(kin: FingerKinematics, gravity: Sequence[Scalar] | None = No
     """
     q, dq = kin.q, kin.dq
     kinetic = sp.Integer(0)
-    moving = kin.local or kin  # the speeds in the finger's own base frame (FingerKinematics.local)
-    for m, Jc, Wk, R, I_k in zip(moving.masses, moving.com_jacobians, moving.link_W,
-                                 moving.link_rotations, moving.inertias):
+    for m, Jc, Wk, R, I_k in zip(kin.masses, kin.com_jacobians, kin.link_W,
+                                 kin.link_rotations, kin.inertias):
         vc = Jc * dq
         wk = R.T * (Wk * dq)  # body-frame angular velocity of link k
         kinetic += m * vc.dot(vc) / 2 + (wk.T * I_k * wk)[0, 0] / 2
