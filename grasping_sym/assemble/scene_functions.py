@@ -67,7 +67,8 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
 
     def make(name):
         _prefetch_driver(scene, jac=True, lanes=True)
-        template, source = templates.planar_template(spec.shared, spec.gravity, scene.n_fingers)
+        template, source = templates.planar_template(spec.shared, spec.gravity, scene.n_fingers,
+                                                     spec.free)
         return structure_functions(template, spec, name), f"template: {source}"
 
     def contours(record):
@@ -128,7 +129,7 @@ def planar_single_piece(scene) -> SceneFunctions:
     inputs = (*scene.runtime, *scene.start_param_names)
     values = parameter_values(scene)
     template, _ = templates.planar_template(scene.shared_parameter, has_gravity(scene),
-                                            scene.n_fingers)
+                                            scene.n_fingers, scene.free)
     ctrl = controller_function(scene, scene.name)
     return SceneFunctions(compose(template, list(scene.fingertips), scene.object, runtime=inputs,
                                   constants={k: v for k, v in values.items() if k not in inputs},
@@ -145,7 +146,8 @@ def planar_structure(scene) -> tuple[PlanarStructureSpec, list[list]]:
                                n_fingers=scene.n_fingers, inputs=inputs,
                                constants=tuple(sorted((k, float(v)) for k, v in values.items()
                                                       if k not in inputs)),
-                               folded=fold_pattern(leaves), outputs=tuple(scene.outputs))
+                               folded=fold_pattern(leaves), outputs=tuple(scene.outputs),
+                               free=scene.free)
     return spec, leaves
 
 

@@ -220,11 +220,14 @@ class PlanarStructureSpec(StructureSpec):
     constants: tuple[tuple[str, float], ...]
     folded: tuple[tuple[tuple[int, int], ...], ...]
     outputs: tuple[str, ...]
+    #: a free object (its mass centre a state); pivoted structures keep their old keys
+    free: bool = False
 
     def body(self) -> str:
         consts = ";".join(f"{k}={float(v)!r}" for k, v in self.constants)
         return "|".join([repr((self.shared, self.gravity, self.n_fingers)), ",".join(self.inputs),
-                         consts, repr(self.folded), ",".join(self.outputs)])
+                         consts, repr(self.folded), ",".join(self.outputs),
+                         *(["free"] if self.free else [])])
 
 
 def structure_functions(template: Template, spec: PlanarStructureSpec, name: str) -> StructureFunctions:

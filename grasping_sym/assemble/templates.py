@@ -29,15 +29,17 @@ from grasping_sym.store.templates import cache_dir, committed_templates_dir, loa
 PLANAR_STRUCTURES = ((True, False), (False, False), (True, True), (False, True))
 
 
-def template_name(shared: bool, gravity: bool, n_fingers: int = 1) -> str:
+def template_name(shared: bool, gravity: bool, n_fingers: int = 1, free: bool = False) -> str:
     fingers = "" if n_fingers == 1 else f"-{n_fingers}fingers"
-    return f"planar-{'s' if shared else 'u0u1'}-{'gravity' if gravity else 'horizontal'}{fingers}"
+    return (f"planar-{'s' if shared else 'u0u1'}-{'gravity' if gravity else 'horizontal'}{fingers}"
+            + ("-free" if free else ""))
 
 
-def template_key(shared: bool, gravity: bool, n_fingers: int = 1) -> str:
+def template_key(shared: bool, gravity: bool, n_fingers: int = 1, free: bool = False) -> str:
     """Hash of what a template depends on: the structure, the package's source tree
     (``cache.tree_digest``), CasADi's version."""
-    text = f"{template_name(shared, gravity, n_fingers)}|{cache.tree_digest()}|{ca.__version__}"
+    name = template_name(shared, gravity, n_fingers, free)
+    text = f"{name}|{cache.tree_digest()}|{ca.__version__}"
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -50,18 +52,20 @@ def write_template(path: Path, template: Template, key: str) -> None:
     safety.write_text(path, json.dumps({"key": key, **template.to_json()}, sort_keys=True) + "\n")
 
 
-def derive_and_build(shared: bool, gravity: bool, n_fingers: int = 1) -> Template:
-    return build_template(derive_template(shared, gravity, n_fingers))
+def derive_and_build(shared: bool, gravity: bool, n_fingers: int = 1,
+                     free: bool = False) -> Template:
+    return build_template(derive_template(shared, gravity, n_fingers, free))
 
 
-def planar_template(shared: bool, gravity: bool, n_fingers: int = 1) -> tuple[Template, str]:
+def planar_template(shared: bool, gravity: bool, n_fingers: int = 1,
+                    free: bool = False) -> tuple[Template, str]:
     """The template of a planar structure and where it came from."""
-    key = template_key(shared, gravity, n_fingers)
-    name = f"{template_name(shared, gravity, n_fingers)}.json"
+    key = template_key(shared, gravity, n_fingers, free)
+    name = f"{template_name(shared, gravity, n_fingers, free)}.json"
     for source, directory in (("cache", cache_dir()), ("committed", committed_templates_dir())):
         found = _read(directory / name, key, from_cache=source == "cache")
         if found is not None:
             return found, source
-    template = derive_and_build(shared, gravity, n_fingers)
+    template = derive_and_build(shared, gravity, n_fingers, free)
     write_template(cache_dir() / name, template, key)
     return template, "derived"

@@ -39,7 +39,7 @@ from functools import lru_cache
 import sympy as sp
 
 from grasping_sym.derive.system import ConstrainedSystem
-from grasping_sym.model.planar import PARAMETERS, PlanarFingerScene
+from grasping_sym.model.planar import FREE_PARAMETERS, PARAMETERS, PlanarFingerScene
 from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions
 
 
@@ -48,16 +48,18 @@ def _rot(a: sp.Expr, v: sp.Matrix) -> sp.Matrix:
     return sp.Matrix([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
 
-def template_parameters(gravity: bool, n_fingers: int = 1) -> tuple[str, ...]:
+def template_parameters(gravity: bool, n_fingers: int = 1, free: bool = False) -> tuple[str, ...]:
     """Names of every parameter of a template, in order (the pivot and gravity included).
 
     Finger 1 is the paper's (joints at the origin, ``l11, l12, m11, m12``); finger ``i >= 2``
-    adds its links ``l{i}1, l{i}2, m{i}1, m{i}2`` and its base ``xb{i}, yb{i}``.
+    adds its links ``l{i}1, l{i}2, m{i}1, m{i}2`` and its base ``xb{i}, yb{i}``. A free
+    object adds its mass ``M``; ``xm, ym`` are then the start's mass centre, which only the
+    paper's law reads (the point it pulls toward).
     """
     extra = tuple(f"{k}{i}{j}" for i in range(2, n_fingers + 1) for k, j in
                   (("l", 1), ("l", 2), ("m", 1), ("m", 2), ("xb", ""), ("yb", "")))
-    return (*PARAMETERS, "xm", "ym", *(("gx", "gy") if gravity else ()), *extra,
-            *torque_names(n_fingers))
+    return (*PARAMETERS, *(FREE_PARAMETERS if free else ()), "xm", "ym",
+            *(("gx", "gy") if gravity else ()), *extra, *torque_names(n_fingers))
 
 
 def torque_names(n_fingers: int = 1) -> tuple[str, ...]:
@@ -74,7 +76,7 @@ def has_gravity(scene: PlanarFingerScene) -> bool:
 
 def parameter_values(scene: PlanarFingerScene) -> dict[str, float]:
     """Values of every template parameter for ``scene`` (solves the initial configuration)."""
-    values = {k: float(scene.params[k]) for k in PARAMETERS}
+    values = {k: float(scene.params[k]) for k in scene.parameter_names}
     values["xm"], values["ym"] = scene.pivot
     if has_gravity(scene):
         values["gx"], values["gy"] = (float(g) for g in scene.gravity)
@@ -94,7 +96,8 @@ def derive_planar(scene: PlanarFingerScene) -> ConstrainedSystem:
     ``system.constants`` the values of the others, which the translation to CasADi folds
     into the code. ``system.outputs`` holds only the outputs the scene requests.
     """
-    template = derive_template(scene.shared_parameter, has_gravity(scene), scene.n_fingers)
+    template = derive_template(scene.shared_parameter, has_gravity(scene), scene.n_fingers,
+                               scene.free)
     values = parameter_values(scene)
     symbols = {str(sym): sym for sym in template.params}
     law = paper_law(template, scene.n_fingers, has_gravity(scene))
@@ -165,32 +168,46 @@ def _contact(fin: dict, F0, u0, u1, th, Om):
     Q1 = (fin["O01"] - Om).dot(n1)
     R1 = (fin["O01"] - Om).dot(b1)
     return {"C": [Q1 + ln0 + ln1 - lb0 * delta, R1 + lb0 + lb1 + ln0 * delta], "Q1": Q1, "R1": R1,
+            "O01": fin["O01"], "n1": n1, "b1": b1,
             "delta": delta, "kappa_sum": kappa0 + kappa1, "N1": ln0 * lb1 - lb0 * ln1}
 
 
 @lru_cache(maxsize=8)
-def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> ConstrainedSystem:
+def derive_template(shared: bool, gravity: bool, n_fingers: int = 1,
+                    free: bool = False) -> ConstrainedSystem:
     """Derive the 2D model for any contours, with every parameter a symbol.
 
     Depends only on the structure: one shared contact parameter ``s`` (both contours
-    unit-speed) or two (``u0``, ``u1``), whether gravity is modelled, and the number of
+    unit-speed) or two (``u0``, ``u1``), whether gravity is modelled, the number of
     fingers (``n_fingers > 1``: each finger ``i`` has its own fingertip contour, contact
-    parameters ``u0_{i}, u1_{i}`` and joints ``q{i}1, q{i}2``; ``shared`` must be false).
-    The contours enter through the abstract functions of ``contour_functions``; every
-    output is derived.
+    parameters ``u0_{i}, u1_{i}`` and joints ``q{i}1, q{i}2``; ``shared`` must be false),
+    and whether the object is free (``free``: its mass centre ``Om = (x, y)`` is a state,
+    with kinetic energy ``M |Om'|^2 / 2`` and, under gravity, potential ``-M g.Om``; the
+    pivot's ``I theta'^2 / 2`` becomes the turn about the mass centre). The contours enter
+    through the abstract functions of ``contour_functions``; every output is derived.
     """
     if n_fingers < 1 or (n_fingers > 1 and shared):
         raise ValueError(f"n_fingers = {n_fingers}, shared = {shared}: need n_fingers >= 1, and "
                          "separate contact parameters (shared=False) for several fingers")
     one = n_fingers == 1
     th, dth = sp.symbols("theta dtheta", real=True)
-    P = {k: sp.Symbol(k, real=True) for k in template_parameters(gravity, n_fingers)}
-    Om = sp.Matrix([P["xm"], P["ym"]])
+    P = {k: sp.Symbol(k, real=True) for k in template_parameters(gravity, n_fingers, free)}
     fingers = [_finger(i, n_fingers, P, gravity) for i in range(1, n_fingers + 1)]
-    q = sp.Matrix([th, *[x for f in fingers for x in f["q"]]])
-    v = sp.Matrix([dth, *[x for f in fingers for x in f["v"]]])
-    kin = sum((f["kin"] for f in fingers), P["I"] * dth**2 / 2)
-    pot = sum((f["pot"] for f in fingers), sp.Integer(0))
+    obj_q, obj_v = [th], [dth]
+    kin0, pot0 = P["I"] * dth**2 / 2, sp.Integer(0)
+    if free:
+        x, y, dx, dy = sp.symbols("x y dx dy", real=True)
+        obj_q, obj_v = [x, y, th], [dx, dy, dth]
+        Om = sp.Matrix([x, y])
+        kin0 += P["M"] * (dx**2 + dy**2) / 2
+        if gravity:
+            pot0 = -P["M"] * (P["gx"] * x + P["gy"] * y)
+    else:
+        Om = sp.Matrix([P["xm"], P["ym"]])
+    q = sp.Matrix([*obj_q, *[x for f in fingers for x in f["q"]]])
+    v = sp.Matrix([*obj_v, *[x for f in fingers for x in f["v"]]])
+    kin = sum((f["kin"] for f in fingers), kin0)
+    pot = sum((f["pot"] for f in fingers), pot0)
     M = sp.hessian(kin, v)
     Mv = M * v
     # h = M' v - dK/dq + dV/dq  (Euler-Lagrange with L = K - V)
@@ -201,7 +218,7 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
     # ---- joint torques: symbols (the controller layer gives them)
     taus = [P[k] for k in torque_names(n_fingers)]
     ctrls = [sp.Matrix(taus[2 * i:2 * i + 2]) for i in range(n_fingers)]
-    tau = sp.Matrix([0, *taus])
+    tau = sp.Matrix([*[0] * len(obj_q), *taus])
 
     mus = sp.symbols("f lam" if one else " ".join(f"f{i} lam{i}" for i in range(1, n_fingers + 1)),
                      real=True)
@@ -212,7 +229,7 @@ def derive_template(shared: bool, gravity: bool, n_fingers: int = 1) -> Constrai
         csm_stiffness=sp.Matrix([P["wf"], P["wl"]] * n_fingers),
         contact_rates=sigma, multipliers=list(mus),
     )
-    system.outputs = _outputs(contacts, mus, P, C, kin, pot, fingers, ctrls, one)
+    system.outputs = _outputs(contacts, mus, P, C, kin, pot, fingers, ctrls, one, Om)
     system.params = list(P.values())
     return system
 
@@ -257,16 +274,21 @@ def _constraint_derivatives(C, q, v, us, sigma, shared: bool):
     return A, Cdot, Ahat, bhat
 
 
-def _outputs(contacts, mus, P, C, kin, pot, fingers, ctrls, one: bool) -> dict:
-    """Every output of the template, ``mus`` standing for the multipliers."""
+def _outputs(contacts, mus, P, C, kin, pot, fingers, ctrls, one: bool, Om) -> dict:
+    """Every output of the template, ``mus`` standing for the multipliers. ``delta_f``,
+    ``delta_lam`` measure the paper's equilibrium about the point its law pulls toward
+    (``xm, ym``: the pivot, or a free object's start point)."""
+    anchor = sp.Matrix([P["xm"], P["ym"]])
     available = {}
     for i, c in enumerate(contacts, start=1):
         tag = "" if one else str(i)
         f, lam = mus[2 * i - 2], mus[2 * i - 1]
         available.update({
             f"Q{tag}": c["C"][0], f"R{tag}": c["C"][1], f"f{tag}": f, f"lam{tag}": lam,
-            f"delta_f{tag}": f + P["fd"] / P["r"] * c["Q1"],
-            f"delta_lam{tag}": lam + P["fd"] / P["r"] * c["R1"],
+            f"delta_f{tag}": f + P["fd"] / P["r"] * (c["Q1"] if anchor == Om
+                                                     else (c["O01"] - anchor).dot(c["n1"])),
+            f"delta_lam{tag}": lam + P["fd"] / P["r"] * (c["R1"] if anchor == Om
+                                                         else (c["O01"] - anchor).dot(c["b1"])),
             ("N1" if one else f"N1_{i}"): c["N1"], f"kappa_sum{tag}": c["kappa_sum"],
             f"tangency_defect{tag}": c["delta"],
         })

@@ -14,10 +14,11 @@ parameters, then its start's values, then its inputs' coefficients). A law reads
   ``rotation0``: the scene's ``rotation``, ``position0``: a free object's ``position`` as
   given, and ``r_bar0`` when the scene has a centre spring);
 - object information (recorded in ``m.uses_object`` when read): 2D ``m.theta``,
-  ``m.dtheta``; 3D ``m.position``, ``m.velocity``, ``m.rotation`` (body to world),
-  ``m.omega`` (body angular velocity), ``m.quaternion``;
-- the fixed points: 2D ``m.pivot`` (the pivot Om, a run-time input); 3D pivot scenes
-  ``m.pivot`` (the object's fixed centre).
+  ``m.dtheta``, and for a free object ``m.position``, ``m.velocity`` (its mass centre);
+  3D ``m.position``, ``m.velocity``, ``m.rotation`` (body to world), ``m.omega`` (body
+  angular velocity), ``m.quaternion``;
+- the fixed points: 2D ``m.pivot`` (the pivot Om, a run-time input; for a free object its
+  mass centre at the start); 3D pivot scenes ``m.pivot`` (the object's fixed centre).
 """
 from __future__ import annotations
 
@@ -141,9 +142,12 @@ def planar_quantities(scene, t: ca.SX, x: ca.SX, p: ca.SX, p_names: tuple[str, .
         tip.append(centre)
         J.append(ca.jacobian(centre, qi))
         grav.append(ca.jacobian(V, qi).T if gravity else ca.SX.zeros(2, 1))
-    th, dth = x[names.index("theta")], x[names.index("dtheta")]
+    objects = {"theta": x[names.index("theta")], "dtheta": x[names.index("dtheta")]}
+    if scene.free:
+        objects.update({"position": ca.vertcat(x[names.index("x")], x[names.index("y")]),
+                        "velocity": ca.vertcat(x[names.index("dx")], x[names.index("dy")])})
     return Quantities(t=t, q=q, dq=dq, tip=tip, J=J, gravity_torque=grav, params=params,
-                      objects={"theta": th, "dtheta": dth},
+                      objects=objects,
                       pivot=ca.vertcat(params["xm"], params["ym"]))
 
 

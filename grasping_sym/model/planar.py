@@ -1,4 +1,4 @@
-"""The 2D scene: one planar two-joint finger rolling on an object pivoted at a point.
+"""The 2D scene: planar two-joint fingers rolling on an object pivoted at a point, or free.
 
 Frames and signs follow ``docs/conventions.md`` section 1 (Yoshida, Arimoto, Tahara 2009):
 
@@ -6,7 +6,9 @@ Frames and signs follow ``docs/conventions.md`` section 1 (Yoshida, Arimoto, Tah
 - finger joints at the origin, fingertip centre
   ``O01 = (l11 sin q1 + l12 sin(q1+q2), l11 cos q1 + l12 cos(q1+q2))``;
 - fingertip contour point ``O01 + Rot(pi/2 - q1 - q2) c0(u0)``;
-- object contour point ``Om + Rot(-theta) c1(u1)``, the object pivoted at the fixed ``Om``.
+- object contour point ``Om + Rot(-theta) c1(u1)``, the object pivoted at the fixed ``Om``
+  (``support="pivot"``), or free (``support="free"``): ``Om = (x, y)`` is then its mass
+  centre, a state like ``theta`` (docs/conventions.md section 13).
 
 The contact is described by one parameter per contour (``u0`` on the fingertip, ``u1`` on the
 object). When both contours are unit-speed and the contact starts at equal parameters, the
@@ -36,7 +38,7 @@ PARAMETERS: dict[str, str] = {
     "l12": "m, length of link 2",
     "m11": "kg, mass of link 1 (uniform rod)",
     "m12": "kg, mass of link 2 (uniform rod)",
-    "I": "kg m^2, object inertia about the pivot Om",
+    "I": "kg m^2, object inertia about the pivot Om (a free object: about its mass centre)",
     "fd": "N, desired internal force",
     "c": "N m s, joint damping",
     "r": "m, control constant of eq (32)",
@@ -45,6 +47,13 @@ PARAMETERS: dict[str, str] = {
     "wf": "1/s^2, CSM stiffness gain of Q (omega_f)",
     "wl": "1/s^2, CSM stiffness gain of R (omega_lambda)",
 }
+
+#: Parameters a free object adds (``support="free"``), with their units. ``I`` is then the
+#: inertia about the mass centre ``Om``.
+FREE_PARAMETERS: dict[str, str] = {"M": "kg, object mass (support='free')"}
+
+#: What may hold the 2D object: a fixed pivot (the paper's), or nothing (a free object).
+SUPPORTS = ("pivot", "free")
 
 #: The constraint-stabilisation gains: 0 is allowed (no stabilisation).
 CSM_GAINS = ("gf", "gl", "wf", "wl")
@@ -100,7 +109,7 @@ class ExtraFinger:
 
 @dataclass(frozen=True, eq=False)
 class PlanarFingerScene:
-    """One two-joint planar finger rolling on an object pivoted at a fixed point.
+    """Two-joint planar fingers rolling on an object pivoted at a fixed point, or free.
 
     Parameters
     ----------
@@ -117,8 +126,8 @@ class PlanarFingerScene:
         Names from ``OUTPUTS`` to generate.
     gravity
         ``(gx, gy)`` in m/s^2, or ``None`` for a horizontal scene (no gravity terms at all).
-        The object's centre of mass is at its pivot; finger gravity is compensated by the
-        controller.
+        A pivoted object's centre of mass is at its pivot; a free object's weight ``M g``
+        acts at its mass centre ``Om``; finger gravity is compensated by the controller.
     q1_0, theta_0, u0_0, u1_0
         Initial joint angle q1 (rad), object angle (rad) and contact parameters on the
         fingertip and object contours. The initial state is at rest; tangency fixes ``q2``
@@ -132,6 +141,14 @@ class PlanarFingerScene:
         ``grasping_sym.model.controllers.Controller`` (``model.control``).
     inputs
         ``None`` or ``"torques"``: joint torques ``u1, u2, ...`` added to the controller's.
+    friction
+        Coulomb friction at the contacts (``gs.contact.coulomb``), checked at run time.
+    support
+        ``"pivot"`` (the paper's: the object turns about the fixed ``Om``) or ``"free"``: the
+        object's mass centre ``Om = (x, y)`` moves too (three degrees of freedom; ``params``
+        then also holds its mass ``M``, and ``I`` is about ``Om``). The start puts ``Om``
+        where finger 1's contact puts it, as it puts the pivot; the paper's law (32) pulls
+        each fingertip toward that start point (``m.pivot``).
     """
 
     name: str
@@ -151,6 +168,7 @@ class PlanarFingerScene:
     #: Coulomb friction at the contacts (``gs.contact.coulomb``): read at run time only, so it
     #: is in no cache key; None: no friction limit
     friction: Coulomb | None = None
+    support: str = "pivot"
 
     #: The scene's kind (``model.kinds``: every floor above asks it, never the dimension).
     kind: ClassVar[str] = "planar"
@@ -182,6 +200,16 @@ class PlanarFingerScene:
     @property
     def n_fingers(self) -> int:
         return 1 + len(self.extra_fingers)
+
+    @property
+    def free(self) -> bool:
+        """Whether the object is free (``support="free"``): its mass centre is a state."""
+        return self.support == "free"
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Every key ``params`` must hold: ``PARAMETERS``, and ``M`` for a free object."""
+        return (*PARAMETERS, *(FREE_PARAMETERS if self.free else ()))
 
     @property
     def fingertips(self) -> tuple[PlanarCurve, ...]:
@@ -230,7 +258,8 @@ class PlanarFingerScene:
 
     @property
     def pivot(self) -> tuple[float, float]:
-        """The pivot ``Om`` (m), fixed by contact at the initial state."""
+        """The pivot ``Om`` (m), fixed by contact at the initial state; for a free object, its
+        mass centre at the start (the point the paper's law pulls toward)."""
         return self._initial[1]
 
     @property
@@ -242,14 +271,20 @@ class PlanarFingerScene:
         )
 
     @property
+    def object_coordinates(self) -> tuple[str, ...]:
+        """The object's position states: ``theta``, after ``x, y`` for a free object."""
+        return ("x", "y", "theta") if self.free else ("theta",)
+
+    @property
     def state_names(self) -> tuple[str, ...]:
+        obj = self.object_coordinates
         if self.extra_fingers:
             n = range(1, self.n_fingers + 1)
             q = [f"q{i}{j}" for i in n for j in (1, 2)]
-            return ("theta", *q, "dtheta", *["d" + k for k in q],
+            return (*obj, *q, *["d" + k for k in obj], *["d" + k for k in q],
                     *[f"u{k}_{i}" for i in n for k in (0, 1)])
         tail = ("s",) if self.shared_parameter else ("u0", "u1")
-        return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", *tail)
+        return (*obj, "q1", "q2", *["d" + k for k in obj], "dq1", "dq2", *tail)
 
     def validate(self) -> None:
         """Check every parameter, both contours and the initial contact; raise listing all.
@@ -316,23 +351,31 @@ class PlanarFingerScene:
             return problems + name_problems(self.name)
         problems += name_problems(self.name)
         problems += control_problems(self.controller, self.inputs)
-        missing = [k for k in PARAMETERS if k not in self.params]
-        unknown = [k for k in self.params if k not in PARAMETERS]
+        if self.support not in SUPPORTS:
+            problems.append(f"support = {self.support!r}: use 'pivot' (the object turns about a "
+                            "fixed point) or 'free' (it moves in the plane)")
+        known = {**PARAMETERS, **(FREE_PARAMETERS if self.free else {})}
+        missing = [k for k in known if k not in self.params]
+        unknown = [k for k in self.params if k not in known]
         if missing:
-            problems.append(f"missing parameters {missing}: give a value for each")
+            problems.append(f"missing parameters {missing}: give a value for each"
+                            + (" (a free object needs its mass M, kg)" if "M" in missing else ""))
         if unknown:
-            problems.append(f"unknown parameters {unknown}: known ones are {list(PARAMETERS)}")
+            hint = (" (M, the object's mass, is a parameter of a free object: support='free')"
+                    if "M" in unknown else "")
+            problems.append(f"unknown parameters {unknown}: known ones are {list(known)}{hint}")
         for k, v in self.params.items():
             if k in CSM_GAINS:  # 0 turns the stabilisation off (e.g. with projection)
                 if not (_finite(v) and v >= 0):
                     problems.append(f"{k} = {v!r} ({PARAMETERS[k]}) must be finite and >= 0")
-            elif k in PARAMETERS and not _finite_positive(v):
-                problems.append(f"{k} = {v!r} ({PARAMETERS[k]}) must be finite and > 0")
+            elif k in known and not _finite_positive(v):
+                problems.append(f"{k} = {v!r} ({known[k]}) must be finite and > 0")
+        allowed = (*RUNTIME_ALLOWED, *(FREE_PARAMETERS if self.free else ()))
         for k in self.runtime:
-            if k not in RUNTIME_ALLOWED:
+            if k not in allowed:
                 problems.append(
                     f"runtime parameter {k!r} cannot vary at run time: allowed are "
-                    f"{list(RUNTIME_ALLOWED)} (geometry fixes the initial configuration)"
+                    f"{list(allowed)} (geometry fixes the initial configuration)"
                 )
         problems += output_problems(self.outputs, self.output_names())
         problems += friction_problems(self.friction, 1 + len(self.extra_fingers))
@@ -381,7 +424,7 @@ class PlanarFingerScene:
             # with the contours' keys this fixes shared_parameter (which samples the contours)
             f"equal_start_parameters={self.u0_0 == self.u1_0}",
             *[f.code_key() for f in self.extra_fingers],
-            f"inputs={self.inputs}"
+            f"inputs={self.inputs}", *(["support=free"] if self.free else []),
         ])
 
     def key(self) -> str:
@@ -390,7 +433,8 @@ class PlanarFingerScene:
                       *[(f.u1_0, f.u0_0) for f in self.extra_fingers]))
         return f"{self.code_key()}|start={start}"
 
-    #: Run-time parameters that the start fixes: the pivot ``Om`` (m).
+    #: Run-time parameters that the start fixes: the pivot ``Om`` (m); for a free object, its
+    #: mass centre at the start, which the paper's law (32) pulls the fingertips toward.
     start_param_names: ClassVar[tuple[str, ...]] = ("xm", "ym")
 
     @property
@@ -418,7 +462,7 @@ class PlanarFingerScene:
         """What this kind of scene adds to its manifest: a start solved at run time
         (``runtime.start``) holds the object's angle unless it is given or must move; the
         rule each run-time parameter's value must meet (``Model.params`` checks it)."""
-        return {"start_hold": ["theta"],
+        return {"start_hold": list(self.object_coordinates),
                 "param_rules": {k: "nonnegative" if k in CSM_GAINS else "positive"
                                 for k in self.runtime}}
 
@@ -441,13 +485,15 @@ class PlanarFingerScene:
 
     def initial_state(self) -> np.ndarray:
         """The consistent initial state at rest, ordered as ``state_names``."""
+        obj = [*(self.pivot if self.free else ()), self.theta_0]
+        rest = [0.0] * len(obj)
         if self.extra_fingers:
             extra = self._extra_initial
             q = [self.q1_0, self.q2_0, *[v for q1, q2, _ in extra for v in (q1, q2)]]
             u = [self.u0_0, self.u1_0, *[v for (_, _, u0), f in zip(extra, self.extra_fingers)
                                          for v in (u0, f.u1_0)]]
-            return np.array([self.theta_0, *q, 0.0, *[0.0] * len(q), *u], dtype=float)
-        x = [self.theta_0, self.q1_0, self.q2_0, 0.0, 0.0, 0.0]
+            return np.array([*obj, *q, *rest, *[0.0] * len(q), *u], dtype=float)
+        x = [*obj, self.q1_0, self.q2_0, *rest, 0.0, 0.0]
         x += [self.u0_0] if self.shared_parameter else [self.u0_0, self.u1_0]
         return np.array(x, dtype=float)
 

@@ -74,6 +74,12 @@ class PlanarModesScene(WithModes):
         if not isinstance(b, PlanarFingerScene):
             raise InvalidSceneError([f"with_modes takes a 2D finger scene (gs.scenes.paper2d(), "
                                      f"gs.scenes.planar_finger(...)), not {type(b).__name__}"])
+        if b.free:
+            problems.append("support='free': contact modes of a free 2D object are not built yet "
+                            "(only its rolling model is); hold the object by a pivot "
+                            "(support='pivot'), or check its friction cone without modes "
+                            "(friction=gs.contact.coulomb(mu) on the scene stops a run that "
+                            "leaves the cone, FrictionConeError)")
         if b.runtime:
             problems.append(f"runtime = {b.runtime}: a scene with contact modes takes its parameters "
                             "as constants (give their values in the scene); its run-time inputs "
@@ -91,6 +97,13 @@ class PlanarModesScene(WithModes):
     @property
     def n_fingers(self) -> int:
         return self.base.n_fingers
+
+    #: The object turns about its pivot (a free base is refused).
+    free: ClassVar[bool] = False
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.base.parameter_names
 
     @property
     def n_contacts(self) -> int:

@@ -3,7 +3,7 @@ from the library, with numbers written as formulas that are parsed, never run.
 
 ```toml
 [scene]
-base = "planar_finger"          # or a built-in: paper2d, paper3d, pivot3d
+base = "planar_finger"          # or a built-in: paper2d, pinch2d, paper3d, pivot3d
 name = "my_ellipse"
 q1_0 = "pi / 6"                 # any keyword of the base; text is a formula (numbers, pi, E,
 u1_0 = "pi + 0.3"               # + - * / **, sqrt, sin, cos, ...)
@@ -56,7 +56,7 @@ class SceneFileError(ProblemsError):
 
 
 #: The bases a file may name.
-BASES = ("planar_finger", "paper2d", "paper3d", "pivot3d")
+BASES = ("planar_finger", "paper2d", "pinch2d", "paper3d", "pivot3d")
 #: Surface tables of a 3D file: the base's keyword each one sets.
 SURFACES_3D = ("object_surface",)
 #: Keys of [scene] whose text is a word, not a formula (in a shape table: ``name``, ``shape``).
@@ -107,7 +107,7 @@ def load_scene(path: str | Path):
         factory = getattr(scenes, base)
         for k in SURFACES_3D:
             if k in data:
-                if base == "paper2d":
+                if base in ("paper2d", "pinch2d"):
                     problems.append(f"[{k}] is for the 3D bases, not {base}")
                     continue
                 kwargs[k] = _shape(k, data[k], _surface_functions(), problems)

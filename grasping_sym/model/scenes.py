@@ -14,11 +14,12 @@ from grasping_sym.model.body import BodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.model.grasp3d_modes import GraspModesScene, WorldPlane
 from grasping_sym.model.inertia import solid_ellipsoid_inertia, solid_superquadric_inertia  # noqa: F401 - gs.scenes.*
-from grasping_sym.model.planar import DEFAULT_OUTPUTS, PlanarFingerScene
+from grasping_sym.model.planar import DEFAULT_OUTPUTS, ExtraFinger, PlanarFingerScene
 from grasping_sym.model.planar_modes import PlanarModesScene
 
 __all__ = ["BUILTIN", "GraspModesScene", "PlanarModesScene", "WorldPlane", "body_on_plane", "paper2d",
-           "paper3d", "pivot3d", "planar_finger", "sphere_on_incline", "trifinger", "with_modes", "world_plane"]
+           "paper3d", "pinch2d", "pivot3d", "planar_finger", "sphere_on_incline", "trifinger", "with_modes",
+           "world_plane"]
 
 if TYPE_CHECKING:  # the 3D modules are imported only when a 3D scene is made
     from grasping_sym.model.grasp3d import GraspScene3D
@@ -48,20 +49,23 @@ def planar_finger(
     controller="paper",
     inputs: str | None = None,
     friction=None,
+    support: str = "pivot",
     **params: float,
 ) -> PlanarFingerScene:
     """The general 2D scene with any two contours; unspecified parameters from the paper.
 
     ``extra_fingers``: further fingers on the same object (``model.planar.ExtraFinger``);
     ``controller``, ``inputs``: the control (``model.control``; default the paper's law (32),
-    no inputs); ``friction``: Coulomb friction at the contacts (``gs.contact.coulomb``)."""
+    no inputs); ``friction``: Coulomb friction at the contacts (``gs.contact.coulomb``);
+    ``support``: ``"pivot"`` or ``"free"`` (give the object's mass ``M`` then; ``I`` is about
+    its mass centre)."""
     values = dict(PAPER2D_PARAMS)
     values.update(params)
     return PlanarFingerScene(
         name=name, fingertip=fingertip, object=object, params=values, runtime=runtime,
         outputs=outputs, gravity=gravity, q1_0=q1_0, theta_0=theta_0, u0_0=u0_0, u1_0=u1_0,
         extra_fingers=tuple(extra_fingers), controller=controller, inputs=inputs,
-        friction=friction,
+        friction=friction, support=support,
     )
 
 
@@ -79,6 +83,44 @@ def paper2d(**overrides) -> PlanarFingerScene:
 
 #: Built-in scenes by name, for the CLI.
 BUILTIN = {"paper2d": paper2d}
+
+#: The object of ``pinch2d``: an ellipse with semi-axes (0.020, 0.025) m, 0.040 kg: the
+#: section through the mass centre of ``paper3d``'s ellipsoid, with its inertia about z.
+PINCH2D_SEMI_AXES: tuple[float, float] = (0.020, 0.025)
+
+
+def pinch2d(**overrides) -> PlanarFingerScene:
+    """Two of the paper's fingers pinch a free ellipse against gravity in the plane: the 2D
+    counterpart of the 3D model kept in its plane (docs/conventions.md section 13).
+
+    Every value (SI units):
+
+    - finger 1 as in ``paper2d`` (joints at the origin), finger 2 its mirror image based at
+      (0.255, 0) m (the 3D fingers' bases, 0.255 m apart);
+    - circular fingertips of radius 0.010 m (``paper3d``'s spheres; arcs of 1.5 rad either
+      side of their tip-frame X point, where they touch at the start);
+    - the object: an ellipse with semi-axes (0.020, 0.025) m (``paper3d``'s ellipsoid cut at
+      z = 0), 0.040 kg, ``I = M (a^2 + b^2) / 5`` about its mass centre (the ellipsoid's
+      about z), touched at the ends of its X axis; the start ``q1 = pi/6``, at rest;
+    - gravity 9.81 m/s^2 along -y;
+    - the paper's law (32) pulls each fingertip centre toward the object's start centre with
+      ``fd / r = 50 N/m`` and holds the finger's weight: the pair sags by 5.3 mm and holds.
+
+    Any argument of ``planar_finger`` may be overridden.
+    """
+    a, b = PINCH2D_SEMI_AXES
+    mass = PAPER3D_MASS
+    kwargs = dict(
+        fingertip=library.circle(PAPER3D_TIP_RADIUS, span=1.5, name="fingertip 1"),
+        object=library.ellipse(a, b, start=math.pi / 2, span=math.pi, clockwise=True,
+                               name="object ellipse"),
+        name="pinch2d", support="free", M=mass, I=mass * (a * a + b * b) / 5,
+        gravity=(0.0, -9.81), q1_0=math.pi / 6, u0_0=0.0, u1_0=math.pi,
+        extra_fingers=(ExtraFinger(library.circle(PAPER3D_TIP_RADIUS, span=1.5, name="fingertip 2"),
+                                   base=(2 * chains.BASE_HALF_SPACING, 0.0), u1_0=0.0),),
+    )
+    kwargs.update(overrides)
+    return planar_finger(**kwargs)
 
 
 # ---------------------------------------------------------------------- 3D
@@ -287,8 +329,9 @@ def with_modes(scene, planes=()):
     if isinstance(scene, GraspScene3D):
         return GraspModesScene(scene, tuple(planes))
     if planes:
-        raise InvalidSceneError(["planes of the world touch a free object: a 2D object turns about "
-                                 "its pivot (free 2D objects are issue 29's)"])
+        raise InvalidSceneError(["planes=: surfaces of the world are built for 3D scenes only; a 2D "
+                                 "scene with modes holds its object by a pivot (use a 3D scene, e.g. "
+                                 "gs.scenes.body_on_plane, for an object on a table)"])
     return PlanarModesScene(scene)
 
 

@@ -116,7 +116,8 @@ def _finger_pose(scene: PlanarFingerScene, x: Sequence[float], k: int) -> Pose:
     joint1 = np.asarray(fg.base, dtype=float)
     joint2 = joint1 + l11 * np.array([math.sin(q1), math.cos(q1)])
     o01 = joint2 + l12 * np.array([math.sin(q1 + q2), math.cos(q1 + q2)])
-    om = np.asarray(scene.pivot, dtype=float)
+    om = (np.array([float(x[names.index("x")]), float(x[names.index("y")])]) if scene.free
+          else np.asarray(scene.pivot, dtype=float))
     r_finger = _rot(math.pi / 2 - q1 - q2)
     r_object = _rot(-theta)
 
@@ -164,7 +165,8 @@ def draw_scene(ax: Axes, scene: PlanarFingerScene, x: Sequence[float]) -> Pose:
     p = every[0]
     ax.plot(*p.object.T, "-", color=OBJECT_COLOR, linewidth=2, zorder=4,
             label=f"object ({scene.object.name})")
-    ax.plot(*p.pivot, "P", color=OBJECT_COLOR, markersize=9, zorder=5)
+    ax.plot(*p.pivot, "o" if scene.free else "P", color=OBJECT_COLOR, markersize=9 - 3 * scene.free,
+            zorder=5)
     ax.annotate("$O_m$", p.pivot, textcoords="offset points", xytext=(6, 6))
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
