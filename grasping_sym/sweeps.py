@@ -231,8 +231,10 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
         elif kind == "first_slip" and q.isdigit() and 1 <= int(q) <= n_contacts:
             out.append((f"first_slip_{q}", "first_slip", q))
         elif m == "min:epsilon":
-            if not with_mu or not hasattr(model, "grasp_quality") \
-                    or getattr(getattr(model, "scene", None), "kind", None) != "grasp3d":
+            scene = getattr(model, "scene", None)
+            free = getattr(scene, "kind", None) == "grasp3d" or (
+                getattr(scene, "kind", None) == "planar" and scene.free)
+            if not with_mu or not hasattr(model, "grasp_quality") or not free:
                 problems.append(m)
                 continue
             out.append(("min_epsilon", "epsilon", ""))
@@ -245,8 +247,8 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
                          f"({list(model.output_names)}) or measures 'min:Q', 'max:Q', 'settle:Q' "
                          f"of a state or output Q (with mu also of {list(cone[:n_contacts * 4])}), "
                          f"'first_slip:i' (contact i = 1..{n_contacts}, with mu), 'held' (with mu, "
-                         "for grasp scenes) or 'min:epsilon' (with mu, for a 3D grasp: the grasp "
-                         "quality's least lower bound along the run)")
+                         "for grasp scenes) or 'min:epsilon' (with mu, for a 3D grasp or a free 2D "
+                         "object: the grasp quality's least lower bound along the run)")
     if not with_mu and not model.manifest.get("modes") and any(kind == "first_slip" for _, kind, _ in out):
         raise ValueError("sweep: 'first_slip:i' needs a friction coefficient: give mu=... (or a grid "
                          "axis 'mu'), or build the scene with friction=gs.contact.coulomb(mu)")

@@ -151,7 +151,7 @@ def test_a_sweep_measures_the_least_grasp_quality_of_each_run(trifinger, tmp_pat
         assert value == pytest.approx(direct, rel=1e-6)
     assert 0 < values[0] < values[1]
     here = {"r_bar0_x": [trifinger.start_params["r_bar0_x"]]}
-    with pytest.raises(ValueError, match="'min:epsilon' \\(with mu, for a 3D grasp"):
+    with pytest.raises(ValueError, match="'min:epsilon' \\(with mu, for a 3D grasp or a free 2D object"):
         gs.sweep(trifinger, here, 0.1, store=tmp_path / "no_mu.zarr", measures=["min:epsilon"],
                  progress=False)
 

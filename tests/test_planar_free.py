@@ -27,6 +27,7 @@ from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry import surface_library
 from grasping_sym.model import chains
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
+from grasping_sym.pipeline.quality_along import contact_forces
 
 SHIFT = chains.BASE_HALF_SPACING     # 2D finger 1 sits at the origin, 3D finger 1 at -SHIFT
 T_FINAL = 5.0
@@ -155,3 +156,45 @@ def test_a_free_object_needs_its_mass_and_has_no_modes_yet():
         gs.scenes.paper2d(support="loose")
     with pytest.raises(InvalidSceneError, match="contact modes of a free 2D object are not built"):
         gs.scenes.with_modes(gs.scenes.pinch2d())
+
+
+@pytest.fixture(scope="module")
+def pinch():
+    """pinch2d (its symmetric start) with its contact forces, mu = 0.5."""
+    return gs.build(gs.scenes.pinch2d(outputs=("f1", "f2", "lam1", "lam2"),
+                                      friction=gs.contact.coulomb(0.5)))
+
+
+def test_grasp_quality_along_a_free_2d_pinch_has_its_closed_forms_and_newtons_law(pinch):
+    mu, model = 0.5, pinch
+    scene = model.scene
+    res = model.simulate(1.0, t_eval=np.linspace(0.0, 1.0, 51))
+    q = model.grasp_quality(res)
+    # at the start two antipodal contacts at the ends of the ellipse's X axis, normals through
+    # its centre (torque scale: their distance a): epsilon = mu / sqrt(2 + mu^2), exactly (2D)
+    assert q["epsilon_lower"][0] == pytest.approx(mu / math.sqrt(2 + mu * mu), rel=1e-12)
+    assert np.all(q["force_closure"] == 1.0)
+    # the squeeze of two fingers pressing with f along the line between them: sqrt(2) f
+    assert q["internal_force"][0] == pytest.approx(math.sqrt(2) * res["f1"][0], rel=1e-9)
+    margin = np.minimum(mu * res["f1"] - np.abs(res["lam1"]), mu * res["f2"] - np.abs(res["lam2"]))
+    np.testing.assert_allclose(q["cone_margin_min"], margin, rtol=1e-12, atol=1e-12)
+    # Newton's law of the object from the contact forces: M Om'' = M g + sum of F_i
+    forces = contact_forces(model, res)
+    names = list(model.state_names)
+    acc = np.array([model.rhs(x)[[names.index("dx"), names.index("dy")]] for x in res.x])
+    mass = scene.params["M"]
+    np.testing.assert_allclose(mass * acc, mass * np.array([0.0, -9.81]) + forces.sum(axis=1),
+                               rtol=0, atol=1e-12)
+    assert np.abs(acc).max() > 0.1                              # it moves
+
+
+def test_a_sweep_measures_the_least_grasp_quality_of_a_free_2d_object(pinch, tmp_path):
+    model = pinch
+    ds = gs.sweep(model, {"mu": [0.3, 0.6]}, 0.2, store=tmp_path / "pinch.zarr",
+                  measures=["min:epsilon"], samples=5, progress=False)
+    values = np.asarray(ds["min_epsilon"]).ravel()
+    res = model.simulate(0.2, t_eval=np.linspace(0.0, 0.2, 5))
+    for mu, value in zip((0.3, 0.6), values):
+        assert value == pytest.approx(float(np.min(model.grasp_quality(res, mu=mu)["epsilon_lower"])),
+                                      rel=1e-6)
+    assert 0 < values[0] < values[1]

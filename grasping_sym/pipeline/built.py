@@ -85,7 +85,8 @@ class BuiltModel(Model):
         return fn
 
     def grasp_quality(self, result, mu=None, *, length: float | None = None, edges: int | None = None):
-        """Grasp quality at every output time of ``result``, a run of this 3D grasp
+        """Grasp quality at every output time of ``result``, a run of this grasp of a free
+        object (3D, or 2D with ``support="free"``)
         (``pipeline.quality_along``): Ferrari and Canny's epsilon of the exact contact points
         and normals (``gs.quality``: ``epsilon_lower``, ``epsilon_upper``), ``force_closure``
         and, from the run's outputs, the smallest cone margin ``mu f - |F_t|``

@@ -1,9 +1,9 @@
-"""Grasp quality along a run of a 3D grasp (``BuiltModel.grasp_quality``): at every output
-time, the exact contact points and normals, from the object's pose and each contact's
-surface coordinates (``u_o{i}, v_o{i}``) on the object's surface, and ``gs.quality``'s
-epsilon and force closure of them; from the run's contact forces (its outputs), the smallest
-cone margin ``mu f - |F_t|`` over the contacts and the internal (squeezing) force, N.
-Conventions: ``docs/conventions.md``, "Grasp quality".
+"""Grasp quality along a run of a grasp of a free object (``BuiltModel.grasp_quality``): at
+every output time, the exact contact points and normals, from the object's pose and each
+contact's coordinates on the object (3D: ``u_o{i}, v_o{i}`` on its surface; 2D: ``u1_{i}``
+on its contour), and ``gs.quality``'s epsilon and force closure of them; from the run's
+contact forces (its outputs), the smallest cone margin ``mu f - |F_t|`` over the contacts
+and the internal (squeezing) force, N. Conventions: ``docs/conventions.md``, "Grasp quality".
 """
 from __future__ import annotations
 
@@ -22,11 +22,14 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
     scene = model.scene
     names = list(result.state_names)
     pose = ("x", "y", "z", "qw", "qx", "qy", "qz")
-    if scene is None or getattr(scene, "kind", None) != "grasp3d" or not set(pose) <= set(names):
-        raise ValueError("grasp_quality reads a 3D grasp of a free object (a model of "
-                         "gs.scenes.paper3d or a GraspScene3D whose state has x, y, z, qw, qx, qy, "
-                         "qz) made by gs.build; this model is not one")
     X = np.asarray(result.x, dtype=float)
+    if getattr(scene, "kind", None) == "planar" and scene.free:
+        return _frames_planar(scene, names, X)
+    if scene is None or getattr(scene, "kind", None) != "grasp3d" or not set(pose) <= set(names):
+        raise ValueError("grasp_quality reads a grasp of a free object (a model of "
+                         "gs.scenes.paper3d, a GraspScene3D whose state has x, y, z, qw, qx, qy, "
+                         "qz, or a 2D scene with support='free') made by gs.build; this model is "
+                         "not one")
     c = X[:, [names.index(k) for k in pose[:3]]]
     rot = rotations(X[:, [names.index(k) for k in pose[3:]]])
     frames = []
@@ -35,6 +38,31 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
         world = {key: np.einsum("nij,nj->ni", rot, geo[key]) for key in ("point", "normal", "x", "y")}
         world["point"] = c + world["point"]
         frames.append(world)
+    return c, frames
+
+
+def _frames_planar(scene, names: list[str], X: np.ndarray):
+    """``_frames`` of a free 2D object (docs/conventions.md section 13): its contour point at
+    each contact, ``Om + Rot(-theta) c1(u1)``, the unit tangent ``b1 = Rot(-theta) T1`` (its
+    ``x``) and the outward normal ``-n1 = (-b1y, b1x)`` (the object contour runs clockwise)."""
+    c = X[:, [names.index("x"), names.index("y")]]
+    th = X[:, names.index("theta")]
+    cos, sin = np.cos(th), np.sin(th)
+
+    def turned(v):  # Rot(-theta) v, row by row
+        return np.column_stack([cos * v[:, 0] + sin * v[:, 1], -sin * v[:, 0] + cos * v[:, 1]])
+
+    one = scene.n_fingers == 1
+    frames = []
+    for i in range(1, scene.n_fingers + 1):
+        key = ("s" if scene.shared_parameter else "u1") if one else f"u1_{i}"
+        ev = scene.object.evaluate(X[:, names.index(key)])
+        shape = th.shape
+        point = np.column_stack([np.broadcast_to(ev["x"], shape), np.broadcast_to(ev["y"], shape)])
+        tangent = np.column_stack([np.broadcast_to(ev["dx"], shape), np.broadcast_to(ev["dy"], shape)])
+        b1 = turned(tangent / np.linalg.norm(tangent, axis=1, keepdims=True))
+        frames.append({"point": c + turned(point), "normal": np.column_stack([-b1[:, 1], b1[:, 0]]),
+                       "x": b1})
     return c, frames
 
 
@@ -94,8 +122,11 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
     ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md sections 6 and 10: ``n`` the
     fingertip's outward normal, into the object; ``x_f = cos(psi) x_o - sin(psi) y_o`` and
     ``y_f = -sin(psi) x_o - cos(psi) y_o`` the fingertip's tangents, from the object's
-    ``x_o, y_o`` and the frame angle ``psi{i}``); None when the run has no such outputs.
-    ``frames``: ``_frames``' (made here when not given)."""
+    ``x_o, y_o`` and the frame angle ``psi{i}``); in 2D ``(n, k, 2)``, ``f{i} n1 + lam{i} b1``
+    (section 13). None when the run has no such outputs. ``frames``: ``_frames``' (made here
+    when not given)."""
+    if getattr(model.scene, "kind", None) == "planar":
+        return _planar_forces(model, result, frames)
     k = len(model.scene.fingers) if model.scene is not None else 0
     cols = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
     if not all(all(n in result.outputs for n in row) for row in cols):
@@ -109,4 +140,17 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
         x_f = np.cos(psi) * fr["x"] - np.sin(psi) * fr["y"]
         y_f = -np.sin(psi) * fr["x"] - np.cos(psi) * fr["y"]
         out.append(-result[f][:, None] * fr["normal"] + result[lam][:, None] * x_f + result[eta][:, None] * y_f)
+    return np.stack(out, axis=1)
+
+
+def _planar_forces(model, result, frames) -> np.ndarray | None:
+    """``contact_forces`` of a free 2D object: ``f n1 + lam b1`` per contact (its outputs
+    ``f``, ``lam``; with several fingers ``f{i}``, ``lam{i}``)."""
+    n = model.scene.n_fingers
+    cols = [("f", "lam")] if n == 1 else [(f"f{i}", f"lam{i}") for i in range(1, n + 1)]
+    if not all(all(c in result.outputs for c in row) for row in cols):
+        return None
+    _, frames = _frames(model, result) if frames is None else frames
+    out = [-result[f][:, None] * fr["normal"] + result[lam][:, None] * fr["x"]
+           for (f, lam), fr in zip(cols, frames)]
     return np.stack(out, axis=1)
