@@ -25,7 +25,8 @@ __all__ = ["ControllerFunction", "controller_function", "controller_key", "contr
 
 #: kind -> (its quantities, ``derive.quantities``; the paper's law of its papers)
 _KINDS = {"planar": (planar_quantities, paper2d), "grasp3d": (grasp3d_quantities, paper3d),
-          "body": (body_quantities, None), "planar_modes": (planar_quantities, paper2d),
+          "body": (body_quantities, None), "body2d": (body_quantities, None),
+          "planar_modes": (planar_quantities, paper2d),
           "grasp3d_modes": (lambda scene, *a: grasp3d_quantities(scene.base, *a), paper3d)}
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from grasping_sym.assemble import scene_functions
 from grasping_sym.assemble.functions import sympy_op_counts
-from grasping_sym.derive import body_plane, finger_templates, start3d
+from grasping_sym.derive import body_line, body_plane, finger_templates, start3d
 from grasping_sym.derive.bodies3d import rotation_of
 from grasping_sym.derive.grasp3d import finger_function, template_of
 from grasping_sym.derive.planar import derive_planar
@@ -79,6 +79,10 @@ def _body_functions(scene, progress=None, layers: bool = True):
     return scene_functions.body_functions(scene, progress)
 
 
+def _body_line_functions(scene, progress=None, layers: bool = True):
+    return scene_functions.body_line_functions(scene, progress)
+
+
 def _modes_functions(scene, progress=None, layers: bool = True):
     return scene_functions.modes_functions(scene, progress)
 
@@ -113,6 +117,11 @@ def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     return x0, {}, info
 
 
+def _body_line_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    x0, info = body_line.start_state(scene)
+    return x0, {}, info
+
+
 #: kind name -> its row
 KINDS: dict[str, Kind] = {
     "planar": Kind(functions=_planar_functions, solve_start=_planar_start,
@@ -122,6 +131,8 @@ KINDS: dict[str, Kind] = {
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
+    "body2d": Kind(functions=_body_line_functions, solve_start=_body_line_start,
+                   templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
     "grasp3d_modes": Kind(functions=_modes_functions,
                           solve_start=_grasp3d_modes_start,
                           templates=lambda scene: [], sympy_op_counts=lambda scene: {}),

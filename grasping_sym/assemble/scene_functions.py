@@ -31,6 +31,7 @@ from grasping_sym.assemble.structure import (
 )
 from grasping_sym.assemble.structure3d import Grasp3DStructureSpec, body_values, structure3d_functions
 from grasping_sym.assemble.structure_cache import StructureRecord
+from grasping_sym.derive.body_line import derive_body_line
 from grasping_sym.derive.body_plane import derive_body_plane
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.derive.grasp3d_modes import derive_grasp3d_modes
@@ -204,6 +205,19 @@ def body_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     t0 = time.perf_counter()
     say(f"deriving {scene.name} (a body on a plane, three contact modes; CasADi)")
     d = derive_body_plane(scene)
+    t1 = time.perf_counter()
+    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
+                  scene.name, jacobian=True, t=d["t"], outputs_time=d["reads_time"])
+    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
+
+
+def body_line_functions(scene, progress: Progress | None = None) -> SceneFunctions:
+    """A 2D body on a line (``model.body_line``): its three modes in one piece of SX
+    (``derive.body_line``), the mode a run-time parameter; with the generated Jacobian."""
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    say(f"deriving {scene.name} (a body on a line, three contact modes; CasADi)")
+    d = derive_body_line(scene)
     t1 = time.perf_counter()
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
                   scene.name, jacobian=True, t=d["t"], outputs_time=d["reads_time"])

@@ -15,6 +15,7 @@ KINDS: dict[str, str] = {
     "planar": "2D: planar two-joint fingers rolling on an object pivoted at a point (model.planar)",
     "grasp3d": "3D: spatial finger chains grasping an object with smooth surfaces (model.grasp3d)",
     "body": "3D: a free body on a plane of the world, rolling, sliding or separated (model.body)",
+    "body2d": "2D: a free body on a line of the world, rolling, sliding or separated (model.body_line)",
     "grasp3d_modes": "3D: a grasp whose finger contacts roll, slide or separate (model.grasp3d_modes)",
     "planar_modes": "2D: planar fingers whose contacts roll, slide or separate (model.planar_modes)",
 }

@@ -11,13 +11,15 @@ from grasping_sym.geometry import library, surface_library
 from grasping_sym.geometry.curves import PlanarCurve
 from grasping_sym.model import chains
 from grasping_sym.model.body import BodyScene
+from grasping_sym.model.body_line import LineBodyScene
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.model.grasp3d_modes import GraspModesScene, WorldPlane
 from grasping_sym.model.inertia import solid_ellipsoid_inertia, solid_superquadric_inertia  # noqa: F401 - gs.scenes.*
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, ExtraFinger, PlanarFingerScene
 from grasping_sym.model.planar_modes import PlanarModesScene
 
-__all__ = ["BUILTIN", "GraspModesScene", "PlanarModesScene", "WorldPlane", "body_on_plane", "paper2d",
+__all__ = ["BUILTIN", "GraspModesScene", "LineBodyScene", "PlanarModesScene", "WorldPlane", "body_on_line",
+           "body_on_plane", "disk_on_incline", "paper2d",
            "paper3d", "pinch2d", "pivot3d", "planar_finger", "sphere_on_incline", "trifinger", "with_modes",
            "world_plane"]
 
@@ -298,6 +300,33 @@ def body_on_plane(surface, *, mass: float, inertia, name: str = "body", **kwargs
     ``gravity``, the start ``position``, ``rotation``, ``velocity``, ``omega``, ``support``,
     ``start``, ``gain``, ``friction``)."""
     return BodyScene(name=name, surface=surface, mass=mass, inertia=inertia, **kwargs)
+
+
+def body_on_line(contour, *, mass: float, inertia: float, name: str = "body2d", **kwargs) -> LineBodyScene:
+    """A free 2D body with ``contour`` (body frame, mass centre at its origin, running clockwise
+    like a 2D object's) on a fixed line of the world (``model.body_line.LineBodyScene``:
+    ``line_point``, ``line_normal``, ``gravity``, the start ``position``, ``theta``,
+    ``velocity``, ``dtheta``, ``support``, ``start``, ``gain``, ``friction``)."""
+    return LineBodyScene(name=name, contour=contour, mass=mass, inertia=inertia, **kwargs)
+
+
+def disk_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 0.3, *,
+                    name: str = "disk_incline", **kwargs) -> LineBodyScene:
+    """A uniform disk (``I = m r^2 / 2``) on a line inclined by ``incline`` rad, rising to the
+    left (its normal ``(sin b, cos b)``; downhill is ``(cos b, -sin b)``, along the line's
+    tangent ``t = (-cos b, sin b)`` reversed), gravity ``-y``: the 2D counterpart of
+    ``sphere_on_incline``. Its contour is a clockwise circle by angle over three turns either
+    way (a roll of up to 3 turns each way stays inside its domain); the contact starts at
+    ``u = 0``, the contour's point ``(r, 0)`` turned to face the line."""
+    b = float(incline)
+    n = (math.sin(b), math.cos(b))
+    # the contour's point at u = 0, (r, 0) with outward normal (1, 0), faces -n when the body
+    # is turned by theta with Rot(-theta) (1, 0) = -n: theta = pi/2 + b
+    defaults = dict(line_normal=n, gravity=(0.0, -9.81), theta=math.pi / 2 + b, support=0.0)
+    defaults.update(kwargs)
+    return LineBodyScene(name=name, contour=library.circle(radius, by="angle", span=3 * math.pi,
+                                                           clockwise=True, name="disk"),
+                         mass=mass, inertia=0.5 * mass * radius**2, **defaults)
 
 
 def sphere_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 0.3, *,

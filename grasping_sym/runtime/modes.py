@@ -451,6 +451,91 @@ class _BodyRun(_Run):
         return after, float(np.max(np.abs(K @ P))), bool(stuck), e > 0
 
 
+class _LineBodyRun(_Run):
+    """A 2D body on a line (``model.body_line``): the contact's quantities in the world
+    frame, the slip a signed speed along the line's tangent ``t = (-n_y, n_x)``."""
+
+    def __init__(self, model, s, mus, e: float):
+        super().__init__(model, s, mus, e)
+        info = model.manifest["body2d"]
+        self.m = float(info["mass"])
+        self.inertia = float(info["inertia"])
+        self.n = np.array(info["line_normal"], dtype=float)
+        self.tan = np.array([-self.n[1], self.n[0]])
+        self.gain = float(info["gain"])
+
+    def contact(self, y: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """From one state's outputs: ``K`` (1/kg), ``v_c``, ``r_c`` (from the centre) and the
+        rolling solution's force ``F_roll``, world frame."""
+        K = np.array([[y["K_00"], y["K_01"]], [y["K_10"], y["K_11"]]])
+        vc = np.array([y["vc_x"], y["vc_y"]])
+        rc = np.array([y["rc_x"], y["rc_y"]])
+        F_roll = y["rolling_normal_force"] * self.n + y["rolling_Ft"] * self.tan
+        return K, vc, rc, F_roll
+
+    def slip_velocity(self, y: dict, j: int = 1) -> np.ndarray:
+        return np.array([y["vt"]])
+
+    def slip_terms(self, d: np.ndarray, j: int = 1) -> list[tuple[str, float]]:
+        return [("vt", d[0])]
+
+    def apart(self, x: np.ndarray) -> np.ndarray:
+        """A body apart from the line: its support point is the model's to keep."""
+        return np.asarray(x, dtype=float)
+
+    def slip_direction(self, x: np.ndarray, y: dict, j: int = 1, modes=None, slips=None) -> np.ndarray:
+        """A slide from rest of the slip starts against the friction rolling needs and the
+        cone cannot give: ``-sign(F_t)`` of the rolling solution."""
+        return np.array([-1.0 if y["rolling_Ft"] >= 0 else 1.0])
+
+    def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
+        """The contact's normal acceleration with no contact force (m/s^2)."""
+        K, vc, _, F_roll = self.contact(y)
+        target = -2 * self.gain * vc - self.gain**2 * y["gap"] * self.n
+        return float(np.dot(self.n, target - K @ F_roll))
+
+    def _apply(self, x: np.ndarray, P: np.ndarray, rc: np.ndarray) -> np.ndarray:
+        """``x`` after the impulse ``P`` (N s, world) at ``rc`` (world, from the centre): the
+        angular velocity ``w = -theta'`` changes by ``(rc x P) / I``."""
+        x = x.copy()
+        x[3:5] += P / self.m
+        x[5] -= (rc[0] * P[1] - rc[1] * P[0]) / self.inertia
+        return x
+
+    def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
+        """The contact velocity set to 0 (the impulse that does it); the largest change."""
+        K, vc, rc, _ = self.contact(y)
+        return self._apply(x, np.linalg.solve(K, -vc), rc), float(np.max(np.abs(vc)))
+
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
+        """Newton's restitution and Coulomb friction on the impulse (``_BodyRun.impact`` in
+        2D): the impulse that stops the tangential motion if it lies in the cone, else the one
+        on the cone's edge whose slip after the impact it opposes (Moreau's law)."""
+        n, tan, mu = self.n, self.tan, self.mu
+        K, vc, rc, _ = self.contact(y)
+        vn = float(np.dot(n, vc))
+        e = self.e if -vn > REST_SPEED else 0.0
+        P = np.linalg.solve(K, -e * vn * n - vc)
+        stuck = bool(abs(np.dot(P, tan)) <= mu * np.dot(P, n))
+        if not stuck:
+            s0 = -math.copysign(1.0, float(np.dot(P, tan)))   # the slip the impulse opposes
+            for d in (s0, -s0):
+                dirn = n - mu * d * tan
+                denominator = float(np.dot(n, K @ dirn))
+                if not denominator > 0:
+                    continue
+                trial = -(1 + e) * vn / denominator * dirn
+                if np.dot(trial, n) >= 0 and np.dot(vc + K @ trial, tan) * d >= -SLIP_SPEED:
+                    P = trial
+                    break
+            else:
+                raise PainleveError(t, x, f"an impact with mu = {mu:g} has no impulse on the cone's edge "
+                                    "that opposes the slip it leaves with a positive normal row's "
+                                    "coefficient (Painleve's paradox at an impact); the rigid model has "
+                                    "no answer here", self.model.state_names)
+        return self._apply(x, P, rc), float(np.max(np.abs(K @ P))), stuck, e > 0
+
+
 class _PlanarRun(_Run):
     """A planar finger (``model.planar_modes``): the contact's quantities in its own frame,
     the normal row ``gQ`` (``gQ . v``: the rate of ``Q``, minus the gap's) and the tangent row
@@ -776,7 +861,7 @@ def _on_common_normal(r: _Run, x: np.ndarray, j: int, at: int) -> np.ndarray:
 
 
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
-_RUNS = {"body": _BodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun,
+_RUNS = {"body": _BodyRun, "body2d": _LineBodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun,
          "planar_fingers": _FingersRun}
 
 

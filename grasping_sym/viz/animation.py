@@ -26,6 +26,7 @@ from grasping_sym.errors import ViewOptionError
 from grasping_sym.geometry.values import as_real
 from grasping_sym.model import kinds
 from grasping_sym.viz.body import frames as body_frames
+from grasping_sym.viz.body import frames2d as body_frames2d
 from grasping_sym.viz.options import check_scene
 from grasping_sym.viz.plots import draw_scene, motion_limits
 from grasping_sym.viz.plots3d import (
@@ -214,4 +215,4 @@ PLANE_HALF_WIDTH = 0.05
 
 #: kind of scene (``model.kinds``) -> how its frames are drawn
 _FRAMES = {"planar": _frames_2d, "planar_modes": _frames_2d, "grasp3d": _frames_3d,
-           "grasp3d_modes": _frames_grasp_modes, "body": body_frames}
+           "grasp3d_modes": _frames_grasp_modes, "body": body_frames, "body2d": body_frames2d}

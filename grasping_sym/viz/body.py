@@ -1,5 +1,6 @@
-"""Drawings of a free body on a plane of the world (``model.body``): its frames for an
-animation, its figures (the modes over time, ``viz.modes``) and its summary lines."""
+"""Drawings of a free body on a plane of the world (``model.body``) or on a line of the world
+(``model.body_line``): its frames for an animation, its figures (the modes over time,
+``viz.modes``) and its summary lines."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -48,6 +49,43 @@ def frames(fig, scene, result, rows):
         ax.plot_surface(P[..., 0], P[..., 1], P[..., 2], color="tab:blue", alpha=0.8, lw=0.2,
                         edgecolor="k")
         _equal_box(ax, box, "m", pad=0.02)
+        mode = f", {modes[rows[k]]}" if modes is not None else ""
+        ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s{mode}", fontsize=10)
+    return draw
+
+
+def frames2d(fig, scene, result, rows):
+    """``draw(k)`` of frame ``k`` of a body on a line: its contour, turned and moved, a mark
+    of its turning (the segment from the centre to its contour's parameter 0), the line under
+    the whole motion, the contact's mode in the title."""
+    u = np.linspace(*scene.contour.domain, 400)
+    ev = scene.contour.evaluate(u)
+    pts = np.column_stack([np.broadcast_to(ev["x"], u.shape), np.broadcast_to(ev["y"], u.shape)])
+    ref = scene.contour.evaluate(0.0) if scene.contour.in_domain(0.0) else scene.contour.evaluate(u[0])
+    mark = np.array([float(ref["x"]), float(ref["y"])])
+    n, w0 = np.asarray(scene.line_normal), np.asarray(scene.line_point)
+    tan = np.array([-n[1], n[0]])
+    centres = result.x[rows, 0:2]
+    size = float(np.ptp(pts, axis=0).max())
+    along = (centres - w0) @ tan
+    ends = w0 + np.outer([along.min() - size, along.max() + size], tan)
+    box = np.vstack([ends, *[c + pts for c in centres[:: max(1, len(rows) // 8)]]])
+    lo, hi = box.min(axis=0) - 0.1 * size, box.max(axis=0) + 0.1 * size
+    ax = fig.add_subplot()
+    modes = result.modes
+
+    def draw(k):
+        ax.clear()
+        x = result.x[rows[k]]
+        c, s = np.cos(x[2]), np.sin(x[2])
+        turn = np.array([[c, s], [-s, c]])          # Rot(-theta)
+        ax.plot(*ends.T, "-", color="0.4", linewidth=2)
+        body = x[0:2] + pts @ turn.T
+        ax.fill(*body.T, color="tab:blue", alpha=0.6)
+        ax.plot(*np.vstack([x[0:2], x[0:2] + turn @ mark]).T, "-", color="k", linewidth=1)
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal", adjustable="box")
         mode = f", {modes[rows[k]]}" if modes is not None else ""
         ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s{mode}", fontsize=10)
     return draw

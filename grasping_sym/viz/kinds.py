@@ -16,6 +16,7 @@ KINDS = {
     "planar": (planar_figures, lambda scene, result: []),
     "grasp3d": (write_figures3d, summary_lines3d),
     "body": (body_figures, body_summary),
+    "body2d": (body_figures, body_summary),
     "planar_modes": (body_figures, body_summary),
     "grasp3d_modes": (body_figures, body_summary),
 }
