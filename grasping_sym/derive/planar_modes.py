@@ -44,12 +44,12 @@ def _setup(scene, torques):
     parameters) and whether it reads the time, the translator of the template's SymPy into
     CasADi with the scene's contours, and the stabilisation's gains ``(gf, gl, wf, wl)``."""
     base, k = scene.base, scene.n_fingers
-    system = derive_template(False, has_gravity(base), k)
+    system = derive_template(False, has_gravity(base), k, base.free)
     names = scene.p_names
     x = ca.SX.sym("x", len(scene.state_names))
     p = ca.SX.sym("p", len(names))
     t = ca.SX.sym("t")
-    nq = 1 + 2 * k
+    nq = scene.n_speeds
     tau, _, timed = torques(scene, t, x, p)
     if ca.depends_on(tau, x[2 * nq:2 * nq + 2 * k]):
         raise InvalidSceneError(["the controller reads the contact parameters (u0, u1): with contact "
@@ -155,7 +155,7 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
     k = scene.n_fingers
     names = scene.p_names
     system, x, p, t, tau, timed, tr, (gf, gl, wf, wl) = _setup(scene, torques)
-    nq = 1 + 2 * k
+    nq = scene.n_speeds
     q, v, u = x[0:nq], x[nq:2 * nq], x[2 * nq:2 * nq + 2 * k]
 
     M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
@@ -220,7 +220,7 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
     outputs.update({
         "kinetic_energy": tr(system.outputs["kinetic_energy"]),
         "potential_energy": tr(system.outputs["potential_energy"]),
-        "power": ca.dot(v[1:], tau),
+        "power": ca.dot(v[nq - 2 * k:], tau),
     })
     for r in range(2 * k):
         for c in range(r, 2 * k):

@@ -44,11 +44,12 @@ CONTACT_OUTPUTS = ("gap", "normal_speed", "normal_force", "lam", "tangential_for
                    "tangency_defect", "vn_fixed")
 
 
-def fingers_outputs(k: int) -> tuple[str, ...]:
+def fingers_outputs(k: int, n_object: int = 1) -> tuple[str, ...]:
     """Every output of a scene of ``k > 1`` fingers: each contact's, the energies and power,
     ``W = A M^-1 A^T`` (``W_r_c``, ``r <= c``, rows ``(Q_i, R_i)`` of contact ``i`` at
-    ``2i - 2, 2i - 1``) and ``M^-1 A^T`` (``MinvAT_s_r``, speed ``s``)."""
-    n, nv = 2 * k, 1 + 2 * k
+    ``2i - 2, 2i - 1``) and ``M^-1 A^T`` (``MinvAT_s_r``, speed ``s``: the object's
+    ``n_object`` first, 1 pivoted, 3 free, then the joints')."""
+    n, nv = 2 * k, n_object + 2 * k
     return (*(f"{o}{i}" for i in range(1, k + 1) for o in CONTACT_OUTPUTS),
             "kinetic_energy", "potential_energy", "power",
             *(f"W_{r}_{c}" for r in range(n) for c in range(r, n)),
@@ -74,12 +75,11 @@ class PlanarModesScene(WithModes):
         if not isinstance(b, PlanarFingerScene):
             raise InvalidSceneError([f"with_modes takes a 2D finger scene (gs.scenes.paper2d(), "
                                      f"gs.scenes.planar_finger(...)), not {type(b).__name__}"])
-        if b.free:
-            problems.append("support='free': contact modes of a free 2D object are not built yet "
-                            "(only its rolling model is); hold the object by a pivot "
-                            "(support='pivot'), or check its friction cone without modes "
-                            "(friction=gs.contact.coulomb(mu) on the scene stops a run that "
-                            "leaves the cone, FrictionConeError)")
+        if b.free and b.n_fingers == 1:
+            problems.append("support='free' with one finger: a free 2D object with contact modes "
+                            "needs two fingers or more (a free object held by one finger and a "
+                            "surface of the world is not built in 2D); add extra_fingers, or hold "
+                            "the object by a pivot (support='pivot')")
         if b.runtime:
             problems.append(f"runtime = {b.runtime}: a scene with contact modes takes its parameters "
                             "as constants (give their values in the scene); its run-time inputs "
@@ -98,8 +98,15 @@ class PlanarModesScene(WithModes):
     def n_fingers(self) -> int:
         return self.base.n_fingers
 
-    #: The object turns about its pivot (a free base is refused).
-    free: ClassVar[bool] = False
+    @property
+    def free(self) -> bool:
+        """Whether the base's object is free (its mass centre a state; several fingers)."""
+        return self.base.free
+
+    @property
+    def n_speeds(self) -> int:
+        """The speeds (and coordinates): the object's (1 pivoted, 3 free), then 2 per finger."""
+        return len(self.base.object_coordinates) + 2 * self.n_fingers
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -118,7 +125,7 @@ class PlanarModesScene(WithModes):
 
     @property
     def outputs(self) -> tuple[str, ...]:
-        return OUTPUTS if self.n_fingers == 1 else fingers_outputs(self.n_fingers)
+        return OUTPUTS if self.n_fingers == 1 else fingers_outputs(self.n_fingers, self.n_speeds - 2 * self.n_fingers)
 
     @property
     def fingertip(self):
@@ -197,16 +204,15 @@ class PlanarModesScene(WithModes):
         extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": k, "rolling_map": self.rolling_map(),
                  "param_rules": {m: "nonnegative" for m in self.runtime if m.startswith("mu")}}
         if k > 1:
-            extra["planar_fingers"] = {"fingers": k, "speeds": [1 + 2 * k, 1 + 2 * k]}
+            extra["planar_fingers"] = {"fingers": k, "speeds": [self.n_speeds, self.n_speeds]}
         return extra
 
     def bounds(self) -> tuple[list, list]:
         n = len(self.state_names)
         lower: list = [None] * n
         upper: list = [None] * n
-        k = self.n_fingers
         for i, tip in enumerate(self.fingertips):  # (u0_i, u1_i) after q and v
-            j = 2 * (1 + 2 * k) + 2 * i
+            j = 2 * self.n_speeds + 2 * i
             lower[j], upper[j] = tip.domain
             lower[j + 1], upper[j + 1] = self.base.object.domain
         return lower, upper
