@@ -34,18 +34,27 @@ T_FINAL = 5.0
 TIGHT = {"rtol": 1e-12, "atol": 1e-12}
 
 
-def _pinch(**kw):
-    """pinch2d from a start with nothing symmetric: turned object, contacts off its axis."""
+def _pinch(wide: bool = False, **kw):
+    """pinch2d from a start with nothing symmetric: turned object, contacts off its axis;
+    ``wide``: its contours over several turns (an open contact's point may go round)."""
+    if wide:
+        kw.update(fingertip=gs.curves.circle(0.01, span=3 * math.pi),
+                  object=gs.curves.ellipse(0.020, 0.025, start=math.pi / 2, span=3 * math.pi,
+                                           clockwise=True))
+    tip2 = {"fingertip": gs.curves.circle(0.01, span=3 * math.pi)} if wide else {}
     return gs.scenes.pinch2d(theta_0=0.25, u1_0=math.pi + 0.3, u0_0=0.002,
                              extra_fingers=(dataclasses.replace(gs.scenes.pinch2d().extra_fingers[0],
-                                                                u1_0=-0.25),), **kw)
+                                                                u1_0=-0.25, **tip2),), **kw)
 
 
-def _planar_3d(scene2d):
+def _planar_3d(scene2d, low=-math.pi / 2, planes=()):
     """The 3D model of ``scene2d`` kept in its plane: the 2D fingers as chains about -z, the
     fingertip circles as spheres, the ellipse as the section of an ellipsoid (third semi-axis
     0.030 m) with the 2D inertia about z, the 2D start as the 3D guesses (exactly consistent),
-    and the 2D law (32) written as a law of the 3D quantities, pulling toward the same point."""
+    and the 2D law (32) written as a law of the 3D quantities, pulling toward the same point.
+    The ellipsoid's chart: longitudes ``(low, low + 2 pi)``, or ``(low, -low)`` for
+    ``low < -pi`` (a chart over several turns); ``planes``: with modes and these
+    planes of the world (``with_modes``)."""
     x2 = dict(zip(scene2d.state_names, scene2d.initial_state()))
     a, b = gs.scenes.PINCH2D_SEMI_AXES
     mass = scene2d.params["M"]
@@ -61,11 +70,12 @@ def _planar_3d(scene2d):
                 for dq, J, tip, g in zip(m.dq, m.J, m.tip, m.gravity_torque)]
 
     radius = 0.01
+    tip_lon = (-3 * math.pi, 3 * math.pi) if low < -math.pi else (-math.pi, math.pi)
 
     def finger(i, chain):
         u0, u1 = x2[f"u0_{i}"], x2[f"u1_{i}"]
-        lon = (-u1 + math.pi / 2) % (2 * math.pi) - math.pi / 2     # the 3D chart's (-pi/2, 3pi/2)
-        return Finger3D(chain=chain, tip=surface_library.sphere(radius, name=f"tip {i}"),
+        lon = (-u1 - low) % (2 * math.pi) + low     # the 3D chart's (low, low + 2 pi)
+        return Finger3D(chain=chain, tip=surface_library.sphere(radius, name=f"tip {i}", lon=tip_lon),
                         q0=(x2[f"q{i}1"], x2[f"q{i}2"]), tip_contact=(u0 / radius, 0.0),
                         object_contact=(lon, 0.0))
 
@@ -75,12 +85,14 @@ def _planar_3d(scene2d):
                                              name="2")))
     th = x2["theta"]
     rot = ((math.cos(th), math.sin(th), 0.0), (-math.sin(th), math.cos(th), 0.0), (0.0, 0.0, 1.0))
-    return GraspScene3D(
+    s3 = GraspScene3D(
         name="pinch_in_plane", fingers=fingers,
-        object_surface=surface_library.ellipsoid(a, b, 0.030, lon=(-math.pi / 2, 3 * math.pi / 2)),
+        object_surface=surface_library.ellipsoid(a, b, 0.030, lon=(low, -low if low < -math.pi
+                                                                       else low + 2 * math.pi)),
         mass=mass, inertia=tuple(map(tuple, inertia)), support="free",
         position=(x2["x"] - SHIFT, x2["y"], 0.0), rotation=rot, gravity=(0.0, -9.81, 0.0),
         controller=pull, gain=300.0, dq0=(0.0,) * 4, outputs=("constraint_residual", "f1", "f2"))
+    return gs.scenes.with_modes(s3, planes=planes) if planes else s3
 
 
 def test_a_free_pinch_agrees_with_the_3d_model_kept_in_its_plane():
@@ -221,3 +233,72 @@ def test_a_free_pinch_with_modes_slips_and_lets_go_as_the_3d_model_does():
                 *[np.max(np.abs(r3[k] - r2[k])) for k in ("q11", "q12", "q21", "q22")])
     assert worst <= 1e-10, worst           # measured 6e-13; the object falls 2 cm
     assert r2["y"][0] - r2["y"][-1] > 0.01
+
+
+def test_one_finger_presses_a_free_disk_onto_a_line_as_the_3d_model_does():
+    """One finger and a line of the world hold a free 2D object (``with_modes(scene, lines=...)``).
+    A disk (radius 0.02 m, 0.04 kg, I = 0.4 m R^2: a ball's) hangs from the paper's finger,
+    touching it 0.2 rad off its top, 0.5 mm above a table; the law (32) presses the fingertip
+    toward the disk's start centre. The disk falls, lands (an impact), rolls under the finger
+    and comes to rest. Checked against the 3D model with modes of the same ball and finger
+    kept in their plane (the landing to 1e-12 s, the motion to 1e-10), and the rest against
+    its statics solved here from the joint angles and the disk's centre alone: the finger
+    force F (on the finger, at the contact point p) and the table's friction T and normal
+    force N meet the finger's joints, J^T F - (p - r_tip) x F (1, 1) = J^T (fd / r)(r_tip - a),
+    and the disk's forces and moment: 5 equations for 4 unknowns, consistent to round-off, and
+    equal to the model's multipliers."""
+    R, r, m, g, link, fd, r_ctrl = 0.02, 0.010, 0.04, 9.81, 0.065, 0.5, 0.010
+    off = 0.2                                    # the contact, off the disk's top (rad)
+    # the start: the fingertip centre above the disk, on the line through its contact
+    centre = np.array([0.08, R + 0.0005])
+    tip = centre + (R + r) * np.array([math.sin(off), math.cos(off)])
+    q2 = math.acos((tip @ tip - 2 * link**2) / (2 * link**2))
+    q1 = math.atan2(tip[0], tip[1]) - q2 / 2
+    scene = gs.scenes.planar_finger(
+        gs.curves.circle(r, span=3 * math.pi), gs.curves.circle(R, by="angle", span=3 * math.pi, clockwise=True),
+        name="press2d", support="free", M=m, I=0.4 * m * R * R, gravity=(0.0, -g), q1_0=q1,
+        u0_0=r * (q1 + q2 - math.pi - off), u1_0=-math.pi / 2 + off, outputs=())
+    x2 = dict(zip(scene.state_names, scene.initial_state()))
+    assert x2["q2"] == pytest.approx(q2, abs=1e-12)                  # the start as constructed
+    model = gs.build(gs.scenes.with_modes(
+        scene, lines=[gs.scenes.world_line((0.0, 0.0), (0.0, 1.0), support=math.pi / 2)]))
+    finger = Finger3D(chain=chains.finger1(), tip=surface_library.sphere(r), q0=(x2["q1"], x2["q2"]),
+                      tip_contact=(x2["u0"] / r, 0.0), object_contact=(-x2["u1"], 0.0))
+    ball = gs.scenes.paper3d(name="press3d_plane", fingers=(finger,), mass=m, rotation=np.eye(3),
+                             inertia=np.eye(3) * 0.4 * m * R * R, k_center=0.0, dq0=None, outputs=(),
+                             object_surface=surface_library.ellipsoid(R, R, R, lon=(-2.5, 4.0)),
+                             position=(x2["x"] - SHIFT, x2["y"], 0.0))
+    table = gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), support=(-math.pi / 2, 0.0))
+    model3 = gs.build(gs.scenes.with_modes(ball, planes=[table]))
+    t = np.linspace(0.0, 1.0, 21)
+    res = model.simulate(1.0, mu=0.8, t_eval=t, rtol=1e-11, atol=1e-12)
+    res3 = model3.simulate(1.0, mu=0.8, t_eval=t, rtol=1e-11, atol=1e-12)
+    assert [(e["contact"], e["from"], e["to"]) for e in res.events] == [(2, "separated", "rolling")]
+    assert res.events[0]["t"] == pytest.approx(res3.events[0]["t"], abs=1e-12)
+    R3 = res3.object_rotations()
+    worst = max(np.max(np.abs(res3["x"] + SHIFT - res["x"])), np.max(np.abs(res3["y"] - res["y"])),
+                np.max(np.abs(-np.arctan2(R3[:, 1, 0], R3[:, 0, 0]) - res["theta"])),
+                np.max(np.abs(res3["q11"] - res["q1"])), np.max(np.abs(res3["q12"] - res["q2"])))
+    assert worst <= 1e-10, worst
+    assert np.ptp(res["x"]) > 1e-3                                   # it rolled under the finger
+    # the statics at rest
+    y = {k: v[-1] for k, v in res.outputs.items()}
+    assert abs(res["dx"][-1]) < 1e-6 and abs(res["dtheta"][-1]) < 1e-4
+    q1, q12 = res["q1"][-1], res["q1"][-1] + res["q2"][-1]
+    tip = link * np.array([math.sin(q1) + math.sin(q12), math.cos(q1) + math.cos(q12)])
+    J = link * np.array([[math.cos(q1) + math.cos(q12), math.cos(q12)],
+                         [-math.sin(q1) - math.sin(q12), -math.sin(q12)]])
+    c = np.array([res["x"][-1], res["y"][-1]])
+    lever = r * (c - tip) / np.linalg.norm(c - tip)
+    pull = fd / r_ctrl * (tip - np.array(scene.pivot))
+    A = np.array([[J[0, 0] + lever[1], J[1, 0] - lever[0], 0, 0], [J[0, 1] + lever[1], J[1, 1] - lever[0], 0, 0],
+                  [-1, 0, 1, 0], [0, -1, 0, 1], [(tip + lever - c)[1], -(tip + lever - c)[0], R, 0]])
+    b = np.array([*(J.T @ pull), 0.0, m * g, 0.0])
+    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
+    assert np.linalg.norm(A @ sol - b) < 1e-7 * np.linalg.norm(b)
+    F, T, N = sol[:2], sol[2], sol[3]
+    assert abs(T) > 0.03                                              # friction holds it
+    assert y["normal_force2"] == pytest.approx(N, rel=1e-7)
+    assert y["tangential_force2"] == pytest.approx(abs(T), rel=1e-6)
+    assert math.hypot(y["normal_force1"], y["lam1"]) == pytest.approx(np.linalg.norm(F), rel=1e-7)
+    assert res["y"][-1] == pytest.approx(R, abs=1e-10) and abs(y["gap2"]) < 1e-10

@@ -88,8 +88,25 @@ def _modes_functions(scene, progress=None, layers: bool = True):
 
 
 def _planar_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    """The base's start, and each line's support point on the object's contour; every line
+    must be apart from the object at the start."""
     scene.validate()
-    return scene.initial_state(), scene.start_values(), {}
+    x0 = scene.initial_state()
+    if not scene.lines:
+        return x0, scene.start_values(), {}
+    names = scene.state_names
+    pos, theta = x0[[names.index("x"), names.index("y")]], float(x0[names.index("theta")])
+    c, s = np.cos(theta), np.sin(theta)
+    extra = []
+    for m, w in enumerate(scene.lines, start=1):
+        u, S = body_line.support_point(scene.base.object, theta, np.array(w.normal), w.support)
+        gap = float(np.dot(w.normal, pos + np.array([c * S[0] + s * S[1], -s * S[0] + c * S[1]])
+                           - np.array(w.point)))
+        if not gap > 0:
+            raise InvalidSceneError([f"line {m} cuts the object at the start (gap {gap:.6g} m): put it "
+                                     "below the object (its normal into the free side)"])
+        extra.append(u)
+    return np.concatenate([x0, extra]), scene.start_values(), {}
 
 
 def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:

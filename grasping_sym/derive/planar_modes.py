@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from grasping_sym.derive.body_line import contour_sx
 from grasping_sym.derive.planar import derive_template, has_gravity, parameter_values, torque_names
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions, leaf_expressions
@@ -75,7 +76,7 @@ def derive_planar_modes(scene, torques) -> dict:
     ``torques(scene, t, x, p) -> (tau, reads the object, reads the time)`` gives the joint
     torques of its controller (``assemble.controller.controller_torques``). Several fingers:
     ``derive_planar_fingers_modes``."""
-    if scene.n_fingers > 1:
+    if scene.numbered:
         return derive_planar_fingers_modes(scene, torques)
     names = scene.p_names
     system, x, p, t, tau, timed, tr, (gf, gl, wf, wl) = _setup(scene, torques)
@@ -145,62 +146,79 @@ def derive_planar_modes(scene, torques) -> dict:
 
 
 def derive_planar_fingers_modes(scene, torques) -> dict:
-    """``derive_planar_modes`` of a scene of ``k > 1`` fingers: each contact ``i`` in its own
-    mode (``mode{i}``, ``slip{i}``, ``mu{i}``), the multipliers of every contact
-    ``z = (f_1, lam_1, ..., f_k, lam_k)`` (the force on the system ``-A^T z``, ``A`` the rows
-    ``(gQ_i, gR_i)``) solved together from two rows per contact: rolling, its two constraint
-    rows along the motion (as the rolling model); sliding, its normal row along the common
-    normal's motion and Coulomb's ``lam_i = mu_i d_i f_i``; separated, ``f_i = lam_i = 0``.
-    ``painleve{i}`` is contact ``i``'s own coefficient of its sliding normal row."""
+    """``derive_planar_modes`` of a scene of several contacts (``k`` fingers, then the lines of
+    the world of a free object): each contact ``i`` in its own mode (``mode{i}``, ``slip{i}``,
+    ``mu{i}``), the multipliers of every contact ``z = (f_1, lam_1, ..., f_n, lam_n)`` (the
+    force on the system ``-A^T z``, ``A`` the rows ``(gQ_i, gR_i)``) solved together from two
+    rows per contact: rolling, its two constraint rows along the motion (as the rolling model;
+    a line's tangential row at the speed level, ``vt' = -2 gl vt``); sliding, its normal row
+    along the common normal's motion and Coulomb's ``lam_i = mu_i d_i f_i``; separated,
+    ``f_i = lam_i = 0``. ``painleve{i}`` is contact ``i``'s own coefficient of its sliding
+    normal row. A line acts as a fixed finger (``_line_rows``)."""
     k = scene.n_fingers
+    n_lines = len(scene.lines)
+    n = k + n_lines
     names = scene.p_names
     system, x, p, t, tau, timed, tr, (gf, gl, wf, wl) = _setup(scene, torques)
     nq = scene.n_speeds
     q, v, u = x[0:nq], x[nq:2 * nq], x[2 * nq:2 * nq + 2 * k]
+    u_w = x[2 * nq + 2 * k:2 * nq + 2 * k + n_lines]
+    defect = [tr(system.outputs["tangency_defect" if k == 1 else f"tangency_defect{i}"])
+              for i in range(1, k + 1)]
 
     M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
     C = tr(system.constraint)
     sigma = tr(system.contact_rates)
-    A = ca.jacobian(C, q)
+    lines = [_line_rows(scene.base, w, q, v, u_w[m]) for m, w in enumerate(scene.lines)]
+    u_w_dot = ca.vertcat(*[ln["u_dot"] for ln in lines])
     zq = ca.SX.zeros(nq)
+    A = ca.vertcat(ca.jacobian(C, q), *[ca.vertcat(ln["gQ"], ln["gR"]) for ln in lines])
     free = ca.solve(M, F - h)
     MinvA = ca.solve(M, A.T)
-    # the rolling rows along the motion (each contact's parameters carried by sigma)
-    Cdot = ca.jtimes(C, x, ca.vertcat(v, zq, sigma))
-    Ahat = ca.jacobian(Cdot, v)
-    bhat = ca.jtimes(Cdot, x, ca.vertcat(v, zq, sigma))
     # sliding and separated contacts' parameters on the common normal
     u_geo = []
     for i in range(1, k + 1):
         ui = u[2 * i - 2:2 * i]
-        G = ca.vertcat(C[2 * i - 1], tr(system.outputs[f"tangency_defect{i}"]))
+        G = ca.vertcat(C[2 * i - 1], defect[i - 1])
         u_geo.append(ca.solve(ca.jacobian(G, ui), -ca.jacobian(G, q) @ v - TRACK_GAIN * G))
     u_geo = ca.vertcat(*u_geo)
+    # the rolling rows along the motion (each contact's parameters carried by sigma)
+    rolled = ca.vertcat(v, zq, sigma, u_w_dot)
+    Cdot = ca.jtimes(C, x, rolled)
+    Ahat = ca.jacobian(Cdot, v)
+    bhat = ca.jtimes(Cdot, x, rolled)
+    along = ca.vertcat(v, zq, u_geo, u_w_dot)
     rows, rhs, per = [], [], []
-    unit = ca.SX.eye(2 * k)
-    for i in range(1, k + 1):
+    unit = ca.SX.eye(2 * n)
+    for i in range(1, n + 1):
         a_, b_ = 2 * i - 2, 2 * i - 1
         mode, slip, mu = (p[names.index(f"{key}{i}")] for key in ("mode", "slip", "mu"))
-        Q = C[a_]
-        Qdot = ca.jtimes(Q, x, ca.vertcat(v, zq, u_geo))
+        Q = C[a_] if i <= k else lines[i - k - 1]["Q"]
+        Qdot = ca.jtimes(Q, x, along)
         Qa = ca.jacobian(Qdot, v)
-        Qb = ca.jtimes(Qdot, x, ca.vertcat(v, zq, u_geo))
+        Qb = ca.jtimes(Qdot, x, along)
         vt = ca.mtimes(A[b_, :], v)
         d = ca.if_else(vt * slip > 0, ca.sign(vt), slip)
         rolling, sliding = mode < 0.5, mode < 1.5
-        roll_a = (Ahat[a_, :] @ MinvA, Ahat[a_, :] @ free + bhat[a_] + 2 * gf * Cdot[a_] + wf * C[a_])
-        roll_b = (Ahat[b_, :] @ MinvA, Ahat[b_, :] @ free + bhat[b_] + 2 * gl * Cdot[b_] + wl * C[b_])
+        if i <= k:
+            roll_a = (Ahat[a_, :] @ MinvA, Ahat[a_, :] @ free + bhat[a_] + 2 * gf * Cdot[a_] + wf * C[a_])
+            roll_b = (Ahat[b_, :] @ MinvA, Ahat[b_, :] @ free + bhat[b_] + 2 * gl * Cdot[b_] + wl * C[b_])
+        else:
+            roll_a = (Qa @ MinvA, Qa @ free + Qb + 2 * gf * Qdot + wf * Q)
+            tb = ca.jtimes(vt, x, along)
+            roll_b = (A[b_, :] @ MinvA, A[b_, :] @ free + tb + 2 * gl * vt)
         slide_a = (Qa @ MinvA, Qa @ free + Qb + 2 * gf * Qdot + wf * Q)
         slide_b = (unit[b_, :] - mu * d * unit[a_, :], ca.SX(0))
         for (ra, fa), (rs, fs), ro in ((roll_a, slide_a, unit[a_, :]), (roll_b, slide_b, unit[b_, :])):
             rows.append(ca.if_else(rolling, ra, ca.if_else(sliding, rs, ro)))
             rhs.append(ca.if_else(rolling, fa, ca.if_else(sliding, fs, 0)))
         per.append({"Q": Q, "Qdot": Qdot, "Qa": Qa, "Qb": Qb, "vt": vt, "d": d, "mu": mu,
-                    "rolling": rolling})
+                    "rolling": rolling, "R": C[b_] if i <= k else ca.SX(0),
+                    "defect": defect[i - 1] if i <= k else lines[i - k - 1]["phi"]})
     z = ca.solve(ca.vertcat(*rows), ca.vertcat(*rhs))
     a = free - MinvA @ z
     udot = ca.vertcat(*[ca.if_else(c["rolling"], sigma[2 * i:2 * i + 2], u_geo[2 * i:2 * i + 2])
-                        for i, c in enumerate(per)])
+                        for i, c in enumerate(per[:k])], u_w_dot)
     xdot = ca.vertcat(v, a, udot)
 
     outputs = {}
@@ -212,8 +230,7 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
             f"tangential_force{i}": ca.fabs(lam), f"cone_ratio{i}": ca.fabs(lam) / ca.fmax(f, FORCE_FLOOR),
             f"vt{i}": c["vt"], f"slip_speed{i}": ca.fabs(c["vt"]), f"painleve{i}": ca.mtimes(c["Qa"], w),
             f"normal_acceleration{i}": -(ca.mtimes(c["Qa"], a) + c["Qb"]),
-            f"Q{i}": c["Q"], f"R{i}": C[2 * i - 1],
-            f"tangency_defect{i}": tr(system.outputs[f"tangency_defect{i}"]),
+            f"Q{i}": c["Q"], f"R{i}": c["R"], f"tangency_defect{i}": c["defect"],
             f"vn_fixed{i}": ca.mtimes(A[2 * i - 2, :], v),
         })
     W = A @ MinvA
@@ -222,10 +239,34 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
         "potential_energy": tr(system.outputs["potential_energy"]),
         "power": ca.dot(v[nq - 2 * k:], tau),
     })
-    for r in range(2 * k):
-        for c in range(r, 2 * k):
+    for r in range(2 * n):
+        for c in range(r, 2 * n):
             outputs[f"W_{r}_{c}"] = W[r, c]
     for s_ in range(nq):
-        for r in range(2 * k):
+        for r in range(2 * n):
             outputs[f"MinvAT_{s_}_{r}"] = MinvA[s_, r]
     return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": outputs, "reads_time": timed}
+
+
+def _line_rows(base, line, q, v, u) -> dict:
+    """A line of the world touching the free object of ``base`` (``docs/conventions.md``
+    section 14), as a fixed finger: with ``R = Rot(-theta)``, the support point
+    ``r_c = R c(u)``, the gap ``g = n.(Om + r_c - w0)``, ``Q = -g``; the line's velocity
+    relative to the object's material point there, ``-v_c``, ``v_c = Om' - theta' perp(r_c)``,
+    gives the rows ``gQ = dQ/dq = -n.J``, ``gR = -t.J`` (``t = (-n_y, n_x)``, ``J v = v_c``), so
+    that the force on the object is ``f n + lam t`` (``-(f gQ + lam gR)``); the support point
+    keeps ``phi = (R T(u)).n`` at 0 with ``phi' = -TRACK_GAIN phi``."""
+    n = ca.DM(line.normal)
+    tan = ca.DM([-line.normal[1], line.normal[0]])
+    pos, th, dth = q[0:2], q[2], v[2]
+    c, s = ca.cos(th), ca.sin(th)
+    R = ca.vertcat(ca.horzcat(c, s), ca.horzcat(-s, c))
+    S, T = contour_sx(base.object, u)
+    rS = R @ S
+    Q = -ca.dot(n, pos + rS - ca.DM(line.point))
+    phi = ca.dot(R @ T, n)
+    u_dot = (-TRACK_GAIN * phi - ca.jacobian(phi, th) * dth) / ca.jacobian(phi, u)
+    v_c = v[0:2] - dth * ca.vertcat(-rS[1], rS[0])
+    gQ = ca.jacobian(Q, q)
+    gR = -ca.jacobian(ca.dot(tan, v_c), v)
+    return {"Q": Q, "gQ": gQ, "gR": gR, "phi": phi, "u_dot": u_dot}

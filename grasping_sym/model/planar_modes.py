@@ -12,11 +12,16 @@ are always two: the contours' points on their common normal, which move apart wh
 contact slides); the base's ``theta, q11, q12, q21, ..., u0_1, u1_1, u0_2, ...`` for several.
 A scene of several fingers numbers its run-time parameters and outputs by contact
 (``mode1``, ``mu2``, ``gap1``, ...).
+
+A free object (``support="free"``) may also touch fixed lines of the world (``WorldLine``: a
+table, an incline, a wall; ``docs/conventions.md`` section 14): their contacts come after the
+fingers', numbered like them, and each adds the contour parameter ``u_w{m}`` of the object's
+support point on line ``m`` (where its outward normal is minus the line's) to the state.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -44,23 +49,56 @@ CONTACT_OUTPUTS = ("gap", "normal_speed", "normal_force", "lam", "tangential_for
                    "tangency_defect", "vn_fixed")
 
 
-def fingers_outputs(k: int, n_object: int = 1) -> tuple[str, ...]:
-    """Every output of a scene of ``k > 1`` fingers: each contact's, the energies and power,
+def fingers_outputs(k: int, nv: int | None = None) -> tuple[str, ...]:
+    """Every output of a scene of ``k > 1`` contacts: each contact's, the energies and power,
     ``W = A M^-1 A^T`` (``W_r_c``, ``r <= c``, rows ``(Q_i, R_i)`` of contact ``i`` at
-    ``2i - 2, 2i - 1``) and ``M^-1 A^T`` (``MinvAT_s_r``, speed ``s``: the object's
-    ``n_object`` first, 1 pivoted, 3 free, then the joints')."""
-    n, nv = 2 * k, n_object + 2 * k
+    ``2i - 2, 2i - 1``) and ``M^-1 A^T`` (``MinvAT_s_r``, speed ``s`` of ``nv``: the object's
+    first, 1 pivoted, 3 free, then the joints'; default a pivoted object and ``k`` fingers)."""
+    n, nv = 2 * k, 1 + 2 * k if nv is None else nv
     return (*(f"{o}{i}" for i in range(1, k + 1) for o in CONTACT_OUTPUTS),
             "kinetic_energy", "potential_energy", "power",
             *(f"W_{r}_{c}" for r in range(n) for c in range(r, n)),
             *(f"MinvAT_{s}_{r}" for s in range(nv) for r in range(n)))
 
 
+@dataclass(frozen=True)
+class WorldLine:
+    """A fixed line of the world: a point on it and its unit normal (into the free half-plane)
+    (m, world); ``support``: a guess of the object contour's parameter facing it at the start."""
+
+    point: tuple[float, float]
+    normal: tuple[float, float]
+    support: float = 0.0
+
+    def __post_init__(self) -> None:
+        try:
+            point = tuple(float(v) for v in np.ravel(self.point))
+            normal = tuple(float(v) for v in np.ravel(self.normal))
+            support = float(self.support)
+        except (TypeError, ValueError):
+            raise InvalidSceneError([f"a world line takes a point and a normal (two numbers each) and "
+                                     f"a support (a number), not {self.point!r}, {self.normal!r}, "
+                                     f"{self.support!r}"]) from None
+        object.__setattr__(self, "point", point)
+        object.__setattr__(self, "normal", normal)
+        object.__setattr__(self, "support", support)
+        p = []
+        if len(point) != 2 or not all(math.isfinite(v) for v in point):
+            p.append(f"line point {point} must be two finite numbers (m)")
+        if len(normal) != 2 or not abs(math.hypot(*normal) - 1) < 1e-12:
+            p.append(f"line normal {normal} must be a unit vector (to 1e-12)")
+        if not math.isfinite(support):
+            p.append(f"support {support} must be a finite number (a guess of the contour parameter)")
+        if p:
+            raise InvalidSceneError(p)
+
+
 @dataclass(frozen=True, eq=False)
 class PlanarModesScene(WithModes):
-    """``base`` with its contact's modes (module docstring)."""
+    """``base`` with its contact's modes and the world's ``lines`` (module docstring)."""
 
     base: PlanarFingerScene
+    lines: tuple[WorldLine, ...] = field(default=())
 
     kind: ClassVar[str] = "planar_modes"
     dimension: ClassVar[int] = 2
@@ -75,16 +113,25 @@ class PlanarModesScene(WithModes):
         if not isinstance(b, PlanarFingerScene):
             raise InvalidSceneError([f"with_modes takes a 2D finger scene (gs.scenes.paper2d(), "
                                      f"gs.scenes.planar_finger(...)), not {type(b).__name__}"])
-        if b.free and b.n_fingers == 1:
-            problems.append("support='free' with one finger: a free 2D object with contact modes "
-                            "needs two fingers or more (a free object held by one finger and a "
-                            "surface of the world is not built in 2D); add extra_fingers, or hold "
-                            "the object by a pivot (support='pivot')")
+        object.__setattr__(self, "lines", tuple(self.lines))
+        if any(not isinstance(w, WorldLine) for w in self.lines):
+            problems.append("lines must be gs.scenes.world_line(point, normal) values")
+        if self.lines and not b.free:
+            problems.append("lines of the world touch a free object: give the scene support='free' "
+                            "(a pivoted object is held by its pivot)")
+        if b.free and b.n_fingers == 1 and not self.lines:
+            problems.append("support='free' with one finger and no line of the world: nothing else "
+                            "holds the object; add extra_fingers, a line (with_modes(scene, "
+                            "lines=[gs.scenes.world_line(point, normal)])), or hold it by a pivot")
+        if b.friction is not None and isinstance(b.friction.mu, tuple) \
+                and len(b.friction.mu) not in (1, self.n_contacts):
+            problems.append(f"the friction law has {len(b.friction.mu)} mu for {self.n_contacts} contacts "
+                            "(the fingers', then the lines'): give one per contact, or one for all")
         if b.runtime:
             problems.append(f"runtime = {b.runtime}: a scene with contact modes takes its parameters "
                             "as constants (give their values in the scene); its run-time inputs "
                             "are mu and e")
-        problems += output_problems(self.outputs, OUTPUTS if self.n_fingers == 1 else self.outputs)
+        problems += output_problems(self.outputs, OUTPUTS if not self.numbered else self.outputs)
         if problems:
             raise InvalidSceneError(problems)
 
@@ -114,18 +161,24 @@ class PlanarModesScene(WithModes):
 
     @property
     def n_contacts(self) -> int:
-        return self.base.n_fingers
+        return self.base.n_fingers + len(self.lines)
+
+    @property
+    def numbered(self) -> bool:
+        """Whether the contacts are numbered (several, or one finger and a line): the model of
+        several contacts (``derive.planar_modes.derive_planar_fingers_modes``)."""
+        return self.n_contacts > 1
 
     @property
     def runtime(self) -> tuple[str, ...]:
         """``mode, slip, mu`` (one finger), or ``mode1, slip1, mu1, mode2, ...``."""
-        if self.n_fingers == 1:
+        if not self.numbered:
             return RUNTIME
-        return tuple(f"{k}{i}" for i in range(1, self.n_fingers + 1) for k in RUNTIME)
+        return tuple(f"{k}{i}" for i in range(1, self.n_contacts + 1) for k in RUNTIME)
 
     @property
     def outputs(self) -> tuple[str, ...]:
-        return OUTPUTS if self.n_fingers == 1 else fingers_outputs(self.n_fingers, self.n_speeds - 2 * self.n_fingers)
+        return OUTPUTS if not self.numbered else fingers_outputs(self.n_contacts, self.n_speeds)
 
     @property
     def fingertip(self):
@@ -147,7 +200,7 @@ class PlanarModesScene(WithModes):
 
     @property
     def params(self) -> dict[str, float]:
-        k = self.n_fingers
+        k = self.n_contacts
         mus = self.friction.per_contact(k) if self.friction is not None else (math.inf,) * k
         own = dict(zip(self.runtime, [v for mu in mus for v in (0.0, 1.0, min(float(mu), 1e300))]))
         return {**self.base.params, **own}
@@ -155,9 +208,11 @@ class PlanarModesScene(WithModes):
     # ------------------------------------------------------------------ names
     @property
     def state_names(self) -> tuple[str, ...]:
+        lines = tuple(f"u_w{m}" for m in range(1, len(self.lines) + 1))
         if self.n_fingers > 1:
-            return self.base.state_names
-        return ("theta", "q1", "q2", "dtheta", "dq1", "dq2", "u0", "u1")
+            return (*self.base.state_names, *lines)
+        obj = self.base.object_coordinates
+        return (*obj, "q1", "q2", *["d" + k for k in obj], "dq1", "dq2", "u0", "u1", *lines)
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -178,19 +233,25 @@ class PlanarModesScene(WithModes):
         return self.base.start_values()
 
     def initial_state(self) -> np.ndarray:
-        """The base's start (at rest, in contact), with both contact parameters."""
+        """The base's start (at rest, in contact), with both contact parameters (the lines'
+        support points are solved with the model, ``assemble.kinds``)."""
         x = self.base.initial_state()
-        return np.concatenate([x[:6], [x[6], x[6]]]) if self.base.shared_parameter else x
+        n = 2 * self.n_speeds
+        return np.concatenate([x[:n], [x[n], x[n]]]) if self.base.shared_parameter else x
 
     def code_key(self) -> str:
-        return "\n".join(["planar-modes-v1", self.base.code_key()])
+        return "\n".join(["planar-modes-v1", self.base.code_key(),
+                          *[repr((w.point, w.normal)) for w in self.lines]])
 
     def key(self) -> str:
-        return "\n".join(["planar-modes-v1", self.base.key()])
+        return "\n".join(["planar-modes-v1", self.base.key(),
+                          *[repr((w.point, w.normal, w.support)) for w in self.lines]])
 
     def rolling_map(self) -> dict | None:
         """``WithModes.rolling_map``; a base with one contact parameter ``s`` for both contours
         (``shared_parameter``) is the rolling model of the states with ``u0 = u1 = s``."""
+        if self.lines:
+            return None                    # the rolling model has no gap to a line to watch
         if self.n_fingers > 1 or not self.base.shared_parameter:
             return super().rolling_map()
         return {"to": [0, 1, 2, 3, 4, 5, 6], "from": [0, 1, 2, 3, 4, 5, 6, 6]}
@@ -200,11 +261,11 @@ class PlanarModesScene(WithModes):
         fingers their number and where the speeds start and how many (``planar_fingers``);
         how the base's rolling model runs the stretches where every contact rolls
         (``rolling_map``)."""
-        k = self.n_fingers
-        extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": k, "rolling_map": self.rolling_map(),
+        extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
+                 "rolling_map": self.rolling_map(),
                  "param_rules": {m: "nonnegative" for m in self.runtime if m.startswith("mu")}}
-        if k > 1:
-            extra["planar_fingers"] = {"fingers": k, "speeds": [self.n_speeds, self.n_speeds]}
+        if self.numbered:
+            extra["planar_fingers"] = {"fingers": self.n_fingers, "speeds": [self.n_speeds, self.n_speeds]}
         return extra
 
     def bounds(self) -> tuple[list, list]:
@@ -215,9 +276,13 @@ class PlanarModesScene(WithModes):
             j = 2 * self.n_speeds + 2 * i
             lower[j], upper[j] = tip.domain
             lower[j + 1], upper[j + 1] = self.base.object.domain
+        for m in range(len(self.lines)):
+            j = 2 * self.n_speeds + 2 * self.n_fingers + m
+            lower[j], upper[j] = self.base.object.domain
         return lower, upper
 
 
-def with_modes(scene: PlanarFingerScene) -> PlanarModesScene:
-    """``scene`` whose contact rolls, slides or separates (module docstring)."""
-    return PlanarModesScene(scene)
+def with_modes(scene: PlanarFingerScene, lines=()) -> PlanarModesScene:
+    """``scene`` whose contact rolls, slides or separates, with the world's ``lines`` (module
+    docstring)."""
+    return PlanarModesScene(scene, tuple(lines))

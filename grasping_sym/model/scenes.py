@@ -16,10 +16,10 @@ from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.model.grasp3d_modes import GraspModesScene, WorldPlane
 from grasping_sym.model.inertia import solid_ellipsoid_inertia, solid_superquadric_inertia  # noqa: F401 - gs.scenes.*
 from grasping_sym.model.planar import DEFAULT_OUTPUTS, ExtraFinger, PlanarFingerScene
-from grasping_sym.model.planar_modes import PlanarModesScene
+from grasping_sym.model.planar_modes import PlanarModesScene, WorldLine
 
 __all__ = ["BUILTIN", "GraspModesScene", "LineBodyScene", "PlanarModesScene", "WorldPlane", "body_on_line",
-           "body_on_plane", "disk_on_incline", "paper2d",
+           "body_on_plane", "disk_on_incline", "paper2d", "world_line",
            "paper3d", "pinch2d", "pivot3d", "planar_finger", "sphere_on_incline", "trifinger", "with_modes",
            "world_plane"]
 
@@ -350,18 +350,28 @@ def sphere_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 
                      mass=mass, inertia=(inertia, inertia, inertia), **defaults)
 
 
-def with_modes(scene, planes=()):
+def with_modes(scene, planes=(), lines=()):
     """``scene`` whose contacts roll, slide (Coulomb) or separate, switching at located events
-    (``docs/conventions.md`` sections 8 and 9): a 2D scene of one finger or several
-    (``model.planar_modes``) or a 3D grasp (``model.grasp3d_modes``), whose object may also
-    touch fixed ``planes`` of the world (``world_plane``: a table, a wall)."""
+    (``docs/conventions.md`` sections 8, 9 and 14): a 2D scene of one finger or several
+    (``model.planar_modes``), whose free object may also touch fixed ``lines`` of the world
+    (``world_line``), or a 3D grasp (``model.grasp3d_modes``), whose object may also touch
+    fixed or driven ``planes`` of the world (``world_plane``: a table, a wall)."""
     if isinstance(scene, GraspScene3D):
+        if lines:
+            raise InvalidSceneError(["lines= are the world's surfaces of a 2D scene: a 3D scene takes "
+                                     "planes=[gs.scenes.world_plane(point, normal)]"])
         return GraspModesScene(scene, tuple(planes))
     if planes:
-        raise InvalidSceneError(["planes=: surfaces of the world are built for 3D scenes only; a 2D "
-                                 "scene with modes holds its object by a pivot (use a 3D scene, e.g. "
-                                 "gs.scenes.body_on_plane, for an object on a table)"])
-    return PlanarModesScene(scene)
+        raise InvalidSceneError(["planes= are the world's surfaces of a 3D scene: a 2D scene takes "
+                                 "lines=[gs.scenes.world_line(point, normal)]"])
+    return PlanarModesScene(scene, tuple(lines))
+
+
+def world_line(point, normal, support: float = 0.0) -> WorldLine:
+    """A fixed line of the world through ``point`` with unit ``normal`` (into the free side), for
+    ``with_modes(scene, lines=[...])`` of a 2D scene with a free object; ``support``: a guess of
+    the object contour's parameter that faces it at the start."""
+    return WorldLine(point, normal, support)
 
 
 def world_plane(point, normal, support=(0.0, 0.0), motion=None, spin=None) -> WorldPlane:

@@ -823,7 +823,8 @@ class _FingersRun(_GraspRun):
         normal (``_PlanarRun.apart``): a finger may start apart."""
         x = np.array(x, dtype=float)
         y = self.outputs(x, self.params([ROLLING] * self.k))
-        for j in self.contacts:
+        fingers = int(self.model.manifest[self.INFO]["fingers"])
+        for j in range(1, fingers + 1):    # a line's support point is the model's to keep
             if y[f"gap{j}"] > CONTACT_GAP:
                 x = _on_common_normal(self, x, j, 2 * self.nv + 2 * (j - 1))
         return x
