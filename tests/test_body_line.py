@@ -99,3 +99,26 @@ def test_a_body_on_a_line_is_checked_by_name():
         gs.scenes.disk_on_incline(line_normal=(0.0, 2.0))
     with pytest.raises(InvalidSceneError, match="inertia = -1"):
         gs.scenes.body_on_line(gs.curves.circle(R, clockwise=True, span=3.0), mass=1.0, inertia=-1)
+
+
+def test_a_disk_at_rest_on_a_rising_conveyor_slides_then_rolls_at_a_third_of_its_speed():
+    """A belt moving along x at V and rising with acceleration a (``line_motion``): the disk at
+    rest slips on it; friction mu m (g + a) speeds its centre at mu (g + a) and its contact
+    point at 3 mu (g + a), so the slip stops at t* = V / (3 mu (g + a)) and it rolls on at V / 3
+    (no force needed on a belt at constant speed), its normal force m (g + a) throughout."""
+    mu, V, a = 0.4, 0.6, 2.0
+    disk = gs.scenes.body_on_line(gs.curves.circle(R, by="angle", span=3 * math.pi, clockwise=True),
+                                  mass=MASS, inertia=MASS * R**2 / 2, theta=math.pi / 2, name="belt",
+                                  line_motion=(f"{V} * t", f"{a} / 2 * t**2"),
+                                  friction=gs.contact.coulomb(mu))
+    res = gs.build(disk).simulate(0.2, t_eval=np.linspace(0.0, 0.2, 21), rtol=1e-10, atol=1e-12)
+    (event,) = res.events
+    assert (event["from"], event["to"]) == ("sliding", "rolling")
+    assert event["t"] == pytest.approx(V / (3 * mu * (G + a)), rel=1e-9)
+    assert res["dx"][-1] == pytest.approx(V / 3, rel=1e-9)
+    np.testing.assert_allclose(res["normal_force"], MASS * (G + a), rtol=1e-9)
+    assert res["dy"][-1] == pytest.approx(a * 0.2, rel=1e-9)          # it rides the belt up
+    with pytest.raises(InvalidSceneError, match="line_motion .* give two expressions of t"):
+        gs.scenes.body_on_line(disk.contour, mass=1.0, inertia=1.0, line_motion=("t", "t", "t"))
+    with pytest.raises(InvalidSceneError, match="is not 0 at t = 0"):
+        gs.scenes.body_on_line(disk.contour, mass=1.0, inertia=1.0, line_motion=("1 + t", "0"))

@@ -28,8 +28,10 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.model.body import TIME
 from grasping_sym.symbolic.translate import SympyToCasadi
 
 
@@ -73,6 +75,13 @@ def derive_body_line(scene) -> dict:
     rS = R @ S
     r_c = pos + rS
     v_c = vel + w * _perp(rS)
+    moving = scene.line_motion is not None
+    if moving:  # a translating line: its point, velocity and acceleration at t
+        d = SympyToCasadi({TIME: t})(sp.Matrix(scene.line_motion))
+        w0 = w0 + d
+        d_dot = ca.jacobian(d, t)
+        d_ddot = ca.jacobian(d_dot, t)
+        v_c = v_c - d_dot   # relative to the line's material point
     gap = ca.dot(n, r_c - w0)
     vn = ca.dot(n, v_c)
     vt = ca.dot(tan, v_c)
@@ -83,6 +92,8 @@ def derive_body_line(scene) -> dict:
     # d/dt (R S) = w perp(R S) + R S_u u'
     rS_dot = w * _perp(rS) + R @ ca.jacobian(S, u) * u_dot
     acc = vel_dot_F + w_dot_F * _perp(rS) + w * _perp(rS_dot)
+    if moving:  # minus the line's acceleration (a translation: the same at every point)
+        acc = acc - d_ddot
     K = ca.jacobian(acc, F)
     b = ca.substitute(acc, F, ca.DM.zeros(2))
 
@@ -112,7 +123,7 @@ def derive_body_line(scene) -> dict:
     for i in range(2):
         for j in range(2):
             out[f"K_{i}{j}"] = K[i, j]
-    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": False}
+    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": out, "reads_time": moving}
 
 
 def start_state(scene) -> tuple[np.ndarray, dict]:
@@ -128,8 +139,10 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
     vel = np.asarray(scene.velocity, float)
     dth = float(scene.dtheta)
     if scene.start == "contact":
+        v_line = np.zeros(2) if scene.line_motion is None else np.array(
+            [float(sp.diff(e, TIME).subs(TIME, 0)) for e in scene.line_motion])
         pos = pos - np.dot(n, pos + rS - np.asarray(scene.line_point)) * n
-        vel = vel - np.dot(n, vel - dth * np.array([-rS[1], rS[0]])) * n
+        vel = vel - np.dot(n, vel - dth * np.array([-rS[1], rS[0]]) - v_line) * n
     x0 = np.array([*pos, th, *vel, dth, u0])
     return x0, {"support": float(u0)}
 

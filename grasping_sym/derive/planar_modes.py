@@ -25,10 +25,12 @@ with the same state keeps both too, so a switch maps no state.
 from __future__ import annotations
 
 import casadi as ca
+import sympy as sp
 
 from grasping_sym.derive.body_line import contour_sx
 from grasping_sym.derive.planar import derive_template, has_gravity, parameter_values, torque_names
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.model.body import TIME
 from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi
 
@@ -169,7 +171,7 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
     M, h, F = tr(system.mass_matrix), tr(system.bias), tr(system.force)
     C = tr(system.constraint)
     sigma = tr(system.contact_rates)
-    lines = [_line_rows(scene.base, w, q, v, u_w[m]) for m, w in enumerate(scene.lines)]
+    lines = [_line_rows(scene.base, w, q, v, u_w[m], t) for m, w in enumerate(scene.lines)]
     u_w_dot = ca.vertcat(*[ln["u_dot"] for ln in lines])
     zq = ca.SX.zeros(nq)
     A = ca.vertcat(ca.jacobian(C, q), *[ca.vertcat(ln["gQ"], ln["gR"]) for ln in lines])
@@ -188,16 +190,18 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
     Ahat = ca.jacobian(Cdot, v)
     bhat = ca.jtimes(Cdot, x, rolled)
     along = ca.vertcat(v, zq, u_geo, u_w_dot)
+    # each row's velocity relative to a driven line is ``A_r v + drift_r(t)``
+    drift = ca.vertcat(ca.SX.zeros(2 * k), *[ln["drift"] for ln in lines])
     rows, rhs, per = [], [], []
     unit = ca.SX.eye(2 * n)
     for i in range(1, n + 1):
         a_, b_ = 2 * i - 2, 2 * i - 1
         mode, slip, mu = (p[names.index(f"{key}{i}")] for key in ("mode", "slip", "mu"))
         Q = C[a_] if i <= k else lines[i - k - 1]["Q"]
-        Qdot = ca.jtimes(Q, x, along)
+        Qdot = ca.jtimes(Q, x, along) + ca.jacobian(Q, t)
         Qa = ca.jacobian(Qdot, v)
-        Qb = ca.jtimes(Qdot, x, along)
-        vt = ca.mtimes(A[b_, :], v)
+        Qb = ca.jtimes(Qdot, x, along) + ca.jacobian(Qdot, t)
+        vt = ca.mtimes(A[b_, :], v) + drift[b_]
         d = ca.if_else(vt * slip > 0, ca.sign(vt), slip)
         rolling, sliding = mode < 0.5, mode < 1.5
         if i <= k:
@@ -205,7 +209,7 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
             roll_b = (Ahat[b_, :] @ MinvA, Ahat[b_, :] @ free + bhat[b_] + 2 * gl * Cdot[b_] + wl * C[b_])
         else:
             roll_a = (Qa @ MinvA, Qa @ free + Qb + 2 * gf * Qdot + wf * Q)
-            tb = ca.jtimes(vt, x, along)
+            tb = ca.jtimes(vt, x, along) + ca.jacobian(vt, t)
             roll_b = (A[b_, :] @ MinvA, A[b_, :] @ free + tb + 2 * gl * vt)
         slide_a = (Qa @ MinvA, Qa @ free + Qb + 2 * gf * Qdot + wf * Q)
         slide_b = (unit[b_, :] - mu * d * unit[a_, :], ca.SX(0))
@@ -231,7 +235,7 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
             f"vt{i}": c["vt"], f"slip_speed{i}": ca.fabs(c["vt"]), f"painleve{i}": ca.mtimes(c["Qa"], w),
             f"normal_acceleration{i}": -(ca.mtimes(c["Qa"], a) + c["Qb"]),
             f"Q{i}": c["Q"], f"R{i}": c["R"], f"tangency_defect{i}": c["defect"],
-            f"vn_fixed{i}": ca.mtimes(A[2 * i - 2, :], v),
+            f"vn_fixed{i}": ca.mtimes(A[2 * i - 2, :], v) + drift[2 * i - 2],
         })
     W = A @ MinvA
     outputs.update({
@@ -245,17 +249,20 @@ def derive_planar_fingers_modes(scene, torques) -> dict:
     for s_ in range(nq):
         for r in range(2 * n):
             outputs[f"MinvAT_{s_}_{r}"] = MinvA[s_, r]
-    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": outputs, "reads_time": timed}
+    moving = any(w.motion is not None for w in scene.lines)
+    return {"x": x, "p": p, "t": t, "xdot": xdot, "outputs": outputs, "reads_time": timed or moving}
 
 
-def _line_rows(base, line, q, v, u) -> dict:
+def _line_rows(base, line, q, v, u, t) -> dict:
     """A line of the world touching the free object of ``base`` (``docs/conventions.md``
     section 14), as a fixed finger: with ``R = Rot(-theta)``, the support point
     ``r_c = R c(u)``, the gap ``g = n.(Om + r_c - w0)``, ``Q = -g``; the line's velocity
     relative to the object's material point there, ``-v_c``, ``v_c = Om' - theta' perp(r_c)``,
     gives the rows ``gQ = dQ/dq = -n.J``, ``gR = -t.J`` (``t = (-n_y, n_x)``, ``J v = v_c``), so
     that the force on the object is ``f n + lam t`` (``-(f gQ + lam gR)``); the support point
-    keeps ``phi = (R T(u)).n`` at 0 with ``phi' = -TRACK_GAIN phi``."""
+    keeps ``phi = (R T(u)).n`` at 0 with ``phi' = -TRACK_GAIN phi``. A driven line (its
+    point ``w0 + d(t)``) adds ``n.d'(t)`` and ``t.d'(t)`` to the rows' velocities (``drift``:
+    the line's material moves)."""
     n = ca.DM(line.normal)
     tan = ca.DM([-line.normal[1], line.normal[0]])
     pos, th, dth = q[0:2], q[2], v[2]
@@ -263,10 +270,13 @@ def _line_rows(base, line, q, v, u) -> dict:
     R = ca.vertcat(ca.horzcat(c, s), ca.horzcat(-s, c))
     S, T = contour_sx(base.object, u)
     rS = R @ S
-    Q = -ca.dot(n, pos + rS - ca.DM(line.point))
+    d = ca.SX.zeros(2) if line.motion is None else SympyToCasadi({TIME: t})(sp.Matrix(line.motion))
+    d_dot = ca.jacobian(d, t)
+    Q = -ca.dot(n, pos + rS - ca.DM(line.point) - d)
     phi = ca.dot(R @ T, n)
     u_dot = (-TRACK_GAIN * phi - ca.jacobian(phi, th) * dth) / ca.jacobian(phi, u)
     v_c = v[0:2] - dth * ca.vertcat(-rS[1], rS[0])
     gQ = ca.jacobian(Q, q)
     gR = -ca.jacobian(ca.dot(tan, v_c), v)
-    return {"Q": Q, "gQ": gQ, "gR": gR, "phi": phi, "u_dot": u_dot}
+    return {"Q": Q, "gQ": gQ, "gR": gR, "phi": phi, "u_dot": u_dot,
+            "drift": ca.vertcat(ca.dot(n, d_dot), ca.dot(tan, d_dot))}

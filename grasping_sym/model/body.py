@@ -225,11 +225,11 @@ def _values_at_start(exprs) -> list[float] | None:
     return [v.real for v in at0]
 
 
-def translation_of_time(value, what: str) -> tuple[tuple | None, list[str]]:
-    """``(d, problems)``: a plane's translation ``value`` (None, or three expressions of ``t``:
-    text, numbers or SymPy with the symbol ``t``) as SymPy expressions, and what is wrong with
-    it (not three expressions of ``t`` alone, or not 0 at ``t = 0``: the plane starts where its
-    point is)."""
+def translation_of_time(value, what: str, dims: int = 3) -> tuple[tuple | None, list[str]]:
+    """``(d, problems)``: a plane's (``dims = 3``) or a line's (``dims = 2``) translation
+    ``value`` (None, or ``dims`` expressions of ``t``: text, numbers or SymPy with the symbol
+    ``t``) as SymPy expressions, and what is wrong with it (not ``dims`` expressions of ``t``
+    alone, or not 0 at ``t = 0``: the plane starts where its point is)."""
     if value is None:
         return None, []
     try:
@@ -238,12 +238,12 @@ def translation_of_time(value, what: str) -> tuple[tuple | None, list[str]]:
         return None, [str(exc)]
     # a SymPy t of the user's (any assumptions) is the time
     d = tuple(e.subs({s: TIME for s in e.free_symbols if s.name == "t"}) for e in d)
-    if len(d) != 3 or any(e.free_symbols - {TIME} for e in d):
-        return None, [f"{what} = {d}: give three expressions of t alone (m)"]
+    if len(d) != dims or any(e.free_symbols - {TIME} for e in d):
+        return None, [f"{what} = {d}: give {('two', 'three')[dims - 2]} expressions of t alone (m)"]
     at0 = _values_at_start((*d, *(sp.diff(e, TIME) for e in d), *(sp.diff(e, TIME, 2) for e in d)))
     if at0 is None:
         return None, [f"{what} = {d}: it, its velocity and acceleration must be real and finite at "
                       "t = 0 (m)"]
-    if any(abs(v) > 1e-15 for v in at0[:3]):
+    if any(abs(v) > 1e-15 for v in at0[:dims]):
         return None, [f"{what} = {d} is not 0 at t = 0: the plane starts at its point"]
     return d, []

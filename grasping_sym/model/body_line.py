@@ -23,10 +23,12 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+import sympy as sp
 
 from grasping_sym.contact import Coulomb, friction_problems
 from grasping_sym.errors import InvalidCurveError, InvalidSceneError
 from grasping_sym.geometry.curves import PlanarCurve
+from grasping_sym.model.body import translation_of_time
 from grasping_sym.names import name_problems, names_tuple, output_problems
 
 #: The contact's modes, by the number the compiled model takes as its parameter ``mode``.
@@ -68,6 +70,9 @@ class LineBodyScene:
     inertia: float
     line_point: tuple[float, float] = (0.0, 0.0)
     line_normal: tuple[float, float] = (0.0, 1.0)
+    #: the line's translation ``d(t)`` (m, world; two expressions of ``t``, text, numbers or
+    #: SymPy with the symbol ``t``; ``d(0) = 0``): a conveyor, a rising or shaking table
+    line_motion: tuple | None = None
     gravity: tuple[float, float] = (0.0, -9.81)
     position: tuple[float, float] = (0.0, 0.0)
     theta: float = 0.0
@@ -92,7 +97,9 @@ class LineBodyScene:
         for k in ("line_point", "line_normal", "gravity", "position", "velocity"):
             object.__setattr__(self, k, _pair(getattr(self, k)))
         object.__setattr__(self, "outputs", names_tuple(self.outputs))
-        problems = self._problems()
+        motion, motion_problems = translation_of_time(self.line_motion, "line_motion", dims=2)
+        object.__setattr__(self, "line_motion", motion)
+        problems = motion_problems + self._problems()
         if problems:
             raise InvalidSceneError(problems)
 
@@ -166,7 +173,9 @@ class LineBodyScene:
     def code_key(self) -> str:
         return "\n".join(["body2d-v1", self.name, self.contour.key(), repr(float(self.mass)),
                           repr(float(self.inertia)), repr(self.line_point), repr(self.line_normal),
-                          repr(self.gravity), repr(float(self.gain)), ",".join(self.outputs)])
+                          repr(self.gravity), repr(float(self.gain)), ",".join(self.outputs),
+                          *([] if self.line_motion is None
+                            else [f"motion={tuple(map(sp.srepr, self.line_motion))}"])])
 
     def key(self) -> str:
         return "\n".join([self.code_key(), repr(self.position), repr(float(self.theta)),

@@ -25,8 +25,10 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+import sympy as sp
 
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.model.body import translation_of_time
 from grasping_sym.model.control import coefficient_names
 from grasping_sym.model.planar import PlanarFingerScene
 from grasping_sym.model.with_modes import WithModes
@@ -69,6 +71,9 @@ class WorldLine:
     point: tuple[float, float]
     normal: tuple[float, float]
     support: float = 0.0
+    #: the line's translation ``d(t)`` (two expressions of ``t``, ``d(0) = 0``, as
+    #: ``model.body_line.LineBodyScene.line_motion``); None: fixed
+    motion: tuple | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -89,6 +94,9 @@ class WorldLine:
             p.append(f"line normal {normal} must be a unit vector (to 1e-12)")
         if not math.isfinite(support):
             p.append(f"support {support} must be a finite number (a guess of the contour parameter)")
+        motion, problems = translation_of_time(self.motion, "line motion", dims=2)
+        object.__setattr__(self, "motion", motion)
+        p += problems
         if p:
             raise InvalidSceneError(p)
 
@@ -240,12 +248,11 @@ class PlanarModesScene(WithModes):
         return np.concatenate([x[:n], [x[n], x[n]]]) if self.base.shared_parameter else x
 
     def code_key(self) -> str:
-        return "\n".join(["planar-modes-v1", self.base.code_key(),
-                          *[repr((w.point, w.normal)) for w in self.lines]])
+        return "\n".join(["planar-modes-v1", self.base.code_key(), *[_line_key(w) for w in self.lines]])
 
     def key(self) -> str:
         return "\n".join(["planar-modes-v1", self.base.key(),
-                          *[repr((w.point, w.normal, w.support)) for w in self.lines]])
+                          *[f"{_line_key(w)}|{w.support!r}" for w in self.lines]])
 
     def rolling_map(self) -> dict | None:
         """``WithModes.rolling_map``; a base with one contact parameter ``s`` for both contours
@@ -265,7 +272,9 @@ class PlanarModesScene(WithModes):
                  "rolling_map": self.rolling_map(),
                  "param_rules": {m: "nonnegative" for m in self.runtime if m.startswith("mu")}}
         if self.numbered:
-            extra["planar_fingers"] = {"fingers": self.n_fingers, "speeds": [self.n_speeds, self.n_speeds]}
+            extra["planar_fingers"] = {
+                "fingers": self.n_fingers, "speeds": [self.n_speeds, self.n_speeds],
+                "driven": [self.n_fingers + m for m, w in enumerate(self.lines, start=1) if w.motion is not None]}
         return extra
 
     def bounds(self) -> tuple[list, list]:
@@ -280,6 +289,11 @@ class PlanarModesScene(WithModes):
             j = 2 * self.n_speeds + 2 * self.n_fingers + m
             lower[j], upper[j] = self.base.object.domain
         return lower, upper
+
+
+def _line_key(w: WorldLine) -> str:
+    motion = None if w.motion is None else tuple(map(sp.srepr, w.motion))
+    return repr((w.point, w.normal, motion))
 
 
 def with_modes(scene: PlanarFingerScene, lines=()) -> PlanarModesScene:

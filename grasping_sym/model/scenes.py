@@ -304,8 +304,9 @@ def body_on_plane(surface, *, mass: float, inertia, name: str = "body", **kwargs
 
 def body_on_line(contour, *, mass: float, inertia: float, name: str = "body2d", **kwargs) -> LineBodyScene:
     """A free 2D body with ``contour`` (body frame, mass centre at its origin, running clockwise
-    like a 2D object's) on a fixed line of the world (``model.body_line.LineBodyScene``:
-    ``line_point``, ``line_normal``, ``gravity``, the start ``position``, ``theta``,
+    like a 2D object's) on a line of the world (``model.body_line.LineBodyScene``:
+    ``line_point``, ``line_normal``, ``line_motion`` (its translation, two expressions of
+    ``t``: a conveyor, a rising table), ``gravity``, the start ``position``, ``theta``,
     ``velocity``, ``dtheta``, ``support``, ``start``, ``gain``, ``friction``)."""
     return LineBodyScene(name=name, contour=contour, mass=mass, inertia=inertia, **kwargs)
 

@@ -6,7 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
+from grasping_sym.model.body import TIME
 from grasping_sym.runtime.modes import rotation
 from grasping_sym.viz.modes import modes_figure
 from grasping_sym.viz.plots3d import _equal_box, surface_mesh
@@ -57,7 +59,7 @@ def frames(fig, scene, result, rows):
 def frames2d(fig, scene, result, rows):
     """``draw(k)`` of frame ``k`` of a body on a line: its contour, turned and moved, a mark
     of its turning (the segment from the centre to its contour's parameter 0), the line under
-    the whole motion, the contact's mode in the title."""
+    the whole motion (moved by its ``line_motion``), the contact's mode in the title."""
     u = np.linspace(*scene.contour.domain, 400)
     ev = scene.contour.evaluate(u)
     pts = np.column_stack([np.broadcast_to(ev["x"], u.shape), np.broadcast_to(ev["y"], u.shape)])
@@ -70,6 +72,13 @@ def frames2d(fig, scene, result, rows):
     along = (centres - w0) @ tan
     ends = w0 + np.outer([along.min() - size, along.max() + size], tan)
     box = np.vstack([ends, *[c + pts for c in centres[:: max(1, len(rows) // 8)]]])
+    if scene.line_motion is None:
+        moved = np.zeros((len(rows), 2))
+    else:
+        shift = sp.lambdify(TIME, list(scene.line_motion), "numpy")
+        # along itself the line looks the same: only its rise along n is drawn
+        moved = np.array([np.dot(np.asarray(shift(result.t[i]), dtype=float), n) * n for i in rows])
+    box = np.vstack([box, ends[0] + moved, ends[1] + moved])
     lo, hi = box.min(axis=0) - 0.1 * size, box.max(axis=0) + 0.1 * size
     ax = fig.add_subplot()
     modes = result.modes
@@ -79,7 +88,7 @@ def frames2d(fig, scene, result, rows):
         x = result.x[rows[k]]
         c, s = np.cos(x[2]), np.sin(x[2])
         turn = np.array([[c, s], [-s, c]])          # Rot(-theta)
-        ax.plot(*ends.T, "-", color="0.4", linewidth=2)
+        ax.plot(*(ends + moved[k]).T, "-", color="0.4", linewidth=2)
         body = x[0:2] + pts @ turn.T
         ax.fill(*body.T, color="tab:blue", alpha=0.6)
         ax.plot(*np.vstack([x[0:2], x[0:2] + turn @ mark]).T, "-", color="k", linewidth=1)
