@@ -33,6 +33,7 @@ switches within ``SWITCH_WINDOW`` s), an event that cannot be located.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from time import perf_counter
 
@@ -60,6 +61,9 @@ from grasping_sym.runtime.result import SimulationResult
 ROLLING, SLIDING, SEPARATED = 0, 1, 2
 #: The methods a run with modes takes: the adaptive loops in C (implicit and explicit).
 METHODS = ("radau", "dopri5", "dop853")
+#: How another closed contact takes an impulse at an impact (``_GraspRun._impulse``): held,
+#: let go, or ``(SLIDE, d)``: sliding along the slip direction ``d``.
+HOLD, OPEN, SLIDE = "hold", "open", "slide"
 NAMES = ("rolling", "sliding", "separated")
 #: Gap (m) within which a start counts as in contact.
 CONTACT_GAP = 1e-9
@@ -404,7 +408,8 @@ class _BodyRun(_Run):
         P = _solve3(K, -vc)
         return self._apply(x, P, rc), float(np.max(np.abs(vc)))
 
-    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
+               slips=None) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (module docstring):
         ``(x after, largest speed change, stuck, bounced)``: a bounce when ``e > 0`` and the
         approach is faster than ``REST_SPEED``."""
@@ -507,7 +512,8 @@ class _LineBodyRun(_Run):
         K, vc, rc, _ = self.contact(y)
         return self._apply(x, np.linalg.solve(K, -vc), rc), float(np.max(np.abs(vc)))
 
-    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
+               slips=None) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (``_BodyRun.impact`` in
         2D): the impulse that stops the tangential motion if it lies in the cone, else the one
         on the cone's edge whose slip after the impact it opposes (Moreau's law)."""
@@ -594,7 +600,8 @@ class _PlanarRun(_Run):
         Jv = np.array([y["vn_fixed"], y["vt"]])
         return self._apply(x, y, np.linalg.solve(self._W(y), Jv)), float(np.max(np.abs(Jv)))
 
-    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float, bool, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
+               slips=None) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (``_BodyRun.impact``, in
         the contact's frame); the kinetic energy must not grow (a named error otherwise)."""
         mu, W = self.mu, self._W(y)
@@ -688,27 +695,27 @@ class _GraspRun(_Run):
         x[self.v0:self.v0 + self.nv] -= B @ P
         return x
 
-    def _impulse(self, y, modes, j: int, target_j: np.ndarray, slide_j=None):
+    def _impulse(self, y, modes, j: int, target_j: np.ndarray, slide_j=None, treat=None):
         """The impulses of an impact (or a stop) at contact ``j``: ``j``'s rows reach
         ``target_j`` (normal, and tangential unless ``slide_j``, a direction on its cone's
-        edge), every other rolling contact is held (its velocity stays 0), every other sliding
-        contact keeps its normal speed 0 with its tangential impulse on its cone's edge against
-        its slip. Returns ``(P over every row, W, J V)``."""
+        edge); every other closed contact as ``treat[c]`` says, by default as its mode: held
+        (``HOLD``: its velocity stays 0), sliding along ``d`` (``(SLIDE, d)``: its normal speed
+        stays 0, its tangential impulse on its cone's edge along ``d``, the slip's direction) or
+        let go (``OPEN``: no impulse). Returns ``(P over every row, W, J V)``."""
         n3 = self.ROWS * self.k
         W, JV = self._W(y), self._JV(y)
+        treat = self._treatment(y, modes, j) if treat is None else treat
         cols, eqs, rhs = [], [], []
         for c in self.contacts:
             rows = self._rows(c)
-            sliding = (c == j and slide_j is not None) or (c != j and modes[c - 1] == SLIDING)
-            if c != j and modes[c - 1] == SEPARATED:
+            how = (SLIDE, slide_j) if c == j and slide_j is not None else HOLD if c == j else treat[c]
+            if how == OPEN:
                 continue
             target = target_j if c == j else np.zeros(self.ROWS)
-            if sliding:
-                vt = self.slip_velocity(y, c)
-                d = slide_j if c == j else vt / max(np.linalg.norm(vt), 1e-300)
+            if how != HOLD:
                 col = np.zeros(n3)
                 col[rows[0]] = 1.0
-                col[rows[1:]] = self.mus[c - 1] * np.asarray(d)
+                col[rows[1:]] = self.mus[c - 1] * np.asarray(how[1])
                 cols.append(col)
                 eqs.append(rows[0])
                 rhs.append(JV[rows[0]] - target[0])
@@ -723,67 +730,154 @@ class _GraspRun(_Run):
         u = np.linalg.solve(W[eqs, :] @ B, np.array(rhs))
         return B @ u, W, JV
 
-    def _check_impulse(self, t, x, modes, j, P, W, JV, what: str) -> None:
-        """Every closed contact's impulse pushes (``P_n >= 0``); the held rolling ones stay in
-        their cones; the sliding ones' slip does not reverse. A named error otherwise."""
+    def _treatment(self, y, modes, j: int) -> dict:
+        """How every other contact takes an impulse at ``j``, by its mode: a rolling one is
+        held, a sliding one slides on along its slip, a separated one is let go."""
+        out = {}
+        for c in self.contacts:
+            if c == j:
+                continue
+            if modes[c - 1] == ROLLING:
+                out[c] = HOLD
+            elif modes[c - 1] == SLIDING:
+                vt = self.slip_velocity(y, c)
+                out[c] = (SLIDE, vt / max(np.linalg.norm(vt), 1e-300))
+            else:
+                out[c] = OPEN
+        return out
+
+    def _impulse_problem(self, modes, j, P, W, JV, treat, what: str) -> str | None:
+        """What makes the impulse ``P`` (``_impulse`` with ``treat``) inconsistent at another
+        contact than ``j``, None where it is consistent (a complementarity problem's solution):
+        a held contact pushes (``P_n >= 0``) within its cone; a sliding one pushes and its slip
+        does not reverse (Moreau: the friction impulse opposes the slip it leaves); a contact let
+        go does not approach after it (``J V - W P`` along its normal <= 0)."""
         after = JV - W @ P
+        scale = max(1.0, float(np.max(np.abs(P))))
         for c in self.contacts:
             if c == j or modes[c - 1] == SEPARATED:
                 continue
             rows = self._rows(c)
-            pn, pt = P[rows[0]], P[rows[1:]]
-            if not pn >= -1e-12 * max(1.0, np.max(np.abs(P))):
-                raise ContactModeError(t, x, f"{what} at contact {j} would pull at contact {c} (normal "
-                                       f"impulse {pn:.6g} N s): contact {c} would open through an impulse, "
-                                       "which is not built", self.model.state_names)
-            if modes[c - 1] == ROLLING and not np.linalg.norm(pt) <= self.mus[c - 1] * pn + 1e-12:
-                raise ContactModeError(t, x, f"{what} at contact {j} pushes contact {c} out of its cone "
-                                       f"(impulse {pn:.6g} N s normal, {np.linalg.norm(pt):.6g} N s "
-                                       "tangential): a slip started by an impulse at another contact is "
-                                       "not built", self.model.state_names)
-            if modes[c - 1] == SLIDING and np.dot(after[rows[1:]], JV[rows[1:]]) < 0:
-                raise ContactModeError(t, x, f"{what} at contact {j} would reverse contact {c}'s slip: a "
-                                       "slip stopped by an impulse at another contact is not built",
-                                       self.model.state_names)
+            pn, pt, how = P[rows[0]], P[rows[1:]], treat[c]
+            if how == OPEN:
+                if after[rows[0]] > 1e-12 * max(1.0, float(np.max(np.abs(JV)))):
+                    return f"{what} at contact {j} would leave contact {c} approaching"
+                continue
+            if not pn >= -1e-12 * scale:
+                return (f"{what} at contact {j} would pull at contact {c} (normal impulse {pn:.6g} N s): "
+                        f"contact {c} would open through an impulse")
+            if how == HOLD and not np.linalg.norm(pt) <= self.mus[c - 1] * pn + 1e-12:
+                return (f"{what} at contact {j} pushes contact {c} out of its cone (impulse {pn:.6g} N s "
+                        f"normal, {np.linalg.norm(pt):.6g} N s tangential): a slip started by an impulse "
+                        "at another contact")
+            if how != HOLD and np.dot(after[rows[1:]], how[1]) < -1e-12 * max(1.0, float(np.max(np.abs(JV)))):
+                return f"{what} at contact {j} would reverse contact {c}'s slip"
+        return None
+
+    def _treatments(self, y, modes, j: int, held: np.ndarray):
+        """Every way the other closed contacts may take an impulse at ``j``, their modes' first,
+        then those that change one contact, then two, ...: held, let go, or sliding along the
+        tangential impulse that holding it needs (``held``: the impulse with every one held) or
+        its opposite."""
+        base = self._treatment(y, modes, j)
+        closed = [c for c in self.contacts if c != j and modes[c - 1] != SEPARATED]
+        options = {}
+        for c in closed:
+            pt = held[self._rows(c)[1:]]
+            d = pt / np.linalg.norm(pt) if np.linalg.norm(pt) > 0 else np.eye(self.ROWS - 1)[0]
+            opts = [HOLD, OPEN, (SLIDE, d), (SLIDE, -d)]
+            if base[c] != HOLD:
+                opts = [base[c], *opts]
+            options[c] = opts
+        combos = [dict(zip(closed, pick)) for pick in itertools.product(*(options[c] for c in closed))]
+        changed = lambda t: sum(not _same(t[c], base[c]) for c in closed)  # noqa: E731
+        for combo in sorted(combos, key=changed):
+            yield {**base, **combo}
+
+    def _contact_impulse(self, t, x, y, modes, j, target, treat):
+        """The impulse at ``j`` with the others as ``treat`` says: held if it lies in ``j``'s
+        cone, else on its edge along the direction whose slip after the impact it opposes
+        (Moreau). ``(P, W, J V, stuck)``; a named error where no direction does."""
+        mu = self.mus[j - 1]
+        rows = self._rows(j)
+        P, W, JV = self._impulse(y, modes, j, target, treat=treat)
+        stuck = bool(np.linalg.norm(P[rows[1:]]) <= mu * P[rows[0]])
+        if stuck:
+            return P, W, JV, True
+        vt = JV[rows[1:]]
+        pt = P[rows[1:]]
+        d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
+
+        def slip_left(d):  # Moreau: the impulse opposes the slip it leaves
+            P, W, JV = self._impulse(y, modes, j, target, slide_j=d, treat=treat)
+            return (JV - W @ P)[rows[1:]], SLIP_SPEED
+
+        d = _direction(d, slip_left, MOREAU_ITERATIONS)
+        P, W, JV = self._impulse(y, modes, j, target, slide_j=d, treat=treat)
+        after_vt = (JV - W @ P)[rows[1:]]
+        if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
+            raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no impulse on "
+                                "the cone's edge that opposes the slip it leaves (Moreau's law) with "
+                                "a pushing normal impulse; the rigid model has no answer here",
+                                self.model.state_names)
+        return P, W, JV, False
 
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float]:
         """Contact ``j``'s velocity set to 0, the other closed contacts as at an impact."""
         P, W, JV = self._impulse(y, modes, j, np.zeros(self.ROWS))
         return self._apply(x, y, list(range(self.ROWS * self.k)), P), float(np.max(np.abs(JV[self._rows(j)])))
 
-    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float, bool, bool]:
+    def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int,
+               slips=None) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse at contact ``j``: stick if
         its impulse lies in its cone, else on the cone's edge along the incoming slip; the
-        other closed contacts as ``_impulse`` says (each checked, a named error where it
-        cannot); the kinetic energy must not grow."""
-        mu = self.mus[j - 1]
+        other closed contacts as their modes say if that is consistent
+        (``_impulse_problem``), else the first consistent way among the others
+        (``_treatments``: a contact may be let go, start or stop sliding through the impulse),
+        written into ``modes`` and ``slips`` (lists, changed in place); the kinetic energy must
+        not grow. Where no way is consistent, a named error."""
         JV = self._JV(y)
-        rows = self._rows(j)
-        vn = float(JV[rows[0]])
+        vn = float(JV[self._rows(j)[0]])
         e = self.e if vn > REST_SPEED else 0.0
         target = np.array([-e * vn] + [0.0] * (self.ROWS - 1))
-        P, W, JV = self._impulse(y, modes, j, target)
-        stuck = bool(np.linalg.norm(P[rows[1:]]) <= mu * P[rows[0]])
-        if not stuck:
-            vt = JV[rows[1:]]
-            pt = P[rows[1:]]
-            d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
-            def slip_left(d):  # Moreau: the impulse opposes the slip it leaves
-                P, W, JV = self._impulse(y, modes, j, target, slide_j=d)
-                return (JV - W @ P)[rows[1:]], SLIP_SPEED
-
-            d = _direction(d, slip_left, MOREAU_ITERATIONS)
-            P, W, JV = self._impulse(y, modes, j, target, slide_j=d)
-            after_vt = (JV - W @ P)[rows[1:]]
-            if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
-                raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no impulse on "
-                                    "the cone's edge that opposes the slip it leaves (Moreau's law) with "
-                                    "a pushing normal impulse; the rigid model has no answer here",
-                                    self.model.state_names)
-        self._check_impulse(t, x, modes, j, P, W, JV, "the impact")
+        held, _, _ = self._impulse(y, modes, j, target, treat={c: HOLD for c in self.contacts if c != j})
+        first = None
+        for treat in self._treatments(y, modes, j, held):
+            try:
+                P, W, JV, stuck = self._contact_impulse(t, x, y, modes, j, target, treat)
+            except PainleveError as exc:   # no consistent impulse at j this way: try the next
+                first = first or exc
+                continue
+            problem = self._impulse_problem(modes, j, P, W, JV, treat, "the impact")
+            if problem is None:
+                break
+            first = first or problem
+        else:
+            if isinstance(first, PainleveError):
+                raise first
+            raise ContactModeError(t, x, f"{first}, and no other way of the other contacts (held, let go, "
+                                   "sliding) is consistent; the rigid model has no answer here",
+                                   self.model.state_names)
         after = self._apply(x, y, list(range(self.ROWS * self.k)), P)
         before_k = float(y["kinetic_energy"])
-        after_k = float(self.outputs(after, self.params(modes))["kinetic_energy"])
+        after_v = JV - W @ P
+        for c, how in treat.items():
+            if c == j or modes[c - 1] == SEPARATED:
+                continue
+            if how == OPEN:
+                modes[c - 1] = SEPARATED
+                if slips is not None:
+                    slips[c - 1] = None
+            elif how == HOLD:
+                modes[c - 1] = ROLLING
+                if slips is not None:
+                    slips[c - 1] = None
+            else:
+                vt = after_v[self._rows(c)[1:]]
+                modes[c - 1] = SLIDING
+                if slips is not None:
+                    slips[c - 1] = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else np.asarray(how[1])
+        after_k = float(self.outputs(after, self.params(modes, slips))["kinetic_energy"])
         driven = set(self.model.manifest[self.INFO].get("driven", []))
         pushed = j in driven or any(c in driven and modes[c - 1] != SEPARATED for c in self.contacts)
         # a driven plane in the impact gives energy (it is driven): the test is for the others
@@ -792,6 +886,13 @@ class _GraspRun(_Run):
                                    f"{before_k:.9g} J to {after_k:.9g} J; the rigid model has no answer "
                                    "here: give e = 0", self.model.state_names)
         return after, float(np.max(np.abs(W @ P))), stuck, e > 0
+
+
+def _same(a, b) -> bool:
+    """Two ways of taking an impulse (``_GraspRun._treatment``) are one."""
+    if isinstance(a, str) or isinstance(b, str):
+        return a == b
+    return bool(np.allclose(a[1], b[1]))
 
 
 class _FingersRun(_GraspRun):
@@ -955,10 +1056,9 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
             name, j, terms = at_start
             t_ev, x_ev, value_ = t_now, x_now, value(terms, y_now)
             recent = _chatter(model, recent, t_ev, x_ev)
-            before = modes[j - 1]
+            before = list(modes)
             modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
-            r.events.append({"t": t_ev, "contact": j, "from": NAMES[before], "to": NAMES[modes[j - 1]],
-                             "witness": name, "value": value_, "reset": reset})
+            _record(r, t_ev, j, name, value_, reset, before, modes)
             continue
         # max_steps and time_limit bound the whole run, whatever its segments
         r.s = dataclasses.replace(s, max_steps=max(s.max_steps - r.stats["n_steps"], 1),
@@ -1001,13 +1101,12 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         t_ev, x_ev, name, j, value_ = found
         x_ev = leg.states(x_ev)
         recent = _chatter(model, recent, t_ev, x_ev)
-        before = modes[j - 1]
+        before = list(modes)
         r.t = t_ev
         modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev, hit["armed"])
         r.stats["switch_time"] += perf_counter() - t_look
         if reset is not None:  # None: a slide re-aimed, no switch
-            r.events.append({"t": t_ev, "contact": j, "from": NAMES[before], "to": NAMES[modes[j - 1]],
-                             "witness": name, "value": value_, "reset": reset})
+            _record(r, t_ev, j, name, value_, reset, before, modes)
         t_now = t_ev
     t_all = np.concatenate(rows_t)
     X_all = np.concatenate(rows_x)
@@ -1189,13 +1288,25 @@ def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
                                "answer here (the impulses' order would decide)", r.model.state_names)
     for j in hits:
         gap = y[r.key("gap", j)]
+        before = list(modes)
         modes, slips, x0, reset = _switch(r, modes, slips, "gap", j, 0.0, x0)
-        r.events.append({"t": 0.0, "contact": j, "from": NAMES[SEPARATED], "to": NAMES[modes[j - 1]],
-                         "witness": "gap", "value": float(gap), "reset": reset})
+        _record(r, 0.0, j, "gap", float(gap), reset, before, modes)
     for j in r.contacts:
         if modes[j - 1] == ROLLING:
             modes[j - 1], slips[j - 1] = r.contact_start(0.0, x0, modes, slips, j)
     return x0, modes, slips
+
+
+def _record(r: _Run, t: float, j: int, name: str, value_: float, reset, before, modes) -> None:
+    """The switch of contact ``j`` at ``t`` in ``r.events``, then each other contact's that
+    the switch's impulse changed (witness ``"impulse"``: let go, or sliding or held through
+    it, ``_GraspRun.impact``)."""
+    r.events.append({"t": t, "contact": j, "from": NAMES[before[j - 1]], "to": NAMES[modes[j - 1]],
+                     "witness": name, "value": value_, "reset": reset})
+    for c in r.contacts:
+        if c != j and modes[c - 1] != before[c - 1]:
+            r.events.append({"t": t, "contact": c, "from": NAMES[before[c - 1]], "to": NAMES[modes[c - 1]],
+                             "witness": "impulse", "value": 0.0, "reset": 0.0})
 
 
 def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, armed: bool = True):
@@ -1226,7 +1337,7 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         modes[j - 1], slips[j - 1] = r.contact_start(t, x2, modes, slips, j)
         return modes, slips, x2, reset
     # an impact
-    x2, reset, _, bounced = r.impact(t, x, y, modes, j)
+    x2, reset, _, bounced = r.impact(t, x, y, modes, j, slips=slips)
     if bounced:  # restitution: it leaves again
         modes[j - 1], slips[j - 1] = SEPARATED, None
     else:
