@@ -233,7 +233,7 @@ def _measures(model, outputs, measures, with_mu: bool = False) -> list[tuple[str
         elif m == "min:epsilon":
             scene = getattr(model, "scene", None)
             free = getattr(scene, "kind", None) == "grasp3d" or (
-                getattr(scene, "kind", None) == "planar" and scene.free)
+                getattr(scene, "kind", None) in ("planar", "planar_modes") and scene.free)
             if not with_mu or not hasattr(model, "grasp_quality") or not free:
                 problems.append(m)
                 continue
@@ -382,7 +382,8 @@ def _mode_columns(modes) -> np.ndarray:
 def _held_modes(model, batch) -> np.ndarray:
     """Per run of a model with modes: 1 when no finger contact is open at the end, 0 when one
     is, NaN when the run failed (the world's planes are not fingers)."""
-    fingers = int(model.manifest.get("grasp_modes", {}).get("fingers", 1))
+    info = model.manifest.get("grasp_modes") or model.manifest.get("planar_fingers") or {}
+    fingers = int(info.get("fingers", 1))
     return np.array([math.nan if m is None or not len(m) else
                      float(not np.any(_mode_columns(m)[-1, :fingers] == "separated"))
                      for m in batch.modes])
@@ -500,6 +501,12 @@ def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", clie
                              mu=None if fixed is None else [None if m == math.inf else float(m)
                                                            for m in fixed])}
     _check_settings(model, task)  # bad settings are named here, before any task is sent
+    if client is not None and any(kind == "epsilon" for _, kind, _ in task["measures"]):
+        # a model sent to a Dask worker travels without its scene (its geometry's SymPy)
+        raise ValueError("sweep: 'min:epsilon' reads the model's scene (its object's surface), which "
+                         "a Dask worker's copy of the model does not carry: run this sweep with "
+                         "client=None (threads in this process), or sweep without it and call "
+                         "model.grasp_quality on the runs you keep")
     chunk = int(chunk or default_chunk(g.size, client))
     variables = [*model.state_names, *(v for v, _, _ in task["measures"])]
     key = _key(model, task, variables, chunk)

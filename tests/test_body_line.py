@@ -122,3 +122,46 @@ def test_a_disk_at_rest_on_a_rising_conveyor_slides_then_rolls_at_a_third_of_its
         gs.scenes.body_on_line(disk.contour, mass=1.0, inertia=1.0, line_motion=("t", "t", "t"))
     with pytest.raises(InvalidSceneError, match="is not 0 at t = 0"):
         gs.scenes.body_on_line(disk.contour, mass=1.0, inertia=1.0, line_motion=("1 + t", "0"))
+
+
+def test_a_spinning_disk_dropped_on_a_table_slides_off_the_impact_on_its_cone():
+    """A disk spinning at 50 rad/s (clockwise) falls 10 cm onto a table (e = 0, mu = 0.4): its
+    contact point slips backwards at 2.5 m/s, more than the impact's friction can stop, so the
+    impulse lies on the cone's edge, P_t = mu P_n with P_n = m sqrt(2 g h) (Moreau): just after,
+    the centre moves at mu sqrt(2 g h) and the spin has dropped by r P_t / I. It then slides
+    until the slip stops and rolls at (2 v + r theta') / 3, its momentum about the contact
+    point kept from the impact on."""
+    h, mu, spin = 0.1, 0.4, 50.0
+    model = gs.build(gs.scenes.body_on_line(gs.curves.circle(R, by="angle", span=20 * math.pi,
+                                                             clockwise=True), mass=MASS,
+                                            inertia=MASS * R**2 / 2, theta=math.pi / 2,
+                                            position=(0.0, R + h), start="as given", dtheta=spin,
+                                            name="spin_drop", friction=gs.contact.coulomb(mu)))
+    res = model.simulate(0.4, t_eval=np.linspace(0.0, 0.4, 41), rtol=1e-10, atol=1e-12)
+    hit, stop = res.events
+    assert (hit["from"], hit["to"], stop["from"], stop["to"]) == ("separated", "sliding", "sliding", "rolling")
+    v = math.sqrt(2 * G * h)
+    late = hit["t"] * (1 + 1e-12)
+    after = model.simulate(late, t_eval=[0.0, late], rtol=1e-10, atol=1e-12)
+    s = dict(zip(model.state_names, after.x[-1]))
+    Pt = mu * MASS * v
+    assert s["dx"] == pytest.approx(Pt / MASS, rel=1e-9) and abs(s["dy"]) < 1e-9
+    assert s["dtheta"] == pytest.approx(spin - R * Pt / (MASS * R**2 / 2), rel=1e-9)
+    assert res["dx"][-1] == pytest.approx((2 * s["dx"] + R * s["dtheta"]) / 3, rel=1e-9)
+
+
+def test_a_belt_speeding_up_makes_the_rolling_disk_slide_where_its_cone_ends():
+    """A disk at rest rolls on a belt whose speed grows as k t^2 / 2 (acceleration k t): rolling
+    needs friction m k t / 3, so it slides at t* = 3 mu g / k, located at the step, and then its
+    centre speeds up at mu g."""
+    mu, k = 0.3, 10.0
+    disk = gs.scenes.body_on_line(gs.curves.circle(R, by="angle", span=20 * math.pi, clockwise=True),
+                                  mass=MASS, inertia=MASS * R**2 / 2, theta=math.pi / 2, name="belt_k",
+                                  line_motion=(f"{k} / 6 * t**3", "0"), friction=gs.contact.coulomb(mu))
+    res = gs.build(disk).simulate(1.2, t_eval=np.linspace(0.0, 1.2, 13), rtol=1e-10, atol=1e-12)
+    (event,) = res.events
+    assert (event["from"], event["to"], event["witness"]) == ("rolling", "sliding", "cone")
+    assert event["t"] == pytest.approx(3 * mu * G / k, rel=1e-9)
+    after = res.t > event["t"]
+    v_star = k * event["t"]**2 / 6        # the centre's speed at the switch: a third of the belt's
+    np.testing.assert_allclose(res["dx"][after], v_star + mu * G * (res.t[after] - event["t"]), rtol=1e-9)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -21,6 +22,7 @@ import pytest
 from scipy.integrate import cumulative_simpson
 
 import grasping_sym as gs
+from grasping_sym import sweeps
 from grasping_sym.assemble.functions import build_casadi
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.errors import InvalidSceneError
@@ -147,22 +149,22 @@ def test_a_free_object_balances_energy_with_its_weight(pinch):
 
 
 def test_the_layers_compose_the_sympy_closed_loop_of_a_free_object():
-    scene = gs.scenes.planar_finger(gs.curves.circle(0.01), gs.curves.ellipse(
-        0.02, 0.015, start=math.pi, span=math.pi, clockwise=True), name="free_one", support="free",
-        M=0.03, I=4e-6, gravity=(0.5, -9.81), u1_0=math.pi + 0.3, u0_0=0.001, runtime=("M",))
+    scene = _pinch(runtime=("M",), gravity=(0.5, -9.81))
     model = gs.build(scene)
     # the SymPy path closes the loop with the law's own statement (derive.planar.paper_law)
-    direct = build_casadi(derive_planar(scene), scene.fingertip, scene.object, "direct")
+    direct = build_casadi(derive_planar(scene), list(scene.fingertips), scene.object, "direct")
     assert model.state_names[:3] == ("x", "y", "theta")
     rng = np.random.default_rng(5)
     x0 = scene.initial_state()
+    names = list(model.state_names)
+    acc = [names.index("dx"), names.index("dy")]
     for mass in (0.03, 0.05):          # M a run-time input of both
         for _ in range(3):
             x = x0 + rng.normal(size=x0.size) * 0.01
             a = np.array(direct.rhs(0, x, [], [mass], [])[0]).ravel()
             b = model.rhs(x, [mass])
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(a).max())
-            assert np.abs(a[5:7]).max() > 1e-2                      # the object accelerates
+            assert np.abs(a[acc]).max() > 1e-2                      # the object accelerates
 
 
 def test_a_free_object_needs_its_mass_and_two_fingers_for_modes():
@@ -175,6 +177,8 @@ def test_a_free_object_needs_its_mass_and_two_fingers_for_modes():
         gs.scenes.paper2d(support="loose")
     with pytest.raises(InvalidSceneError, match="support='free' with one finger"):
         gs.scenes.with_modes(gs.scenes.pinch2d(extra_fingers=()))
+    with pytest.raises(InvalidSceneError, match="nothing else holds the object"):
+        gs.build(gs.scenes.pinch2d(extra_fingers=(), name="one_free"))
 
 
 
@@ -259,9 +263,7 @@ def _pressed_disk(name: str, motion=None):
         u0_0=r * (q1 + q2 - math.pi - off), u1_0=-math.pi / 2 + off, outputs=())
     x2 = dict(zip(scene.state_names, scene.initial_state()))
     assert x2["q2"] == pytest.approx(q2, abs=1e-12)                  # the start as constructed
-    line = gs.scenes.world_line((0.0, 0.0), (0.0, 1.0), support=math.pi / 2)
-    if motion is not None:
-        line = dataclasses.replace(line, motion=motion)
+    line = gs.scenes.world_line((0.0, 0.0), (0.0, 1.0), support=math.pi / 2, motion=motion)
     model = gs.build(gs.scenes.with_modes(scene, lines=[line]))
     finger = Finger3D(chain=chains.finger1(), tip=surface_library.sphere(r), q0=(x2["q1"], x2["q2"]),
                       tip_contact=(x2["u0"] / r, 0.0), object_contact=(-x2["u1"], 0.0))
@@ -388,3 +390,35 @@ def test_a_strike_from_below_lifts_the_disk_off_the_table_through_the_impulse():
     assert abs(momentum) <= 1e-9 * PRESS["m"] * R * np.linalg.norm(v), momentum
     assert s["dy"] > 0.01                                     # lifted off: the support point rises
     assert after["kinetic_energy"][-1] <= before["kinetic_energy"][-1] * (1 + 1e-12)
+
+
+def test_a_new_start_of_a_free_object_moves_the_point_the_law_pulls_toward(pinch, tmp_path):
+    """``with_start(x=...)``: the paper's law pulls toward the object's start centre, which is
+    then the new one (the manifest's ``start_implied``); a sweep measure that reads the scene
+    is refused on a Dask client by name; a model with modes has no CasADi function."""
+    moved = pinch.with_start(x=0.13)
+    assert moved.start_params["xm"] == pytest.approx(0.13, abs=1e-15)
+    assert moved.start_params["ym"] == pytest.approx(moved.initial_state()[1], abs=1e-15)
+    res = moved.simulate(1.0)
+    assert abs(res["x"][-1] - 0.13) < 1e-4           # held where it was put, not dragged back
+    with pytest.raises(ValueError, match="'min:epsilon' reads the model's scene"):
+        gs.sweep(pinch, {"mu": [0.3]}, 0.1, store=tmp_path / "s.zarr", client="processes",
+                 measures=["min:epsilon"], progress=False)
+    with pytest.raises(ValueError, match="a model with contact modes"):
+        gs.build(gs.scenes.disk_on_incline()).casadi_function()
+
+
+def test_the_pressed_disk_is_drawn_with_its_table_and_a_table_through_it_is_refused(tmp_path):
+    """An animation of a 2D run with modes draws the lines of the world and the modes; a line
+    that cuts the object at the start is refused by name; ``held`` reads every finger of a 2D
+    model with modes (not only the first)."""
+    _, model, _ = _pressed_disk("press2d")
+    res = model.simulate(0.02, mu=0.8)
+    assert gs.viz.animate(res, tmp_path / "press.gif", fps=5).stat().st_size > 1000
+    scene = model.scene.base
+    through = gs.scenes.with_modes(scene, lines=[gs.scenes.world_line((0.0, 0.03), (0.0, 1.0), support=math.pi / 2)])
+    with pytest.raises(InvalidSceneError, match="line 1 cuts the object at the start"):
+        gs.build(through)
+    pinch_modes = gs.build(gs.scenes.with_modes(gs.scenes.pinch2d()))
+    batch = SimpleNamespace(modes=[np.array([["rolling", "separated"]]), np.array([["rolling", "sliding"]])])
+    assert list(sweeps._held_modes(pinch_modes, batch)) == [0.0, 1.0]

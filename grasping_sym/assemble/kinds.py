@@ -38,13 +38,25 @@ class Kind:
     sympy_op_counts: Callable
 
 
+def _planar_rolling_problems(scene) -> None:
+    """A free 2D object held by one finger alone is refused by its rolling build (nothing else
+    would carry it; with modes a line of the world may: ``with_modes(scene, lines=...)``)."""
+    if scene.free and scene.n_fingers == 1:
+        raise InvalidSceneError(["support='free' with one finger: nothing else holds the object (its "
+                                 "contact would open at once); add extra_fingers, or let a line of the "
+                                 "world help it with contact modes: gs.scenes.with_modes(scene, lines="
+                                 "[gs.scenes.world_line(point, normal)])"])
+
+
 def _planar_functions(scene, progress=None, layers: bool = True):
+    _planar_rolling_problems(scene)
     if not layers:
         return scene_functions.planar_single_piece(scene)
     return scene_functions.planar_functions(scene, progress)
 
 
 def _planar_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
+    _planar_rolling_problems(scene)
     scene.validate()
     return scene.initial_state(), scene.start_values(), {}
 

@@ -463,6 +463,7 @@ class PlanarFingerScene:
         (``runtime.start``) holds the object's angle unless it is given or must move; the
         rule each run-time parameter's value must meet (``Model.params`` checks it)."""
         return {"start_hold": list(self.object_coordinates),
+                **({"start_implied": {"xm": "x", "ym": "y"}} if self.free else {}),
                 "param_rules": {k: "nonnegative" if k in CSM_GAINS else "positive"
                                 for k in self.runtime}}
 

@@ -131,10 +131,12 @@ class PlanarModesScene(WithModes):
             problems.append("support='free' with one finger and no line of the world: nothing else "
                             "holds the object; add extra_fingers, a line (with_modes(scene, "
                             "lines=[gs.scenes.world_line(point, normal)])), or hold it by a pivot")
-        if b.friction is not None and isinstance(b.friction.mu, tuple) \
-                and len(b.friction.mu) not in (1, self.n_contacts):
-            problems.append(f"the friction law has {len(b.friction.mu)} mu for {self.n_contacts} contacts "
-                            "(the fingers', then the lines'): give one per contact, or one for all")
+        if self.lines and b.friction is not None and isinstance(b.friction.mu, tuple) \
+                and len(b.friction.mu) != 1:
+            problems.append(f"the scene's friction law has one mu per finger ({len(b.friction.mu)}) and "
+                            f"there are {self.n_contacts} contacts with the lines: give one mu for all in "
+                            "the scene, or every contact's at run time, the fingers' then the lines' "
+                            "(simulate(mu=(...)))")
         if b.runtime:
             problems.append(f"runtime = {b.runtime}: a scene with contact modes takes its parameters "
                             "as constants (give their values in the scene); its run-time inputs "

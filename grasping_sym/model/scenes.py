@@ -316,16 +316,17 @@ def disk_on_incline(radius: float = 0.05, mass: float = 0.1, incline: float = 0.
     """A uniform disk (``I = m r^2 / 2``) on a line inclined by ``incline`` rad, rising to the
     left (its normal ``(sin b, cos b)``; downhill is ``(cos b, -sin b)``, along the line's
     tangent ``t = (-cos b, sin b)`` reversed), gravity ``-y``: the 2D counterpart of
-    ``sphere_on_incline``. Its contour is a clockwise circle by angle over three turns either
-    way (a roll of up to 3 turns each way stays inside its domain); the contact starts at
-    ``u = 0``, the contour's point ``(r, 0)`` turned to face the line."""
+    ``sphere_on_incline``. Its contour is a clockwise circle by angle over ten turns either
+    way (a roll of up to 10 turns each way stays inside its domain: 1 s at the default incline
+    is 2.1 turns); the contact starts at ``u = 0``, the contour's point ``(r, 0)`` turned to
+    face the line."""
     b = float(incline)
     n = (math.sin(b), math.cos(b))
     # the contour's point at u = 0, (r, 0) with outward normal (1, 0), faces -n when the body
     # is turned by theta with Rot(-theta) (1, 0) = -n: theta = pi/2 + b
     defaults = dict(line_normal=n, gravity=(0.0, -9.81), theta=math.pi / 2 + b, support=0.0)
     defaults.update(kwargs)
-    return LineBodyScene(name=name, contour=library.circle(radius, by="angle", span=3 * math.pi,
+    return LineBodyScene(name=name, contour=library.circle(radius, by="angle", span=20 * math.pi,
                                                            clockwise=True, name="disk"),
                          mass=mass, inertia=0.5 * mass * radius**2, **defaults)
 
@@ -368,11 +369,12 @@ def with_modes(scene, planes=(), lines=()):
     return PlanarModesScene(scene, tuple(lines))
 
 
-def world_line(point, normal, support: float = 0.0) -> WorldLine:
-    """A fixed line of the world through ``point`` with unit ``normal`` (into the free side), for
+def world_line(point, normal, support: float = 0.0, motion=None) -> WorldLine:
+    """A line of the world through ``point`` with unit ``normal`` (into the free side), for
     ``with_modes(scene, lines=[...])`` of a 2D scene with a free object; ``support``: a guess of
-    the object contour's parameter that faces it at the start."""
-    return WorldLine(point, normal, support)
+    the object contour's parameter that faces it at the start; ``motion``: its translation
+    ``d(t)`` (two expressions of ``t``, ``d(0) = 0``; None: fixed): a conveyor, a rising table."""
+    return WorldLine(point, normal, support, motion)
 
 
 def world_plane(point, normal, support=(0.0, 0.0), motion=None, spin=None) -> WorldPlane:

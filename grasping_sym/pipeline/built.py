@@ -61,6 +61,11 @@ class BuiltModel(Model):
         (use them in ``Opti`` without ``expand``, which would inline the SX again).
         Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
         scene = self.scene
+        if self.manifest.get("modes"):
+            raise ValueError(f"casadi_function: {self.name!r} is a model with contact modes, whose right-"
+                             "hand side changes with each contact's mode at events: build the scene "
+                             "without modes (its rolling model) for optimal control, and keep its "
+                             "contacts in their cones with casadi_function('cone')")
         if scene is None:  # restored in another process: no scene was sent
             return super().casadi_function(which, time=time, compiled=compiled, outputs=outputs)
         picked = _picked_outputs(self, which, outputs)

@@ -23,7 +23,7 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
     names = list(result.state_names)
     pose = ("x", "y", "z", "qw", "qx", "qy", "qz")
     X = np.asarray(result.x, dtype=float)
-    if getattr(scene, "kind", None) == "planar" and scene.free:
+    if getattr(scene, "kind", None) in ("planar", "planar_modes") and scene.free:
         return _frames_planar(scene, names, X)
     if scene is None or getattr(scene, "kind", None) != "grasp3d" or not set(pose) <= set(names):
         raise ValueError("grasp_quality reads a grasp of a free object (a model of "
@@ -125,7 +125,7 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
     ``x_o, y_o`` and the frame angle ``psi{i}``); in 2D ``(n, k, 2)``, ``f{i} n1 + lam{i} b1``
     (section 13). None when the run has no such outputs. ``frames``: ``_frames``' (made here
     when not given)."""
-    if getattr(model.scene, "kind", None) == "planar":
+    if getattr(model.scene, "kind", None) in ("planar", "planar_modes"):
         return _planar_forces(model, result, frames)
     k = len(model.scene.fingers) if model.scene is not None else 0
     cols = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
@@ -144,11 +144,16 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
 
 
 def _planar_forces(model, result, frames) -> np.ndarray | None:
-    """``contact_forces`` of a free 2D object: ``f n1 + lam b1`` per contact (its outputs
-    ``f``, ``lam``; with several fingers ``f{i}``, ``lam{i}``)."""
+    """``contact_forces`` of a free 2D object: ``f n1 + lam b1`` per finger contact (its
+    outputs ``f``, ``lam``; with several fingers ``f{i}``, ``lam{i}``; with contact modes
+    ``normal_force{i}``, ``lam{i}``)."""
     n = model.scene.n_fingers
-    cols = [("f", "lam")] if n == 1 else [(f"f{i}", f"lam{i}") for i in range(1, n + 1)]
-    if not all(all(c in result.outputs for c in row) for row in cols):
+    for f_name in ("f", "normal_force"):
+        numbered = n > 1 or f"{f_name}1" in result.outputs
+        cols = [(f"{f_name}{i}", f"lam{i}") for i in range(1, n + 1)] if numbered else [(f_name, "lam")]
+        if all(all(c in result.outputs for c in row) for row in cols):
+            break
+    else:
         return None
     _, frames = _frames(model, result) if frames is None else frames
     out = [-result[f][:, None] * fr["normal"] + result[lam][:, None] * fr["x"]

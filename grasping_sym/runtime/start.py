@@ -148,7 +148,8 @@ def start_record(model, values: dict[str, float], branch: str = "start") -> dict
 
 def start_point(model, values: dict[str, float], branch: str = "start") -> tuple[np.ndarray, dict[str, float]]:
     """``solve``'s state and the start's run-time values it implies (3D: the centre spring's
-    rest point at the new mean fingertip centre; 2D: the model's own, the pivot stays)."""
+    rest point at the new mean fingertip centre; 2D: the model's own, the pivot stays; a free
+    2D object's start centre moves with it)."""
     solution, start = _solution_and_params(model, values, branch)
     return solution.x, start
 
@@ -158,7 +159,12 @@ def _solution_and_params(model, values, branch):
     implied = _conditions_function(model)(solution.x)[2]
     if implied.size:
         return solution, dict(zip(model.start_params, map(float, implied)))
-    return solution, dict(model.start_params)
+    # start values that are states of the start (the manifest's ``start_implied``: a free 2D
+    # object's start centre ``xm, ym``, which the paper's law pulls toward, is its ``x, y``)
+    taken = model.manifest.get("start_implied", {})
+    names = list(model.state_names)
+    return solution, {k: float(solution.x[names.index(taken[k])]) if k in taken else float(v)
+                      for k, v in model.start_params.items()}
 
 
 def solve(model, values: dict[str, float], branch: str = "start") -> np.ndarray:

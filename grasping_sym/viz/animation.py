@@ -18,6 +18,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 from matplotlib import animation
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -25,6 +26,7 @@ from matplotlib.figure import Figure
 from grasping_sym.errors import ViewOptionError
 from grasping_sym.geometry.values import as_real
 from grasping_sym.model import kinds
+from grasping_sym.model.body import TIME
 from grasping_sym.viz.body import frames as body_frames
 from grasping_sym.viz.body import frames2d as body_frames2d
 from grasping_sym.viz.options import check_scene
@@ -151,14 +153,28 @@ def _frames_2d(fig, scene, result, rows):
 
     ax = fig.add_subplot()
     lo, hi = motion_limits(scene, result.x[rows[:: max(1, len(rows) // 20)]])
+    lines = getattr(scene, "lines", ())
+    if lines:   # the lines of the world under the motion's box (a driven one rises with it)
+        points = np.array([w.point for w in lines], dtype=float)
+        lo, hi = np.minimum(lo, points.min(axis=0)), np.maximum(hi, points.max(axis=0))
+    moved = [np.zeros((len(rows), 2)) if w.motion is None else np.array(
+        [np.asarray(sp.lambdify(TIME, list(w.motion), "numpy")(result.t[i]), dtype=float) for i in rows])
+        for w in lines]
 
     def draw(k):
         ax.clear()
         draw_scene(ax, scene, result.x[rows[k]])
+        for w, d in zip(lines, moved):
+            n = np.asarray(w.normal)
+            base = np.asarray(w.point) + np.dot(d[k], n) * n
+            ends = base + np.outer([-1.0, 1.0], [-n[1], n[0]]) * (np.max(hi - lo) + 1.0)
+            ax.plot(*ends.T, "-", color="0.4", linewidth=2)
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal", adjustable="box")
-        ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s")
+        mode = "" if result.modes is None else \
+            ", " + ", ".join(str(m) for m in np.atleast_1d(result.modes[rows[k]]))
+        ax.set_title(f"{scene.name}: t = {result.t[rows[k]]:.3f} s{mode}", fontsize=10)
         ax.legend(loc="lower right", fontsize=7)
     return draw
 
