@@ -91,10 +91,6 @@ def _body_functions(scene, progress=None, layers: bool = True):
     return scene_functions.body_functions(scene, progress)
 
 
-def _body_line_functions(scene, progress=None, layers: bool = True):
-    return scene_functions.body_line_functions(scene, progress)
-
-
 def _modes_functions(scene, progress=None, layers: bool = True):
     return scene_functions.modes_functions(scene, progress)
 
@@ -160,7 +156,7 @@ KINDS: dict[str, Kind] = {
                     templates=_grasp3d_templates, sympy_op_counts=lambda scene: {}),
     "body": Kind(functions=_body_functions, solve_start=_body_start,
                  templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
-    "body2d": Kind(functions=_body_line_functions, solve_start=_body_line_start,
+    "body2d": Kind(functions=_body_functions, solve_start=_body_line_start,
                    templates=lambda scene: [], sympy_op_counts=lambda scene: {}),
     "grasp3d_modes": Kind(functions=_modes_functions,
                           solve_start=_grasp3d_modes_start,

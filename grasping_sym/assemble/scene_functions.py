@@ -199,25 +199,14 @@ def grasp3d_functions(scene, progress: Progress | None = None) -> SceneFunctions
 
 
 def body_functions(scene, progress: Progress | None = None) -> SceneFunctions:
-    """A body on a plane (``model.body``): its three modes in one piece of SX
-    (``derive.body_plane``), the mode a run-time parameter; with the generated Jacobian."""
+    """A body on a plane (``model.body``) or on a line (``model.body_line``): its three modes in
+    one piece of SX (``derive.body_plane``, ``derive.body_line``), the mode a run-time
+    parameter; with the generated Jacobian."""
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
-    say(f"deriving {scene.name} (a body on a plane, three contact modes; CasADi)")
-    d = derive_body_plane(scene)
-    t1 = time.perf_counter()
-    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
-                  scene.name, jacobian=True, t=d["t"], outputs_time=d["reads_time"])
-    return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
-
-
-def body_line_functions(scene, progress: Progress | None = None) -> SceneFunctions:
-    """A 2D body on a line (``model.body_line``): its three modes in one piece of SX
-    (``derive.body_line``), the mode a run-time parameter; with the generated Jacobian."""
-    say = progress or (lambda msg: None)
-    t0 = time.perf_counter()
-    say(f"deriving {scene.name} (a body on a line, three contact modes; CasADi)")
-    d = derive_body_line(scene)
+    line = scene.kind == "body2d"
+    say(f"deriving {scene.name} (a body on a {'line' if line else 'plane'}, three contact modes; CasADi)")
+    d = derive_body_line(scene) if line else derive_body_plane(scene)
     t1 = time.perf_counter()
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
                   scene.name, jacobian=True, t=d["t"], outputs_time=d["reads_time"])

@@ -30,6 +30,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from grasping_sym.derive.body_plane import translation_sx
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.model.body import TIME
 from grasping_sym.symbolic.translate import SympyToCasadi
@@ -77,10 +78,8 @@ def derive_body_line(scene) -> dict:
     v_c = vel + w * _perp(rS)
     moving = scene.line_motion is not None
     if moving:  # a translating line: its point, velocity and acceleration at t
-        d = SympyToCasadi({TIME: t})(sp.Matrix(scene.line_motion))
+        d, d_dot, d_ddot = translation_sx(scene.line_motion, t)
         w0 = w0 + d
-        d_dot = ca.jacobian(d, t)
-        d_ddot = ca.jacobian(d_dot, t)
         v_c = v_c - d_dot   # relative to the line's material point
     gap = ca.dot(n, r_c - w0)
     vn = ca.dot(n, v_c)

@@ -39,6 +39,15 @@ from grasping_sym.symbolic.translate import SympyToCasadi
 SLIP_ZERO = 1e-300
 
 
+def translation_sx(motion, t: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """``(d, d', d'')``: a surface's translation ``motion`` (SymPy expressions of ``TIME``, as
+    ``model.body.translation_of_time`` gives them) and its velocity and acceleration, as SX of
+    ``t``."""
+    d = SympyToCasadi({TIME: t})(sp.Matrix(motion))
+    d_dot = ca.jacobian(d, t)
+    return d, d_dot, ca.jacobian(d_dot, t)
+
+
 def derive_body_plane(scene) -> dict:
     """``{"x", "p", "xdot", "outputs", "constraint"}`` of a ``model.body.BodyScene``."""
     x = ca.SX.sym("x", 15)
@@ -70,10 +79,8 @@ def derive_body_plane(scene) -> dict:
         v_c = v_c - ca.cross(W, r_c - w0)   # relative to the plane's material point
     moving = scene.plane_motion is not None
     if moving:  # a translating plane: its point, velocity and acceleration at t
-        d = SympyToCasadi({TIME: t})(sp.Matrix(scene.plane_motion))
+        d, d_dot, d_ddot = translation_sx(scene.plane_motion, t)
         w0 = w0 + d
-        d_dot = ca.jacobian(d, t)
-        d_ddot = ca.jacobian(d_dot, t)
         v_c = v_c - d_dot   # relative to the plane's material point
     gap = ca.dot(n, r_c - w0)
     vn = ca.dot(n, v_c)

@@ -25,12 +25,11 @@ with the same state keeps both too, so a switch maps no state.
 from __future__ import annotations
 
 import casadi as ca
-import sympy as sp
 
 from grasping_sym.derive.body_line import contour_sx
+from grasping_sym.derive.body_plane import translation_sx
 from grasping_sym.derive.planar import derive_template, has_gravity, parameter_values, torque_names
 from grasping_sym.errors import InvalidSceneError
-from grasping_sym.model.body import TIME
 from grasping_sym.symbolic.contour_functions import OBJECT, fingertip_functions, leaf_expressions
 from grasping_sym.symbolic.translate import SympyToCasadi
 
@@ -270,8 +269,7 @@ def _line_rows(base, line, q, v, u, t) -> dict:
     R = ca.vertcat(ca.horzcat(c, s), ca.horzcat(-s, c))
     S, T = contour_sx(base.object, u)
     rS = R @ S
-    d = ca.SX.zeros(2) if line.motion is None else SympyToCasadi({TIME: t})(sp.Matrix(line.motion))
-    d_dot = ca.jacobian(d, t)
+    d, d_dot = (ca.SX.zeros(2), ca.SX.zeros(2)) if line.motion is None else translation_sx(line.motion, t)[:2]
     Q = -ca.dot(n, pos + rS - ca.DM(line.point) - d)
     phi = ca.dot(R @ T, n)
     u_dot = (-TRACK_GAIN * phi - ca.jacobian(phi, th) * dth) / ca.jacobian(phi, u)
