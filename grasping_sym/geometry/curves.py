@@ -132,6 +132,11 @@ class PlanarCurve:
 
     def key(self) -> str:
         """A canonical text of the definition, for content hashing."""
+        return self._key
+
+    @cached_property
+    def _key(self) -> str:
+        # SymPy's srepr of the contour, once per curve (a cached build asks for it 4 times)
         return f"{sp.srepr(self.x)}|{sp.srepr(self.y)}|{self.domain[0]!r}|{self.domain[1]!r}"
 
     # ----------------------------------------------------------------- numeric

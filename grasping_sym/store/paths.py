@@ -53,31 +53,35 @@ def source_checkout() -> Path | None:
 ABOVE_THE_BUILD = ("viz", "sweeps.py", "cli.py")
 
 
-def _tree_files() -> list[Path]:
-    """Every source file of the package that can shape generated code, in a fixed order (by
-    their relative paths' parts)."""
+def _tree_files() -> list[tuple[tuple[str, ...], str]]:
+    """Every source file of the package that can shape generated code, as ``(its relative
+    path's parts, its path)``, in a fixed order (by those parts). Plain strings, not
+    ``pathlib``: on a cached build's path, where ``pathlib`` took 3 of the 7 ms."""
     out = []
     skip = {*ABOVE_THE_BUILD, "generated"}
-    for top, dirs, names in os.walk(PACKAGE_DIR):
-        here = Path(top)
-        dirs[:] = [d for d in dirs if d != "__pycache__" and not (here == PACKAGE_DIR and d in skip)]
+    root = str(PACKAGE_DIR)
+    for top, dirs, names in os.walk(root):
+        at_root = top == root
+        rel = () if at_root else tuple(os.path.relpath(top, root).split(os.sep))
+        dirs[:] = [d for d in dirs if d != "__pycache__" and not (at_root and d in skip)]
         for name in names:
-            if name.endswith((".py", ".c", ".h")) and not (here == PACKAGE_DIR and name in skip):
-                path = here / name
-                if path.is_file():
-                    out.append(path)
-    return sorted(out, key=lambda p: p.relative_to(PACKAGE_DIR).parts)
+            if name.endswith((".py", ".c", ".h")) and not (at_root and name in skip):
+                path = os.path.join(top, name)
+                if os.path.isfile(path):
+                    out.append(((*rel, name), path))
+    return sorted(out)
 
 
 @lru_cache(maxsize=1)
 def tree_digest() -> str:
     """Hash of the package's own source tree below its top floors (``ABOVE_THE_BUILD``), read
-    whole: every module, C file and header, by relative path and content (~1 ms, once a
+    whole: every module, C file and header, by relative path and content (~3 ms, once a
     process)."""
     h = hashlib.sha256()
-    for path in _tree_files():
-        h.update(path.relative_to(PACKAGE_DIR).as_posix().encode() + b"\0")
-        h.update(path.read_bytes())
+    for parts, path in _tree_files():
+        h.update("/".join(parts).encode() + b"\0")
+        with open(path, "rb") as f:
+            h.update(f.read())
         h.update(b"\0")
     return h.hexdigest()
 
