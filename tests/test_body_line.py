@@ -165,3 +165,11 @@ def test_a_belt_speeding_up_makes_the_rolling_disk_slide_where_its_cone_ends():
     after = res.t > event["t"]
     v_star = k * event["t"]**2 / 6        # the centre's speed at the switch: a third of the belt's
     np.testing.assert_allclose(res["dx"][after], v_star + mu * G * (res.t[after] - event["t"]), rtol=1e-9)
+
+
+def test_a_new_start_of_a_model_with_modes_is_given_whole():
+    """A model with contact modes has no compiled start conditions: ``initial_state(theta=...)``
+    says so by name, with the way to give a start (the state whole, ``simulate(x0=...)``)."""
+    model = gs.build(gs.scenes.disk_on_incline())
+    with pytest.raises(NotImplementedError, match="a model with contact modes .* simulate\\(x0=x0\\)"):
+        model.initial_state(theta=0.1)

@@ -66,6 +66,8 @@ def test_built_in_bases_take_their_keywords(tmp_path):
     ('[scene\nbase = 1', "not valid TOML"),
     ('[object]\nshape = "circle"\n', "[scene] table is needed"),
     ('[scene]\nbase = "paper2d"\nfdd = 0.5\n', "unknown parameters ['fdd']"),
+    ('[scene]\nbase = "pinch2d"\n[object]\nshape = "circle"\nradius = 0.02\n',
+     '[object] is for base = "planar_finger"'),
     ('[scene]\nbase = "planar_finger"\nq1_0 = 0.5\nwhat = 1\n[fingertip]\nshape = "circle"\n'
      'radius = 0.01\n[object]\nshape = "circle"\nradius = 0.02\n', "unknown parameters ['what']"),
 ])

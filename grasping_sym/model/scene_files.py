@@ -105,6 +105,9 @@ def load_scene(path: str | Path):
         factory = lambda **kw: scenes.planar_finger(curves["fingertip"], curves["object"], **kw)  # noqa: E731
     else:
         factory = getattr(scenes, base)
+        problems += [f"[{k}] is for base = \"planar_finger\" (a built-in base has its own contours): "
+                     f"give base = \"planar_finger\" with [fingertip] and [object], or leave [{k}] out"
+                     for k in ("fingertip", "object") if k in data]
         for k in SURFACES_3D:
             if k in data:
                 if base in ("paper2d", "pinch2d"):

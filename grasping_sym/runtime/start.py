@@ -195,10 +195,16 @@ def solve_start(model, values: dict[str, float], branch: str = "start") -> Start
     if not values:
         return _stored_start(model, x0, info, has_conditions)
     if not has_conditions:
+        modes = bool(model.manifest.get("modes"))
+        why = ("a model with contact modes starts from its scene's start or from any state "
+               "given whole (simulate(x0=...): each contact's mode is found there)" if modes else
+               "its kind of scene (the paper's moving-frame formulation) cannot solve a start at "
+               "run time")
+        fix = ("give the state whole: x0 = model.initial_state(), change it, simulate(x0=x0)"
+               if modes else "give the new start in the scene and build it, or use "
+               "formulation='regular'")
         raise NotImplementedError(
-            f"model {model.name!r} has no compiled start conditions ({model.name}_start): its "
-            "kind of scene (the paper's moving-frame formulation) cannot solve a start at run "
-            "time; give the new start in the scene and build it, or use formulation='regular'")
+            f"model {model.name!r} has no compiled start conditions ({model.name}_start): {why}; {fix}")
     target = {names.index(k): float(v) for k, v in values.items()}
     for i, v in target.items():  # a given value outside its bounds: refused now
         if not model.lower[i] <= v <= model.upper[i]:
