@@ -774,16 +774,18 @@ class _GraspRun(_Run):
                 return f"{what} at contact {j} would reverse contact {c}'s slip"
         return None
 
-    def _treatments(self, y, modes, j: int, held: np.ndarray):
+    def _treatments(self, y, modes, j: int, held):
         """Every way the other closed contacts may take an impulse at ``j``, their modes' first,
         then those that change one contact, then two, ...: held, let go, or sliding along the
-        tangential impulse that holding it needs (``held``: the impulse with every one held) or
-        its opposite."""
+        tangential impulse that holding it needs or its opposite (``held()``: the impulse with
+        every one held, solved only when the modes' way is not consistent)."""
         base = self._treatment(y, modes, j)
+        yield base
         closed = [c for c in self.contacts if c != j and modes[c - 1] != SEPARATED]
+        P = held()
         options = {}
         for c in closed:
-            pt = held[self._rows(c)[1:]]
+            pt = P[self._rows(c)[1:]]
             d = pt / np.linalg.norm(pt) if np.linalg.norm(pt) > 0 else np.eye(self.ROWS - 1)[0]
             opts = [HOLD, OPEN, (SLIDE, d), (SLIDE, -d)]
             if base[c] != HOLD:
@@ -792,7 +794,8 @@ class _GraspRun(_Run):
         combos = [dict(zip(closed, pick)) for pick in itertools.product(*(options[c] for c in closed))]
         changed = lambda t: sum(not _same(t[c], base[c]) for c in closed)  # noqa: E731
         for combo in sorted(combos, key=changed):
-            yield {**base, **combo}
+            if changed(combo):        # the modes' own way was the first
+                yield {**base, **combo}
 
     def _contact_impulse(self, t, x, y, modes, j, target, treat):
         """The impulse at ``j`` with the others as ``treat`` says: held if it lies in ``j``'s
@@ -840,7 +843,9 @@ class _GraspRun(_Run):
         vn = float(JV[self._rows(j)[0]])
         e = self.e if vn > REST_SPEED else 0.0
         target = np.array([-e * vn] + [0.0] * (self.ROWS - 1))
-        held, _, _ = self._impulse(y, modes, j, target, treat={c: HOLD for c in self.contacts if c != j})
+        def held():
+            return self._impulse(y, modes, j, target, treat={c: HOLD for c in self.contacts if c != j})[0]
+
         first = None
         for treat in self._treatments(y, modes, j, held):
             try:
