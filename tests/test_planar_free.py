@@ -419,6 +419,6 @@ def test_the_pressed_disk_is_drawn_with_its_table_and_a_table_through_it_is_refu
     through = gs.scenes.with_modes(scene, lines=[gs.scenes.world_line((0.0, 0.03), (0.0, 1.0), support=math.pi / 2)])
     with pytest.raises(InvalidSceneError, match="line 1 cuts the object at the start"):
         gs.build(through)
-    pinch_modes = gs.build(gs.scenes.with_modes(gs.scenes.pinch2d()))
+    two = SimpleNamespace(manifest=gs.scenes.with_modes(gs.scenes.pinch2d()).manifest_extra())
     batch = SimpleNamespace(modes=[np.array([["rolling", "separated"]]), np.array([["rolling", "sliding"]])])
-    assert list(sweeps._held_modes(pinch_modes, batch)) == [0.0, 1.0]
+    assert list(sweeps._held_modes(two, batch)) == [0.0, 1.0]
