@@ -16,6 +16,7 @@ from grasping_sym.errors import FrictionConeError, InvalidSceneError
 from grasping_sym.geometry import surface_library
 from grasping_sym.model import chains
 from grasping_sym.model.grasp3d import Finger3D
+from grasping_sym.runtime import modes
 from grasping_sym.runtime.modes import rotation
 
 TOL = {"rtol": 1e-9, "atol": 1e-11}
@@ -78,6 +79,19 @@ def test_slip_starts_where_the_rolling_model_leaves_its_cone(rolling, slide):
     assert (first["from"], first["to"], first["witness"]) == ("rolling", "sliding", "cone")
     assert first["contact"] == err.value.contact
     assert abs(first["t"] - err.value.t) < 1e-8
+
+
+def test_points_left_unwatched_change_no_switch(model, slide, monkeypatch):
+    """The witnesses' points left unwatched while their margins are far from 0 at their rates
+    (``c/watch.c``): the same seven switches at the same times (1e-12 s) and the same samples
+    (1e-9) as a run watching every point."""
+    assert slide.stats["left_unwatched"] > slide.stats["watched"]
+    monkeypatch.setattr(modes, "WATCH_SAFETY", 0.0)
+    every = model.simulate(0.2, mu=LAW, t_eval=slide.t, **TOL)
+    assert every.stats["left_unwatched"] == 0 and len(every.events) == len(slide.events) == 7
+    assert [(e["contact"], e["to"]) for e in every.events] == [(e["contact"], e["to"]) for e in slide.events]
+    assert max(abs(a["t"] - b["t"]) for a, b in zip(every.events, slide.events)) < 1e-12
+    assert np.max(np.abs(every.x - slide.x)) < 1e-9
 
 
 def test_coulomb_law_while_sliding(slide):

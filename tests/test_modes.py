@@ -131,6 +131,28 @@ def test_bounces_lose_energy_at_every_impact_and_come_to_rest(flat):
     assert res.modes[-1] == "rolling" and abs(res.x[-1, 9]) < 1e-9
 
 
+def test_bounces_past_unwatched_points_are_where_watching_every_point_finds_them(flat, monkeypatch):
+    """The gap's points left unwatched in flight (its margin far from 0 at its rate,
+    ``c/watch.c``) change nothing: the same impacts at the same times (1e-12 s) as a run
+    watching every point, also with nearly every point left (a safety of 1e-9: each impact
+    found among the steps' ends kept and bracketed in its own step)."""
+    x0 = flat.initial_state()
+    x0[2] = R + 0.1
+    law = gs.contact.coulomb(0.5, e=0.5)
+    default = flat.simulate(0.6, x0=x0, mu=law, **TIGHT)
+    assert default.stats["left_unwatched"] > default.stats["watched"] / 2
+    runs = []
+    for safety in (0.0, 1e-9):
+        monkeypatch.setattr(modes, "WATCH_SAFETY", safety)
+        runs.append(flat.simulate(0.6, x0=x0, mu=law, **TIGHT))
+    every, most = runs
+    assert every.stats["left_unwatched"] == 0 and most.stats["watched"] < default.stats["watched"] / 2
+    for other in (default, most):
+        assert [(e["from"], e["to"]) for e in other.events] == [(e["from"], e["to"]) for e in every.events]
+        assert max(abs(a["t"] - b["t"]) for a, b in zip(other.events, every.events)) < 1e-12
+        assert np.max(np.abs(other.x - every.x)) < 1e-9
+
+
 def test_a_run_that_ends_at_or_just_after_an_impact_ends_there(flat):
     """A run whose last output time is the located impact's, or within its location tolerance
     after it (no method can step that short), ends with the state after the impact; one that

@@ -152,6 +152,24 @@ def test_the_rolling_model_runs_the_rolling_stretches(model, slide):
     assert (alone.modes == slide.modes).all()
 
 
+def test_a_slip_found_past_unwatched_steps_is_where_watching_every_step_finds_it(model, slide, monkeypatch):
+    """Steps left unwatched while the cone's margin is far from 0 at its rate (``c/watch.c``,
+    ``modes.WATCH_SAFETY``) change nothing: the same switches, at the same times (1e-12 s),
+    the same samples (1e-9) as a run watching every step; and, with nearly every step left
+    (a safety of 1e-9), a slip onset found among the steps' ends kept, each bracketed in its
+    own step."""
+    assert 0 < slide.stats["watched"] < slide.stats["left_unwatched"]
+    for safety in (0.0, 1e-9):
+        monkeypatch.setattr(modes, "WATCH_SAFETY", safety)
+        other = model.simulate(0.25, mu=0.2, t_eval=slide.t, **TOL)
+        assert (other.stats["left_unwatched"] == 0) == (safety == 0.0)
+        assert [(e["contact"], e["from"], e["to"], e["witness"]) for e in other.events] == \
+            [(e["contact"], e["from"], e["to"], e["witness"]) for e in slide.events]
+        assert max(abs(a["t"] - b["t"]) for a, b in zip(other.events, slide.events)) < 1e-12
+        assert np.max(np.abs(other.x - slide.x)) < 1e-9
+    assert other.stats["watched"] < other.stats["n_steps"] / 5
+
+
 def test_a_failure_while_the_rolling_model_runs_names_the_model_with_modes_state(model):
     """A run stopped (max_steps) in a stretch the rolling model integrates reports the model with
     modes' state (u0, u1, not the rolling model's s): its state, its trajectory; and a model

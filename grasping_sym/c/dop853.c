@@ -136,7 +136,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, y1, out, &row))) goto fail;
   if (row == n_out) goto done;
 #if GS_HAS_OUT
-  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p))) goto fail;
+  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p, t_out[n_out - 1]))) goto fail;
 #endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
@@ -286,6 +286,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
         rc = event;
         goto fail;
       }
+      while (event == 2 && row > 0 && t_out[row - 1] >= t_ev) --row; /* an earlier step's */
     }
 #endif
     while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
@@ -311,6 +312,9 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
         y1[i] = y[i];
         y[i] = ys[i];
       }
+#if GS_HAS_OUT
+      if (event == 2) gs_watch_event_start(y1);
+#endif
       t = t_ev;
       rc = GS_EVENT;
       goto fail;

@@ -373,18 +373,24 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 #define GS_WATCH_ITERATIONS 60
 #define GS_WATCH_PROBES 16  /* points of the dense output an unarmed witness's firing
                              * interval is probed at for a time it was above its tol      */
+#define GS_WATCH_SKIPS 16   /* steps' ends at most left unwatched in a row (watch.c)      */
 /* The dense output of the step just accepted: x at t (between the step's start and end). */
 typedef void (*gs_interp)(const void* ctx, double t, double* x);
 #if GS_HAS_OUT
 /* Non-zero when this thread's runs watch witnesses (gs_watch_witnesses). */
 GS_HIDDEN int gs_watching(void);
-/* The run's start (t0, x0): the witnesses' values there, each armed if > 0. */
-GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p);
+/* The run's start (t0, x0; it ends at t_end): the witnesses' values there, each armed if > 0. */
+GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p,
+                             double t_end);
 /* After an accepted step from told to t (end state y_end, dense output interp(ctx, .)): 1 and
- * (*t_ev, x_ev) at the earliest event, 0 without one, or GS_ERR_EVAL. */
+ * (*t_ev, x_ev) at the earliest event, 0 without one, or GS_ERR_EVAL; 2 for an event in an
+ * earlier step whose end was left unwatched (watch.c): the loop drops its output rows at or
+ * after *t_ev and takes the event's step start from gs_watch_event_start. */
 GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_end,
                             const double* p, gs_interp interp, const void* ctx, double* t_ev,
                             double* x_ev);
+/* The start of the last event's step (gs_watch_step returned 2), into x. */
+GS_HIDDEN void gs_watch_event_start(double* x);
 #else
 #define gs_watching() 0
 #endif

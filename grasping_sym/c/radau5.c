@@ -213,7 +213,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, ynew, out, &row))) goto fail;
   if (row == n_out) goto done;
 #if GS_HAS_OUT
-  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p))) goto fail;
+  if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p, t_out[n_out - 1]))) goto fail;
 #endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
@@ -488,6 +488,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
           rc = event;
           goto fail;
         }
+        while (event == 2 && row > 0 && t_out[row - 1] >= t_ev) --row; /* an earlier step's */
       }
 #endif
       while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
@@ -512,6 +513,9 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
           y[i] = tmp[i];
           ynew[i] = yold[i];
         }
+#if GS_HAS_OUT
+        if (event == 2) gs_watch_event_start(ynew);
+#endif
         t = t_ev;
         rc = GS_EVENT;
         goto fail;

@@ -17,12 +17,24 @@
  * far above the dense output's error; not a slip's, whose tol is its noise): one found arms
  * it, and brackets its return to 0.
  * Its root (of g, or of g + tol unarmed) in its bracket is located on the dense output
- * (Illinois' regula falsi, to GS_WATCH_TTOL of the interval), the earliest of the step's events is taken, and the loop
- * stops there with GS_EVENT: the output rows before the event are written, row r (r =
+ * (Illinois' regula falsi, to GS_WATCH_TTOL of the interval), the earliest of the step's
+ * events is taken, and the loop stops there with GS_EVENT: the output rows before the event are written, row r (r =
  * stats[6]) holds the dense output's state at the event, row r + 1 the state at the start
  * of the step, *t_fail the event's time, and gs_watch_result gives the rest (below).
  * runtime/events.py then locates the root on the trajectory integrated again from the
  * step's start, the dense output's root as its first guess.
+ *
+ * A watched point (a step's end or a point of its dense output) is left unwatched while
+ * every witness is armed and, at `safety` (gs_watch_witnesses; 8 in runtime/modes.py) times
+ * the rate it had between its last two watched points, would still be above 0 there: a
+ * margin far from its event costs no evaluation at every step. Never the run's end, never
+ * more than GS_WATCH_SKIPS dt after the last watched point, and at most GS_WATCH_SKIPS steps'
+ * ends in a row, which are kept (with the start of the step of the last watched point). A
+ * witness that fires at the next watched point is first looked for at them, in order; an
+ * event found between two of them is bracketed by that step (the root's first guess the
+ * secant between them; its step's start, kept, the state runtime/events.py integrates again
+ * from), and the loop told to drop its output rows at or after it (gs_watch_step returns
+ * 2). gs_watch_witnesses(safety = 0) watches every point.
  *
  * The outputs the witnesses read take p with the inputs at the watched time (p[k .. k+m) =
  * a + b t and p[k+m .. k+2m) = 0, as runtime.parameters.with_inputs does) and, for a model
@@ -32,6 +44,8 @@
  * thread's included). gs_watch_resume: the next run continues the last one (a table of
  * inputs restarts the loop at its knots), its witnesses keep what they were armed by.
  */
+#include <stdlib.h>
+
 #include "gs_internal.h"
 
 #if GS_HAS_OUT
@@ -47,9 +61,21 @@ typedef struct {
    * there, the start of its step */
   int which, armed_at_event;
   double t_lo, t_hi, slope, t_step, t_root;
+  /* leaving steps' ends unwatched: on or not, the run's end, each witness's last rate
+   * (known once two points were watched), the ends left (kept[0] the last watched point,
+   * kept[1 .. n_kept] the ends left since), the event's step start when it is one of them,
+   * and the counts of the points watched and left */
+  int skip, have_rate, n_kept;
+  double safety, t_end, rate[GS_WATCH_MAX], t_kept[GS_WATCH_SKIPS + 1], n_eval, n_left;
+  /* GS_WATCH_SKIPS + 2 states (malloc'd by gs_watch_witnesses, freed by gs_watch_clear):
+   * the ends kept (x_kept(i), i = 0 .. n_kept) and the event's step start (x_step) */
+  double* kept;
 } gs_watch_state;
 
 static _Thread_local gs_watch_state gs_w;
+
+#define x_kept(i) (gs_w.kept + (size_t)(i) * gs_nx)
+#define x_step_kept (gs_w.kept + (size_t)(GS_WATCH_SKIPS + 1) * gs_nx)
 
 GS_HIDDEN int gs_watching(void) { return gs_w.on; }
 
@@ -64,6 +90,7 @@ static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p
   pw[gs_np] = t; /* read only by outputs that take the time (gs_out_time) */
   const int rc = gs_eval_out(wk, x, pw, y);
   if (rc) return rc;
+  gs_w.n_eval += 1;
   for (int k = 0; k < gs_w.n; ++k) {
     double s = 0.0, q = 0.0;
     for (int j = gs_w.ptr[k]; j < gs_w.ptr[k + 1]; ++j) {
@@ -78,8 +105,12 @@ static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p
   return 0;
 }
 
-GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p) {
+GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p,
+                             double t_end) {
   double g[GS_WATCH_MAX];
+  gs_w.t_end = t_end;
+  gs_w.have_rate = 0;
+  gs_w.n_kept = 0;
   const int rc = gs_watch_eval(wk, t0, x0, p, g);
   if (rc) return rc;
   for (int k = 0; k < gs_w.n; ++k) {
@@ -163,6 +194,72 @@ static int gs_watch_probe(gs_work* wk, int k, double* a, double* ga, double* b, 
   return 0;
 }
 
+/* Whether the point t may be left unwatched: every witness armed, above 0 and, at
+ * gs_w.safety times its last rate, still above 0 at t; t before the run's end, and no more
+ * than GS_WATCH_SKIPS dt after the last watched point (dt > 0). */
+static int gs_watch_may_leave(double t) {
+  const double span = t - gs_w.t_prev;
+  if (!gs_w.skip || !gs_w.have_rate || !(t < gs_w.t_end) ||
+      (gs_w.dt > 0.0 && span > GS_WATCH_SKIPS * gs_w.dt))
+    return 0;
+  for (int k = 0; k < gs_w.n; ++k)
+    if (!gs_w.armed[k] || !(gs_w.g_prev[k] > gs_w.safety * fabs(gs_w.rate[k]) * span))
+      return 0;
+  return 1;
+}
+
+/* A witness fired at the first point watched after steps' ends left unwatched (gs_w.kept):
+ * the first of them where one fires, and the event in its step (1: *t_ev, x_ev, gs_w's
+ * bracket and x_step set), or 0 with gs_w.t_prev, g_prev at the last of them (the event is in
+ * the step being watched), or an error code. */
+static int gs_watch_kept(gs_work* wk, const double* p, double* t_ev, double* x_ev) {
+  double g[GS_WATCH_MAX];
+  for (int i = 1; i <= gs_w.n_kept; ++i) { /* t_prev: in the step from kept i - 1 to kept i */
+    const double a = gs_w.t_prev, b = gs_w.t_kept[i];
+    const int rc = gs_watch_eval(wk, b, x_kept(i), p, g);
+    if (rc) return rc;
+    int best = -1;
+    double best_t = b, best_slope = 0.0;
+    for (int k = 0; k < gs_w.n; ++k) {
+      if (!gs_watch_fires(k, g[k])) continue;
+      const double level = gs_w.armed[k] ? 0.0 : -gs_w.tol[k];
+      const double ga = gs_w.g_prev[k] - level, gb = g[k] - level;
+      const double root = ga > gb ? a + (b - a) * ga / (ga - gb) : b;
+      if (best < 0 || root < best_t) {
+        best = k;
+        best_t = fmin(fmax(root, a), b);
+        best_slope = (gb - ga) / (b - a);
+      }
+    }
+    if (best >= 0) {
+      const double w = (best_t - gs_w.t_kept[i - 1]) / (b - gs_w.t_kept[i - 1]);
+      gs_w.which = best;
+      gs_w.armed_at_event = gs_w.armed[best];
+      gs_w.t_lo = a;
+      gs_w.t_hi = b;
+      gs_w.slope = best_slope;
+      gs_w.t_step = gs_w.t_kept[i - 1];
+      gs_w.t_root = best_t;
+      *t_ev = best_t;
+      for (int j = 0; j < gs_nx; ++j) {
+        x_ev[j] = (1.0 - w) * x_kept(i - 1)[j] + w * x_kept(i)[j];
+        x_step_kept[j] = x_kept(i - 1)[j];
+      }
+      return 1;
+    }
+    for (int k = 0; k < gs_w.n; ++k) {
+      gs_w.armed[k] |= g[k] > gs_w.tol[k];
+      gs_w.g_prev[k] = g[k];
+    }
+    gs_w.t_prev = b;
+  }
+  return 0;
+}
+
+GS_HIDDEN void gs_watch_event_start(double* x) {
+  for (int i = 0; i < gs_nx; ++i) x[i] = x_step_kept[i];
+}
+
 GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_end,
                             const double* p, gs_interp interp, const void* ctx, double* t_ev,
                             double* x_ev) {
@@ -170,6 +267,23 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
   const int m = gs_w.dt > 0.0 ? (int)fmin(ceil((t - told) / gs_w.dt), 1e6) : 1;
   for (int j = 1; j <= (m > 1 ? m : 1); ++j) {
     const double tj = j == m || m <= 1 ? t : told + (t - told) * ((double)j / m);
+    if (gs_watch_may_leave(tj)) {
+      if (tj != t) { /* a point of the dense output: its step is at hand if one fires later */
+        gs_w.n_left += 1;
+        continue;
+      }
+      if (gs_w.kept && gs_w.n_kept < GS_WATCH_SKIPS) { /* the step's end, kept */
+        if (gs_w.n_kept == 0) { /* the last watched point is in this step: its start */
+          gs_w.t_kept[0] = told;
+          interp(ctx, told, x_kept(0));
+        }
+        const int i = ++gs_w.n_kept;
+        gs_w.t_kept[i] = t;
+        for (int c = 0; c < gs_nx; ++c) x_kept(i)[c] = y_end[c];
+        gs_w.n_left += 1;
+        return 0;
+      }
+    }
     const double* xj = y_end;
     if (tj != t) {
       interp(ctx, tj, x);
@@ -177,6 +291,19 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
     }
     int rc = gs_watch_eval(wk, tj, xj, p, g);
     if (rc) return rc;
+    if (gs_w.n_kept > 0) { /* the first point watched after ends left unwatched */
+      int fired = 0;
+      for (int k = 0; k < gs_w.n && !fired; ++k) fired = gs_watch_fires(k, g[k]);
+      if (fired) {
+        rc = gs_watch_kept(wk, p, t_ev, x_ev);
+        if (rc) {
+          gs_w.n_kept = 0;
+          return rc < 0 ? rc : 2;
+        }
+        /* none fires at the ends kept: the event is in this step, as if they were watched */
+      }
+      gs_w.n_kept = 0;
+    }
     int best = -1;
     double best_t = tj, best_slope = 0.0, best_a = gs_w.t_prev, best_b = tj;
     for (int k = 0; k < gs_w.n; ++k) {
@@ -212,9 +339,11 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
       return 1;
     }
     for (int k = 0; k < gs_w.n; ++k) {
+      if (tj > gs_w.t_prev) gs_w.rate[k] = (g[k] - gs_w.g_prev[k]) / (tj - gs_w.t_prev);
       gs_w.armed[k] |= g[k] > gs_w.tol[k];
       gs_w.g_prev[k] = g[k];
     }
+    gs_w.have_rate = gs_w.have_rate || tj > gs_w.t_prev;
     gs_w.t_prev = tj;
   }
   return 0;
@@ -329,16 +458,17 @@ done:
 /* Watch n witnesses in this thread's next runs: witness k is sum_j coef[j] y[idx[j]] over
  * the j in [ptr[k], ptr[k + 1]) with norm[j] 0, less sqrt(sum_j (coef[j] y[idx[j]])^2) over
  * those with norm[j] 1; tol[k] and probe[k] (0 or 1) as above; the inputs (a, b) at p[in_k .. in_k + 2
- * in_m) (in_m = 0: none); watched points at most dt apart (0: the steps' ends only).
+ * in_m) (in_m = 0: none); watched points at most dt apart (0: the steps' ends only); safety >
+ * 0 the factor by which steps' ends are left unwatched (above), 0 every step's end watched.
  * Returns 0, or GS_ERR_ARGS (nothing set) for a model without outputs, more than
  * GS_WATCH_MAX witnesses or GS_WATCH_TERMS terms, an index out of range or a non-finite
  * number. */
 GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const double* coef,
                            const long* norm, const double* tol, const long* probe, long in_k,
-                           long in_m, double dt) {
+                           long in_m, double dt, double safety) {
 #if GS_HAS_OUT
   if (n < 0 || n > GS_WATCH_MAX || !ptr || ptr[0] != 0 || ptr[n] > GS_WATCH_TERMS ||
-      !(dt >= 0.0) || !isfinite(dt) || in_m < 0 || in_k < 0 || in_k + 2 * in_m > gs_np)
+      !(dt >= 0.0) || !isfinite(dt) || !(safety >= 0.0) || !isfinite(safety) || in_m < 0 || in_k < 0 || in_k + 2 * in_m > gs_np)
     return GS_ERR_ARGS;
   for (long k = 0; k < n; ++k) {
     if (ptr[k + 1] < ptr[k] || !(tol[k] >= 0.0) || !isfinite(tol[k])) return GS_ERR_ARGS;
@@ -350,6 +480,12 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.in_k = (int)in_k;
   gs_w.in_m = (int)in_m;
   gs_w.dt = dt;
+  gs_w.skip = safety > 0.0;
+  gs_w.safety = safety;
+  if (gs_w.skip && !gs_w.kept) /* none (no memory): every step's end is watched */
+    gs_w.kept = malloc((size_t)(GS_WATCH_SKIPS + 2) * gs_nx * sizeof(double));
+  gs_w.n_eval = 0.0;
+  gs_w.n_left = 0.0;
   for (long k = 0; k <= n; ++k) gs_w.ptr[k] = (int)ptr[k];
   for (long j = 0; j < ptr[n]; ++j) {
     gs_w.idx[j] = (int)idx[j];
@@ -365,7 +501,8 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.on = 1;
   return 0;
 #else
-  (void)n, (void)ptr, (void)idx, (void)coef, (void)norm, (void)tol, (void)probe, (void)in_k, (void)in_m, (void)dt;
+  (void)n, (void)ptr, (void)idx, (void)coef, (void)norm, (void)tol, (void)probe, (void)in_k, (void)in_m, (void)dt,
+      (void)safety;
   return GS_ERR_ARGS;
 #endif
 }
@@ -373,6 +510,8 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
 GS_EXPORT void gs_watch_clear(void) {
 #if GS_HAS_OUT
   gs_w.on = 0;
+  free(gs_w.kept);
+  gs_w.kept = NULL;
 #endif
 }
 
@@ -406,7 +545,8 @@ GS_HIDDEN void gs_watch_restore(int on) {
 
 /* The last event of this thread's watched run: out[0] the witness (-1: none), out[1] 1 if it
  * was armed (else it fell below -tol), out[2], out[3] the watched points around it,
- * out[4] the dense output's slope of the witness there, out[5] the start of its step. */
+ * out[4] the dense output's slope of the witness there, out[5] the start of its step; out[6]
+ * the points watched and out[7] the steps' ends left unwatched since gs_watch_witnesses. */
 GS_EXPORT void gs_watch_result(double* out) {
 #if GS_HAS_OUT
   out[0] = gs_w.which;
@@ -415,8 +555,10 @@ GS_EXPORT void gs_watch_result(double* out) {
   out[3] = gs_w.t_hi;
   out[4] = gs_w.slope;
   out[5] = gs_w.t_step;
+  out[6] = gs_w.n_eval;
+  out[7] = gs_w.n_left;
 #else
   out[0] = -1;
-  for (int i = 1; i < 6; ++i) out[i] = NAN;
+  for (int i = 1; i < 8; ++i) out[i] = NAN;
 #endif
 }

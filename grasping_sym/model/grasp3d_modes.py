@@ -163,6 +163,11 @@ class GraspModesScene(WithModes):
     def check_outputs(self) -> tuple[str, ...]:
         return self.outputs
 
+    def internal_outputs(self) -> tuple[str, ...]:
+        """The outputs only a switch reads (the impulse's ``W = A M^-1 A^T`` and ``M^-1 A^T``):
+        compiled, not shown (``pipeline.with_check_outputs``)."""
+        return tuple(k for k in self.outputs if k.startswith(("W_", "MinvAT_")))
+
     def code_key(self) -> str:
         return "\n".join(["grasp3d-modes-v1", self.base.code_key(),
                           *[repr((w.point, w.normal, None if w.motion is None else tuple(map(sp.srepr, w.motion)),

@@ -236,6 +236,11 @@ class PlanarModesScene(WithModes):
     def check_outputs(self) -> tuple[str, ...]:
         return self.outputs
 
+    def internal_outputs(self) -> tuple[str, ...]:
+        """The outputs only a switch reads (the impulse's ``W = A M^-1 A^T`` and ``M^-1 A^T``,
+        or its rows ``M^-1 g``): compiled, not shown (``pipeline.with_check_outputs``)."""
+        return tuple(k for k in self.outputs if k.startswith(("W_", "MinvAT_", "Minv_g")))
+
     def validate(self) -> None:
         self.base.validate()
 

@@ -227,11 +227,14 @@ def with_check_outputs(scene) -> tuple[object, tuple[str, ...]]:
     ``runtime.checks``) that it does not list. A model checks every contact and every
     constraint whatever outputs it shows; the manifest's ``check_outputs`` names the added
     ones, which the model does not show (``Model.output_names``). The code hash is the
-    scene's own: the added outputs are a function of it."""
+    scene's own: the added outputs are a function of it. The outputs of its own that only
+    the run time reads (``scene.internal_outputs()``, if it has it: a switch's impulse terms)
+    are named there too."""
     hidden = tuple(k for k in scene.check_outputs() if k not in scene.outputs)
+    internal = tuple(scene.internal_outputs()) if hasattr(scene, "internal_outputs") else ()
     if not hidden:
-        return scene, ()
-    return dataclasses.replace(scene, outputs=(*scene.outputs, *hidden)), hidden
+        return scene, internal
+    return dataclasses.replace(scene, outputs=(*scene.outputs, *hidden)), (*internal, *hidden)
 
 
 def write_start(directory: Path, record: dict) -> None:

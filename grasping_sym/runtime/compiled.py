@@ -161,8 +161,10 @@ class CompiledLibrary:
         if hasattr(lib, "gs_stop_bind"):  # Ctrl-C stops the C loops: one owner (c/stop.c)
             interrupt.bind(lib)
         self.can_watch = hasattr(lib, "gs_watch_witnesses")  # (libraries of older versions lack it)
+        #: ``watch``'s arguments to the C call, per its arguments (a run's segments repeat them)
+        self._watched: dict = {}
         if self.can_watch:
-            lib.gs_watch_witnesses.argtypes = [_long, _dp, _dp, _dp, _dp, _dp, _dp, _long, _long, _double]
+            lib.gs_watch_witnesses.argtypes = [_long, _dp, _dp, _dp, _dp, _dp, _dp, _long, _long, _double, _double]
             lib.gs_watch_witnesses.restype = ctypes.c_int
             lib.gs_watch_clear.restype = None
             lib.gs_watch_resume.restype = None
@@ -535,7 +537,8 @@ class CompiledLibrary:
 
     # -- witnesses watched along a run (c/watch.c) ---------------------------------------
     def watch(self, terms: Sequence[Sequence[tuple]], tol: Sequence[float],
-              inputs: tuple[int, int] = (0, 0), dt: float = 0.0, probe: Sequence[bool] = ()) -> None:
+              inputs: tuple[int, int] = (0, 0), dt: float = 0.0, probe: Sequence[bool] = (),
+              safety: float = 0.0) -> None:
         """Watch witnesses in this thread's next radau5 / dopri5 / dop853 runs until
         :meth:`unwatch`: witness k is ``sum(c * y[i] for i, c in terms[k])`` over the compiled
         outputs ``y``, less ``sqrt(sum((c * y[i])**2))`` over its terms given as
@@ -546,9 +549,27 @@ class CompiledLibrary:
         ``(k, m)``, the inputs' ``(a, b)`` at ``p[k:k + 2m]``, taken at each watched time;
         watched points at most ``dt`` apart; ``probe[k]``: an unarmed witness k's firing
         interval is probed on the dense output for a time it was above ``tol[k]`` (default
-        none)."""
+        none). ``safety`` > 0:
+        a step's end is left unwatched while every witness, at ``safety`` times its last
+        rate, would still be above 0 there (``c/watch.c``); 0: every step's end is watched."""
         if not self.can_watch:
             raise RuntimeError(f"{self.path} has no gs_watch_witnesses: rebuild the model")
+        key = (tuple(tuple(t) for t in terms), tuple(tol), tuple(inputs), dt, tuple(probe), safety)
+        args = self._watched.get(key)
+        if args is None:
+            if len(self._watched) >= 64:  # a sliding contact's witnesses change with its direction
+                self._watched.clear()
+            args = self._watched[key] = self._watch_args(terms, tol, inputs, dt, probe, safety)
+        rc = self._lib.gs_watch_witnesses(*args[0])
+        if rc:
+            raise ValueError(f"gs_watch_witnesses refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
+                             f"tol {list(tol)}, inputs {inputs}, dt {dt}, safety {safety}): at "
+                             "most 64 witnesses of 512 terms in all, indices of the outputs, finite "
+                             "numbers, dt and safety >= 0")
+
+    @staticmethod
+    def _watch_args(terms, tol, inputs, dt, probe, safety) -> tuple:
+        """``gs_watch_witnesses``' arguments for ``watch``'s, and the arrays they point into."""
         ptr = np.zeros(len(terms) + 1, dtype=np.int64)
         ptr[1:] = np.cumsum([len(t) for t in terms])
         flat = [term for t in terms for term in t]
@@ -557,13 +578,9 @@ class CompiledLibrary:
         norm = np.array([int(len(term) > 2 and bool(term[2])) for term in flat] or [0], dtype=np.int64)
         tols = np.ascontiguousarray(tol if len(tol) else [0.0], dtype=float)
         probes = np.array([int(bool(v)) for v in probe] + [0] * (len(terms) - len(probe)) or [0], dtype=np.int64)
-        rc = self._lib.gs_watch_witnesses(len(terms), ptr.ctypes.data, idx.ctypes.data, coef.ctypes.data,
-                                          norm.ctypes.data, tols.ctypes.data, probes.ctypes.data, int(inputs[0]),
-                                          int(inputs[1]), float(dt))
-        if rc:
-            raise ValueError(f"gs_watch_witnesses refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
-                             f"tol {list(tol)}, inputs {inputs}, dt {dt}): at most 64 "
-                             "witnesses of 512 terms in all, indices of the outputs, finite numbers")
+        arrays = (ptr, idx, coef, norm, tols, probes)
+        return (len(terms), *(a.ctypes.data for a in arrays), int(inputs[0]), int(inputs[1]), float(dt),
+                float(safety)), arrays
 
     def watch_resume(self) -> None:
         """The next run continues the last watched one (a piece of a table of inputs): its
@@ -578,11 +595,13 @@ class CompiledLibrary:
     def watch_result(self) -> dict:
         """The last event of this thread's watched run: ``which`` witness (-1: none), ``armed``
         (else it fell below ``-tol``), the watched points ``t_lo``, ``t_hi`` around it,
-        the dense output's ``slope`` of the witness there, ``t_step`` its step's start."""
-        out = np.zeros(6)
+        the dense output's ``slope`` of the witness there, ``t_step`` its step's start; the
+        points ``watched`` and the steps' ends ``left`` unwatched since :meth:`watch`."""
+        out = np.zeros(8)
         self._lib.gs_watch_result(out.ctypes.data)
         return {"which": int(out[0]), "armed": bool(out[1]), "t_lo": float(out[2]),
-                "t_hi": float(out[3]), "slope": float(out[4]), "t_step": float(out[5])}
+                "t_hi": float(out[3]), "slope": float(out[4]), "t_step": float(out[5]),
+                "watched": int(out[6]), "left": int(out[7])}
 
     def watch_refine(self, method: str, x_step: Any, p: Any, rtol: float, atol: float, max_steps: int,
                      lo: np.ndarray | None, hi: np.ndarray | None, ttol: float,

@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import weakref
 from time import perf_counter
 
 import numpy as np
@@ -82,10 +83,16 @@ MOREAU_ITERATIONS = 100
 #: An impact slower than this (m/s, normal approach) is plastic whatever ``e``: the bounces
 #: of a body coming to rest would otherwise accumulate (Zeno).
 REST_SPEED = 1e-3
-#: s, the longest interval between two points at which the C loop watches the witnesses
-#: (every step's end, and points of its dense output between), whatever ``t_eval``: a sign
-#: change and its return within it can be missed, one that lasts longer cannot.
+#: s, the longest interval between two points of one step's dense output at which the C loop
+#: watches the witnesses (with the steps' ends), whatever ``t_eval``: a sign change and its
+#: return within it can be missed, one that lasts longer cannot.
 WATCH_DT = 1e-3
+#: A step's end is left unwatched while every witness, at this many times its rate between
+#: its last two watched points, would still be above 0 there (at most 16 ends in a row,
+#: ``c/watch.c``): a sign change and its return within them can be missed, as within
+#: ``WATCH_DT``; one that lasts is found at the next watched point and located in its step
+#: from the ends kept. 0: every step's end is watched.
+WATCH_SAFETY = 8.0
 #: m: a separated contact's gap is watched for its return once it was seen above this; one
 #: that closes again first (within the watched interval that opened it) hits once its gap
 #: falls below ``-GAP_RETURN``: the round-off of a gap at its opening does not count.
@@ -180,24 +187,39 @@ class _Run:
     def __init__(self, model, s, mus: tuple[float, ...], e: float):
         self.model, self.s, self.mus, self.e = model, s, tuple(mus), e
         self.k = len(self.mus)
-        names = model.p_names
-        self.p = np.array(model.default_params, dtype=float)
-        self.i_mode = [names.index(self.key(self.MODE, j)) for j in self.contacts]
-        self.i_slip = [names.index(self.key(self.SLIP, j)) for j in self.contacts]
-        for j in self.contacts:
-            self.p[names.index(self.key("mu", j))] = min(self.mus[j - 1], 1e300)
+        static = _STATIC.get(model)
+        if static is None or static["defaults"] is not model.default_params:
+            # what a run of this model reads of it, every run alike
+            names = model.p_names
+            static = _STATIC[model] = {
+                "defaults": model.default_params, "p": np.array(model.default_params, dtype=float),
+                "mode": [names.index(self.key(self.MODE, j)) for j in self.contacts],
+                "slip": [names.index(self.key(self.SLIP, j)) for j in self.contacts],
+                "mu": [names.index(self.key("mu", j)) for j in self.contacts],
+                "own": _Leg.of(model), "rolling": {}}
+        self.p = static["p"].copy()
+        self.i_mode, self.i_slip = static["mode"], static["slip"]
+        for j, i in zip(self.contacts, static["mu"]):
+            self.p[i] = min(self.mus[j - 1], 1e300)
         self.events: list[dict] = []
         #: ``switch_time``: seconds spent locating the switches and making them
         #: segments: one per mode's stretch (the start's and one after each switch); chunks:
         #: the integrations they were run in (one per segment, and per piece of an inputs' table)
         #: rolling_model_segments: the segments the base scene's rolling model ran (``_Leg``)
+        #: watched: the points the witnesses were evaluated at; left_unwatched: the steps' ends
+        #: they were not (their margins far from 0 at their rates, ``c/watch.c``)
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "rolling_model_segments": 0,
-                      "switch_time": 0.0}
+                      "switch_time": 0.0, "watched": 0, "left_unwatched": 0}
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
-        self.own_leg = _Leg.of(model)
-        self.rolling_leg = self._rolling_leg(getattr(model, "rolling", None), model.manifest.get("rolling_map"))
+        self.own_leg = static["own"]
+        legs, rolling = static["rolling"], getattr(model, "rolling", None)
+        if self.mus not in legs or legs[self.mus][0] is not rolling:  # its witnesses read mu
+            if len(legs) >= 64:
+                legs.clear()
+            legs[self.mus] = (rolling, self._rolling_leg(rolling, model.manifest.get("rolling_map")))
+        self.rolling_leg = legs[self.mus][1]
 
     def _rolling_leg(self, rolling, where: dict | None) -> _Leg | None:
         """The leg of the base scene's rolling model (``_Leg``), watching each contact's cone
@@ -261,7 +283,7 @@ class _Run:
             return {}
         timed = bool(model.manifest.get("outputs_time"))
         y = outputs_.row(model, x, complete(model, p), self.t if timed else None)
-        return dict(zip(model.columns, map(float, y)))
+        return dict(zip(model.columns, y.tolist()))
 
     def with_mode(self, x, modes, slips, j: int, mode: int, slip=None) -> dict[str, float]:
         """The outputs at ``x`` with contact ``j`` in ``mode`` (the others as they are)."""
@@ -269,14 +291,16 @@ class _Run:
         m[j - 1], sl[j - 1] = mode, slip
         return self.outputs(x, self.params(m, sl))
 
-    def contact_start(self, t: float, x: np.ndarray, modes, slips, j: int) -> tuple[int, np.ndarray | None]:
+    def contact_start(self, t: float, x: np.ndarray, modes, slips, j: int,
+                      y: dict | None = None) -> tuple[int, np.ndarray | None]:
         """The mode of contact ``j`` in contact (gap and normal speed 0) and its slip direction,
         the others in their modes: a slipping contact slides if its sliding normal force is
         > 0; one at rest of the slip rolls if rolling is consistent (``f > 0``,
         ``|F_t| <= mu f``), else slides where the sliding equations take it if that is
         consistent; a contact that can do neither separates if its free normal acceleration
-        is >= 0. Otherwise there is no consistent mode: a named error."""
-        y = self.with_mode(x, modes, slips, j, ROLLING)
+        is >= 0. Otherwise there is no consistent mode: a named error. ``y``: the outputs at
+        ``x`` in ``modes`` where contact ``j`` rolls, if at hand."""
+        y = self.with_mode(x, modes, slips, j, ROLLING) if y is None else y
         mu = self.mus[j - 1]
         vt = self.slip_velocity(y, j)
         f, ft = y[self.key("normal_force", j)], y[self.key("tangential_force", j)]
@@ -347,15 +371,19 @@ class _BodyRun(_Run):
         self.Hinv = np.linalg.inv(self.H)
         self.n = np.array(info["plane_normal"], dtype=float)
         self.gain = float(info["gain"])
+        self._n, self._Hinv = self.n.tolist(), self.Hinv.tolist()  # Python floats: 3-vectors
+
+    _K = tuple(tuple(f"K_{i}{j}" for j in range(3)) for i in range(3))
+    _VC, _RC, _FT = (tuple(f"{v}_{c}" for c in "xyz") for v in ("vc", "rc", "rolling_Ft"))
 
     def contact(self, y: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """From one state's outputs: the contact's inverse effective mass ``K`` (1/kg), its
         velocity relative to the plane ``v_c``, its point from the centre ``r_c`` (world) and
         the rolling solution's force ``F_roll``."""
-        K = np.array([[y[f"K_{i}{j}"] for j in range(3)] for i in range(3)])
-        vc = np.array([y[f"vc_{c}"] for c in "xyz"])
-        rc = np.array([y[f"rc_{c}"] for c in "xyz"])
-        F_roll = y["rolling_normal_force"] * self.n + np.array([y[f"rolling_Ft_{c}"] for c in "xyz"])
+        K = np.array([[y[k] for k in row] for row in self._K])
+        vc = np.array([y[k] for k in self._VC])
+        rc = np.array([y[k] for k in self._RC])
+        F_roll = y["rolling_normal_force"] * self.n + np.array([y[k] for k in self._FT])
         return K, vc, rc, F_roll
 
     def slip_velocity(self, y: dict, j: int = 1) -> np.ndarray:
@@ -408,12 +436,51 @@ class _BodyRun(_Run):
         P = _solve3(K, -vc)
         return self._apply(x, P, rc), float(np.max(np.abs(vc)))
 
+    def _stuck_impact(self, x: np.ndarray, y: dict):
+        """``impact``'s answer when the impulse that makes the contact's velocity Newton's
+        ``-e v_n n`` is inside the cone (stuck), on Python floats; None when it is not."""
+        n = self._n
+        K = [[y[k] for k in row] for row in self._K]
+        vc = [y[k] for k in self._VC]
+        vn = n[0] * vc[0] + n[1] * vc[1] + n[2] * vc[2]
+        e = self.e if -vn > REST_SPEED else 0.0
+        P = _solve3_floats(K, [-e * vn * n[i] - vc[i] for i in range(3)])
+        Pn = P[0] * n[0] + P[1] * n[1] + P[2] * n[2]
+        if not math.hypot(*(P[i] - Pn * n[i] for i in range(3))) <= self.mu * Pn:
+            return None
+        rc = [y[k] for k in self._RC]
+        dv = max(abs(K[i][0] * P[0] + K[i][1] * P[1] + K[i][2] * P[2]) for i in range(3))
+        return self._apply_floats(x, P, rc), dv, True, e > 0
+
+    def _apply_floats(self, x: np.ndarray, P: list, rc: list) -> np.ndarray:
+        """``_apply`` on Python floats."""
+        v = x.tolist()
+        w, qx, qy, qz = v[3:7]
+        s = w * w + qx * qx + qy * qy + qz * qz
+        r00, r01, r02 = w * w + qx * qx - qy * qy - qz * qz, 2 * (qx * qy - w * qz), 2 * (qx * qz + w * qy)
+        r10, r11, r12 = 2 * (qx * qy + w * qz), w * w - qx * qx + qy * qy - qz * qz, 2 * (qy * qz - w * qx)
+        r20, r21, r22 = 2 * (qx * qz - w * qy), 2 * (qy * qz + w * qx), w * w - qx * qx - qy * qy + qz * qz
+        a0, a1, a2 = ((r00 * rc[0] + r10 * rc[1] + r20 * rc[2]) / s, (r01 * rc[0] + r11 * rc[1] + r21 * rc[2]) / s,
+                      (r02 * rc[0] + r12 * rc[1] + r22 * rc[2]) / s)  # R^T rc
+        b0, b1, b2 = ((r00 * P[0] + r10 * P[1] + r20 * P[2]) / s, (r01 * P[0] + r11 * P[1] + r21 * P[2]) / s,
+                      (r02 * P[0] + r12 * P[1] + r22 * P[2]) / s)  # R^T P
+        c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        (h00, h01, h02), (h10, h11, h12), (h20, h21, h22) = self._Hinv
+        m = self.m
+        v[7:13] = (v[7] + P[0] / m, v[8] + P[1] / m, v[9] + P[2] / m, v[10] + (h00 * c0 + h01 * c1 + h02 * c2),
+                   v[11] + (h10 * c0 + h11 * c1 + h12 * c2), v[12] + (h20 * c0 + h21 * c1 + h22 * c2))
+        return np.array(v)
+
+
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
                slips=None) -> tuple[np.ndarray, float, bool, bool]:
         """Newton's restitution and Coulomb friction on the impulse (module docstring):
         ``(x after, largest speed change, stuck, bounced)``: a bounce when ``e > 0`` and the
         approach is faster than ``REST_SPEED``."""
         n, mu = self.n, self.mu
+        stuck = self._stuck_impact(x, y)  # Python floats: a switch's largest part in NumPy
+        if stuck is not None:
+            return stuck
         K, vc, rc, _ = self.contact(y)
         vn = float(np.dot(n, vc))
         e = self.e if -vn > REST_SPEED else 0.0
@@ -638,6 +705,14 @@ class _GraspRun(_Run):
         super().__init__(model, s, mus, e)
         info = model.manifest[self.INFO]
         self.v0, self.nv = int(info["speeds"][0]), int(info["speeds"][1])
+        n = self.ROWS * self.k
+        self._w_rows, self._w_cols = np.triu_indices(n)
+        self._w_keys = [f"W_{r}_{c}" for r, c in zip(self._w_rows, self._w_cols)]
+        self._jv_keys = [f"{k}{j}" for j in self.contacts for k in self.JV_KEYS]
+        self._w_of = self._jv_of = None  # the outputs W and J V were last read from
+
+    #: ``J V``'s outputs, per contact (its rows: normal, tangential)
+    JV_KEYS = ("vn_fixed", "vt_x", "vt_y")
 
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
         return np.array([y[f"vt_x{j}"], y[f"vt_y{j}"]])
@@ -679,15 +754,21 @@ class _GraspRun(_Run):
         return list(range(self.ROWS * (j - 1), self.ROWS * j))
 
     def _W(self, y: dict) -> np.ndarray:
-        n = self.ROWS * self.k
-        W = np.empty((n, n))
-        for r in range(n):
-            for c in range(r, n):
-                W[r, c] = W[c, r] = y[f"W_{r}_{c}"]
-        return W
+        """``W = A M^-1 A^T`` of the outputs ``y`` (the last ``y``'s kept: an impact's Moreau
+        iteration reads it at every step)."""
+        if self._w_of is not y:
+            n = self.ROWS * self.k
+            upper = np.array([y[k] for k in self._w_keys])
+            W = np.empty((n, n))
+            W[self._w_rows, self._w_cols] = upper
+            W[self._w_cols, self._w_rows] = upper
+            self._w_of, self._w = y, W
+        return self._w
 
     def _JV(self, y: dict) -> np.ndarray:
-        return np.array([y[f"{k}{j}"] for j in self.contacts for k in ("vn_fixed", "vt_x", "vt_y")])
+        if self._jv_of is not y:
+            self._jv_of, self._jv = y, np.array([y[k] for k in self._jv_keys])
+        return self._jv
 
     def _apply(self, x: np.ndarray, y: dict, rows: list[int], P: np.ndarray) -> np.ndarray:
         x = x.copy()
@@ -921,8 +1002,8 @@ class _FingersRun(_GraspRun):
         (``y``: the outputs with contact ``j`` rolling), as one finger's (``_PlanarRun``)."""
         return np.array([1.0 if y[f"lam{j}"] >= 0 else -1.0])
 
-    def _JV(self, y: dict) -> np.ndarray:
-        return np.array([y[f"{k}{j}"] for j in self.contacts for k in ("vn_fixed", "vt")])
+    #: ``J V``'s outputs, per contact
+    JV_KEYS = ("vn_fixed", "vt")
 
     def apart(self, x: np.ndarray) -> np.ndarray:
         """``x`` with each open contact's parameters ``(u0_j, u1_j)`` on the contours' common
@@ -968,6 +1049,9 @@ def _on_common_normal(r: _Run, x: np.ndarray, j: int, at: int) -> np.ndarray:
 
 
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
+#: Per model: what every run of it reads of it (``_Run.__init__``).
+_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
 _RUNS = {"body": _BodyRun, "body2d": _LineBodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun,
          "planar_fingers": _FingersRun}
 
@@ -975,12 +1059,19 @@ _RUNS = {"body": _BodyRun, "body2d": _LineBodyRun, "planar_modes": _PlanarRun, "
 def _solve3(K: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``K^-1 b`` for a 3 x 3 ``K`` by Cramer's rule on Python floats (``np.linalg.solve``
     spends ~10 us on its checks, a switch's largest part); a singular ``K`` gives inf or NaN."""
-    (a, b_, c), (d, e, f), (g, h, i) = K.tolist()
-    u, v, w = b.tolist()
+    return np.array(_solve3_floats(K.tolist(), b.tolist()))
+
+
+def _solve3_floats(K, b) -> list[float]:
+    """``_solve3`` of nested lists, as a list."""
+    (a, b_, c), (d, e, f), (g, h, i) = K
+    u, v, w = b
     det = a * (e * i - f * h) - b_ * (d * i - f * g) + c * (d * h - e * g)
-    return np.array([u * (e * i - f * h) - b_ * (v * i - f * w) + c * (v * h - e * w),
-                     a * (v * i - f * w) - u * (d * i - f * g) + c * (d * w - v * g),
-                     a * (e * w - v * h) - b_ * (d * w - v * g) + u * (d * h - e * g)]) / det
+    if det == 0.0:
+        return [math.nan] * 3
+    return [(u * (e * i - f * h) - b_ * (v * i - f * w) + c * (v * h - e * w)) / det,
+            (a * (v * i - f * w) - u * (d * i - f * g) + c * (d * w - v * g)) / det,
+            (a * (e * w - v * h) - b_ * (d * w - v * g) + u * (d * h - e * g)) / det]
 
 
 def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
@@ -1033,7 +1124,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     r = _RUNS["planar_fingers" if "planar_fingers" in model.manifest else kind](model, s, mus, e)
     t_eval = s.t_eval
     r.sched = run_.schedule(model, u, s.method, t_eval)
-    x_now, modes, slips = _start(r, np.asarray(x0, dtype=float))
+    x_now, modes, slips, y_now = _start(r, np.asarray(x0, dtype=float))
     rows_t, rows_x, rows_mode, rows_p = [], [], [], []
     t_now = 0.0
     last_t = -math.inf
@@ -1041,7 +1132,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     while True:
         p = r.params(modes, slips)
         r.t = t_now
-        y_now = r.outputs(x_now, p)
+        y_now = r.outputs(x_now, p) if y_now is None else y_now  # _start's, at the start
         for j in r.contacts:
             if modes[j - 1] == SLIDING and not y_now[r.key("painleve", j)] > 0:
                 _painleve(model, t_now, x_now, y_now[r.key("painleve", j)], r.mus[j - 1], j)
@@ -1053,13 +1144,14 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
             if ends:
                 rows_t.append(np.array(ends, dtype=float))
                 rows_x.append(np.tile(np.asarray(x_now, dtype=float), (len(ends), 1)))
-                rows_mode.append(np.tile(modes, (len(ends), 1)))
+                rows_mode.append(_mode_rows(modes, len(ends)))
                 rows_p.append(p)
             break
         at_start = _at_start(r, modes, slips, y_now)
+        y_at, y_now = y_now, None
         if at_start is not None:  # a witness already past its event: it switches now
             name, j, terms = at_start
-            t_ev, x_ev, value_ = t_now, x_now, value(terms, y_now)
+            t_ev, x_ev, value_ = t_now, x_now, value(terms, y_at)
             recent = _chatter(model, recent, t_ev, x_ev)
             before = list(modes)
             modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
@@ -1097,7 +1189,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
             on_grid[0] = bool(t_eval[min(int(np.searchsorted(t_eval, t[0])), len(t_eval) - 1)] == t[0])
         rows_t.append(t[:keep][on_grid])
         rows_x.append(X[:keep][on_grid])
-        rows_mode.append(np.tile(modes, (int(on_grid.sum()), 1)))
+        rows_mode.append(_mode_rows(modes, int(on_grid.sum())))
         rows_p.append(p)
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
@@ -1118,14 +1210,11 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
     outs = {}
     if s.outputs:  # each segment's rows with its parameters (one compiled batch call each)
-        shown = set(model.output_names)
-        parts = [outputs_.along(model, tt, xx, pp, r.sched) for tt, xx, pp in zip(rows_t, rows_x, rows_p)
+        parts = [outputs_.along_rows(model, tt, xx, pp, r.sched) for tt, xx, pp in zip(rows_t, rows_x, rows_p)
                  if len(tt)]
-        if len(parts) == 1:
-            outs = {k: v for k, v in parts[0].items() if k in shown}
-        else:
-            outs = {k: np.concatenate([part[k] for part in parts]) if parts else np.zeros(0)
-                    for k in model.columns if k in shown}
+        Y = parts[0] if len(parts) == 1 else np.concatenate(parts) if parts else \
+            np.zeros((0, len(model.columns)))
+        outs = outputs_.by_name(model, Y, shown=True) if model.columns else {}
     if s.drop_first and len(t_all) and t_all[0] == 0.0:
         t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
         outs = {k: v[1:] for k, v in outs.items()}
@@ -1135,6 +1224,13 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
+
+
+def _mode_rows(modes, n: int) -> np.ndarray:
+    """``n`` rows of each contact's mode."""
+    out = np.empty((n, len(modes)), dtype=int)
+    out[:] = modes
+    return out
 
 
 #: A run whose last output time is within this (relative to the time, at least 1 s) after a
@@ -1176,13 +1272,14 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
     lib, cols = model.library, leg.col
     lib.watch([[(cols[term[0]], *term[1:]) for term in terms] for _, _, terms in watched],
               [_arming(name) for name, _, _ in watched],
-              inputs=leg.input_slots, dt=WATCH_DT, probe=[name == "gap" for name, _, _ in watched])
+              inputs=leg.input_slots, dt=WATCH_DT, probe=[name == "gap" for name, _, _ in watched],
+              safety=WATCH_SAFETY)
     try:
         pieces = [(float(grid[0]), float(grid[-1]), None, None)] if r.sched is None else \
             r.sched.segments(float(grid[0]), float(grid[-1]))
         rows_t, rows_x, stats = [], [], {}
         for k, (a0, a1, a, b) in enumerate(pieces):
-            g = np.array([a0, *grid[(grid > a0) & (grid < a1)], a1])
+            g = grid if r.sched is None else np.concatenate([[a0], grid[(grid > a0) & (grid < a1)], [a1]])
             pk = p if r.sched is None else model.with_inputs(p, a, b)
             r.stats["chunks"] += 1
             if k:  # past a knot: the witnesses stay armed as they were
@@ -1197,12 +1294,22 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
             for key in ("n_steps", "n_rhs"):
                 stats[key] = stats.get(key, 0) + int(st.get(key, 0))
             if "event" in st:
-                hit = {**st["event"], **lib.watch_result(), "p": pk}
+                hit = {**st["event"], **_watched(r, lib), "p": pk}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             x = X[-1]
+        _watched(r, lib)
         return _on_grid(rows_t, rows_x, grid) + (stats, None)
     finally:
         lib.unwatch()
+
+
+def _watched(r: _Run, lib) -> dict:
+    """``lib.watch_result()``, its counts of the points watched and the steps' ends left
+    unwatched added to ``r.stats``."""
+    res = lib.watch_result()
+    r.stats["watched"] += res["watched"]
+    r.stats["left_unwatched"] += res["left"]
+    return res
 
 
 def _in_own_state(r: _Run, leg: _Leg, err: IntegratorError) -> IntegratorError:
@@ -1267,10 +1374,11 @@ def _locate(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     return tc, xc, name, j, float(value(terms, r.outputs(xc, p, model)))
 
 
-def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
+def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list, dict | None]:
     """The start's state and each contact's mode: apart (gap > CONTACT_GAP; the contact
     coordinates put on the common normal), leaving (separated), approaching (an impact at
-    once, recorded), or in contact (``contact_start``)."""
+    once, recorded), or in contact (``contact_start``); the outputs there in those modes
+    when they are at hand (every contact rolling, else None)."""
     k = r.k
     modes, slips = [ROLLING] * k, [None] * k
     y = r.outputs(x0, r.params(modes))
@@ -1296,10 +1404,11 @@ def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list]:
         before = list(modes)
         modes, slips, x0, reset = _switch(r, modes, slips, "gap", j, 0.0, x0)
         _record(r, 0.0, j, "gap", float(gap), reset, before, modes)
-    for j in r.contacts:
+    for j in r.contacts:  # y: the outputs at x0 with every contact rolling
         if modes[j - 1] == ROLLING:
-            modes[j - 1], slips[j - 1] = r.contact_start(0.0, x0, modes, slips, j)
-    return x0, modes, slips
+            same = not hits and all(m == ROLLING for m in modes)
+            modes[j - 1], slips[j - 1] = r.contact_start(0.0, x0, modes, slips, j, y if same else None)
+    return x0, modes, slips, y if not hits and all(m == ROLLING for m in modes) else None
 
 
 def _record(r: _Run, t: float, j: int, name: str, value_: float, reset, before, modes) -> None:

@@ -51,11 +51,14 @@ def at_rows(model, X, p=None) -> dict[str, np.ndarray]:
     """Every compiled output at every row of ``X`` (``at``)."""
     if not model.columns:
         return {}
+    return by_name(model, _rows(model, X, p))
+
+
+def _rows(model, X, p=None) -> np.ndarray:
+    """``at_rows``' outputs, one row per row of ``X``."""
     if model.manifest.get("outputs_time"):  # a law that reads the time: at t = 0
-        Y = np.array([row(model, x, complete(model, p), 0.0) for x in np.atleast_2d(X)])
-    else:
-        Y = model.library.outputs_batch(X, complete(model, p))
-    return {k: Y[:, i].copy() for i, k in enumerate(model.columns)}
+        return np.array([row(model, x, complete(model, p), 0.0) for x in np.atleast_2d(X)])
+    return model.library.outputs_batch(X, complete(model, p))
 
 
 def along(model, t, X, p, sched) -> dict[str, np.ndarray]:
@@ -63,9 +66,14 @@ def along(model, t, X, p, sched) -> dict[str, np.ndarray]:
     each time (``a + b t`` as ``a``; ``sched`` a ``runtime.inputs`` table or None), and the time
     itself for a law that reads it. Rows where the inputs are constant go to the compiled batch
     call, segment by segment."""
+    return by_name(model, along_rows(model, t, X, p, sched)) if model.columns else {}
+
+
+def along_rows(model, t, X, p, sched) -> np.ndarray:
+    """``along``'s outputs, one row per time (every column, ``model.columns``)."""
     timed = bool(model.manifest.get("outputs_time"))
     if sched is None and not timed:
-        return at_rows(model, X, p)
+        return _rows(model, X, p)
     p = complete(model, p)
     Y = np.empty((len(t), len(model.columns)))
     segment = np.searchsorted(sched.knots, t, side="right") if sched is not None else \
@@ -78,7 +86,7 @@ def along(model, t, X, p, sched) -> dict[str, np.ndarray]:
         for i in rows:
             pi = p if sched is None else model.with_inputs(p, sched(float(t[i])))
             Y[i] = row(model, X[i], pi, t[i] if timed else None)
-    return {k: Y[:, i].copy() for i, k in enumerate(model.columns)}
+    return Y
 
 
 def by_name(model, Y: np.ndarray | None, shown: bool = False) -> dict[str, np.ndarray]:
