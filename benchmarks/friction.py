@@ -228,7 +228,8 @@ def main() -> dict:
     for k, w in out["rolling_only"].items():
         diff = f"{w['max_state_difference']:.1e}"
         lines.append(f"| {k} | {w['mu']} | {w['switches']} | {w['rolling_model_segments']} | "
-                     f"{w['watched']} / {w['steps']} | {1e3 * w['modes_s']:.2f} | {1e3 * w['alone_s']:.2f} | {1e3 * w['rolling_s']:.2f} | "
+                     f"{w['watched']} / {w['steps']} | {1e3 * w['modes_s']:.2f} | {1e3 * w['alone_s']:.2f} | "
+                     f"{1e3 * w['rolling_s']:.2f} | "
                      f"{w['ratio']:.2f} | {w['alone_ratio']:.2f} | {diff} |")
     lines.append("")
     (RESULTS / "friction.md").write_text("\n".join(lines))

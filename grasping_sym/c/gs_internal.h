@@ -391,6 +391,10 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
                             double* x_ev);
 /* The start of the last event's step (gs_watch_step returned 2), into x. */
 GS_HIDDEN void gs_watch_event_start(double* x);
+/* While gs_watch_refine integrates again from one state, the Jacobian there, computed once:
+ * 1 and J (nx x nx) copied when (t, x) is that state and J is kept, else 0; and kept. */
+GS_HIDDEN int gs_refine_jac_get(double t, const double* x, double* J);
+GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J);
 #else
 #define gs_watching() 0
 #endif

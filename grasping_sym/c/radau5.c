@@ -263,19 +263,29 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         for (int i = 0; i < n; ++i) tmp[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
         yj = tmp;
       }
-#if GS_HAS_JAC
-      if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J, M->LUr))) goto fail; /* LUr: scratch */
+#if GS_HAS_OUT
+      const int kept = yj == y && gs_refine_jac_get(t, y, M->J); /* gs_watch_refine's trials */
 #else
-      if (yj != y) {
-        if ((rc = gs_eval_rhs(wk, &tj, yj, p, fnew))) goto fail;
-        st[2] += 1;
-        if ((rc = gs_fd_jac(wk, &tj, yj, p, fnew, atol, M->J))) goto fail;
-      } else if ((rc = gs_fd_jac(wk, &t, y, p, f, atol, M->J))) {
-        goto fail;
-      }
-      st[2] += n;
+      const int kept = 0;
 #endif
-      st[3] += 1;
+      if (!kept) {
+#if GS_HAS_JAC
+        if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J, M->LUr))) goto fail; /* LUr: scratch */
+#else
+        if (yj != y) {
+          if ((rc = gs_eval_rhs(wk, &tj, yj, p, fnew))) goto fail;
+          st[2] += 1;
+          if ((rc = gs_fd_jac(wk, &tj, yj, p, fnew, atol, M->J))) goto fail;
+        } else if ((rc = gs_fd_jac(wk, &t, y, p, f, atol, M->J))) {
+          goto fail;
+        }
+        st[2] += n;
+#endif
+#if GS_HAS_OUT
+        if (yj == y) gs_refine_jac_put(t, y, M->J);
+#endif
+        st[3] += 1;
+      }
       m2 = gs_second_order_rows(M->J, n);
       st[GS_ST_REDUCED] = m2;
       need_jac = 0;

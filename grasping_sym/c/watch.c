@@ -256,6 +256,31 @@ static int gs_watch_kept(gs_work* wk, const double* p, double* t_ev, double* x_e
   return 0;
 }
 
+/* gs_watch_refine's Jacobian at the state its trials start from (gs_refine_jac_get): on
+ * while it runs; x, then J, in one block. */
+static _Thread_local struct {
+  int on, valid;
+  double t, *x;
+} gs_rj;
+
+GS_HIDDEN int gs_refine_jac_get(double t, const double* x, double* J) {
+  if (!gs_rj.on || !gs_rj.valid || t != gs_rj.t) return 0;
+  for (int i = 0; i < gs_nx; ++i)
+    if (x[i] != gs_rj.x[i]) return 0;
+  const double* kept = gs_rj.x + gs_nx;
+  for (int i = 0; i < gs_nx * gs_nx; ++i) J[i] = kept[i];
+  return 1;
+}
+
+GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J) {
+  if (!gs_rj.on) return;
+  double* kept = gs_rj.x + gs_nx;
+  for (int i = 0; i < gs_nx; ++i) gs_rj.x[i] = x[i];
+  for (int i = 0; i < gs_nx * gs_nx; ++i) kept[i] = J[i];
+  gs_rj.t = t;
+  gs_rj.valid = 1;
+}
+
 GS_HIDDEN void gs_watch_event_start(double* x) {
   for (int i = 0; i < gs_nx; ++i) x[i] = x_step_kept[i];
 }
@@ -401,6 +426,9 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
   if (gs_w.which < 0 || !(ttol > 0.0) || method < 0 || method > 2)
     return GS_ERR_ARGS;
   const int on = gs_watch_suspend();
+  gs_rj.x = malloc((size_t)(gs_nx + gs_nx * gs_nx) * sizeof(double)); /* none: J every trial */
+  gs_rj.on = gs_rj.x != NULL;
+  gs_rj.valid = 0;
   double a = gs_w.t_lo, b = gs_w.t_hi, slope = gs_w.slope, xt[gs_nx];
   double t1 = fmin(fmax(gs_w.t_root, a), b), g1, g2, t2;
   int rc = gs_refine_at(method, t1, x_step, p, rtol, atol, max_steps, lo, hi, x, &g1);
@@ -446,6 +474,9 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
     t2 = t3;
   }
 done:
+  gs_rj.on = 0;
+  free(gs_rj.x);
+  gs_rj.x = NULL;
   gs_watch_restore(on);
   return rc;
 #else
