@@ -278,6 +278,14 @@ def test_impact_laws(base, model):
             if mu == 0.0:
                 assert abs(ya["kinetic_energy"] - y["kinetic_energy"]) < 1e-12 * y["kinetic_energy"]
     assert seen == {True, False}
+    # the impact's terms (W, M^-1 g) are a compiled function of their own, read at impacts
+    # only: not outputs computed at every output time, not shown
+    internal = model.manifest["internal_outputs"]
+    assert internal["names"] == ["W_nn", "W_nt", "W_tt", *(f"Minv_g{k}_{i}" for k in "QR" for i in range(3))]
+    assert not set(internal["names"]) & set(model.columns)
+    fn = model.library.function(internal["function"])
+    with pytest.raises(ValueError, match=f"takes x of {len(model.state_names)} and p of"):
+        fn(x_start[:3], model.default_params)
 
 
 def test_bounces_settle(base, model):

@@ -225,7 +225,8 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
              constraint_names: tuple[str, ...] | None = None,
              start_conditions: ca.SX | None = None, start_names: tuple[str, ...] = (),
              start_values: ca.SX | None = None,
-             exact=None, t: ca.SX | None = None, outputs_time: bool = False) -> CasadiModel:
+             exact=None, t: ca.SX | None = None, outputs_time: bool = False,
+             internal: dict[str, ca.SX] | None = None) -> CasadiModel:
     """The generated functions of a closed loop ``xdot(x, p)`` and its ``outputs`` (any model).
 
     ``{name}_rhs`` with CasADi's DAE signature, its Jacobian (unless ``jacobian=False``: the
@@ -243,6 +244,10 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
     ``t``: the time symbol of ``xdot`` (a law that reads it); with ``outputs_time`` the outputs
     read it too, as one more last entry of their ``p`` (``codegen.controller.outputs_p``).
     Elsewhere (constraints, start) the time must not appear.
+
+    ``internal``: outputs only the run time reads, at a switch: ``{name}_internal``, with the
+    outputs' arguments, a helper (``CasadiModel.internal_names``), not computed with the
+    outputs at every output time.
     """
     if exact is not None and jacobian:
         raise ValueError("exact= rewrites the rhs after differentiation: its Jacobian would "
@@ -273,6 +278,14 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
         out_fn = ca.Function(f"{name}_outputs", [x, ca.vertcat(p, t) if outputs_time else p], [y],
                              ["x", "p"], ["y"], FUNCTION_OPTIONS)
         op_counts["outputs_sx_instructions"] = out_fn.n_instructions()
+    helpers = ()
+    if internal:
+        (z,) = fix(ca.densify(ca.vertcat(*internal.values())))
+        if not outputs_time:
+            z = ca.substitute(z, t, ca.SX(0))
+        helpers = (ca.Function(f"{name}_internal", [x, ca.vertcat(p, t) if outputs_time else p], [z],
+                               ["x", "p"], ["y"], FUNCTION_OPTIONS),)
+        op_counts["internal_sx_instructions"] = helpers[0].n_instructions()
     con_fn, con_info = None, {}
     if constraints is not None:
         con_fn, con_info = _constraints_function(x, p, xdot, constraints, constraint_names, name,
@@ -287,7 +300,8 @@ def sx_model(x: ca.SX, p: ca.SX, xdot: ca.SX, outputs: dict[str, ca.SX], name: s
         op_counts["start_sx_instructions"] = start_fn.n_instructions()
     return CasadiModel(rhs=rhs, jac=jac, outputs=out_fn, output_names=tuple(outputs),
                        op_counts=op_counts, constraints=con_fn, constraint_info=con_info,
-                       start=start_fn, start_names=tuple(start_names))
+                       start=start_fn, start_names=tuple(start_names), helpers=helpers,
+                       internal_names=tuple(internal or ()))
 
 
 def _constraints_function(x: ca.SX, p: ca.SX, xdot: ca.SX, C: ca.SX,

@@ -224,6 +224,8 @@ def modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     derive = derive_planar_modes if scene.kind == "planar_modes" else derive_grasp3d_modes
     d = derive(scene, controller_torques)
     t1 = time.perf_counter()
-    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs},
-                  scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"])
+    internal = set(scene.internal_outputs())  # an impact's terms: read at switches only
+    cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs if k not in internal},
+                  scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"],
+                  internal={k: d["outputs"][k] for k in scene.outputs if k in internal})
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})

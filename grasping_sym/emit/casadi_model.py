@@ -27,6 +27,10 @@ class CasadiModel:
     start_names: tuple[str, ...] = ()
     #: further functions written into the C (a layered model's contour functions)
     helpers: tuple[ca.Function, ...] = ()
+    #: the outputs of ``{name}_internal`` (a helper with the outputs' arguments): those only
+    #: the run time reads, at a switch (an impact's ``W = A M^-1 A^T``), kept out of the
+    #: outputs computed at every output time
+    internal_names: tuple[str, ...] = ()
 
     def functions(self) -> list[ca.Function]:
         return [f for f in (self.rhs, self.jac, self.outputs, self.constraints, self.start,

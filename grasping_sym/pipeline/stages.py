@@ -201,6 +201,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "op_counts": ops,
         **({"structure": fns.structure} if fns.structure else {}),
         **({"rhs_guarded": guarded[0].name()} if guarded else {}),
+        # outputs only a switch reads, in a function of their own (``Model.internal``)
+        **({"internal_outputs": {"function": f"{scene.name}_internal", "names": list(cm.internal_names)}}
+           if cm.internal_names else {}),
         # compiled outputs the user did not ask for: only the run-time checks read them
         **({"check_outputs": list(hidden)} if hidden else {}),
         "defaults": _run_defaults(scene),
@@ -227,14 +230,11 @@ def with_check_outputs(scene) -> tuple[object, tuple[str, ...]]:
     ``runtime.checks``) that it does not list. A model checks every contact and every
     constraint whatever outputs it shows; the manifest's ``check_outputs`` names the added
     ones, which the model does not show (``Model.output_names``). The code hash is the
-    scene's own: the added outputs are a function of it. The outputs of its own that only
-    the run time reads (``scene.internal_outputs()``, if it has it: a switch's impulse terms)
-    are named there too."""
+    scene's own: the added outputs are a function of it."""
     hidden = tuple(k for k in scene.check_outputs() if k not in scene.outputs)
-    internal = tuple(scene.internal_outputs()) if hasattr(scene, "internal_outputs") else ()
     if not hidden:
-        return scene, internal
-    return dataclasses.replace(scene, outputs=(*scene.outputs, *hidden)), (*internal, *hidden)
+        return scene, ()
+    return dataclasses.replace(scene, outputs=(*scene.outputs, *hidden)), hidden
 
 
 def write_start(directory: Path, record: dict) -> None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import threading
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
@@ -534,6 +535,44 @@ class CompiledLibrary:
         else:
             rc = self._c_dop853(*head, nstiff, *tail)
         return int(rc), t_fail.value
+
+    # -- a further CasADi-generated function ----------------------------------------------
+    def function(self, symbol: str):
+        """The library's CasADi-generated function ``symbol`` of two dense inputs ``(x, p)``
+        (``nx`` and ``len(p)`` entries) and one dense output, as ``f(x, p) -> ndarray``
+        called through ctypes (CasADi's C interface; no CasADi loaded)."""
+        ci = ctypes.c_longlong  # casadi_int as emit/cwriter.py writes it
+        fn, work = getattr(self._lib, symbol), getattr(self._lib, symbol + "_work")
+        sizes = []
+        for kind in ("in", "in", "out"):
+            sparsity = getattr(self._lib, f"{symbol}_sparsity_{kind}")
+            sparsity.restype, sparsity.argtypes = ctypes.POINTER(ci), [ci]
+            shape = sparsity(len(sizes) if kind == "in" else 0)
+            sizes.append(int(shape[0]) * int(shape[1]))
+        n_x, n_p, n_out = sizes
+        sz = [ci() for _ in range(4)]
+        work(*map(ctypes.byref, sz))
+        arg = (ctypes.c_void_p * max(int(sz[0].value), 2))()
+        res = (ctypes.c_void_p * max(int(sz[1].value), 1))()
+        iw = np.zeros(max(int(sz[2].value), 1), dtype=np.int64)
+        w = np.zeros(max(int(sz[3].value), 1))
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
+        lock = threading.Lock()  # its work arrays are one per function: one call at a time
+
+        def call(x, p) -> np.ndarray:
+            xa = np.ascontiguousarray(x, dtype=float)
+            pa = np.ascontiguousarray(p, dtype=float)
+            if xa.shape != (n_x,) or pa.shape != (n_p,):
+                raise ValueError(f"{symbol} takes x of {n_x} and p of {n_p} entries, got shapes "
+                                 f"{xa.shape} and {pa.shape}")
+            y = np.empty(n_out)
+            with lock:
+                arg[0], arg[1], res[0] = xa.ctypes.data, pa.ctypes.data, y.ctypes.data
+                if fn(arg, res, iw.ctypes.data, w.ctypes.data, 0):
+                    raise FloatingPointError(f"{symbol} failed at x = {xa.tolist()!r:.200}")
+            return y
+
+        return call
 
     # -- witnesses watched along a run (c/watch.c) ---------------------------------------
     def watch(self, terms: Sequence[Sequence[tuple]], tol: Sequence[float],

@@ -275,15 +275,19 @@ class _Run:
 
     def outputs(self, x: np.ndarray, p: np.ndarray, model=None) -> dict[str, float]:
         """Every output of ``model`` (default: the model with modes) at ``x`` with ``p``, the
-        inputs at ``self.t``."""
+        inputs at ``self.t``; those only a switch reads (the manifest's ``internal_outputs``)
+        computed when first read (``_Outputs``)."""
         model = self.model if model is None else model
         if self.sched is not None:
             p = model.with_inputs(p, self.sched(self.t))
         if not model.columns:
             return {}
         timed = bool(model.manifest.get("outputs_time"))
-        y = outputs_.row(model, x, complete(model, p), self.t if timed else None)
-        return dict(zip(model.columns, y.tolist()))
+        p = complete(model, p)
+        y = outputs_.row(model, x, p, self.t if timed else None)
+        out = _Outputs(zip(model.columns, y.tolist()))
+        out.at = (model, x, p if not timed else np.append(p, self.t))
+        return out
 
     def with_mode(self, x, modes, slips, j: int, mode: int, slip=None) -> dict[str, float]:
         """The outputs at ``x`` with contact ``j`` in ``mode`` (the others as they are)."""
@@ -348,6 +352,30 @@ class _Run:
             else:
                 out.append(("gap", j, [(self.key("gap", j), 1.0)]))
         return out
+
+
+class _Outputs(dict):
+    """A state's outputs (``_Run.outputs``); the outputs only a switch reads (an impact's
+    terms, the manifest's ``internal_outputs``: a compiled function of their own, not
+    evaluated at every output time) computed at the first read of one of them."""
+
+    #: ``(model, x, p)``: where they were computed (p with the time last, for outputs that read it)
+    at: tuple
+
+    def __missing__(self, key: str) -> float:
+        model, x, p = self.at
+        spec = model.manifest.get("internal_outputs")
+        if spec is None or key not in spec["names"]:
+            raise KeyError(key)
+        fn = _INTERNAL.get(model)
+        if fn is None:
+            fn = _INTERNAL[model] = model.library.function(spec["function"])
+        self.update(zip(spec["names"], fn(x, p).tolist()))
+        return self[key]
+
+
+#: Per model: its ``internal_outputs`` function (``CompiledLibrary.function``).
+_INTERNAL: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def value(terms: list[tuple], y: dict) -> float:

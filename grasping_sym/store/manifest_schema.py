@@ -122,6 +122,14 @@ def manifest_problems(m: object) -> list[str]:
     if guard is not None and not (isinstance(guard, str) and _IDENT.match(guard)
                                   and guard in m.get("c_symbols", [])):
         out.append("rhs_guarded must name one of the model's C symbols")
+    internal = m.get("internal_outputs")
+    if internal is not None and not (
+            isinstance(internal, dict) and set(internal) == {"function", "names"}
+            and isinstance(internal["function"], str) and internal["function"] in m.get("c_symbols", [])
+            and isinstance(internal["names"], list) and internal["names"]
+            and all(isinstance(k, str) and _IDENT.match(k) for k in internal["names"])):
+        out.append("internal_outputs must be {function: one of the model's C symbols, names: "
+                   "identifiers}")
     rules = m.get("param_rules", {})
     if not isinstance(rules, dict) or not set(rules) <= set(params) or \
             not set(rules.values()) <= {"positive", "nonnegative", "finite"}:
