@@ -34,18 +34,29 @@ C_FILES = 2
 def partition(functions: list, n: int = C_FILES, extra: dict | None = None) -> list[list]:
     """``functions`` in at most ``n`` groups of about equal instruction counts (largest first
     into the lightest group; ``extra``: instructions added to a function's, by name, for code
-    written beside it), each group in the functions' own order; the rhs's group first."""
+    written beside it), each group in the functions' own order; the rhs's group first. A
+    function that calls another of them (the guarded rhs calls the rhs) goes into its group:
+    elsewhere CasADi would write the callee's whole body again beside it."""
     extra = extra or {}
+    names = {f.name() for f in functions}
 
     def weight(f):
         return f.n_instructions() + extra.get(f.name(), 0)
 
+    def callee(f):
+        return next((g for g in f.get_function() if g in names and g != f.name()), None)
+
     groups: list[list] = [[] for _ in range(min(n, len(functions)))]
     load = [0] * len(groups)
-    for f in sorted(functions, key=lambda f: -weight(f)):
+    for f in sorted((f for f in functions if callee(f) is None), key=lambda f: -weight(f)):
         k = load.index(min(load))
         groups[k].append(f)
         load[k] += weight(f)
+    for f in functions:
+        if callee(f) is not None:
+            k = next((i for i, g in enumerate(groups) if any(h.name() == callee(f) for h in g)), 0)
+            groups[k].append(f)
+            load[k] += weight(f)
     order = {f.name(): i for i, f in enumerate(functions)}
     groups = [sorted(g, key=lambda f: order[f.name()]) for g in groups if g]
     return sorted(groups, key=lambda g: min(order[f.name()] for f in g))
