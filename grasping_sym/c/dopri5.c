@@ -316,5 +316,11 @@ done:
   return gs_adaptive_end(n_out, row, t, st, stats, t_fail, out, y, y1);
 
 fail:
+#if GS_HAS_OUT
+  if (rc < 0 && rc != GS_EVENT) { /* an event at a step's end left unwatched comes first */
+    const int ev = gs_watch_failed(wk, p, t_out, &row, &t, y, y1);
+    if (ev) rc = ev > 0 ? GS_EVENT : ev;
+  }
+#endif
   return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, y1);
 }

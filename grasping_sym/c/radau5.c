@@ -263,8 +263,9 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         for (int i = 0; i < n; ++i) tmp[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
         yj = tmp;
       }
-#if GS_HAS_OUT
-      const int kept = yj == y && gs_refine_jac_get(t, y, M->J); /* gs_watch_refine's trials */
+#if GS_HAS_OUT && !GS_HAS_JAC
+      /* gs_watch_refine's trials: the differenced Jacobian at their common start, once */
+      const int kept = yj == y && gs_refine_jac_get(t, y, M->J);
 #else
       const int kept = 0;
 #endif
@@ -281,7 +282,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         }
         st[2] += n;
 #endif
-#if GS_HAS_OUT
+#if GS_HAS_OUT && !GS_HAS_JAC
         if (yj == y) gs_refine_jac_put(t, y, M->J);
 #endif
         st[3] += 1;
@@ -574,6 +575,12 @@ done:
   return gs_adaptive_end(n_out, row, t, st, stats, t_fail, out, y, ynew);
 
 fail:
+#if GS_HAS_OUT
+  if (rc < 0 && rc != GS_EVENT) { /* an event at a step's end left unwatched comes first */
+    const int ev = gs_watch_failed(wk, p, t_out, &row, &t, y, ynew);
+    if (ev) rc = ev > 0 ? GS_EVENT : ev;
+  }
+#endif
   return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, ynew);
 }
 

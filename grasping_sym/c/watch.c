@@ -65,8 +65,9 @@ typedef struct {
    * (known once two points were watched), the ends left (kept[0] the last watched point,
    * kept[1 .. n_kept] the ends left since), the event's step start when it is one of them,
    * and the counts of the points watched and left */
-  int skip, have_rate, n_kept;
-  double safety, t_end, rate[GS_WATCH_MAX], t_kept[GS_WATCH_SKIPS + 1], n_eval, n_left;
+  int skip, have_rate, have_curve, n_kept, n_fired;
+  double safety, t_end, rate[GS_WATCH_MAX], curve[GS_WATCH_MAX], t_rate, t_kept[GS_WATCH_SKIPS + 1];
+  double n_eval, n_left;
   /* GS_WATCH_SKIPS + 2 states (malloc'd by gs_watch_witnesses, freed by gs_watch_clear):
    * the ends kept (x_kept(i), i = 0 .. n_kept) and the event's step start (x_step) */
   double* kept;
@@ -110,6 +111,8 @@ GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const dou
   double g[GS_WATCH_MAX];
   gs_w.t_end = t_end;
   gs_w.have_rate = 0;
+  gs_w.have_curve = 0;
+  gs_w.n_fired = 0;
   gs_w.n_kept = 0;
   const int rc = gs_watch_eval(wk, t0, x0, p, g);
   if (rc) return rc;
@@ -194,16 +197,19 @@ static int gs_watch_probe(gs_work* wk, int k, double* a, double* ga, double* b, 
   return 0;
 }
 
-/* Whether the point t may be left unwatched: every witness armed, above 0 and, at
- * gs_w.safety times its last rate, still above 0 at t; t before the run's end, and no more
- * than GS_WATCH_SKIPS dt after the last watched point (dt > 0). */
+/* Whether the point t may be left unwatched: every witness armed, above 0 and still above 0
+ * at t by gs_w.safety times what its last rate and the change of its rate (from the last
+ * three watched points: a margin at its turning point is not taken for a constant one) would
+ * take off it by then; t before the run's end, and no more than GS_WATCH_SKIPS dt after the
+ * last watched point (dt > 0). */
 static int gs_watch_may_leave(double t) {
-  const double span = t - gs_w.t_prev;
-  if (!gs_w.skip || !gs_w.have_rate || !(t < gs_w.t_end) ||
+  const double span = t - gs_w.t_prev, lever = t - gs_w.t_rate;
+  if (!gs_w.skip || !gs_w.have_curve || !(t < gs_w.t_end) ||
       (gs_w.dt > 0.0 && span > GS_WATCH_SKIPS * gs_w.dt))
     return 0;
   for (int k = 0; k < gs_w.n; ++k)
-    if (!gs_w.armed[k] || !(gs_w.g_prev[k] > gs_w.safety * fabs(gs_w.rate[k]) * span))
+    if (!gs_w.armed[k] ||
+        !(gs_w.g_prev[k] > gs_w.safety * span * (fabs(gs_w.rate[k]) + fabs(gs_w.curve[k]) * lever)))
       return 0;
   return 1;
 }
@@ -218,13 +224,14 @@ static int gs_watch_kept(gs_work* wk, const double* p, double* t_ev, double* x_e
     const double a = gs_w.t_prev, b = gs_w.t_kept[i];
     const int rc = gs_watch_eval(wk, b, x_kept(i), p, g);
     if (rc) return rc;
-    int best = -1;
+    int best = -1, fired = 0;
     double best_t = b, best_slope = 0.0;
     for (int k = 0; k < gs_w.n; ++k) {
       if (!gs_watch_fires(k, g[k])) continue;
       const double level = gs_w.armed[k] ? 0.0 : -gs_w.tol[k];
       const double ga = gs_w.g_prev[k] - level, gb = g[k] - level;
       const double root = ga > gb ? a + (b - a) * ga / (ga - gb) : b;
+      ++fired;
       if (best < 0 || root < best_t) {
         best = k;
         best_t = fmin(fmax(root, a), b);
@@ -233,6 +240,7 @@ static int gs_watch_kept(gs_work* wk, const double* p, double* t_ev, double* x_e
     }
     if (best >= 0) {
       const double w = (best_t - gs_w.t_kept[i - 1]) / (b - gs_w.t_kept[i - 1]);
+      gs_w.n_fired = fired; /* more than one: their order is the secants' (runtime/modes.py) */
       gs_w.which = best;
       gs_w.armed_at_event = gs_w.armed[best];
       gs_w.t_lo = a;
@@ -279,6 +287,19 @@ GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J) {
   for (int i = 0; i < gs_nx * gs_nx; ++i) kept[i] = J[i];
   gs_rj.t = t;
   gs_rj.valid = 1;
+}
+
+GS_HIDDEN int gs_watch_failed(gs_work* wk, const double* p, const double* t_out, long* row, double* t,
+                             double* y, double* x_step) {
+  if (!gs_w.on || gs_w.n_kept == 0) return 0;
+  double t_ev;
+  const int rc = gs_watch_kept(wk, p, &t_ev, y);
+  gs_w.n_kept = 0;
+  if (rc != 1) return rc < 0 ? rc : 0;
+  *t = t_ev;
+  while (*row > 0 && t_out[*row - 1] >= t_ev) --*row;
+  gs_watch_event_start(x_step);
+  return 1;
 }
 
 GS_HIDDEN void gs_watch_event_start(double* x) {
@@ -349,6 +370,7 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
       }
     }
     if (best >= 0) {
+      gs_w.n_fired = 0;
       gs_w.which = best;
       gs_w.armed_at_event = gs_w.armed[best];
       gs_w.t_lo = best_a;
@@ -363,12 +385,22 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
         interp(ctx, best_t, x_ev);
       return 1;
     }
+    const double mid = 0.5 * (tj + gs_w.t_prev); /* where the new rate is the rate */
+    const int moved = tj > gs_w.t_prev, curved = moved && gs_w.have_rate && mid > gs_w.t_rate;
     for (int k = 0; k < gs_w.n; ++k) {
-      if (tj > gs_w.t_prev) gs_w.rate[k] = (g[k] - gs_w.g_prev[k]) / (tj - gs_w.t_prev);
+      if (moved) {
+        const double rate = (g[k] - gs_w.g_prev[k]) / (tj - gs_w.t_prev);
+        if (curved) gs_w.curve[k] = (rate - gs_w.rate[k]) / (mid - gs_w.t_rate);
+        gs_w.rate[k] = rate;
+      }
       gs_w.armed[k] |= g[k] > gs_w.tol[k];
       gs_w.g_prev[k] = g[k];
     }
-    gs_w.have_rate = gs_w.have_rate || tj > gs_w.t_prev;
+    if (moved) {
+      gs_w.have_curve = gs_w.have_curve || curved;
+      gs_w.have_rate = 1;
+      gs_w.t_rate = mid;
+    }
     gs_w.t_prev = tj;
   }
   return 0;
@@ -577,7 +609,9 @@ GS_HIDDEN void gs_watch_restore(int on) {
 /* The last event of this thread's watched run: out[0] the witness (-1: none), out[1] 1 if it
  * was armed (else it fell below -tol), out[2], out[3] the watched points around it,
  * out[4] the dense output's slope of the witness there, out[5] the start of its step; out[6]
- * the points watched and out[7] the steps' ends left unwatched since gs_watch_witnesses. */
+ * the points watched and out[7] those left unwatched since gs_watch_witnesses; out[8] the
+ * witnesses that fired at the end of the event's step when it was left unwatched (more than
+ * one: which is first is the secants' guess, runtime/modes.py looks again), else 0. */
 GS_EXPORT void gs_watch_result(double* out) {
 #if GS_HAS_OUT
   out[0] = gs_w.which;
@@ -588,8 +622,9 @@ GS_EXPORT void gs_watch_result(double* out) {
   out[5] = gs_w.t_step;
   out[6] = gs_w.n_eval;
   out[7] = gs_w.n_left;
+  out[8] = gs_w.n_fired;
 #else
   out[0] = -1;
-  for (int i = 1; i < 8; ++i) out[i] = NAN;
+  for (int i = 1; i < 9; ++i) out[i] = NAN;
 #endif
 }

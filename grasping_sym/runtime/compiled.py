@@ -635,12 +635,13 @@ class CompiledLibrary:
         """The last event of this thread's watched run: ``which`` witness (-1: none), ``armed``
         (else it fell below ``-tol``), the watched points ``t_lo``, ``t_hi`` around it,
         the dense output's ``slope`` of the witness there, ``t_step`` its step's start; the
-        points ``watched`` and the steps' ends ``left`` unwatched since :meth:`watch`."""
-        out = np.zeros(8)
+        points ``watched`` and those ``left`` unwatched since :meth:`watch`; the witnesses
+        ``fired`` at the end of the event's step when it was left unwatched (else 0)."""
+        out = np.zeros(9)
         self._lib.gs_watch_result(out.ctypes.data)
         return {"which": int(out[0]), "armed": bool(out[1]), "t_lo": float(out[2]),
                 "t_hi": float(out[3]), "slope": float(out[4]), "t_step": float(out[5]),
-                "watched": int(out[6]), "left": int(out[7])}
+                "watched": int(out[6]), "left": int(out[7]), "fired": int(out[8])}
 
     def watch_refine(self, method: str, x_step: Any, p: Any, rtol: float, atol: float, max_steps: int,
                      lo: np.ndarray | None, hi: np.ndarray | None, ttol: float,

@@ -99,6 +99,9 @@ class Model:
                                        default_p=self.default_params if self.p_names else None)
         self._external = None
         self._guarded = None
+        #: what the run time computes once per model and keeps (``runtime.modes``: the data
+        #: every run reads, the function of the outputs only a switch reads)
+        self.run_cache: dict = {}
         #: the short way of repeated calls (``runtime.fastpath``): the plans and checked
         #: starts it remembers
         self.short_way = fastpath.Memory(np.array(start["initial_state"], dtype=float),

@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import weakref
 from time import perf_counter
 
 import numpy as np
@@ -187,11 +186,11 @@ class _Run:
     def __init__(self, model, s, mus: tuple[float, ...], e: float):
         self.model, self.s, self.mus, self.e = model, s, tuple(mus), e
         self.k = len(self.mus)
-        static = _STATIC.get(model)
+        static = model.run_cache.get("modes")
         if static is None or static["defaults"] is not model.default_params:
             # what a run of this model reads of it, every run alike
             names = model.p_names
-            static = _STATIC[model] = {
+            static = model.run_cache["modes"] = {
                 "defaults": model.default_params, "p": np.array(model.default_params, dtype=float),
                 "mode": [names.index(self.key(self.MODE, j)) for j in self.contacts],
                 "slip": [names.index(self.key(self.SLIP, j)) for j in self.contacts],
@@ -367,15 +366,11 @@ class _Outputs(dict):
         spec = model.manifest.get("internal_outputs")
         if spec is None or key not in spec["names"]:
             raise KeyError(key)
-        fn = _INTERNAL.get(model)
+        fn = model.run_cache.get("internal")
         if fn is None:
-            fn = _INTERNAL[model] = model.library.function(spec["function"])
+            fn = model.run_cache["internal"] = model.library.function(spec["function"])
         self.update(zip(spec["names"], fn(x, p).tolist()))
         return self[key]
-
-
-#: Per model: its ``internal_outputs`` function (``CompiledLibrary.function``).
-_INTERNAL: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def value(terms: list[tuple], y: dict) -> float:
@@ -1077,9 +1072,6 @@ def _on_common_normal(r: _Run, x: np.ndarray, j: int, at: int) -> np.ndarray:
 
 
 #: the kind of a model with modes (its manifest's ``kind``) -> how its contacts are run
-#: Per model: what every run of it reads of it (``_Run.__init__``).
-_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
 _RUNS = {"body": _BodyRun, "body2d": _LineBodyRun, "planar_modes": _PlanarRun, "grasp3d_modes": _GraspRun,
          "planar_fingers": _FingersRun}
 
@@ -1145,6 +1137,8 @@ def _angle(d: np.ndarray, along, iterations: int) -> np.ndarray:
         if abs(g1) >= abs(g0):  # not shrinking: the fixed point's step
             step = g1
         a0, g0, a1 = a1, g1, a1 + step
+    else:  # not converged: the last direction evaluated, not an untried step
+        a1 = a0
     return np.array([math.cos(a1), math.sin(a1)])
 
 
@@ -1400,7 +1394,33 @@ def _on_grid(rows_t, rows_x, grid):
 def _locate(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     """``(t, x, witness, contact, value)`` of the event the C loop stopped at (``_segment``'s
     ``hit``), located on the trajectory integrated again by ``leg`` from its step's start
-    (``events.refine``); ``x`` is ``leg``'s state."""
+    (``events.refine``); ``x`` is ``leg``'s state. Where several witnesses fired in a step
+    whose end was left unwatched (``c/watch.c``: their order is the secants' guess), any that
+    is already below 0 at the located event crossed first: it is located in turn."""
+    found = _locate_one(r, leg, p, watched, hit)
+    for _ in range(len(watched) if hit.get("fired", 0) > 1 else 0):
+        tc, xc = found[0], found[1]
+        r.t = tc
+        y = r.outputs(xc, p, leg.model)
+        # every witness was armed (none is left unwatched otherwise): below 0 is past its event
+        earlier = [k for k, (name, c, terms) in enumerate(watched)
+                   if (name, c) != (found[2], found[3]) and value(terms, y) < 0]
+        if not earlier:
+            break
+        k = earlier[0]
+        name, j, terms = watched[k]
+        again = events.refine(leg.model, r.s, r.sched, p, hit["t_step"], hit["x_step"], hit["t_lo"], tc,
+                              0.5 * (hit["t_lo"] + tc), math.nan, lambda y, terms=terms: value(terms, y))
+        if again is None or not again[0] < tc:
+            break
+        r.t = float(again[0])
+        found = (float(again[0]), again[1], name, j, float(value(terms, r.outputs(again[1], p, leg.model))))
+    r.t = found[0]
+    return found
+
+
+def _locate_one(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
+    """``_locate`` of the witness the C loop named."""
     name, j, terms = watched[hit["which"]]
     model = leg.model
     level = 0.0 if hit["armed"] else -_arming(name)  # unarmed: it fell below -tol (c/watch.c)
