@@ -335,10 +335,7 @@ done:
 
 fail:
 #if GS_HAS_OUT
-  if (rc < 0 && rc != GS_EVENT) { /* an event at a step's end left unwatched comes first */
-    const int ev = gs_watch_failed(wk, p, t_out, &row, &t, y, y1);
-    if (ev) rc = ev > 0 ? GS_EVENT : ev;
-  }
+  rc = gs_watch_failed(wk, rc, p, t_out, &row, &t, y, y1); /* an event left unwatched first */
 #endif
   return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, y1);
 }

@@ -391,11 +391,12 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
                             double* x_ev);
 /* The start of the last event's step (gs_watch_step returned 2), into x. */
 GS_HIDDEN void gs_watch_event_start(double* x);
-/* A loop failing with steps' ends left unwatched (gs_watch_step): 1 when a witness fired at
- * one of them, the failure then that event (its time into *t, its state into y, its step's
- * start into x_step, the output rows at or after it dropped); 0 if none, or an error code. */
-GS_HIDDEN int gs_watch_failed(gs_work* wk, const double* p, const double* t_out, long* row,
-                              double* t, double* y, double* x_step);
+/* The end of a loop (its result rc) with steps' ends left unwatched (gs_watch_step): they
+ * are dropped; a failure (not a stop: Ctrl-C, the time limit) where a witness fired at one of
+ * them becomes that event, GS_EVENT returned (its time into *t, its state into y, its step's
+ * start into x_step, the output rows at or after it dropped); else rc, or an error code. */
+GS_HIDDEN long gs_watch_failed(gs_work* wk, long rc, const double* p, const double* t_out,
+                               long* row, double* t, double* y, double* x_step);
 /* While gs_watch_refine integrates again from one state, the Jacobian there, computed once:
  * 1 and J (nx x nx) copied when (t, x) is that state and J is kept, else 0; and kept. */
 GS_HIDDEN int gs_refine_jac_get(double t, const double* x, double* J);

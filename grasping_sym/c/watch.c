@@ -289,17 +289,21 @@ GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J) {
   gs_rj.valid = 1;
 }
 
-GS_HIDDEN int gs_watch_failed(gs_work* wk, const double* p, const double* t_out, long* row, double* t,
-                             double* y, double* x_step) {
-  if (!gs_w.on || gs_w.n_kept == 0) return 0;
+GS_HIDDEN long gs_watch_failed(gs_work* wk, long rc, const double* p, const double* t_out, long* row,
+                              double* t, double* y, double* x_step) {
+  if (!gs_w.on || gs_w.n_kept == 0) return rc;
+  if (rc >= 0 || rc == GS_EVENT || rc == GS_ERR_INTERRUPT || rc == GS_ERR_ARGS) { /* or a stop */
+    gs_w.n_kept = 0;
+    return rc;
+  }
   double t_ev;
-  const int rc = gs_watch_kept(wk, p, &t_ev, y);
+  const int found = gs_watch_kept(wk, p, &t_ev, y);
   gs_w.n_kept = 0;
-  if (rc != 1) return rc < 0 ? rc : 0;
+  if (found != 1) return found < 0 ? found : rc;
   *t = t_ev;
   while (*row > 0 && t_out[*row - 1] >= t_ev) --*row;
   gs_watch_event_start(x_step);
-  return 1;
+  return GS_EVENT;
 }
 
 GS_HIDDEN void gs_watch_event_start(double* x) {
@@ -545,6 +549,7 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.dt = dt;
   gs_w.skip = safety > 0.0;
   gs_w.safety = safety;
+  gs_w.n_kept = 0;
   if (gs_w.skip && !gs_w.kept) /* none (no memory): every step's end is watched */
     gs_w.kept = malloc((size_t)(GS_WATCH_SKIPS + 2) * gs_nx * sizeof(double));
   gs_w.n_eval = 0.0;

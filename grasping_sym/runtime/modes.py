@@ -86,11 +86,13 @@ REST_SPEED = 1e-3
 #: watches the witnesses (with the steps' ends), whatever ``t_eval``: a sign change and its
 #: return within it can be missed, one that lasts longer cannot.
 WATCH_DT = 1e-3
-#: A step's end is left unwatched while every witness, at this many times its rate between
-#: its last two watched points, would still be above 0 there (at most 16 ends in a row,
-#: ``c/watch.c``): a sign change and its return within them can be missed, as within
-#: ``WATCH_DT``; one that lasts is found at the next watched point and located in its step
-#: from the ends kept. 0: every step's end is watched.
+#: A point (a step's end, a point of its dense output) is left unwatched while every witness
+#: would still be above 0 there by this many times what its rate and the change of its rate
+#: (from its last three watched points) take off it: never the run's end, never more than 16
+#: ``WATCH_DT`` after the last watched point, at most 16 steps' ends in a row, which are kept
+#: (``c/watch.c``). A sign change and its return within them can be missed, as within
+#: ``WATCH_DT``; one that lasts is found at the next watched point (or at a failure) and
+#: located in its step from the ends kept. 0: every point is watched.
 WATCH_SAFETY = 8.0
 #: m: a separated contact's gap is watched for its return once it was seen above this; one
 #: that closes again first (within the watched interval that opened it) hits once its gap
@@ -205,8 +207,8 @@ class _Run:
         #: segments: one per mode's stretch (the start's and one after each switch); chunks:
         #: the integrations they were run in (one per segment, and per piece of an inputs' table)
         #: rolling_model_segments: the segments the base scene's rolling model ran (``_Leg``)
-        #: watched: the points the witnesses were evaluated at; left_unwatched: the steps' ends
-        #: they were not (their margins far from 0 at their rates, ``c/watch.c``)
+        #: watched: the points the witnesses were evaluated at; left_unwatched: the points (steps'
+        #: ends, points of their dense output) they were not (``WATCH_SAFETY``, ``c/watch.c``)
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "rolling_model_segments": 0,
                       "switch_time": 0.0, "watched": 0, "left_unwatched": 0}
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
