@@ -30,6 +30,8 @@ from grasping_sym.geometry import surface_library
 from grasping_sym.model import chains
 from grasping_sym.model.grasp3d import Finger3D, GraspScene3D
 from grasping_sym.pipeline.quality_along import contact_forces
+from grasping_sym.runtime import modes
+from grasping_sym.runtime import outputs as outputs_
 
 SHIFT = chains.BASE_HALF_SPACING     # 2D finger 1 sits at the origin, 3D finger 1 at -SHIFT
 T_FINAL = 5.0
@@ -239,6 +241,14 @@ def test_a_free_pinch_with_modes_slips_and_lets_go_as_the_3d_model_does():
                 *[np.max(np.abs(r3[k] - r2[k])) for k in ("q11", "q12", "q21", "q22")])
     assert worst <= 1e-10, worst           # measured 6e-13; the object falls 2 cm
     assert r2["y"][0] - r2["y"][-1] > 0.01
+    # the rows where both contacts roll: from the 3D outputs with every mode rolling folded in
+    # (the manifest's outputs_rolling, 58 % of the general function's instructions), the
+    # general function's numbers bit for bit
+    rolling = (r3.modes == "rolling").all(axis=1)
+    assert m3.manifest["outputs_rolling"] and rolling.sum() >= 5
+    p = modes._RUNS["grasp3d_modes"](m3, None, (0.14, 0.14), 0.0).params([modes.ROLLING] * 2)
+    general = outputs_.by_name(m3, outputs_.along_rows(m3, r3.t[rolling], r3.x[rolling], p, None), shown=True)
+    assert general and all(np.array_equal(general[k], r3[k][rolling]) for k in general)
 
 
 def test_a_pinch_wedged_on_a_table_bounces_through_the_same_switches_in_2d_and_3d():

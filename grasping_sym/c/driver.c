@@ -178,6 +178,24 @@ GS_EXPORT int gs_outputs_batch(long n, const double* X, const double* p, double*
 }
 #endif
 
+/* A CasADi-generated function fn of (x, p) -> y (one of the model's helpers, runtime/compiled.py
+ * CompiledLibrary.rows) at the n rows of X (n x nx), the same p, into Y (n x ny); its work
+ * arrays arg, res, iw, w sized by the caller from fn's own _work. 0, or GS_ERR_EVAL. */
+typedef int (*gs_casadi_fn)(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+
+GS_EXPORT int gs_rows(void* fn, long n, const double* X, long nx, const double* p, double* Y, long ny,
+                      const double** arg, double** res, GS_CASADI_INT* iw, double* w) {
+  if (!fn || n < 0 || nx < 1 || ny < 1) return GS_ERR_ARGS;
+  const gs_casadi_fn f = (gs_casadi_fn)fn;
+  for (long k = 0; k < n; ++k) {
+    arg[0] = X + k * nx;
+    arg[1] = p;
+    res[0] = Y + k * ny;
+    if (f(arg, res, iw, w, 0)) return GS_ERR_EVAL;
+  }
+  return 0;
+}
+
 GS_EXPORT int gs_con_info(long* nc) {
 #if GS_HAS_CON
   if (nc) *nc = gs_nc;

@@ -201,6 +201,9 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "op_counts": ops,
         **({"structure": fns.structure} if fns.structure else {}),
         **({"rhs_guarded": guarded[0].name()} if guarded else {}),
+        # the outputs with every contact rolling, for the rows of rolling stretches (runtime.modes)
+        **({"outputs_rolling": f"{scene.name}_outputs_rolling"}
+           if any(f.name() == f"{scene.name}_outputs_rolling" for f in cm.helpers) else {}),
         # outputs only a switch reads, in a function of their own (``Model.internal``)
         **({"internal_outputs": {"function": f"{scene.name}_internal", "names": list(cm.internal_names)}}
            if cm.internal_names else {}),

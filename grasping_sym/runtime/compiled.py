@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import threading
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
@@ -536,41 +535,55 @@ class CompiledLibrary:
             rc = self._c_dop853(*head, nstiff, *tail)
         return int(rc), t_fail.value
 
-    # -- a further CasADi-generated function ----------------------------------------------
-    def function(self, symbol: str):
-        """The library's CasADi-generated function ``symbol`` of two dense inputs ``(x, p)``
-        (``nx`` and ``len(p)`` entries) and one dense output, as ``f(x, p) -> ndarray``
-        called through ctypes (CasADi's C interface; no CasADi loaded)."""
-        ci = ctypes.c_longlong  # casadi_int as emit/cwriter.py writes it
-        fn, work = getattr(self._lib, symbol), getattr(self._lib, symbol + "_work")
+    # -- further CasADi-generated functions ------------------------------------------------
+    def _casadi_signature(self, symbol: str) -> tuple:
+        """``(address, n_x, n_p, n_out, work sizes)`` of the library's CasADi-generated
+        ``symbol`` of two dense inputs ``(x, p)`` and one dense output (CasADi's C interface,
+        casadi_int as emit/cwriter.py writes it: ``long long``)."""
+        ci = ctypes.c_longlong
         sizes = []
         for kind in ("in", "in", "out"):
             sparsity = getattr(self._lib, f"{symbol}_sparsity_{kind}")
             sparsity.restype, sparsity.argtypes = ctypes.POINTER(ci), [ci]
             shape = sparsity(len(sizes) if kind == "in" else 0)
             sizes.append(int(shape[0]) * int(shape[1]))
-        n_x, n_p, n_out = sizes
         sz = [ci() for _ in range(4)]
-        work(*map(ctypes.byref, sz))
-        arg = (ctypes.c_void_p * max(int(sz[0].value), 2))()
-        res = (ctypes.c_void_p * max(int(sz[1].value), 1))()
-        iw = np.zeros(max(int(sz[2].value), 1), dtype=np.int64)
-        w = np.zeros(max(int(sz[3].value), 1))
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
-        lock = threading.Lock()  # its work arrays are one per function: one call at a time
+        getattr(self._lib, symbol + "_work")(*map(ctypes.byref, sz))
+        work = (max(int(sz[0].value), 2), max(int(sz[1].value), 1), max(int(sz[2].value), 1),
+                max(int(sz[3].value), 1))
+        return ctypes.cast(getattr(self._lib, symbol), ctypes.c_void_p).value, *sizes, work
+
+    def function(self, symbol: str):
+        """The library's CasADi-generated function ``symbol`` of two dense inputs ``(x, p)``
+        (``nx`` and ``len(p)`` entries) and one dense output, as ``f(x, p) -> ndarray``
+        called through ctypes (no CasADi loaded)."""
+        rows = self.rows(symbol)
 
         def call(x, p) -> np.ndarray:
-            xa = np.ascontiguousarray(x, dtype=float)
+            return rows(np.asarray(x, dtype=float)[None, :], p)[0]
+
+        return call
+
+    def rows(self, symbol: str):
+        """``function(symbol)`` at every row of ``X``: ``f(X, p) -> Y`` (``gs_rows``, one C call)."""
+        addr, n_x, n_p, n_out, (sz_arg, sz_res, sz_iw, sz_w) = self._casadi_signature(symbol)
+        lib = self._lib
+        lib.gs_rows.argtypes = [_dp, _long, _dp, _long, _dp, _dp, _long, _dp, _dp, _dp, _dp]
+        lib.gs_rows.restype = ctypes.c_int
+
+        def call(X, p) -> np.ndarray:
+            Xa = np.ascontiguousarray(X, dtype=float)
             pa = np.ascontiguousarray(p, dtype=float)
-            if xa.shape != (n_x,) or pa.shape != (n_p,):
-                raise ValueError(f"{symbol} takes x of {n_x} and p of {n_p} entries, got shapes "
-                                 f"{xa.shape} and {pa.shape}")
-            y = np.empty(n_out)
-            with lock:
-                arg[0], arg[1], res[0] = xa.ctypes.data, pa.ctypes.data, y.ctypes.data
-                if fn(arg, res, iw.ctypes.data, w.ctypes.data, 0):
-                    raise FloatingPointError(f"{symbol} failed at x = {xa.tolist()!r:.200}")
-            return y
+            if Xa.ndim != 2 or Xa.shape[1] != n_x or pa.shape != (n_p,):
+                raise ValueError(f"{symbol} takes rows of x of {n_x} and p of {n_p} entries, got shapes "
+                                 f"{Xa.shape} and {pa.shape}")
+            Y = np.empty((len(Xa), n_out))
+            arg, res = (ctypes.c_void_p * sz_arg)(), (ctypes.c_void_p * sz_res)()
+            iw, w = np.zeros(sz_iw, dtype=np.int64), np.zeros(sz_w)
+            if lib.gs_rows(addr, len(Xa), Xa.ctypes.data, n_x, pa.ctypes.data, Y.ctypes.data, n_out,
+                           ctypes.addressof(arg), ctypes.addressof(res), iw.ctypes.data, w.ctypes.data):
+                raise FloatingPointError(f"{symbol} failed at one of the states {Xa.tolist()!r:.200}")
+            return Y
 
         return call
 

@@ -1266,7 +1266,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
     outs = {}
     if s.outputs:  # each segment's rows with its parameters (one compiled batch call each)
-        parts = [outputs_.along_rows(model, tt, xx, pp, r.sched) for tt, xx, pp in zip(rows_t, rows_x, rows_p)
+        parts = [_segment_outputs(r, tt, xx, pp, mm) for tt, xx, pp, mm in zip(rows_t, rows_x, rows_p, rows_mode)
                  if len(tt)]
         Y = parts[0] if len(parts) == 1 else np.concatenate(parts) if parts else \
             np.zeros((0, len(model.columns)))
@@ -1280,6 +1280,21 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
+
+
+def _segment_outputs(r: _Run, t, X, p, modes) -> np.ndarray:
+    """The outputs at a segment's rows (``outputs_.along_rows``); where every contact rolls, no
+    inputs vary and the outputs do not read the time, by the outputs with every mode rolling
+    folded in (the manifest's ``outputs_rolling``: the same numbers, the other modes'
+    branches left out)."""
+    model = r.model
+    symbol = model.manifest.get("outputs_rolling")
+    if symbol is None or r.sched is not None or model.manifest.get("outputs_time") or (modes != ROLLING).any():
+        return outputs_.along_rows(model, t, X, p, r.sched)
+    fn = model.run_cache.get("outputs_rolling")
+    if fn is None:
+        fn = model.run_cache["outputs_rolling"] = model.library.rows(symbol)
+    return fn(X, complete(model, p))
 
 
 def _mode_rows(modes, n: int) -> np.ndarray:

@@ -122,6 +122,9 @@ def manifest_problems(m: object) -> list[str]:
     if guard is not None and not (isinstance(guard, str) and _IDENT.match(guard)
                                   and guard in m.get("c_symbols", [])):
         out.append("rhs_guarded must name one of the model's C symbols")
+    rolling = m.get("outputs_rolling")
+    if rolling is not None and not (isinstance(rolling, str) and rolling in m.get("c_symbols", [])):
+        out.append("outputs_rolling must name one of the model's C symbols")
     internal = m.get("internal_outputs")
     if internal is not None and not (
             isinstance(internal, dict) and set(internal) == {"function", "names"}
