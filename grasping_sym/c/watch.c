@@ -18,23 +18,25 @@
  * it, and brackets its return to 0.
  * Its root (of g, or of g + tol unarmed) in its bracket is located on the dense output
  * (Illinois' regula falsi, to GS_WATCH_TTOL of the interval), the earliest of the step's
- * events is taken, and the loop stops there with GS_EVENT: the output rows before the event are written, row r (r =
- * stats[6]) holds the dense output's state at the event, row r + 1 the state at the start
- * of the step, *t_fail the event's time, and gs_watch_result gives the rest (below).
+ * events is taken, and the loop stops there with GS_EVENT: the output rows before the event
+ * are written, row r (r = stats[6]) holds the dense output's state at the event, row r + 1
+ * the state at the start of the step, *t_fail the event's time, and gs_watch_result gives
+ * the rest (below).
  * runtime/events.py then locates the root on the trajectory integrated again from the
  * step's start, the dense output's root as its first guess.
  *
  * A watched point (a step's end or a point of its dense output) is left unwatched while
- * every witness is armed and, at `safety` (gs_watch_witnesses; 8 in runtime/modes.py) times
- * the rate it had between its last two watched points, would still be above 0 there: a
- * margin far from its event costs no evaluation at every step. Never the run's end, never
+ * every witness is armed and would still be above 0 there by `safety` (gs_watch_witnesses; 8
+ * in runtime/modes.py) times what its rate and the change of its rate (from its last three
+ * watched points) take off it: a margin far from its event costs no evaluation at every step. Never the run's end, never
  * more than GS_WATCH_SKIPS dt after the last watched point, and at most GS_WATCH_SKIPS steps'
  * ends in a row, which are kept (with the start of the step of the last watched point). A
  * witness that fires at the next watched point is first looked for at them, in order; an
  * event found between two of them is bracketed by that step (the root's first guess the
  * secant between them; its step's start, kept, the state runtime/events.py integrates again
  * from), and the loop told to drop its output rows at or after it (gs_watch_step returns
- * 2). gs_watch_witnesses(safety = 0) watches every point.
+ * 2); a loop that fails (not a stop) with ends kept looks for an event among them first
+ * (gs_watch_failed). gs_watch_witnesses(safety = 0) watches every point.
  *
  * The outputs the witnesses read take p with the inputs at the watched time (p[k .. k+m) =
  * a + b t and p[k+m .. k+2m) = 0, as runtime.parameters.with_inputs does) and, for a model
@@ -61,11 +63,12 @@ typedef struct {
    * there, the start of its step */
   int which, armed_at_event;
   double t_lo, t_hi, slope, t_step, t_root;
-  /* leaving steps' ends unwatched: on or not, the run's end, each witness's last rate
-   * (known once two points were watched), the ends left (kept[0] the last watched point,
-   * kept[1 .. n_kept] the ends left since), the event's step start when it is one of them,
-   * and the counts of the points watched and left */
-  int skip, have_rate, have_curve, n_kept, n_fired;
+  /* leaving points unwatched (safety > 0): the run's end, each witness's last rate and the
+   * change of its rate (known once two and three points were watched; t_rate where the rate
+   * is), the ends left (kept[0] the start of the step of the last watched point, kept[1 ..
+   * n_kept] the ends left since), the witnesses firing at a kept end, and the counts of the
+   * points watched and left */
+  int have_rate, have_curve, n_kept, n_fired;
   double safety, t_end, rate[GS_WATCH_MAX], curve[GS_WATCH_MAX], t_rate, t_kept[GS_WATCH_SKIPS + 1];
   double n_eval, n_left;
   /* GS_WATCH_SKIPS + 2 states (malloc'd by gs_watch_witnesses, freed by gs_watch_clear):
@@ -204,7 +207,7 @@ static int gs_watch_probe(gs_work* wk, int k, double* a, double* ga, double* b, 
  * last watched point (dt > 0). */
 static int gs_watch_may_leave(double t) {
   const double span = t - gs_w.t_prev, lever = t - gs_w.t_rate;
-  if (!gs_w.skip || !gs_w.have_curve || !(t < gs_w.t_end) ||
+  if (!(gs_w.safety > 0.0) || !gs_w.kept || !gs_w.have_curve || !(t < gs_w.t_end) ||
       (gs_w.dt > 0.0 && span > GS_WATCH_SKIPS * gs_w.dt))
     return 0;
   for (int k = 0; k < gs_w.n; ++k)
@@ -547,10 +550,9 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.in_k = (int)in_k;
   gs_w.in_m = (int)in_m;
   gs_w.dt = dt;
-  gs_w.skip = safety > 0.0;
   gs_w.safety = safety;
   gs_w.n_kept = 0;
-  if (gs_w.skip && !gs_w.kept) /* none (no memory): every step's end is watched */
+  if (safety > 0.0 && !gs_w.kept) /* none (no memory): every point is watched */
     gs_w.kept = malloc((size_t)(GS_WATCH_SKIPS + 2) * gs_nx * sizeof(double));
   gs_w.n_eval = 0.0;
   gs_w.n_left = 0.0;

@@ -163,6 +163,9 @@ class CompiledLibrary:
         self.can_watch = hasattr(lib, "gs_watch_witnesses")  # (libraries of older versions lack it)
         #: ``watch``'s arguments to the C call, per its arguments (a run's segments repeat them)
         self._watched: dict = {}
+        if hasattr(lib, "gs_rows"):  # a helper function at many rows (``rows``)
+            lib.gs_rows.argtypes = [_dp, _long, _dp, _long, _dp, _dp, _long, _dp, _dp, _dp, _dp]
+            lib.gs_rows.restype = ctypes.c_int
         if self.can_watch:
             lib.gs_watch_witnesses.argtypes = [_long, _dp, _dp, _dp, _dp, _dp, _dp, _long, _long, _double, _double]
             lib.gs_watch_witnesses.restype = ctypes.c_int
@@ -568,8 +571,6 @@ class CompiledLibrary:
         """``function(symbol)`` at every row of ``X``: ``f(X, p) -> Y`` (``gs_rows``, one C call)."""
         addr, n_x, n_p, n_out, (sz_arg, sz_res, sz_iw, sz_w) = self._casadi_signature(symbol)
         lib = self._lib
-        lib.gs_rows.argtypes = [_dp, _long, _dp, _long, _dp, _dp, _long, _dp, _dp, _dp, _dp]
-        lib.gs_rows.restype = ctypes.c_int
 
         def call(X, p) -> np.ndarray:
             Xa = np.ascontiguousarray(X, dtype=float)

@@ -443,18 +443,6 @@ class _BodyRun(_Run):
         return float(np.dot(n, target - K @ F_roll))
 
     # ------------------------------------------------------------------ the maps at a switch
-    def _apply(self, x: np.ndarray, P: np.ndarray, rc: np.ndarray) -> np.ndarray:
-        """``x`` after the impulse ``P`` (N s, world) at the contact point ``rc`` (world,
-        from the centre)."""
-        x = x.copy()
-        q = x[3:7]
-        R = rotation(q)
-        x[7:10] += P / self.m
-        a, b = R.T @ rc, R.T @ P  # their cross product (np.cross costs ~20 us on 3-vectors)
-        x[10:13] += self.Hinv @ np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                                          a[0] * b[1] - a[1] * b[0]])
-        return x
-
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
         """The contact velocity set to 0 (the impulse that does it); the largest change."""
         K, vc, rc, _ = self.contact(y)
@@ -475,10 +463,13 @@ class _BodyRun(_Run):
             return None
         rc = [y[k] for k in self._RC]
         dv = max(abs(K[i][0] * P[0] + K[i][1] * P[1] + K[i][2] * P[2]) for i in range(3))
-        return self._apply_floats(x, P, rc), dv, True, e > 0
+        return self._apply(x, P, rc), dv, True, e > 0
 
-    def _apply_floats(self, x: np.ndarray, P: list, rc: list) -> np.ndarray:
-        """``_apply`` on Python floats."""
+    def _apply(self, x: np.ndarray, P, rc) -> np.ndarray:
+        """``x`` after the impulse ``P`` (N s, world) at the contact point ``rc`` (world,
+        from the centre), on Python floats (NumPy's overhead on 3-vectors is a switch's
+        largest part)."""
+        P, rc = [float(v) for v in P], [float(v) for v in rc]
         v = x.tolist()
         w, qx, qy, qz = v[3:7]
         s = w * w + qx * qx + qy * qy + qz * qz
@@ -495,7 +486,6 @@ class _BodyRun(_Run):
         v[7:13] = (v[7] + P[0] / m, v[8] + P[1] / m, v[9] + P[2] / m, v[10] + (h00 * c0 + h01 * c1 + h02 * c2),
                    v[11] + (h10 * c0 + h11 * c1 + h12 * c2), v[12] + (h20 * c0 + h21 * c1 + h22 * c2))
         return np.array(v)
-
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
                slips=None) -> tuple[np.ndarray, float, bool, bool]:
