@@ -207,7 +207,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
     return GS_ERR_ARGS;
   gs_stop_reset();
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
-  fnewt = fmax(GS_RADAU_FNEWT, 10.0 * GS_EPS / rtol);
+  fnewt = fmax(GS_RADAU_FNEWT, GS_RADAU_NEWTON_FLOOR * GS_EPS / rtol);
 
   for (int i = 0; i < n; ++i) yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, ynew, out, &row))) goto fail;
