@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Quality", "epsilon", "grasp_matrix", "internal_forces", "primitive_wrenches", "support"]
+__all__ = ["Quality", "epsilon", "grasp_matrix", "internal_forces", "primitive_wrenches", "support",
+           "two_contacts_squeeze"]
 
 #: The edges of the polyhedral cones bounding a 3D friction cone (``epsilon``): the bounds
 #: are then at most 8 % of ``mu`` apart. The hulls of 6D points grow fast: 3 contacts of 8
@@ -209,15 +210,44 @@ def support(points, normals, mu, directions, centre=None, length: float | None =
     return np.max(an + m[None] * at, axis=1)
 
 
+def _in_cone(v: np.ndarray, n: np.ndarray, mu) -> np.ndarray:
+    """Whether each row of ``v`` lies in the smooth friction cone about the matching row of
+    ``n`` (unit) of coefficient ``mu``: ``v.n >= 0`` and ``|v - (v.n) n| <= mu v.n``."""
+    vn = np.einsum("...i,...i->...", v, n)
+    return (vn >= 0) & (np.linalg.norm(v - vn[..., None] * n, axis=-1) <= mu * vn)
+
+
+def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
+    """For two 3D point contacts, row by row (``points``, ``normals``: ``(..., 2, 3)``;
+    ``mu``: one coefficient or one per contact): whether the line between them lies in both
+    friction cones, one contact pushing along it and the other back (Nguyen's squeeze), i.e.
+    whether the origin lies in ``W``. Two point contacts never close a 3D grasp: the pure
+    spin about that line, with the force that makes it a spin about the centre, pairs with
+    every contact force to 0 both ways (``h_W(u) = h_W(-u) = 0``), so epsilon <= 0 always;
+    it is exactly 0 where they squeeze, and the origin's distance outside ``W`` (< 0)
+    elsewhere. False for coincident points."""
+    p = np.asarray(points, dtype=float)
+    n = np.asarray(normals, dtype=float)
+    m = np.broadcast_to(np.asarray(mu, dtype=float), (2,))
+    d = p[..., 1, :] - p[..., 0, :]
+    apart = np.linalg.norm(d, axis=-1) > 0
+    one_way = _in_cone(d, n[..., 0, :], m[0]) & _in_cone(-d, n[..., 1, :], m[1])
+    other_way = _in_cone(-d, n[..., 0, :], m[0]) & _in_cone(d, n[..., 1, :], m[1])
+    return apart & (one_way | other_way)
+
+
 def epsilon(points, normals, mu, centre=None, length: float | None = None,
             edges: int = EDGES) -> Quality:
     """Ferrari and Canny's epsilon of the contacts (module docstring), as ``Quality(lower,
     upper)``: exact in 2D; in 3D the values of the polyhedral cones of ``edges`` edges
     inscribed in the friction cones (``lower``: their hull lies inside ``W``) and circumscribed
-    about them (``upper``: their hull holds ``W``)."""
+    about them (``upper``: their hull holds ``W``); exact (0, 0) for two 3D contacts that
+    squeeze (``two_contacts_squeeze``)."""
     if not (isinstance(edges, int) and edges >= 3):
         raise ValueError(f"edges = {edges!r}: give an integer >= 3")
     p, n, m, c = _checked(points, normals, mu, centre)
+    if p.shape == (2, 3) and bool(two_contacts_squeeze(p, n, m)):
+        return Quality(0.0, 0.0)
     inner = _inradius(primitive_wrenches(p, n, m, c, length, edges))
     if p.shape[1] == 2:
         return Quality(inner, inner)

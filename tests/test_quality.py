@@ -73,6 +73,33 @@ def test_two_antipodal_point_contacts_on_a_sphere_leave_the_spin_free(mu):
     np.testing.assert_allclose(quality.support(R * e, -e, mu, spin, length=R), 0.0, atol=1e-15)
 
 
+@pytest.mark.parametrize("mu", [0.3, 1.0])
+def test_two_contacts_on_a_sphere_squeeze_up_to_the_friction_angle(mu):
+    """3D, two contacts on a sphere at ``R (+-cos a, sin a, 0)``, inward normals: the line
+    between them runs along x and makes the angle ``a`` with each normal, so they squeeze
+    (Nguyen) iff ``tan a <= mu``. Squeezing, the origin lies in ``W`` and the free spin makes
+    epsilon exactly 0: the hulls of the inscribed and circumscribed polyhedral cones (computed
+    as for any grasp) bound it on both sides. Past the angle of the circumscribed cones the
+    origin lies outside both hulls: epsilon < 0, by the hulls as before."""
+    limit = math.atan(mu)
+    outer = math.atan(mu / math.cos(math.pi / quality.EDGES))
+    for a, squeezes in ((0.0, True), (0.5 * limit, True), (limit - 1e-6, True),
+                        (outer + 0.05, False), (1.2, False)):
+        e = np.array([[math.cos(a), math.sin(a), 0.0], [-math.cos(a), math.sin(a), 0.0]])
+        p, n = R * e, -e
+        assert bool(quality.two_contacts_squeeze(p, n, mu)) is squeezes, a
+        q = quality.epsilon(p, n, mu, length=R)
+        inner = quality._inradius(quality.primitive_wrenches(p, n, mu, length=R))
+        circ = quality._inradius(quality.primitive_wrenches(p, n, mu, length=R,
+                                                            scale=1.0 / math.cos(math.pi / quality.EDGES)))
+        if squeezes:
+            assert (q.lower, q.upper) == (0.0, 0.0) and q.force_closure is False
+            assert inner <= 0.0 <= circ + 1e-12
+        else:
+            assert q.lower == inner < 0 and q.upper == max(inner, circ) < 0
+            assert q.force_closure is False
+
+
 def test_three_contacts_on_a_sphere_are_bounded_and_the_bounds_close_in():
     """3D, three contacts at 120 degrees on the equator: a pure torque about the x axis pairs
     with the contacts' forces ``x x e_i``, along z, tangential: ``h = mu sqrt(3) / 2``
@@ -145,6 +172,15 @@ def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_m
     q = model.grasp_quality(res, mu=0.5)
     assert np.all(q["epsilon_lower"] == 0.0) and np.all(np.abs(q["epsilon_upper"]) < 1e-12)
     assert np.all(q["force_closure"] == 0.0)
+    # every row at once (the squeeze test on all rows) as row by row, where the contacts squeeze
+    # (mu 0.5) and, at mu 0.01, at rows of both kinds (the hulls, epsilon < 0, where they do not)
+    length = float(np.max(np.linalg.norm(p[0] - c[0], axis=1)))
+    for mu in (0.5, 0.01):
+        qm = model.grasp_quality(res, mu=mu)
+        rows = [quality.epsilon(p[k], n[k], mu, centre=c[k], length=length) for k in range(len(res.t))]
+        np.testing.assert_array_equal(qm["epsilon_lower"], [r.lower for r in rows])
+        np.testing.assert_array_equal(qm["epsilon_upper"], [r.upper for r in rows])
+    assert (qm["epsilon_upper"] < 0).any() and (qm["epsilon_upper"] == 0.0).any()
     margin = np.minimum(0.5 * res["f1"] - np.hypot(res["lam1"], res["eta1"]),
                         0.5 * res["f2"] - np.hypot(res["lam2"], res["eta2"]))
     np.testing.assert_allclose(q["cone_margin_min"], margin, rtol=0, atol=1e-12)

@@ -303,6 +303,19 @@ class ParametricSurface:
             "K_p": stack(30, 4).reshape(sh2), "T_p": stack(34, 2),
         }
 
+    @cached_property
+    def _numeric_frame(self):
+        x, y, n = self.frame
+        return sp.lambdify((U, V), [*self.S, *n, *x, *y], "numpy", cse=True)
+
+    def evaluate_frame(self, u, v) -> dict[str, np.ndarray]:
+        """``evaluate``'s ``point``, ``normal``, ``x``, ``y`` alone (``sh + (3,)`` each), without
+        the curvatures: what a contact's place and frame need (grasp quality along a run)."""
+        u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
+        vals = np.stack([np.broadcast_to(np.asarray(a, dtype=float), u.shape)
+                         for a in self._numeric_frame(u, v)], axis=-1)
+        return {"point": vals[..., 0:3], "normal": vals[..., 3:6], "x": vals[..., 6:9], "y": vals[..., 9:12]}
+
     def in_domain(self, u: float, v: float) -> bool:
         """Whether ``(u, v)`` lies in the declared domain."""
         (u0, u1), (v0, v1) = self.domain

@@ -34,7 +34,7 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
     rot = rotations(X[:, [names.index(k) for k in pose[3:]]])
     frames = []
     for i in range(1, len(scene.fingers) + 1):
-        geo = scene.object_surface.evaluate(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")])
+        geo = scene.object_surface.evaluate_frame(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")])
         world = {key: np.einsum("nij,nj->ni", rot, geo[key]) for key in ("point", "normal", "x", "y")}
         world["point"] = c + world["point"]
         frames.append(world)
@@ -98,22 +98,42 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
     mus = np.broadcast_to(np.asarray(mu, dtype=float), (k,))
     if length is None:
         length = float(np.max(np.linalg.norm(points[0] - centres[0], axis=1)))
-    lower, upper, closed = [], [], []
-    for c, p, n in zip(centres, points, normals):
-        q = quality.epsilon(p, n, mus, centre=c, length=length, edges=edges)
-        lower.append(q.lower)
-        upper.append(q.upper)
+    # two 3D contacts that squeeze: epsilon exactly 0, not closed (quality.two_contacts_squeeze),
+    # every row at once; the other rows by the hulls
+    lower, upper = np.zeros(len(points)), np.zeros(len(points))
+    closed = np.zeros(len(points))
+    squeeze = quality.two_contacts_squeeze(points, normals, mus) if points.shape[1:] == (2, 3) \
+        else np.zeros(len(points), dtype=bool)
+    for row in np.flatnonzero(~squeeze):
+        q = quality.epsilon(points[row], normals[row], mus, centre=centres[row], length=length, edges=edges)
+        lower[row], upper[row] = q.lower, q.upper
         fc = q.force_closure
-        closed.append(np.nan if fc is None else float(fc))
-    out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": np.array(lower),
-           "epsilon_upper": np.array(upper), "force_closure": np.array(closed)}
+        closed[row] = np.nan if fc is None else float(fc)
+    out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": lower,
+           "epsilon_upper": upper, "force_closure": closed}
     forces = contact_forces(model, result, frames)
     if forces is not None:
         f_n = np.einsum("nki,nki->nk", forces, normals)
         f_t = np.linalg.norm(forces - f_n[..., None] * normals, axis=-1)
         out["cone_margin_min"] = np.min(mus[None] * f_n - f_t, axis=1)
-        out["internal_force"] = np.array([np.linalg.norm(quality.internal_forces(p, f, c))
-                                          for c, p, f in zip(centres, points, forces)])
+        out["internal_force"] = _internal_norms(centres, points, forces)
+    return out
+
+
+def _internal_norms(centres, points, forces) -> np.ndarray:
+    """The norm of the contact forces' internal part at every row (``quality.internal_forces``);
+    for two contacts apart, every row at once: ``|(F1 - F2) . e| / sqrt(2)``, ``e`` the unit
+    vector between them (the part ``+-((F1 - F2) . e) e / 2`` at each)."""
+    out = np.full(len(points), np.nan)
+    general = np.ones(len(points), dtype=bool)
+    if points.shape[1] == 2:
+        d = points[:, 1] - points[:, 0]
+        dist = np.linalg.norm(d, axis=1)
+        general = ~(dist > 0)
+        e = d / np.where(general, 1.0, dist)[:, None]
+        out[~general] = np.abs(np.einsum("ni,ni->n", forces[:, 0] - forces[:, 1], e))[~general] / np.sqrt(2.0)
+    for row in np.flatnonzero(general):
+        out[row] = np.linalg.norm(quality.internal_forces(points[row], forces[row], centres[row]))
     return out
 
 
