@@ -228,7 +228,17 @@ def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
     elsewhere. False for coincident points."""
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
-    m = np.broadcast_to(np.asarray(mu, dtype=float), (2,))
+    if p.ndim < 2 or p.shape[-2:] != (2, 3) or n.shape != p.shape:
+        raise ValueError(f"points {p.shape} and normals {n.shape}: give two 3D contacts as two "
+                         "(2, 3) arrays, or (..., 2, 3) for many rows")
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n))):
+        raise ValueError("points and normals must be finite")
+    if np.any(np.abs(np.linalg.norm(n, axis=-1) - 1.0) > 1e-9):
+        raise ValueError("normals must be unit vectors")
+    m = np.asarray(mu, dtype=float)
+    if m.shape not in ((), (1,), (2,)) or np.any(~np.isfinite(m)) or np.any(m < 0):
+        raise ValueError(f"mu = {mu!r}: give a finite coefficient >= 0, or one per contact")
+    m = np.broadcast_to(m, (2,))
     d = p[..., 1, :] - p[..., 0, :]
     apart = np.linalg.norm(d, axis=-1) > 0
     one_way = _in_cone(d, n[..., 0, :], m[0]) & _in_cone(-d, n[..., 1, :], m[1])

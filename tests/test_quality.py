@@ -148,6 +148,15 @@ def test_bad_contacts_are_refused_by_name():
         quality.epsilon(R * e, -e, -0.1)
     with pytest.raises(ValueError, match="edges = 2"):
         quality.epsilon(R * e, -e, 0.5, edges=2)
+    two = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    for args, match in (((R * two[:, :2], -two[:, :2], 0.5), "two 3D contacts"),
+                        ((R * np.tile(two, (2, 1)), -np.tile(two, (2, 1)), 0.5), "two 3D contacts"),
+                        ((R * two, -2 * two, 0.5), "unit vectors"),
+                        ((R * two, -two, np.nan), "mu = nan"),
+                        ((R * two, -two, [0.5, 0.5, 0.5]), "one per contact"),
+                        ((np.full((2, 3), np.inf), -two, 0.5), "finite")):
+        with pytest.raises(ValueError, match=match):
+            quality.two_contacts_squeeze(*args)
 
 
 def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_model):
