@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Quality", "epsilon", "grasp_matrix", "internal_forces", "primitive_wrenches", "support",
-           "two_contacts_squeeze"]
+__all__ = ["Quality", "check_scales", "epsilon", "grasp_matrix", "internal_forces", "primitive_wrenches",
+           "support", "two_contacts_squeeze"]
 
 #: The edges of the polyhedral cones bounding a 3D friction cone (``epsilon``): the bounds
 #: are then at most 8 % of ``mu`` apart. The hulls of 6D points grow fast: 3 contacts of 8
@@ -126,6 +126,22 @@ def internal_forces(points, forces, centre=None) -> np.ndarray:
     stacked = f.reshape(-1)
     internal = stacked - np.linalg.pinv(G, rcond=1e-12) @ (G @ stacked)
     return internal.reshape(p.shape)
+
+
+def check_scales(length: float | None, edges: int) -> None:
+    """Refuse, by name, a torque scale ``length`` that is not None or a finite number > 0 (m),
+    and ``edges`` that is not an integer >= 3 (``epsilon``'s arguments, checked whether or not a
+    hull is built)."""
+    if not (isinstance(edges, int) and edges >= 3):
+        raise ValueError(f"edges = {edges!r}: give an integer >= 3")
+    if length is None:
+        return
+    try:
+        ok = math.isfinite(length) and length > 0
+    except TypeError:
+        ok = False
+    if not ok:
+        raise ValueError(f"length = {length!r}: give a torque scale > 0 (m)")
 
 
 def _length(p: np.ndarray, c: np.ndarray, length: float | None) -> float:
@@ -253,9 +269,9 @@ def epsilon(points, normals, mu, centre=None, length: float | None = None,
     inscribed in the friction cones (``lower``: their hull lies inside ``W``) and circumscribed
     about them (``upper``: their hull holds ``W``); exact (0, 0) for two 3D contacts that
     squeeze (``two_contacts_squeeze``)."""
-    if not (isinstance(edges, int) and edges >= 3):
-        raise ValueError(f"edges = {edges!r}: give an integer >= 3")
+    check_scales(length, edges)
     p, n, m, c = _checked(points, normals, mu, centre)
+    _length(p, c, length)
     if p.shape == (2, 3) and bool(two_contacts_squeeze(p, n, m)):
         return Quality(0.0, 0.0)
     inner = _inradius(primitive_wrenches(p, n, m, c, length, edges))

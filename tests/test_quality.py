@@ -157,6 +157,11 @@ def test_bad_contacts_are_refused_by_name():
                         ((np.full((2, 3), np.inf), -two, 0.5), "finite")):
         with pytest.raises(ValueError, match=match):
             quality.two_contacts_squeeze(*args)
+    # a pair that squeezes builds no hull: its length and edges are refused all the same
+    for kw, match in ((dict(length=-1.0), "length = -1.0"), (dict(length=math.nan), "length = nan"),
+                      (dict(edges=2), "edges = 2")):
+        with pytest.raises(ValueError, match=match):
+            quality.epsilon(R * two, -two, 0.5, **kw)
 
 
 def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_model):
@@ -184,6 +189,9 @@ def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_m
     # every row at once (the squeeze test on all rows) as row by row, where the contacts squeeze
     # (mu 0.5) and, at mu 0.01, at rows of both kinds (the hulls, epsilon < 0, where they do not)
     length = float(np.max(np.linalg.norm(p[0] - c[0], axis=1)))
+    for kw, match in ((dict(length=-1.0), "length = -1.0"), (dict(edges=2), "edges = 2")):
+        with pytest.raises(ValueError, match=match):  # every row squeezes: checked all the same
+            model.grasp_quality(res, mu=0.5, **kw)
     for mu in (0.5, 0.01):
         qm = model.grasp_quality(res, mu=mu)
         rows = [quality.epsilon(p[k], n[k], mu, centre=c[k], length=length) for k in range(len(res.t))]

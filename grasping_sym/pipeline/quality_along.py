@@ -98,6 +98,8 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
     mus = np.broadcast_to(np.asarray(mu, dtype=float), (k,))
     if length is None:
         length = float(np.max(np.linalg.norm(points[0] - centres[0], axis=1)))
+    # checked here for every row: the rows whose contacts squeeze never reach epsilon
+    quality.check_scales(length, edges)
     # two 3D contacts that squeeze: epsilon exactly 0, not closed (quality.two_contacts_squeeze),
     # every row at once; the other rows by the hulls
     lower, upper = np.zeros(len(points)), np.zeros(len(points))
