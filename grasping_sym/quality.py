@@ -134,8 +134,11 @@ def check_scales(length: float | None, edges: int) -> None:
     hull is built)."""
     if not (isinstance(edges, int) and edges >= 3):
         raise ValueError(f"edges = {edges!r}: give an integer >= 3")
-    if length is None:
-        return
+    if length is not None:
+        _check_length(length)
+
+
+def _check_length(length) -> None:
     try:
         ok = math.isfinite(length) and length > 0
     except TypeError:
@@ -146,8 +149,7 @@ def check_scales(length: float | None, edges: int) -> None:
 
 def _length(p: np.ndarray, c: np.ndarray, length: float | None) -> float:
     if length is not None:
-        if not (math.isfinite(length) and length > 0):
-            raise ValueError(f"length = {length!r}: give a torque scale > 0 (m)")
+        _check_length(length)
         return float(length)
     rho = float(np.max(np.linalg.norm(p - c, axis=1)))
     return rho if rho > 0 else 1.0
@@ -254,7 +256,11 @@ def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
     m = np.asarray(mu, dtype=float)
     if m.shape not in ((), (1,), (2,)) or np.any(~np.isfinite(m)) or np.any(m < 0):
         raise ValueError(f"mu = {mu!r}: give a finite coefficient >= 0, or one per contact")
-    m = np.broadcast_to(m, (2,))
+    return _squeeze(p, n, np.broadcast_to(m, (2,)))
+
+
+def _squeeze(p: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``two_contacts_squeeze`` of checked arrays (``m``: one coefficient per contact)."""
     d = p[..., 1, :] - p[..., 0, :]
     apart = np.linalg.norm(d, axis=-1) > 0
     one_way = _in_cone(d, n[..., 0, :], m[0]) & _in_cone(-d, n[..., 1, :], m[1])
@@ -271,8 +277,7 @@ def epsilon(points, normals, mu, centre=None, length: float | None = None,
     squeeze (``two_contacts_squeeze``)."""
     check_scales(length, edges)
     p, n, m, c = _checked(points, normals, mu, centre)
-    _length(p, c, length)
-    if p.shape == (2, 3) and bool(two_contacts_squeeze(p, n, m)):
+    if p.shape == (2, 3) and bool(_squeeze(p, n, m)):
         return Quality(0.0, 0.0)
     inner = _inradius(primitive_wrenches(p, n, m, c, length, edges))
     if p.shape[1] == 2:
