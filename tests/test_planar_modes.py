@@ -152,6 +152,43 @@ def test_the_rolling_model_runs_the_rolling_stretches(model, slide):
     assert (alone.modes == slide.modes).all()
 
 
+def test_a_repeated_rolling_run_takes_the_short_way_with_the_full_ways_numbers(model, slide, monkeypatch):
+    """A call with the settings and the start of a call that began rolling runs as that call's
+    first segment (``modes.short_way``, without the full way's checks and start): the same
+    samples, outputs, modes and stats, bit for bit. One that slips from there goes the full
+    way, which locates the switch (``slide``'s events and samples, bit for bit), and the
+    start is forgotten. A state or
+    output times the full way refuses are refused by name as before."""
+    te = np.linspace(0.0, 0.05, 51)                                  # the first slip: 0.063 s
+    model.run_cache.pop("modes_short", None)
+    full = model.simulate(0.05, mu=0.2, t_eval=te, **TOL)
+    assert full.events == [] and model.run_cache["modes_short"]
+
+    def no_full_way(*args, **kwargs):
+        raise AssertionError("the full way ran")
+
+    x0 = model.initial_state()
+    given = model.simulate(0.05, mu=0.2, t_eval=te, x0=x0, **TOL)      # a start given: its own
+    with monkeypatch.context() as m:
+        m.setattr(modes, "run", no_full_way)
+        short = model.simulate(0.05, mu=0.2, t_eval=te, **TOL)
+        short_given = model.simulate(0.05, mu=0.2, t_eval=te, x0=x0.copy(), **TOL)
+    for a, b in ((short, full), (short_given, given)):
+        assert np.array_equal(a.t, b.t) and np.array_equal(a.x, b.x)
+        assert b.outputs and all(np.array_equal(a[k], b[k]) for k in b.outputs)
+        assert (a.modes == b.modes).all() and a.events == [] and a.params == b.params
+        assert {k: v for k, v in a.stats.items() if k != "wall_time"} == \
+            {k: v for k, v in b.stats.items() if k != "wall_time"}
+    again = model.simulate(0.25, mu=0.2, t_eval=slide.t, **TOL)          # the short way's segment slips
+    assert again.events == slide.events and np.array_equal(again.x, slide.x)
+    assert all(b"" not in plan[3] for plan in model.run_cache["modes_short"].values())  # forgotten
+    nx = len(model.state_names)
+    with pytest.raises(RunArgumentError, match="shape"):
+        model.simulate(0.05, mu=0.2, t_eval=te, x0=np.zeros((1, nx)), **TOL)
+    with pytest.raises(RunArgumentError, match="strictly increasing"):
+        model.simulate(0.05, mu=0.2, t_eval=[0.0, 0.03, 0.02, 0.05], **TOL)
+
+
 def test_a_slip_found_past_unwatched_steps_is_where_watching_every_step_finds_it(model, slide, monkeypatch):
     """Steps left unwatched while the cone's margin is far from 0 at its rate (``c/watch.c``,
     ``modes.WATCH_SAFETY``) change nothing: the same switches, at the same times (1e-12 s),

@@ -418,13 +418,22 @@ class Model:
                 res = fastpath.run(self, plan, t_final, t_eval, x0)
                 if res is not None:
                     return res
+        # runtime.modes' short way: settings and a start a previous call accepted, rolling from it
+        modes_key = fastpath.key(method, rtol, atol, max_steps, project, checks, (mu, e, outputs), self.friction) \
+            if self.manifest.get("modes") and t_eval is not None and params is None and u is None \
+            and time_limit is None and slip == "stop" and not self.input_names else None
+        if modes_key is not None and type(t_final) in (float, int):
+            res = modes.short_way(self, modes_key, t_final, t_eval, x0)
+            if res is not None:
+                return res
         s = RunSettings.check(self, t_final, method=method, rtol=rtol, atol=atol, t_eval=t_eval,
                               h=h, max_steps=max_steps, project=project, outputs=outputs,
                               checks=checks, time_limit=time_limit)
         if self.manifest.get("modes"):  # contact that can change: runtime.modes
             modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(self.input_names))
-            x0, _ = run_.start_state(self, x0)
-            return modes.run(self, s, x0, mu, e, u)
+            x0, own_start = run_.start_state(self, x0)
+            return modes.run(self, s, x0, mu, e, u, None if modes_key is None else
+                             (modes_key, b"" if own_start else x0.tobytes()))
         if e is not None:
             raise RunArgumentError(f"e given, but model {self.name!r} has no impacts (no contact modes): "
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")

@@ -1156,10 +1156,11 @@ def rotation(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]]) / s
 
 
-def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> SimulationResult:
+def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -> SimulationResult:
     """``Model.simulate`` of a model with modes (module docstring); ``u``: the inputs of a
     model with inputs (``runtime.inputs``: numbers, or a table; each mode's segment restarts
-    at the table's knots)."""
+    at the table's knots); ``short``: ``(plan key, start key)`` under which a run that ends
+    well keeps its settings and its start for the short way (``short_way``), or None."""
     start = perf_counter()
     if s.method not in METHODS:
         raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs one of {METHODS} "
@@ -1171,6 +1172,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     t_eval = s.t_eval
     r.sched = run_.schedule(model, u, s.method, t_eval)
     x_now, modes, slips, y_now = _start(r, np.asarray(x0, dtype=float))
+    rolls = (x_now, list(modes), list(slips)) if y_now is not None and not r.events else None
     rows_t, rows_x, rows_mode, rows_p = [], [], [], []
     t_now = 0.0
     last_t = -math.inf
@@ -1194,6 +1196,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
                 rows_p.append(p)
             break
         at_start = _at_start(r, modes, slips, y_now)
+        if at_start is not None and not r.events:
+            rolls = None  # a witness past its event at the start: the short way cannot take it
         y_at, y_now = y_now, None
         if at_start is not None:  # a witness already past its event: it switches now
             name, j, terms = at_start
@@ -1251,6 +1255,16 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
         if reset is not None:  # None: a slide re-aimed, no switch
             _record(r, t_ev, j, name, value_, reset, before, modes)
         t_now = t_ev
+    res = _finish(r, s, start, rows_t, rows_x, rows_mode, rows_p)
+    if short is not None and rolls is not None and r.sched is None and not r.events:
+        _remember(model, short, s, r, rolls)
+    return res
+
+
+def _finish(r: _Run, s, start: float, rows_t, rows_x, rows_mode, rows_p) -> SimulationResult:
+    """The run's result from its segments' rows (their times, states, modes and parameters);
+    ``start``: the ``perf_counter`` at the run's start."""
+    model, mus, e = r.model, r.mus, r.e
     t_all = np.concatenate(rows_t)
     X_all = np.concatenate(rows_x)
     modes_all = np.concatenate(rows_mode) if rows_mode else np.zeros((0, r.k), dtype=int)
@@ -1270,6 +1284,75 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None) -> Simulation
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
                             events=r.events, modes=names[:, 0] if r.k == 1 else names)
+
+
+#: Start states the short way keeps per set of settings (the oldest dropped beyond this).
+SHORT_STARTS = 64
+
+
+def _remember(model, short, s, r: _Run, rolls) -> None:
+    """Keep, for the short way, the settings ``s`` a full run accepted (under the plan key
+    ``short[0]``) and its start (under ``short[1]``): ``rolls``, the state the run's first
+    segment started from and every contact's mode and slip there, all rolling, with no
+    witness past its event (a run that made no switch)."""
+    plans = model.run_cache.setdefault("modes_short", {})
+    key, at = short
+    plan = plans.get(key)
+    if plan is None or plan[1] != r.mus or plan[2] != r.e:
+        if len(plans) >= SHORT_STARTS:
+            plans.clear()
+        plan = plans[key] = (s, r.mus, r.e, {})
+    starts = plan[3]
+    starts[at] = rolls
+    if len(starts) > SHORT_STARTS:
+        del starts[next(iter(starts))]
+
+
+def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
+    """A run on the short way (``runtime.fastpath``'s, for a model with modes), or None for the
+    full way: settings a previous full run accepted (``key``, with no inputs, no time limit)
+    and a start ``x0`` (None: the model's own) it began rolling from, run as that run's first
+    segment, whose numbers are the full way's bit for bit. None when a witness fires (the
+    full way locates the switch and makes it; the start is forgotten, so a call that
+    switches pays its first segment twice once), the loop fails (the full way names it), or
+    ``x0`` or the output times are not plainly a state and ``0 .. t_final``."""
+    plan = model.run_cache.get("modes_short", {}).get(key)
+    if plan is None:
+        return None
+    if x0 is None:
+        at = b""
+    elif isinstance(x0, np.ndarray) and x0.dtype == np.float64 and x0.shape == (len(model.state_names),):
+        at = np.ascontiguousarray(x0).tobytes()
+    else:
+        return None
+    rolls = plan[3].get(at)
+    if rolls is None:
+        return None
+    t = np.array(t_eval, dtype=float)
+    if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or t[-1] != t_final or not np.all(np.diff(t) > 0) \
+            or not t[-1] > _END_AT_SWITCH:
+        return None
+    start = perf_counter()
+    s = dataclasses.replace(plan[0], t_final=float(t_final), t_eval=t, drop_first=False)
+    x_now, modes, slips = rolls
+    r = _RUNS["planar_fingers" if "planar_fingers" in model.manifest else model.manifest.get("kind", "body")](
+        model, s, plan[1], plan[2])
+    p = r.params(modes, slips)
+    leg = r.leg(modes, x_now)
+    own = leg is r.own_leg
+    try:
+        tt, X, st, hit = _segment(r, leg, leg.state(x_now), t, p if own else leg.model.default_params,
+                                  r.witnesses(modes, slips) if own else leg.watched)
+    except GraspingSymError:
+        return None
+    if hit is not None or len(tt) != len(t):
+        plan[3].pop(at, None)  # it switches from there: the next such call goes the full way at once
+        return None
+    r.stats["n_steps"] += int(st.get("n_steps", 0))
+    r.stats["n_rhs"] += int(st.get("n_rhs", 0))
+    r.stats["segments"] += 1
+    r.stats["rolling_model_segments"] += 0 if own else 1
+    return _finish(r, s, start, [tt], [leg.states(X)], [_mode_rows(modes, len(tt))], [p])
 
 
 def _segment_outputs(r: _Run, t, X, p, modes) -> np.ndarray:
