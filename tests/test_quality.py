@@ -232,3 +232,57 @@ def test_the_contact_forces_move_the_object_as_newton_says_and_squeeze_it(paper3
                                    [half, -half], rtol=0, atol=1e-12)
         assert abs(q["internal_force"][row] - math.sqrt(2) * np.linalg.norm(half)) < 1e-12
     assert q["internal_force"].min() > 1.0  # the grasp law squeezes: about 3 N along the line
+
+
+def test_the_squeeze_margin_for_optimal_control_is_the_squeeze_test_as_a_smooth_function(
+        paper3d_model, paper2d_model):
+    """``casadi_function("squeeze")`` ``(x, mu) -> margin``, per contact ``e . n_i -
+    1/sqrt(1 + mu_i^2)``. Exactly: contacts at the ellipsoid's equator at ``u`` and ``u + pi``
+    (through its centre; semi-axes a = 20, b = 25 mm), the object turned and moved, its
+    quaternion not of unit length: each margin is ``1/(|p| |g|) - 1/sqrt(1 + mu_i^2)`` with
+    ``p = (a cos u, b sin u)`` and ``g = (cos u / a, sin u / b)`` the ellipse's implicit
+    gradient. Along a run: the margins of the contacts' points and normals computed here, to
+    1e-12, both >= 0 exactly at the rows ``gs.quality.two_contacts_squeeze`` finds (rows of
+    both kinds at mu = 0.01: the line's largest angle to a normal along the run has tangents
+    0.001 to 0.019); its Jacobian is the central differences'. A 2D model has none."""
+    import casadi as ca
+
+    from grasping_sym.pipeline.quality_along import contacts_along
+
+    model = paper3d_model
+    fn = model.casadi_function("squeeze")
+    names = list(model.state_names)
+    a, b = 0.020, 0.025
+    mu = np.array([0.3, 1.2])
+    turn = np.array([0.9, 0.2, -0.3, 0.4]) * 1.1                      # |q| = 1.16
+    for u in (0.4, 1.1, 2.5):
+        x = model.initial_state().copy()
+        for k, v in zip(("x", "y", "z", "qw", "qx", "qy", "qz", "u_o1", "v_o1", "u_o2", "v_o2"),
+                        (0.01, -0.02, 0.03, *turn, u, 0.0, u + math.pi, 0.0)):
+            x[names.index(k)] = v
+        exact = 1.0 / (math.hypot(a * math.cos(u), b * math.sin(u)) * math.hypot(math.cos(u) / a, math.sin(u) / b))
+        np.testing.assert_allclose(np.asarray(fn(x, mu)).ravel(), exact - 1.0 / np.sqrt(1.0 + mu ** 2),
+                                   rtol=0, atol=1e-14)
+    res = model.simulate(0.5, t_eval=np.linspace(0.0, 0.5, 26))
+    _, p, n = contacts_along(model, res)
+    e = (p[:, 1] - p[:, 0]) / np.linalg.norm(p[:, 1] - p[:, 0], axis=1, keepdims=True)
+    for m in (0.5, 0.01):
+        cos = 1.0 / math.sqrt(1.0 + m * m)
+        here = np.column_stack([np.sum(e * n[:, 0], axis=1) - cos, -np.sum(e * n[:, 1], axis=1) - cos])
+        got = np.array([np.asarray(fn(x, [m, m])).ravel() for x in res.x])
+        np.testing.assert_allclose(got, here, rtol=0, atol=1e-12)
+        assert np.min(np.abs(got)) > 1e-9                          # no row on a cone's surface
+        squeeze = quality.two_contacts_squeeze(p, n, m)
+        np.testing.assert_array_equal((got >= 0).all(axis=1), squeeze)
+    assert squeeze.any() and not squeeze.all()                     # mu = 0.01: rows of both kinds
+    jac = fn.jacobian()
+    x, h = res.x[7], 1e-6
+    J = np.asarray(jac(x, mu, fn(x, mu))[0])                       # d margin / d x
+    for k in (names.index(s) for s in ("qx", "u_o1", "v_o2", "z")):
+        step = np.zeros(len(names))
+        step[k] = h
+        fd = (np.asarray(fn(x + step, mu)) - np.asarray(fn(x - step, mu))).ravel() / (2 * h)
+        np.testing.assert_allclose(J[:, k], fd, rtol=1e-6, atol=1e-8)
+    assert isinstance(fn, ca.Function)
+    with pytest.raises(ValueError, match="squeeze"):
+        paper2d_model.casadi_function("squeeze")

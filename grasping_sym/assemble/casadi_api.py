@@ -9,7 +9,11 @@ as an argument of their own:
 - ``outputs (x, u, p) -> y``: the scene's outputs;
 - ``cone (x, u, p, mu) -> (f, margin)``: every contact's normal force and friction-cone margin
   ``mu^2 f^2 - |F_t|^2`` (a path constraint ``f >= 0``, ``margin >= 0`` keeps every contact
-  from slipping).
+  from slipping);
+- ``squeeze (x, mu) -> margin`` (a 3D grasp of a free object by two contacts): per contact,
+  how far the line between the contacts lies inside its friction cone, ``e . n_i -
+  1/sqrt(1 + mu_i^2)`` (cosines; ``docs/conventions.md`` section 10): both >= 0 where the
+  contacts can squeeze the object, where its epsilon is 0, the best two contacts reach.
 
 ``p`` is the model's run-time parameters (``param_names``); the start's values (2D: the pivot)
 are those of the model's start. Being SX, every derivative of any order is exact (CasADi's
@@ -27,6 +31,7 @@ from pathlib import Path
 import casadi as ca
 
 from grasping_sym.assemble import kinds
+from grasping_sym.derive.bodies3d import surface_sx
 from grasping_sym.store import files as stored
 from grasping_sym.store import safety
 from grasping_sym.store.platform import library_tag
@@ -88,7 +93,51 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
         out["outputs"] = ca.Function(f"{scene.name}_outputs_of", [*head, x, u, p], [y[:len(own)]],
                                      [*hnames, "x", "u", "p"], ["y"], DERIVATIVE_OPTIONS)
     out["cone"] = _cone(scene, y, [*head, x, u, p], [*hnames, "x", "u", "p"])
+    if _squeezes(scene):
+        out["squeeze"] = _squeeze(scene, x)
     return out
+
+
+#: The object's pose among a free 3D object's states: its centre and its quaternion (w, x, y, z).
+POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+def _squeezes(scene) -> bool:
+    """Whether ``scene`` is a 3D grasp of a free object by two contacts (``squeeze``'s)."""
+    return getattr(scene, "kind", None) == "grasp3d" and len(scene.fingers) == 2 \
+        and set(POSE) <= set(scene.state_names)
+
+
+def _squeeze(scene, x: ca.SX) -> ca.Function:
+    """``squeeze (x, mu) -> margin``: the two contacts' points ``p_i`` and unit normals into
+    the object ``n_i`` (the object surface's at ``(u_o{i}, v_o{i})``, carried by the object's
+    pose, its quaternion normalised first), ``e = (p_2 - p_1)/|p_2 - p_1|``; per contact the
+    cosine of the angle between the direction it pushes along the line (``e``, ``-e``) and
+    its normal, less the cosine of its friction angle: ``e . n_1 - c_1``, ``-e . n_2 - c_2``,
+    ``c_i = 1/sqrt(1 + mu_i^2)``. Both >= 0 iff the line lies in both cones (Nguyen's
+    squeeze, ``gs.quality.two_contacts_squeeze``, with each contact pushing), where epsilon
+    is exactly 0; smooth where the points are apart."""
+    names = list(scene.state_names)
+    at = {k: x[names.index(k)] for k in (*POSE, "u_o1", "v_o1", "u_o2", "v_o2")}
+    q = ca.vertcat(*(at[k] for k in POSE[3:]))
+    w, a, b, c = ca.vertsplit(q / ca.norm_2(q))
+    R = ca.vertcat(ca.horzcat(1 - 2 * (b * b + c * c), 2 * (a * b - w * c), 2 * (a * c + w * b)),
+                   ca.horzcat(2 * (a * b + w * c), 1 - 2 * (a * a + c * c), 2 * (b * c - w * a)),
+                   ca.horzcat(2 * (a * c - w * b), 2 * (b * c + w * a), 1 - 2 * (a * a + b * b)))
+    centre = ca.vertcat(at["x"], at["y"], at["z"])
+    points, normals = [], []
+    for i in (1, 2):
+        geo = surface_sx(scene.object_surface, at[f"u_o{i}"], at[f"v_o{i}"])
+        out = R @ geo["n"]
+        points.append(centre + R @ geo["S"])
+        normals.append(-out / ca.norm_2(out))
+    d = points[1] - points[0]
+    e = d / ca.norm_2(d)
+    mu = ca.SX.sym("mu", 2)
+    cos = 1 / ca.sqrt(1 + mu ** 2)
+    margin = ca.vertcat(ca.dot(e, normals[0]) - cos[0], -ca.dot(e, normals[1]) - cos[1])
+    return ca.Function(f"{scene.name}_squeeze", [x, mu], [margin], ["x", "mu"], ["margin"],
+                       DERIVATIVE_OPTIONS)
 
 
 def output_rows(fn: ca.Function, names: list[str], rows: list[int]) -> ca.Function:

@@ -42,7 +42,11 @@ class BuiltModel(Model):
         ``"constraints"`` ``(x, p) -> C``, ``"outputs"`` ``(x, u, p) -> y`` or ``"cone"``
         ``(x, u, p, mu) -> (f, margin)`` (every contact's normal force and friction-cone margin
         ``mu^2 f^2 - |F_t|^2``: a path constraint ``f >= 0``, ``margin >= 0`` keeps the contacts
-        from slipping, ``mu`` one per contact); ``u`` the inputs
+        from slipping, ``mu`` one per contact), or ``"squeeze"`` ``(x, mu) -> margin`` (a 3D
+        grasp of a free object by two contacts: per contact ``e . n_i - 1/sqrt(1 + mu_i^2)``,
+        both >= 0 where the contacts can squeeze the object along the line between them, where
+        its grasp quality epsilon is 0, the best two contacts reach; conventions section 10);
+        ``u`` the inputs
         (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
         start's values the model's. With ``time`` the ode and outputs take the time first.
         ``outputs`` (with ``"outputs"``): the names of the outputs to give, in that order (the
@@ -77,8 +81,9 @@ class BuiltModel(Model):
             for k, f in casadi_api.public_functions(scene, self.start_params, time=time).items():
                 self._public[(k, time, False, None)] = f
         if whole not in self._public:
-            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints', 'cone' or 'outputs' "
-                             "(the latter only for a model with outputs)")
+            raise ValueError(f"which = {which!r}: choose 'ode', 'constraints', 'cone', 'outputs' "
+                             "(a model with outputs) or 'squeeze' (a 3D grasp of a free object by "
+                             "two contacts)")
         fn = self._public[whole]
         if picked is not None:
             fn = casadi_api.output_rows(fn, list(picked),
