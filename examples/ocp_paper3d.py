@@ -5,7 +5,9 @@ effort, both contacts kept closed.
 paper3d with joint torques ``u`` (five) added to the grasp law, which holds the object against
 gravity: direct collocation (Legendre) in CasADi's ``Opti`` with IPOPT on the exact closed loop
 (``model.casadi_function``), ``min ∫ |u|² dt``, the normal forces ``>= 1 N`` at the collocation
-points. The optimal ``u`` is re-simulated by the compiled model.
+points. The optimal ``u`` is re-simulated by the compiled model. ``solve(..., squeeze=mu)``
+also keeps the grasp able to squeeze the object under ``mu`` at the collocation points
+(``model.casadi_function("squeeze")``).
 
 The closed loop is called once per collocation point (not through ``Function.map``): CasADi
 then differentiates each call as the model's functions ask (``casadi_api.DERIVATIVE_OPTIONS``):
@@ -50,8 +52,11 @@ def _quat_matrix(q):
 
 
 def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool = False,
-          verbose: bool = False) -> dict:
-    """The optimal control problem (``compiled``: see examples/ocp_paper2d.py)."""
+          verbose: bool = False, squeeze: float | None = None) -> dict:
+    """The optimal control problem (``compiled``: see examples/ocp_paper2d.py). ``squeeze``: a
+    friction coefficient under which the grasp must stay able to squeeze the object at every
+    collocation point (``model.casadi_function("squeeze")``'s margins >= 0: the line between
+    the contacts inside both friction cones, where the grasp's epsilon is 0)."""
     f = model.casadi_function("ode", compiled=compiled)
     forces = model.casadi_function("outputs", compiled=compiled, outputs=("f1", "f2"))
     x0 = model.initial_state()
@@ -82,6 +87,11 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
         opti.subject_to(X[:, k + 1] == xs @ D)
         cost = cost + h * ca.sumsqr(U[:, k])
     opti.subject_to(ca.vec(Y) >= F_MIN)
+    margins = None
+    if squeeze is not None:
+        fs = model.casadi_function("squeeze", compiled=compiled)
+        margins = ca.horzcat(*[fs(Xc[:, j], [squeeze, squeeze]) for j in points])
+        opti.subject_to(ca.vec(margins) >= 0)
     # the end: turned by ANGLE about z since the start, and at rest
     rel = _quat_matrix(X[iq:iq + 4, n]) @ R0.T
     opti.subject_to(ca.atan2(rel[1, 0], rel[0, 0]) == ANGLE)
@@ -99,7 +109,8 @@ def solve(model, *, n: int = N_INTERVALS, degree: int = DEGREE, compiled: bool =
     return {"U": np.atleast_2d(sol.value(U)).reshape(nu, n), "wall_time": wall,
             "iterations": int(stats["iter_count"]), "status": stats["return_status"],
             "cost": float(sol.value(cost)), "h": h, "R0": R0,
-            "f_points": np.array(sol.value(Y))}
+            "f_points": np.array(sol.value(Y)),
+            "squeeze_points": None if margins is None else np.array(sol.value(margins))}
 
 
 def resimulate(model, result: dict):

@@ -85,7 +85,8 @@ def test_trifinger_turns_the_rounded_cube_in_force_closure(tmp_path):
 def test_ocp_paper3d_turns_the_held_ellipsoid_on_a_coarse_mesh():
     """The 3D example's problem on a coarse mesh (3 intervals of degree 2: the example's own,
     8 of degree 3, takes 40 s): IPOPT solves it, and the compiled model re-simulating the
-    torques turns the object near the target with both contacts closed."""
+    torques turns the object near the target with both contacts closed; and again with the
+    grasp kept able to squeeze the object under mu = 0.05 (``squeeze=``)."""
     ocp = _example("ocp_paper3d")
     import grasping_sym as gs
 
@@ -97,6 +98,20 @@ def test_ocp_paper3d_turns_the_held_ellipsoid_on_a_coarse_mesh():
     phi = ocp.turn(model, res, result["R0"])
     assert abs(phi[-1] - ocp.ANGLE) < 0.02
     assert min(res["f1"].min(), res["f2"].min()) > ocp.F_MIN
+    # the squeeze as a path constraint (casadi_function("squeeze")): without it the optimum's
+    # contact line leans out of mu = 0.05 cones (tan 0.071 measured); with it, IPOPT keeps the
+    # margins >= 0 at the collocation points and the re-simulated run squeezes at every row
+    from grasping_sym.pipeline.quality_along import contacts_along
+
+    def squeezes(run):
+        _, p, n = contacts_along(model, run)
+        return gs.quality.two_contacts_squeeze(p, n, 0.05)
+
+    assert not squeezes(res).all()
+    held = ocp.solve(model, n=3, degree=2, squeeze=0.05)
+    assert held["status"] == "Solve_Succeeded" and held["squeeze_points"].min() >= -1e-7
+    again = ocp.resimulate(model, held)
+    assert squeezes(again).all() and min(again["f1"].min(), again["f2"].min()) > ocp.F_MIN
 
 
 def test_compiled_casadi_functions_equal_the_sx_ones_and_their_derivatives():
