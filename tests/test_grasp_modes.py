@@ -188,33 +188,6 @@ def test_a_sweep_over_mu_measures_slip_and_hold(model, slide, tmp_path):
     assert np.isinf(ds["first_slip_1"].sel(mu=0.5)) and np.isinf(ds["first_slip_2"].sel(mu=0.5))
 
 
-def test_a_rising_table_meets_the_held_object(base):
-    """A driven plane (``world_plane(..., motion=(0, "0.1*t", 0))``): the table rises at
-    0.1 m/s under the held ellipsoid; its gap is the exact distance of the ellipsoid to the
-    moving plane, ``n . (c - w0 - d(t)) - |D R^T n|``; the impact is located where that reaches
-    0, and afterwards the object's contact moves with the table (relative normal speed 0)."""
-    table = gs.scenes.world_plane((0.0, 0.02, 0.0), (0.0, 1.0, 0.0), support=(-1.5708, 0.0),
-                                  motion=(0, "0.1*t", 0))
-    model = gs.build(gs.scenes.with_modes(base, planes=[table]))
-    law = gs.contact.coulomb((3.0, 3.0, 0.5))
-    r = model.simulate(0.1, mu=law, t_eval=np.linspace(0.0, 0.1, 101), **TOL)
-    hit = [e for e in r.events if e["contact"] == 3 and e["witness"] == "gap"]
-    assert len(hit) == 1 and hit[0]["from"] == "separated"
-    names = base.state_names
-    D = np.diag(SEMI_AXES)
-
-    def exact(t, x):
-        c, q = x[[names.index(k) for k in "xyz"]], x[[names.index(k) for k in ("qw", "qx", "qy", "qz")]]
-        return c[1] - 0.02 - 0.1 * t - np.linalg.norm(D @ rotation(q).T @ np.array([0.0, 1.0, 0.0]))
-
-    before = np.flatnonzero(r.t < hit[0]["t"])
-    assert np.max(np.abs([exact(t, x) - g for t, x, g in zip(r.t[before], r.x[before], r["gap3"][before])])) < 1e-12
-    at = model.simulate(hit[0]["t"], mu=law, t_eval=[0.0, hit[0]["t"]], **TOL)
-    assert abs(exact(at.t[-1], at.x[-1])) < 1e-9
-    after = r.t > hit[0]["t"]
-    assert (r.modes[after, 2] != "separated").all() and np.max(np.abs(r["normal_speed3"][after])) < 1e-9
-
-
 BALL_R, BALL_M = 0.02, 0.04
 
 
@@ -279,6 +252,37 @@ def test_one_finger_presses_a_free_ball_onto_a_table():
     assert y["tangential_force2"] == pytest.approx(abs(T), rel=1e-6)
     assert np.hypot(y["f1"], y["tangential_force1"]) == pytest.approx(np.linalg.norm(F), rel=1e-7)
     assert res["y"][-1] == pytest.approx(R, abs=1e-10) and abs(y["gap2"]) < 1e-10
+
+
+def test_a_rising_table_meets_the_pressed_ball():
+    """A driven plane (``world_plane(..., motion=(0, "0.1*t", 0))``): the table starts 0.5 mm
+    under the ball that one finger presses from above (``_pressed_ball``) and rises at
+    0.1 m/s; its gap is the exact distance of the ball to the moving plane,
+    ``n . (c - w0 - d(t)) - R``; the impact is located where that reaches 0, and afterwards
+    the ball's contact moves with the table (relative normal speed 0) while the table lifts
+    it and the finger."""
+    R = BALL_R
+    _, scene = _pressed_ball("press_rise", 0.004)
+    table = gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0),
+                                  motion=(0, "0.1*t", 0))
+    model = gs.build(gs.scenes.with_modes(scene, planes=[table]))
+    law = gs.contact.coulomb((3.0, 0.5))
+    r = model.simulate(0.03, mu=law, t_eval=np.linspace(0.0, 0.03, 61), **TOL)
+    hit = [e for e in r.events if e["contact"] == 2 and e["witness"] == "gap"]
+    assert len(hit) == 1 and hit[0]["from"] == "separated"
+    iy = scene.state_names.index("y")
+
+    def exact(t, x):
+        return x[iy] - 0.1 * t - R
+
+    before = np.flatnonzero(r.t < hit[0]["t"])
+    assert len(before) > 3
+    assert np.max(np.abs([exact(t, x) - g for t, x, g in zip(r.t[before], r.x[before], r["gap2"][before])])) < 1e-12
+    at = model.simulate(hit[0]["t"], mu=law, t_eval=[0.0, hit[0]["t"]], **TOL)
+    assert abs(exact(at.t[-1], at.x[-1])) < 1e-9
+    after = r.t > hit[0]["t"]
+    assert (r.modes[after, 1] != "separated").all() and np.max(np.abs(r["normal_speed2"][after])) < 1e-9
+    assert r["y"][-1] > R + 0.001                                   # lifted past its start
 
 
 def test_a_turntable_spinning_up_drags_the_pressed_ball():
