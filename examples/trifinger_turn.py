@@ -18,6 +18,7 @@ import sys
 import numpy as np
 
 import grasping_sym as gs
+from grasping_sym.pipeline import solve_start
 from grasping_sym.runtime.result import rotations
 
 ANGLE = 0.3                        # rad, about the vertical
@@ -34,10 +35,13 @@ def rotation(model, X) -> np.ndarray:
 
 
 def run() -> dict:
-    held = gs.build(gs.scenes.trifinger())
-    R0 = rotation(held, held.initial_state()[None, :])[0]
+    held = gs.scenes.trifinger()
+    # the cube's rotation at the consistent start (solved, no model built: a law does not move it)
+    start = np.asarray(solve_start(held)["initial_state"])
+    k = held.state_names.index("qw")
+    R0 = rotations(start[None, k:k + 4])[0]
     law = gs.controllers.turn3d(ANGLE, GAIN, DAMPING, MAX_TORQUE, axis=AXIS, reference=R0)
-    model = gs.build(gs.scenes.trifinger(controller=law))   # the hand's structure is reused
+    model = gs.build(gs.scenes.trifinger(controller=law))      # from the same start
     res = model.simulate(T_FINAL, t_eval=np.linspace(0.0, T_FINAL, 201))
     rel = rotation(model, res.x) @ R0.T
     phi = np.arctan2(rel[:, 1, 0], rel[:, 0, 0])
