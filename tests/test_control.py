@@ -40,6 +40,20 @@ def test_torque_inputs_are_named_and_zero_by_default(torque_model, closed_loop):
     np.testing.assert_array_equal(a.x, b.x)
 
 
+def test_a_model_with_inputs_loads_from_its_cache(torque_model):
+    """A model with inputs has two run-time parameters per input in its driver (``u = a + b
+    t``): its manifest is valid, a second build loads it from the cache instead of deriving
+    and compiling it again, and ``gs.load`` reads it (both refused it as an invalid manifest)."""
+    from grasping_sym.store.manifest_schema import manifest_problems
+
+    assert manifest_problems(torque_model.manifest) == []
+    again = gs.build(gs.scenes.paper2d(inputs="torques"))
+    assert again.build_info["source"] == "cache" and "rebuilt_because" not in again.build_info
+    loaded = gs.load(torque_model.path)
+    u = [2e-3, -1e-3]
+    np.testing.assert_array_equal(loaded.simulate(0.2, u=u, **RADAU).x, torque_model.simulate(0.2, u=u, **RADAU).x)
+
+
 def test_the_rhs_is_affine_in_the_inputs(torque_model):
     for x in _states_on_the_motion(torque_model):
         f0 = torque_model.rhs(x)
