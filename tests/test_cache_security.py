@@ -298,6 +298,23 @@ def test_concurrent_forced_builds_never_poison_the_cache(cache):
     ctypes.CDLL(str(lib))  # loads in this process too
 
 
+def test_concurrent_builds_of_one_model_compile_it_once():
+    """Three processes build the same new model at once (in the session's cache, whose driver
+    objects are compiled): one derives and compiles it while holding its entry's lock, the
+    others wait for the lock and load what it made."""
+    name = f"once_{os.getpid()}_{time.time_ns() % 10**9}"
+    code = ("import sys, json, grasping_sym as gs; "
+            "m = gs.build(gs.scenes.paper2d(runtime=('fd',), name=sys.argv[1])); "
+            "print(json.dumps([m.build_info['source'], m.simulate(0.1).x[-1].tolist()]))")
+    procs = [subprocess.Popen([sys.executable, "-c", code, name], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(3)]
+    outs = [p.communicate() for p in procs]
+    assert all(p.returncode == 0 for p in procs), [e[-800:] for _, e in outs]
+    got = [json.loads(o) for o, _ in outs]
+    assert sorted(source for source, _ in got) == ["cache", "cache", "derived"]
+    assert got[0][1] == got[1][1] == got[2][1]
+
+
 def test_a_full_disk_during_a_build_is_named(cache, monkeypatch):
     """Any write of the build failing for lack of space: CacheWriteError, not a bare OSError."""
     import tempfile as tf

@@ -65,6 +65,8 @@ log = logging.getLogger(__name__)
 
 #: The shared directory of the definition keys (``store.paths.SHARED_DIRS``).
 DEFINITIONS = "definitions"
+#: The lock file in a model's cache entry that one build at a time holds while it writes it.
+BUILD_LOCK = ".build.lock"
 _HEX64 = re.compile(r"[0-9a-f]{64}")
 
 #: The 4-lane rhs (radau's three stage evaluations in one call, ``codegen.lanes``) is made
@@ -316,27 +318,14 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
     info: dict = {"source": "cache"}
     why = _stale(manifest, digest, lib) if not force else "force=True"
     if why:
-        if manifest is not None:
-            log.info("rebuilding %s: %s", scene.name, why)
-        safety.clean_stale(directory)
-        committed = cache.committed_dir(scene.name)
-        cm = stored.read_manifest(committed)
-        if not force and cm is not None and cm.get("hash") == digest:
-            say(f"using committed C from {committed}")
-            for f in cm["files"]:
-                safety.write_bytes(directory / f, (committed / f).read_bytes())
-            manifest, info = cm, {"source": "committed C"}
-        else:
-            manifest = generate(scene, directory, count_ops=False, progress=progress)
-            info = {"source": "derived", **manifest.pop("timings")}
-        if not force and why != "no manifest":
-            info["rebuilt_because"] = why
-        say(f"compiling {scene.name} with gcc")
-        t_c = time.perf_counter()
-        lib = compile_library(directory, manifest)
-        manifest = compiled_manifest(manifest, lib)
-        stored.write_manifest(directory, manifest)
-        info["compile"] = time.perf_counter() - t_c
+        # one process or thread at a time builds an entry: a concurrent build of the same
+        # model (another worker, notebook or thread) waits and finds it done
+        with safety.exclusive(directory / BUILD_LOCK):
+            if not force:
+                manifest = stored.read_manifest(directory)
+                why = _stale(manifest, digest, lib)
+            if why:
+                manifest, info, lib = _make(scene, directory, manifest, why, digest, force, say, progress)
     t_s = time.perf_counter()
     skey = known["start_key"] if known else start_key(scene)
     start, info["start_source"] = _start(scene, directory, say, skey,
@@ -356,6 +345,33 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
     info["total"] = time.perf_counter() - t0
     model.build_info = info
     return model
+
+
+def _make(scene, directory: Path, manifest, why: str, digest: str, force: bool, say, progress):
+    """``(manifest, info, library)``: the model's C (committed, or derived now) compiled into
+    ``directory``, whose cached entry is stale (``why``)."""
+    if manifest is not None:
+        log.info("rebuilding %s: %s", scene.name, why)
+    safety.clean_stale(directory)
+    committed = cache.committed_dir(scene.name)
+    cm = stored.read_manifest(committed)
+    if not force and cm is not None and cm.get("hash") == digest:
+        say(f"using committed C from {committed}")
+        for f in cm["files"]:
+            safety.write_bytes(directory / f, (committed / f).read_bytes())
+        manifest, info = cm, {"source": "committed C"}
+    else:
+        manifest = generate(scene, directory, count_ops=False, progress=progress)
+        info = {"source": "derived", **manifest.pop("timings")}
+    if not force and why != "no manifest":
+        info["rebuilt_because"] = why
+    say(f"compiling {scene.name} with gcc")
+    t_c = time.perf_counter()
+    lib = compile_library(directory, manifest)
+    manifest = compiled_manifest(manifest, lib)
+    stored.write_manifest(directory, manifest)
+    info["compile"] = time.perf_counter() - t_c
+    return manifest, info, lib
 
 
 def _stale(manifest: dict | None, digest: str, lib: Path) -> str | None:
