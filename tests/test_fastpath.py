@@ -61,3 +61,32 @@ def test_problems_on_the_short_way_are_still_named(paper2d_model):
         m.simulate(1.0, **{**KW, "max_steps": 3})  # now a plan: the failed run goes the full way
     with pytest.raises(ValueError, match="ends at"):
         m.simulate(2.0, **KW)
+
+
+#: Arguments equal to a plan's or plainly like its output times that the full path refuses by
+#: name: the short ways (``fastpath``, ``modes.short_way``) must not run them.
+REFUSED = [
+    ({"outputs": 0}, "outputs = 0 is int"),
+    ({"max_steps": 1_000_000.0}, "max_steps = 1000000.0 must be an integer"),
+    ({"t_eval": np.array([False, True])}, "array of bool"),
+    ({"t_eval": ["0", "1.0"]}, "array of <U"),
+    ({"t_eval": [0.0, 1.0 + 0j]}, "array of complex"),
+    ({"t_eval": np.array([0.0, 1.0], dtype=object)}, "array of object"),
+]
+
+
+@pytest.mark.parametrize("modes", [False, True], ids=["rolling", "modes"])
+def test_what_the_full_path_refuses_the_short_ways_refuse(paper2d_model, modes):
+    """With a plan of the same settings in place (``True == 1``, ``1.0 == 1``: the keys hold
+    each value's type), every argument the full path refuses is refused by name, not run."""
+    m = gs.build(gs.scenes.with_modes(gs.scenes.paper2d())) if modes else paper2d_model
+    kw = {**KW, "max_steps": 1_000_000, "mu": 1.0}
+    m.simulate(1.0, **kw)
+    m.simulate(1.0, **kw)  # the short way, planned
+    for change, words in REFUSED:
+        with pytest.raises(gs.errors.RunArgumentError, match=words.replace("(", r"\(")):
+            m.simulate(1.0, **{**kw, **change})
+    with pytest.raises(gs.errors.RunArgumentError, match="t_final = inf"):
+        m.simulate(float("inf"), **{**kw, "t_eval": [0.0, float("inf")]})
+    with pytest.raises(gs.errors.RunArgumentError, match="mu"):
+        m.simulate(1.0, **{**kw, "mu": True})

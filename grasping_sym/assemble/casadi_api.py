@@ -114,9 +114,12 @@ def _squeeze(scene, x: ca.SX) -> ca.Function:
     pose, its quaternion normalised first), ``e = (p_2 - p_1)/|p_2 - p_1|``; per contact the
     cosine of the angle between the direction it pushes along the line (``e``, ``-e``) and
     its normal, less the cosine of its friction angle: ``e . n_1 - c_1``, ``-e . n_2 - c_2``,
-    ``c_i = 1/sqrt(1 + mu_i^2)``. Both >= 0 iff the line lies in both cones (Nguyen's
-    squeeze, ``gs.quality.two_contacts_squeeze``, with each contact pushing), where epsilon
-    is exactly 0; smooth where the points are apart."""
+    ``c_i = 1/sqrt(1 + mu_i^2)`` (``mu_i >= 0``). Both >= 0 iff the line lies in both cones
+    with the contacts squeezing the object between them (Nguyen's squeeze,
+    ``gs.quality.two_contacts_squeeze``, which also takes the other orientation, each contact
+    pushing away from the other: a grasp from inside, impossible on a convex surface), where
+    epsilon is exactly 0; smooth where the points are apart. With ``time`` it is the same
+    function (it does not read the time)."""
     names = list(scene.state_names)
     at = {k: x[names.index(k)] for k in (*POSE, "u_o1", "v_o1", "u_o2", "v_o2")}
     q = ca.vertcat(*(at[k] for k in POSE[3:]))

@@ -307,6 +307,7 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
     """``build`` without the translation of cache write failures."""
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
+    called = time.time()
     root = cache.cache_root()
     definition = definition_key(scene)
     known = _known(root, definition) if definition is not None and not force else None
@@ -321,7 +322,8 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
         # one process or thread at a time builds an entry: a concurrent build of the same
         # model (another worker, notebook or thread) waits and finds it done
         with safety.exclusive(directory / BUILD_LOCK):
-            if not force:
+            # what another build wrote meanwhile; forced: only if written after this call began
+            if not force or _written_since(directory, called):
                 manifest = stored.read_manifest(directory)
                 why = _stale(manifest, digest, lib)
             if why:
@@ -345,6 +347,15 @@ def _build(scene, *, progress: Progress | None = None, force: bool = False) -> B
     info["total"] = time.perf_counter() - t0
     model.build_info = info
     return model
+
+
+def _written_since(directory: Path, when: float) -> bool:
+    """Whether the manifest in ``directory`` was written at or after ``when`` (``time.time()``):
+    by a build that began after a forced one was asked for, so as new as it would make."""
+    try:
+        return (directory / stored.MANIFEST).stat().st_mtime >= when
+    except OSError:
+        return False
 
 
 def _make(scene, directory: Path, manifest, why: str, digest: str, force: bool, say, progress):

@@ -58,15 +58,38 @@ class Plan:
         self.mu = s.mu  # each contact's friction coefficient, checked on the samples (or None)
 
 
+def typed(value):
+    """``value`` with the type of each of its parts (tuples entry by entry), for a key:
+    ``True``, ``1`` and ``1.0`` are equal but not the same argument, and the full way refuses
+    some of them."""
+    if isinstance(value, tuple):
+        return tuple(typed(v) for v in value)
+    return type(value), value
+
+
 def key(method, rtol, atol, max_steps, project, checks, mu=None, friction=None):
     """The settings' key of a plan (None when one of them cannot be a key): with the run's
-    ``mu`` and the model's friction law, which the plan's cone check reads."""
+    ``mu`` and the model's friction law, which the plan's cone check reads; each with its
+    type (``typed``)."""
     try:
-        k = (method, rtol, atol, max_steps, project, checks, mu, friction)
+        k = typed((method, rtol, atol, max_steps, project, checks, mu, friction))
         hash(k)
     except TypeError:
         return None
     return k
+
+
+def plain_times(t_eval, t_final) -> np.ndarray | None:
+    """``t_eval`` as a new float array when it plainly is output times from 0 to ``t_final``
+    (real numbers, finite, strictly increasing), else None: the full way checks it and names
+    what is wrong."""
+    t = np.asarray(t_eval)
+    if t.dtype.kind not in "fiu" or t.ndim != 1 or t.size < 2:
+        return None
+    t = np.array(t, dtype=float)
+    if t[0] != 0.0 or t[-1] != t_final or not np.isfinite(t[-1]) or not np.all(np.diff(t) > 0):
+        return None
+    return t
 
 
 def remember(model, k, s: RunSettings) -> None:
@@ -94,8 +117,8 @@ def checked(model, x0: np.ndarray | None) -> None:
 def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     """The run on the short way, or None when it must go the full way (arguments it does not
     take, checks not yet passed for this ``x0``, or a failed run)."""
-    t = np.array(t_eval, dtype=float)
-    if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or t[-1] != t_final:
+    t = plain_times(t_eval, t_final)
+    if t is None:
         return None
     memory = model.short_way
     if x0 is None:
@@ -103,7 +126,10 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         if plan.checks and b"" not in memory.checked:
             return None
     else:
-        x = np.ascontiguousarray(x0, dtype=float)
+        x = np.asarray(x0)
+        if x.dtype.kind not in "fiu":  # the full way names what else it is
+            return None
+        x = np.ascontiguousarray(x, dtype=float)
         if x.shape != memory.x_start.shape or (plan.checks and x.tobytes() not in memory.checked):
             return None
     m = t.size

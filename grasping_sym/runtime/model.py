@@ -408,7 +408,8 @@ class Model:
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
         short = (t_eval is not None and params is None and u is None and time_limit is None
-                 and (not outputs or not self.columns) and slip == "stop" and not self.manifest.get("modes"))
+                 and (outputs is False or outputs is True and not self.columns) and slip == "stop"
+                 and not self.manifest.get("modes"))
         method, rtol, atol, chosen = run_defaults(self, method, rtol, atol)
         plan_key = fastpath.key(method, rtol, atol, max_steps, project, checks, mu, self.friction) \
             if short else None

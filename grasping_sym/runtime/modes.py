@@ -52,7 +52,7 @@ from grasping_sym.errors import (
     RunArgumentError,
     StateLeftDomainError,
 )
-from grasping_sym.runtime import events, failures, friction, integrators
+from grasping_sym.runtime import events, failures, fastpath, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.parameters import complete
@@ -1305,7 +1305,7 @@ def _remember(model, short, s, r: _Run, rolls) -> None:
     starts = plan[3]
     starts[at] = rolls
     if len(starts) > SHORT_STARTS:
-        del starts[next(iter(starts))]
+        starts.pop(next(iter(starts)), None)  # another thread may have dropped it
 
 
 def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
@@ -1326,11 +1326,8 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
     else:
         return None
     rolls = plan[3].get(at)
-    if rolls is None:
-        return None
-    t = np.array(t_eval, dtype=float)
-    if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or t[-1] != t_final or not np.all(np.diff(t) > 0) \
-            or not t[-1] > _END_AT_SWITCH:
+    t = fastpath.plain_times(t_eval, t_final)
+    if rolls is None or t is None or not t[-1] > _END_AT_SWITCH:
         return None
     start = perf_counter()
     s = dataclasses.replace(plan[0], t_final=float(t_final), t_eval=t, drop_first=False)
