@@ -13,6 +13,7 @@ path's, bit for bit (the same call with the same arrays).
 """
 from __future__ import annotations
 
+import math
 from time import perf_counter
 
 import numpy as np
@@ -86,8 +87,10 @@ def plain_times(t_eval, t_final) -> np.ndarray | None:
     t = np.asarray(t_eval)
     if t.dtype.kind not in "fiu" or t.ndim != 1 or t.size < 2:
         return None
-    t = np.array(t, dtype=float)
-    if t[0] != 0.0 or t[-1] != t_final or not np.isfinite(t[-1]) or not np.all(np.diff(t) > 0):
+    t = t.astype(float)  # a copy
+    if not (t[0] == 0.0 and t[-1] == t_final and 0.0 < t_final < math.inf):
+        return None
+    if t.size > 2 and not (t[1:] > t[:-1]).all():  # a NaN fails it too
         return None
     return t
 
