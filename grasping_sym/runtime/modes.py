@@ -1167,8 +1167,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
                                "(the loops in C, with which its switches are located by integrating "
                                "again)")
     mus, e = friction_law(model, mu_arg, e_arg)
-    kind = model.manifest.get("kind", "body")
-    r = _RUNS["planar_fingers" if "planar_fingers" in model.manifest else kind](model, s, mus, e)
+    r = _new_run(model, s, mus, e)
     t_eval = s.t_eval
     r.sched = run_.schedule(model, u, s.method, t_eval)
     x_now, modes, slips, y_now = _start(r, np.asarray(x0, dtype=float))
@@ -1216,10 +1215,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         watched = r.witnesses(modes, slips) if own else leg.watched
         pl = p if own else leg.model.default_params
         t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched)
-        r.stats["n_steps"] += int(st.get("n_steps", 0))
-        r.stats["n_rhs"] += int(st.get("n_rhs", 0))
-        r.stats["segments"] += 1
-        r.stats["rolling_model_segments"] += 0 if own else 1
+        _count(r, st, own)
         t_look = perf_counter()
         found = None if hit is None else _locate(r, leg, pl, watched, hit)
         keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
@@ -1259,6 +1255,21 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
     if short is not None and rolls is not None and r.sched is None and not r.events:
         _remember(model, short, s, r, rolls)
     return res
+
+
+def _new_run(model, s, mus, e: float) -> _Run:
+    """The run's state for ``model``'s kind (``_RUNS``)."""
+    kind = "planar_fingers" if "planar_fingers" in model.manifest else model.manifest.get("kind", "body")
+    return _RUNS[kind](model, s, mus, e)
+
+
+def _count(r: _Run, st: dict, own: bool) -> None:
+    """Add a segment's counts (``st``, its loop's stats; ``own``: run by the model with modes
+    itself) to the run's."""
+    r.stats["n_steps"] += int(st.get("n_steps", 0))
+    r.stats["n_rhs"] += int(st.get("n_rhs", 0))
+    r.stats["segments"] += 1
+    r.stats["rolling_model_segments"] += 0 if own else 1
 
 
 def _finish(r: _Run, s, start: float, rows_t, rows_x, rows_mode, rows_p) -> SimulationResult:
@@ -1332,8 +1343,7 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
     start = perf_counter()
     s = dataclasses.replace(plan[0], t_final=float(t_final), t_eval=t, drop_first=False)
     x_now, modes, slips = rolls
-    r = _RUNS["planar_fingers" if "planar_fingers" in model.manifest else model.manifest.get("kind", "body")](
-        model, s, plan[1], plan[2])
+    r = _new_run(model, s, plan[1], plan[2])
     p = r.params(modes, slips)
     leg = r.leg(modes, x_now)
     own = leg is r.own_leg
@@ -1345,10 +1355,7 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
     if hit is not None or len(tt) != len(t):
         plan[3].pop(at, None)  # it switches from there: the next such call goes the full way at once
         return None
-    r.stats["n_steps"] += int(st.get("n_steps", 0))
-    r.stats["n_rhs"] += int(st.get("n_rhs", 0))
-    r.stats["segments"] += 1
-    r.stats["rolling_model_segments"] += 0 if own else 1
+    _count(r, st, own)
     return _finish(r, s, start, [tt], [leg.states(X)], [_mode_rows(modes, len(tt))], [p])
 
 
