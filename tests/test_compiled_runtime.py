@@ -286,11 +286,13 @@ def test_compile_clean_and_atomic(tmp_path, pendulum, caplog):
                                CompiledLibrary(so).rhs([0.3, 0.1], P), rtol=1e-15)
 
 
-def test_models_of_different_sizes_link_the_same_driver_objects(tmp_path, monkeypatch):
-    """The driver's objects are compiled once per set of features: a model of 3 states and one
-    of 5 (each with 2 parameters, outputs of different lengths, a Jacobian) link the very same
-    object files, each library reads its own sizes at run time (``objects.links_c``), and a
-    wrong shape is reported with the library's own size."""
+def test_models_of_different_sizes_and_features_link_the_same_driver_objects(tmp_path, monkeypatch):
+    """The driver's objects are compiled once per set of work sizes: a model of 3 states and
+    one of 5 (each with 2 parameters, outputs of different lengths, a Jacobian) and one of 4
+    with neither outputs nor a Jacobian link the very same object files; each library reads
+    its own sizes and features at run time (``objects.links_c``): the one without a Jacobian
+    integrates on differences to the same answer, the one without outputs has none to call, and a wrong shape is
+    reported with the library's own size."""
     from grasping_sym.toolchain import objects
 
     monkeypatch.setenv("GRASPING_SYM_CACHE", str(tmp_path / "cache"))
@@ -298,21 +300,25 @@ def test_models_of_different_sizes_link_the_same_driver_objects(tmp_path, monkey
     real = objects.driver_objects
     monkeypatch.setattr(objects, "driver_objects",
                         lambda *a, **k: linked.append(real(*a, **k)) or linked[-1])
-    libs = {}
-    for nx in (3, 5):
+    for nx, features in ((3, True), (5, True), (4, False)):
         x, p = ca.SX.sym("x", nx), ca.SX.sym("p", 2)
         ode = -p[0] * x + p[1] * ca.vertcat(x[1:], x[0]) ** 2  # a ring of decaying, coupled states
         rhs = _dae_rhs(f"ring{nx}_rhs", x, p, ode)
         out = ca.Function(f"ring{nx}_outputs", [x, p], [ca.vertcat(*[x[i] * x[i] for i in range(nx - 1)])])
         d = tmp_path / f"ring{nx}"
         d.mkdir()
-        c_file = _generate(d, f"ring{nx}", [rhs, rhs.jacobian(), out])
-        lib = CompiledLibrary(build_library(c_file, d / f"ring{nx}.so", rhs, out,
-                                            jac_fn=rhs.jacobian()))
+        jac = rhs.jacobian() if features else None
+        c_file = _generate(d, f"ring{nx}", [rhs, jac, out] if features else [rhs])
+        lib = CompiledLibrary(build_library(c_file, d / f"ring{nx}.so", rhs,
+                                            out if features else None, jac_fn=jac))
         x0, pv = np.linspace(0.1, 0.5, nx), np.array([0.7, 0.2])
         np.testing.assert_array_equal(lib.rhs(x0, pv), np.array(rhs(0, x0, [], pv, [])[0]).ravel())
-        np.testing.assert_array_equal(lib.outputs(x0, pv), np.array(out(x0, pv)).ravel())
-        assert lib.outputs(x0, pv).shape == (nx - 1,)
+        assert lib.has_outputs is features
+        if features:
+            np.testing.assert_array_equal(lib.outputs(x0, pv), np.array(out(x0, pv)).ravel())
+            assert lib.outputs(x0, pv).shape == (nx - 1,)
+        else:
+            assert lib.ny == -1 and not hasattr(lib._ext, "outputs")
         with pytest.raises(ValueError, match=rf"\({nx},\)"):
             lib.rhs(np.zeros(nx + 1), pv)
         with pytest.raises(ValueError, match=r"np = 2"):
@@ -321,8 +327,7 @@ def test_models_of_different_sizes_link_the_same_driver_objects(tmp_path, monkey
         ref = solve_ivp(lambda t, y, f=rhs, pv=pv: np.array(f(t, y, [], pv, [])[0]).ravel(),
                         (0.0, 1.0), x0, t_eval=np.linspace(0.0, 1.0, 11), rtol=1e-11, atol=1e-13)
         np.testing.assert_allclose(X, ref.y.T, rtol=0, atol=1e-7)
-        libs[nx] = lib
-    assert len(linked) == 2 and linked[0] == linked[1]
+    assert len(linked) == 3 and linked[0] == linked[1] == linked[2]
     assert len(list((tmp_path / "cache" / "objects").glob("driver-*"))) == 1
 
 

@@ -28,10 +28,10 @@
  *               stop with GS_ERR_INTERRUPT, as do all runs after Ctrl-C
  *   keep        1: X holds every output row, n_runs x n_out x nx (NaN after a failure's
  *               last written row); 0: X holds the final state, n_runs x nx (NaN on failure)
- *   Y           NULL, or the outputs (GS_HAS_OUT) at the rows X holds: n_runs x n_out x ny
+ *   Y           NULL, or the outputs (the model's) at the rows X holds: n_runs x n_out x ny
  *               (keep) or n_runs x ny, NaN where X is
  *   Y0, CD0     NULL, or the outputs at X0[i] (n_runs x ny) and max |Cdot| at X0[i] (n_runs,
- *               needs GS_HAS_CON): what simulate's initial checks read
+ *               needs constraints): what simulate's initial checks read
  *   status      n_runs: the single loop's return value (n_out on success, a GS_ERR_* code);
  *               GS_ERR_INTERRUPT also for runs never started because the batch stopped (their
  *               stats row is 0 but for GS_ST_ROWS = -1, their X, Y, Y0, CD0 NaN)
@@ -73,15 +73,11 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
   double st[GS_NSTATS] = {0};
   double tf = NAN;
   long rc;
-#if GS_HAS_OUT
   if (job->Y0 && gs_outputs(x0, p, job->Y0 + i * gs_ny)) gs_fill_nan(job->Y0 + i * gs_ny, gs_ny);
-#endif
-#if GS_HAS_CON
   if (job->CD0) {
     double cd[gs_nc];
     job->CD0[i] = gs_constraints(x0, p, NULL, NULL, cd, NULL) ? NAN : gs_max_abs(cd, gs_nc);
   }
-#endif
   if (job->method == 0)
     rc = gs_radau5(job->t_out[0], m, job->t_out, x0, p, job->rtol, job->atol, job->h0,
                    job->max_steps, job->lo, job->hi, job->mask, job->proj_tol, scratch, st, &tf);
@@ -120,7 +116,6 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
   } else {
     gs_fill_nan(job->X + i * nx, nx);
   }
-#if GS_HAS_OUT
   if (job->Y) {
     const long rows = job->keep ? m : 1;
     double* Y = job->Y + i * rows * gs_ny;
@@ -129,7 +124,6 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
     for (long r = 0; r < rows; ++r)
       if (r >= good || gs_outputs(X + r * nx, p, Y + r * gs_ny)) gs_fill_nan(Y + r * gs_ny, gs_ny);
   }
-#endif
   if (ok) __atomic_fetch_add(&job->ok, 1, __ATOMIC_RELAXED);
   if (rc == GS_ERR_INTERRUPT) __atomic_store_n(&job->stopped, 1, __ATOMIC_RELAXED);
 }
@@ -154,11 +148,9 @@ static void* gs_batch_worker(void* arg) {
       }
       gs_fill_nan(job->X + i * (job->keep ? job->n_out : 1) * gs_nx,
                   (job->keep ? job->n_out : 1) * gs_nx);
-#if GS_HAS_OUT
       if (job->Y) gs_fill_nan(job->Y + i * (job->keep ? job->n_out : 1) * gs_ny,
                               (job->keep ? job->n_out : 1) * gs_ny);
       if (job->Y0) gs_fill_nan(job->Y0 + i * gs_ny, gs_ny);
-#endif
       if (job->CD0) job->CD0[i] = NAN;
       continue;
     }
@@ -179,12 +171,7 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
       !X || !status || !t_fail || p_stride < 0 || (gs_np > 0 && !P) || !(time_limit >= 0.0) ||
       (method == 2 && (nsteps < 1 || stride < 1 || nsteps % stride || nsteps / stride + 1 != n_out)))
     return GS_ERR_ARGS;
-#if !GS_HAS_OUT
-  if (Y || Y0) return GS_ERR_ARGS;
-#endif
-#if !GS_HAS_CON
-  if (CD0) return GS_ERR_ARGS;
-#endif
+  if ((!gs_has_out && (Y || Y0)) || (!gs_has_con && CD0)) return GS_ERR_ARGS;
   gs_batch_job job = {
       .method = method, .keep = keep != 0, .n_runs = n_runs, .n_out = n_out, .rows = n_out,
       .nsteps = nsteps, .stride = stride, .max_steps = max_steps, .nstiff = nstiff,

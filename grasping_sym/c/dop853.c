@@ -135,9 +135,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
 
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, y1, out, &row))) goto fail;
   if (row == n_out) goto done;
-#if GS_HAS_OUT
   if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p, t_out[n_out - 1]))) goto fail;
-#endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
   st[GS_ST_RHS] += 1;
@@ -278,7 +276,6 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     st[GS_ST_HLAST] = h;
     int event = 0;
     double t_ev = t;
-#if GS_HAS_OUT
     if (gs_watching()) {
       const gs_dop853_dense dn = {y, &dense[0][0], told, hsol};
       event = gs_watch_step(wk, told, t, y1, p, gs_dop853_interp, &dn, &t_ev, ys);
@@ -288,7 +285,6 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
       }
       while (event == 2 && row > 0 && t_out[row - 1] >= t_ev) --row; /* an earlier step's */
     }
-#endif
     while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
       double* o = out + row * n;
       if (t_out[row] == t) {
@@ -298,12 +294,10 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
         for (int i = 0; i < n; ++i)
           o[i] = y[i] + s * (dense[0][i] + s1 * (dense[1][i] + s * (dense[2][i] + s1 * (
                  dense[3][i] + s * (dense[4][i] + s1 * (dense[5][i] + s * dense[6][i]))))));
-#if GS_HAS_CON
         if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
           for (int i = 0; i < n; ++i) y1[i] = o[i];
           goto fail;
         }
-#endif
       }
       ++row;
     }
@@ -312,9 +306,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
         y1[i] = y[i];
         y[i] = ys[i];
       }
-#if GS_HAS_OUT
       if (event == 2) gs_watch_event_start(y1);
-#endif
       t = t_ev;
       rc = GS_EVENT;
       goto fail;
@@ -334,8 +326,6 @@ done:
   return gs_adaptive_end(n_out, row, t, st, stats, t_fail, out, y, y1);
 
 fail:
-#if GS_HAS_OUT
   rc = gs_watch_failed(wk, rc, p, t_out, &row, &t, y, y1); /* an event left unwatched first */
-#endif
   return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, y1);
 }

@@ -28,61 +28,56 @@
  *   gs_driver.h    the gs_ prototypes used by pyfast.c, and the model's sizes
  *   lu_real.h      lu.c's real LU routines (included twice: any size, and unrolled)
  *
- * The model's sizes are read at run time: hidden const ints defined by the library's link
- * file (toolchain/objects.py: links_c), compiled with the model's own C, so that the
- * driver's objects are compiled once per set of the macros below and serve models of any
- * size:
+ * The model is read at run time: the library's link file (toolchain/objects.py: links_c),
+ * compiled with the model's own C, defines hidden const ints for its sizes and features and
+ * forwards fixed names to its functions, so that the driver's objects are compiled once per
+ * set of work sizes (below) and serve models of any size and features:
  *
  *   gs_nx         number of states nx (>= 1)
  *   gs_np         number of parameters np (>= 0)
- *   gs_ny         number of outputs ny (0 without GS_HAS_OUT)
+ *   gs_ny         number of outputs ny (0 without outputs)
  *   gs_out_time   1 when the outputs read the time (a last entry of p): only watch.c
  *                 calls them then, gs_info reports none and gs_outputs refuses
- *   gs_nc         number of constraints nc (>= 1 with GS_HAS_CON, else 0)
+ *   gs_nc         number of constraints nc (>= 1 with constraints, else 0)
+ *   gs_has_out, gs_has_jac, gs_has_con, gs_has_lanes
+ *                 1 when the model has outputs, a compiled Jacobian, constraints, a
+ *                 4-lane rhs; else 0, and the function below is a stub that fails
+ *   gs_jac_nin, gs_jac_nout, gs_jac_block
+ *                 the Jacobian's Function.n_in(), n_out() and the index of its output
+ *                 d ode / d x (at most GS_SZ_ARG, GS_SZ_RES: checked by links_c)
  *
- * Everything else is configured by preprocessor macros passed with -D (the same for
- * every file):
+ * and the functions, under fixed names:
  *
- *   GS_RHS        name of the CasADi DAE right-hand side, e.g. paper2d_rhs.
- *                 Inputs (t[1], x[nx], z[0], p[np], u[0]),
- *                 outputs (ode[nx], alg[0], quad[0], zero[0]).          required
- *   GS_HAS_OUT    1 if an outputs function exists, else 0         default 0
- *   GS_OUT        name of the outputs function, inputs (x[nx], p[np] or, with gs_out_time,
- *                 p[np + 1]),
- *                 output y[ny]                                    needed if GS_HAS_OUT
+ *   gs_model_rhs  the CasADi DAE right-hand side, inputs (t[1], x[nx], z[0], p[np], u[0]),
+ *                 outputs (ode[nx], alg[0], quad[0], zero[0])
+ *   gs_model_outputs   inputs (x[nx], p[np] or, with gs_out_time, p[np + 1]), output y[ny]
+ *   gs_model_jac  CasADi's Function.jacobian() of the rhs: inputs (t, x, z, p, u, <nominal
+ *                 outputs>...), outputs one block per (output, input) pair.  It is called
+ *                 generically: all gs_jac_nin inputs are NULL except t (0), x (1) and p (3)
+ *                 (CasADi reads a NULL input as zeros; the nominal outputs are structurally
+ *                 unused), all gs_jac_nout results are NULL except block gs_jac_block =
+ *                 d ode / d x (nx x nx), whose sparsity is read from
+ *                 gs_model_jac_sparsity_out(gs_jac_block) (compressed column format [nrow,
+ *                 ncol, colind[ncol+1], row[nnz]], or [nrow, ncol, 1] when dense) and
+ *                 scattered into a dense matrix.  Without it gs_radau5 uses forward
+ *                 differences of the rhs.
+ *   gs_model_constraints  inputs (x[nx], p[np]), outputs C[nc] (position constraints, zero
+ *                 on the motion), dC/dx (nc x nx), Cdot[nc] (d C / dt along the closed
+ *                 loop), dCdot/dv (nc x nx: the speeds' columns of dCdot/dx, the others
+ *                 unused); both Jacobians dense, column-major (CasADi's storage)
+ *   gs_model_rhs_lanes  int f(const double* t, const double* const* x, const double* p,
+ *                 double* const* xdot): the rhs at four (t[s], x[s]) at once (codegen/lanes.py),
+ *                 bit-identical to four rhs calls; gs_radau5 evaluates its three stages with
+ *                 one call
+ *
+ * The preprocessor macros passed with -D (the same for every file):
+ *
  *   GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W
- *                 work sizes: maximum over the functions used of CasADi's
- *                 Function.sz_arg(), sz_res(), sz_iw(), sz_w()            required
+ *                 work sizes: at least the maximum over the model's functions of CasADi's
+ *                 Function.sz_arg(), sz_res(), sz_iw(), sz_w() (objects.py rounds them up
+ *                 to powers of two)                                  required
  *   GS_CASADI_INT integer type of CasADi's iw array       default long long int
  *                 (must match casadi_int of the generated file)
- *   GS_HAS_JAC    1 if the Jacobian of GS_RHS is compiled in, else 0  default 0
- *   GS_JAC        its name, e.g. jac_paper2d_rhs (CasADi's Function.jacobian() of
- *                 GS_RHS: inputs (t, x, z, p, u, <nominal outputs>...), outputs one
- *                 block per (output, input) pair).  It is called generically: all
- *                 GS_JAC_NIN inputs are NULL except t (0), x (1) and p (3) (CasADi
- *                 reads a NULL input as zeros; the nominal outputs are structurally
- *                 unused), all GS_JAC_NOUT results are NULL except block
- *                 GS_JAC_BLOCK = d ode / d x (nx x nx), whose sparsity is read from
- *                 the generated GS_JAC##_sparsity_out(GS_JAC_BLOCK) (compressed
- *                 column format [nrow, ncol, colind[ncol+1], row[nnz]], or
- *                 [nrow, ncol, 1] when dense) and scattered into a dense matrix.
- *                                                                 needed if GS_HAS_JAC
- *   GS_JAC_NIN, GS_JAC_NOUT   Function.n_in(), n_out() of GS_JAC  needed if GS_HAS_JAC
- *   GS_JAC_BLOCK  index of the output d ode / d x                 default 1
- *                 (the GS_SZ_* maxima must include GS_JAC's work sizes)
- *   GS_HAS_CON    1 if a constraints function is compiled in, else 0  default 0
- *   GS_CON        its name, e.g. paper2d_constraints: inputs (x[nx], p[np]), outputs
- *                 C[nc] (position constraints, zero on the motion), dC/dx (nc x nx),
- *                 Cdot[nc] (d C / dt along the closed loop), dCdot/dv (nc x nx: the
- *                 speeds' columns of dCdot/dx, the others unused); both Jacobians
- *                 dense, column-major (CasADi's storage)             needed if GS_HAS_CON
- *                 (the GS_SZ_* maxima must include GS_CON's work sizes)
- *   GS_HAS_RHS_LANES  1 if the 4-lane rhs is compiled in, else 0  default 0
- *   GS_RHS_LANES  its name, e.g. paper2d_rhs_lanes (codegen/lanes.py): int f(const double*
- *                 t, const double* const* x, const double* p, double* const* xdot), the
- *                 rhs at four (t[s], x[s]) at once, bit-identical to four GS_RHS calls;
- *                 gs_radau5 evaluates its three stages with one call
- *                                                           needed if GS_HAS_RHS_LANES
  *
  * Exported functions (all prefixed gs_, default visibility; helpers shared between the
  * files have hidden visibility):
@@ -90,8 +85,8 @@
  *   int    gs_info(long* nx, long* np, long* ny);
  *   int    gs_rhs(const double* x, const double* p, double* xdot);
  *   int    gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
- *   int    gs_outputs(const double* x, const double* p, double* y);          (GS_HAS_OUT)
- *   int    gs_outputs_batch(long n, const double* X, const double* p, double* Y); (GS_HAS_OUT)
+ *   int    gs_outputs(const double* x, const double* p, double* y);          (outputs)
+ *   int    gs_outputs_batch(long n, const double* X, const double* p, double* Y); (outputs)
  *   long   gs_rk4(double t0, double h, long nsteps, long stride,
  *                 const double* x0, const double* p, const double* lo,
  *                 const double* hi, const int* proj_mask, double proj_tol, double* out,
@@ -109,19 +104,19 @@
  *   long   gs_dop853(...)  the arguments of gs_dopri5
  *   int    gs_con_info(long* nc);
  *   int    gs_constraints(const double* x, const double* p, double* C, double* JC,
- *                         double* Cd, double* JCd);                     (GS_HAS_CON)
+ *                         double* Cd, double* JCd);                     (constraints)
  *   int    gs_project(double* x, const double* p, const int* mask, double tol,
- *                     double* stats);                                   (GS_HAS_CON)
+ *                     double* stats);                                   (constraints)
  *
  * Tuning macros (optional, with defaults): GS_WORK_ON_STACK_MAX (gs_internal.h),
  * GS_PROJ_MAXIT (project.c), GS_RADAU_* (radau5.h), GS_DOPRI_* (dopri5.c).
  *
  * Return codes (GS_ERR_* in gs_internal.h): 0 (or a row count for gs_rk4 / gs_radau5 /
  * gs_dopri5) on success; GS_ERR_EVAL (-3) when the CasADi function reports an error;
- * see gs_rk4, gs_radau5, gs_dopri5 and gs_project for their codes.  Without a compiled
- * Jacobian (GS_HAS_JAC 0) gs_radau5 uses forward differences of GS_RHS.
+ * see gs_rk4, gs_radau5, gs_dopri5 and gs_project for their codes; a function the model
+ * lacks (gs_outputs without outputs, ...) returns GS_ERR_ARGS.
  *
- * Projection (proj_mask not NULL, needs GS_HAS_CON): after every accepted step (and at
+ * Projection (proj_mask not NULL, needs constraints): after every accepted step (and at
  * every dense-output time between steps) the state is projected onto the constraints,
  * see gs_project.  The stats array (GS_NSTATS doubles, see GS_ST_* in gs_internal.h)
  * counts the constraint evaluations and records the largest residuals found before
@@ -136,7 +131,7 @@
 
 /* The outputs are the caller's only when they do not read the time (gs_out_time: watch.c's). */
 GS_EXPORT int gs_info(long* nx, long* np, long* ny) {
-  const int out = GS_HAS_OUT && !gs_out_time;
+  const int out = gs_has_out && !gs_out_time;
   if (nx) *nx = gs_nx;
   if (np) *np = gs_np;
   if (ny) *ny = out ? gs_ny : -1;
@@ -160,23 +155,21 @@ GS_EXPORT int gs_rhs_batch(long n, const double* X, const double* p, double* XDO
   return 0;
 }
 
-#if GS_HAS_OUT
 GS_EXPORT int gs_outputs(const double* x, const double* p, double* y) {
   GS_DECLARE_WORK(wk);
-  if (gs_out_time) return GS_ERR_ARGS; /* they would read p[np] */
+  if (!gs_has_out || gs_out_time) return GS_ERR_ARGS; /* none, or they would read p[np] */
   return gs_eval_out(wk, x, p, y);
 }
 
 GS_EXPORT int gs_outputs_batch(long n, const double* X, const double* p, double* Y) {
   GS_DECLARE_WORK(wk);
-  if (n < 0 || gs_out_time) return GS_ERR_ARGS;
+  if (n < 0 || !gs_has_out || gs_out_time) return GS_ERR_ARGS;
   for (long k = 0; k < n; ++k) {
     int rc = gs_eval_out(wk, X + k * gs_nx, p, Y + k * gs_ny);
     if (rc) return rc;
   }
   return 0;
 }
-#endif
 
 /* A CasADi-generated function fn of (x, p) -> y (one of the model's helpers, runtime/compiled.py
  * CompiledLibrary.rows) at the n rows of X (n x nx), the same p, into Y (n x ny); its work
@@ -197,18 +190,13 @@ GS_EXPORT int gs_rows(void* fn, long n, const double* X, long nx, const double* 
 }
 
 GS_EXPORT int gs_con_info(long* nc) {
-#if GS_HAS_CON
-  if (nc) *nc = gs_nc;
-#else
-  if (nc) *nc = -1;
-#endif
-  return GS_HAS_CON;
+  if (nc) *nc = gs_has_con ? gs_nc : -1;
+  return gs_has_con;
 }
 
-#if GS_HAS_CON
 GS_EXPORT int gs_constraints(const double* x, const double* p, double* C, double* JC,
                              double* Cd, double* JCd) {
   GS_DECLARE_WORK(wk);
+  if (!gs_has_con) return GS_ERR_ARGS;
   return gs_eval_con(wk, x, p, C, JC, Cd, JCd);
 }
-#endif

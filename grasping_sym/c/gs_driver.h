@@ -6,13 +6,6 @@
 #ifndef GS_DRIVER_H
 #define GS_DRIVER_H
 
-#ifndef GS_HAS_OUT
-#define GS_HAS_OUT 0
-#endif
-#ifndef GS_HAS_CON
-#define GS_HAS_CON 0
-#endif
-
 /* The model's sizes, read at run time: defined (hidden, const) by the library's link file,
  * which is compiled with the model's own C (toolchain/objects.py: links_c), so that one
  * build of the driver serves models of every size.  gs_ny is 0 without outputs, gs_nc 0
@@ -21,16 +14,22 @@ extern __attribute__((visibility("hidden"))) const int gs_nx, gs_np, gs_ny, gs_n
 /* 1 when the model's outputs read the time: they take p with one more last entry, t; the
  * driver then calls them only to watch witnesses (watch.c), and gs_outputs refuses. */
 extern __attribute__((visibility("hidden"))) const int gs_out_time;
+/* The model's features, read at run time too (the link file's): whether it has outputs, a
+ * compiled Jacobian, constraints, a 4-lane rhs; the Jacobian's numbers of inputs and outputs
+ * and the index of its block d ode / d x.  A function the model lacks is a stub there that
+ * fails (GS_ERR_EVAL), never called: the driver asks these first.  So one build of the
+ * driver serves models of every feature too. */
+extern __attribute__((visibility("hidden"))) const int gs_has_out, gs_has_jac, gs_has_con,
+    gs_has_lanes, gs_jac_nin, gs_jac_nout, gs_jac_block;
 
 /* Length of the stats array of gs_rk4, gs_radau5, gs_dopri5 and gs_project. */
 #define GS_NSTATS 16
 
 int gs_rhs(const double* x, const double* p, double* xdot);
 int gs_rhs_batch(long n, const double* X, const double* p, double* XDOT);
-#if GS_HAS_OUT
+/* GS_ERR_ARGS without outputs (gs_has_out 0) or when they read the time */
 int gs_outputs(const double* x, const double* p, double* y);
 int gs_outputs_batch(long n, const double* X, const double* p, double* Y);
-#endif
 long gs_rk4(double t0, double h, long nsteps, long stride, const double* x0, const double* p,
             const double* lo, const double* hi, const int* proj_mask, double proj_tol,
             double* out, double* stats, double* t_fail);
@@ -47,10 +46,9 @@ long gs_dop853(double t0, long n_out, const double* t_out, const double* x0, con
                const double* lo, const double* hi, const int* proj_mask, double proj_tol,
                double* out, double* stats, double* t_fail);
 int gs_con_info(long* nc);
-#if GS_HAS_CON
+/* GS_ERR_ARGS without constraints (gs_has_con 0) */
 int gs_constraints(const double* x, const double* p, double* C, double* JC, double* Cd,
                    double* JCd);
 int gs_project(double* x, const double* p, const int* mask, double tol, double* stats);
-#endif
 
 #endif /* GS_DRIVER_H */

@@ -28,44 +28,15 @@
 #include <math.h>
 #include <stddef.h>
 
-#ifndef GS_RHS
-#error "define GS_RHS (name of the CasADi right-hand-side function)"
-#endif
 #if !defined(GS_SZ_ARG) || !defined(GS_SZ_RES) || !defined(GS_SZ_IW) || !defined(GS_SZ_W)
 #error "define GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW and GS_SZ_W (CasADi work sizes)"
+#endif
+#if GS_SZ_RES < 4
+#error "GS_SZ_RES must be at least 4 (the rhs and the constraints function have four outputs)"
 #endif
 #include "gs_driver.h"
 #ifndef GS_CASADI_INT
 #define GS_CASADI_INT long long int
-#endif
-#if GS_HAS_OUT && !defined(GS_OUT)
-#error "GS_HAS_OUT is 1 but GS_OUT (name of the outputs function) is not defined"
-#endif
-#ifndef GS_HAS_JAC
-#define GS_HAS_JAC 0
-#endif
-#if GS_HAS_JAC && (!defined(GS_JAC) || !defined(GS_JAC_NIN) || !defined(GS_JAC_NOUT))
-#error "GS_HAS_JAC is 1 but GS_JAC, GS_JAC_NIN or GS_JAC_NOUT is not defined"
-#endif
-#ifndef GS_JAC_BLOCK
-#define GS_JAC_BLOCK 1
-#endif
-#if GS_HAS_JAC && (GS_JAC_NIN < 5 || GS_JAC_NIN > GS_SZ_ARG || GS_JAC_NOUT <= GS_JAC_BLOCK || GS_JAC_NOUT > GS_SZ_RES)
-#error "GS_JAC_NIN / GS_JAC_NOUT / GS_JAC_BLOCK inconsistent with each other or with GS_SZ_ARG / GS_SZ_RES"
-#endif
-
-#ifndef GS_HAS_RHS_LANES
-#define GS_HAS_RHS_LANES 0
-#endif
-#if GS_HAS_RHS_LANES && !defined(GS_RHS_LANES)
-#error "GS_HAS_RHS_LANES is 1 but GS_RHS_LANES (name of the 4-lane rhs) is not defined"
-#endif
-
-#if GS_HAS_CON && !defined(GS_CON)
-#error "GS_HAS_CON is 1 but GS_CON (name of the constraints function) is not defined"
-#endif
-#if GS_HAS_CON && GS_SZ_RES < 4
-#error "GS_SZ_RES must be at least 4 (the constraints function has four outputs)"
 #endif
 
 #define GS_EXPORT __attribute__((visibility("default")))
@@ -140,25 +111,16 @@ GS_HIDDEN void gs_stop_batch_thread(int on, double deadline);
 GS_HIDDEN double gs_stop_now(void);
 GS_HIDDEN int gs_stop_sigint(void);
 
-/* Prototypes of the CasADi-generated functions (standard calling convention). */
-int GS_RHS(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
-#if GS_HAS_OUT
-int GS_OUT(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
-#endif
-#if GS_HAS_JAC
-#define GS_PASTE2(a, b) a##b
-#define GS_PASTE(a, b) GS_PASTE2(a, b)
-#define GS_JAC_SPARSITY_OUT GS_PASTE(GS_JAC, _sparsity_out)
-int GS_JAC(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
-const GS_CASADI_INT* GS_JAC_SPARSITY_OUT(GS_CASADI_INT i);
-#endif
-
-#if GS_HAS_CON
-int GS_CON(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
-#endif
-#if GS_HAS_RHS_LANES
-int GS_RHS_LANES(const double* t, const double* const* x, const double* p, double* const* xdot);
-#endif
+/* The model's functions, under the fixed names the link file gives them (toolchain/objects.py:
+ * ALIASES; a stub that fails for a function the model lacks, see gs_has_out ...): CasADi's
+ * calling convention, and the 4-lane rhs's (codegen/lanes.py). */
+int gs_model_rhs(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+int gs_model_outputs(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+int gs_model_jac(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+const GS_CASADI_INT* gs_model_jac_sparsity_out(GS_CASADI_INT i);
+int gs_model_constraints(const double** arg, double** res, GS_CASADI_INT* iw, double* w, int mem);
+int gs_model_rhs_lanes(const double* t, const double* const* x, const double* p,
+                       double* const* xdot);
 
 /* xdot = f(t, x, p) using the caller's work arrays. */
 static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, const double* p,
@@ -172,39 +134,35 @@ static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, con
   wk->res[1] = NULL;
   wk->res[2] = NULL;
   wk->res[3] = NULL;
-  return GS_RHS(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+  return gs_model_rhs(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
 }
 
 /* xdot[s] = f(t[s], x[s], p) for s = 0, 1, 2: one call of the 4-lane rhs when the library
  * has it (codegen/lanes.py; bit-identical to three calls of GS_RHS), else three calls. */
 static inline int gs_eval_rhs3(gs_work* wk, const double* t, const double* const* x,
                                const double* p, double* const* xdot) {
-#if GS_HAS_RHS_LANES
-  (void)wk;
-  double spare[gs_nx];
-  const double tl[4] = {t[0], t[1], t[2], t[2]};
-  const double* xl[4] = {x[0], x[1], x[2], x[2]};
-  double* yl[4] = {xdot[0], xdot[1], xdot[2], spare};
-  return GS_RHS_LANES(tl, xl, p, yl) ? GS_ERR_EVAL : 0;
-#else
+  if (gs_has_lanes) {
+    double spare[gs_nx];
+    const double tl[4] = {t[0], t[1], t[2], t[2]};
+    const double* xl[4] = {x[0], x[1], x[2], x[2]};
+    double* yl[4] = {xdot[0], xdot[1], xdot[2], spare};
+    return gs_model_rhs_lanes(tl, xl, p, yl) ? GS_ERR_EVAL : 0;
+  }
   int rc;
   for (int s = 0; s < 3; ++s)
     if ((rc = gs_eval_rhs(wk, t + s, x[s], p, xdot[s]))) return rc;
   return 0;
-#endif
 }
 
-#if GS_HAS_OUT
+/* The outputs (gs_has_out: the caller's to ask) at x. */
 static inline int gs_eval_out(gs_work* wk, const double* x, const double* p, double* y) {
   wk->arg[0] = x;
   wk->arg[1] = p;
   wk->res[0] = y;
-  return GS_OUT(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+  return gs_model_outputs(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
 }
-#endif
 
-#if GS_HAS_CON
-/* C, dC/dx, Cdot, dCdot/dv at x (a result pointer may be NULL: that result is skipped). */
+/* (gs_has_con: the caller's to ask) C, dC/dx, Cdot, dCdot/dv at x (a result pointer may be NULL: that result is skipped). */
 static inline int gs_eval_con(gs_work* wk, const double* x, const double* p, double* C,
                               double* JC, double* Cd, double* JCd) {
   wk->arg[0] = x;
@@ -213,9 +171,8 @@ static inline int gs_eval_con(gs_work* wk, const double* x, const double* p, dou
   wk->res[1] = JC;
   wk->res[2] = Cd;
   wk->res[3] = JCd;
-  return GS_CON(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
+  return gs_model_constraints(wk->arg, wk->res, wk->iw, wk->w, 0) ? GS_ERR_EVAL : 0;
 }
-#endif
 
 /* 0 if x is finite and inside [lo, hi]; otherwise GS_ERR_NONFINITE / GS_ERR_BOUNDS.
  * lo / hi may be NULL (unbounded). */
@@ -249,7 +206,7 @@ static inline double gs_rms(const double* v, const double* scale, int m) {
 
 /* Validity of the projection arguments of the integrators. */
 static inline int gs_proj_args_ok(const int* proj_mask, double proj_tol) {
-  return !proj_mask || (GS_HAS_CON && proj_tol > 0.0 && isfinite(proj_tol));
+  return !proj_mask || (gs_has_con && proj_tol > 0.0 && isfinite(proj_tol));
 }
 
 /* Validity of the arguments gs_radau5 and gs_dopri5 share (see gs_radau5): finite scalars,
@@ -344,7 +301,6 @@ static inline int gs_initial_step(gs_work* wk, double t0, const double* y, const
 }
 
 /* ---- Defined in project.c ---- */
-#if GS_HAS_CON
 /* Project x in place onto C(x) = 0 and then Cdot(x) = 0 (see gs_project); counts into st.
  * *changed (may be NULL) is set to 1 when x was modified. */
 GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const int* mask,
@@ -361,9 +317,6 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
       if ((rc = gs_check((x), lo, hi))) goto fail;                                    \
     }                                                                                 \
   } while (0)
-#else
-#define GS_PROJECT_STEP(x, changed) ((void)0)
-#endif
 
 /* ---- Defined in watch.c (used by the adaptive loops): witnesses watched along a run ---- */
 #define GS_WATCH_MAX 64     /* witnesses of one watch                                 */
@@ -376,8 +329,8 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 #define GS_WATCH_SKIPS 16   /* steps' ends at most left unwatched in a row (watch.c)      */
 /* The dense output of the step just accepted: x at t (between the step's start and end). */
 typedef void (*gs_interp)(const void* ctx, double t, double* x);
-#if GS_HAS_OUT
-/* Non-zero when this thread's runs watch witnesses (gs_watch_witnesses). */
+/* Non-zero when this thread's runs watch witnesses (gs_watch_witnesses; never without
+ * outputs). */
 GS_HIDDEN int gs_watching(void);
 /* The run's start (t0, x0; it ends at t_end): the witnesses' values there, each armed if > 0. */
 GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p,
@@ -401,21 +354,16 @@ GS_HIDDEN long gs_watch_failed(gs_work* wk, long rc, const double* p, const doub
  * 1 and J (nx x nx) copied when (t, x) is that state and J is kept, else 0; and kept. */
 GS_HIDDEN int gs_refine_jac_get(double t, const double* x, double* J);
 GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J);
-#else
-#define gs_watching() 0
-#endif
 /* gs_batch: the watch off during the batch (returns whether it was on), then restored. */
 GS_HIDDEN int gs_watch_suspend(void);
 GS_HIDDEN void gs_watch_restore(int on);
 
-/* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major) ---- */
-#if GS_HAS_JAC
+/* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major), compiled
+ * (gs_eval_jac, when gs_has_jac) or by forward differences ---- */
 GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const double* p,
                           double* J, double* val);
-#else
 GS_HIDDEN int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double* p,
                         const double* f, double atol, double* J);
-#endif
 
 /* ---- Defined in lu.c (used by gs_radau5): dense n x n LU, row-major (row stride n) ---- */
 GS_HIDDEN int gs_lu_real_n(double* A, int* piv, int n);

@@ -1,22 +1,21 @@
 /* grasping_sym driver: the Jacobian d f / d x used by gs_radau5 (radau5.c), compiled
- * (GS_HAS_JAC) or by forward differences. */
+ * (gs_has_jac) or by forward differences. */
 #include "gs_internal.h"
 
-#if GS_HAS_JAC
-/* J (dense row-major, nx x nx) = block GS_JAC_BLOCK of the generated Jacobian, its values
+/* J (dense row-major, nx x nx) = block gs_jac_block of the generated Jacobian, its values
  * first written to val (nx x nx doubles of scratch, the caller's).
  * Only the structural non-zeros are written: J must be zeroed once beforehand. */
 GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const double* p,
                           double* J, double* val) {
   const int n = gs_nx;
-  const GS_CASADI_INT* sp = GS_JAC_SPARSITY_OUT(GS_JAC_BLOCK);
-  for (int i = 0; i < GS_JAC_NIN; ++i) wk->arg[i] = NULL;
-  for (int i = 0; i < GS_JAC_NOUT; ++i) wk->res[i] = NULL;
+  const GS_CASADI_INT* sp = gs_model_jac_sparsity_out(gs_jac_block);
+  for (int i = 0; i < gs_jac_nin; ++i) wk->arg[i] = NULL;
+  for (int i = 0; i < gs_jac_nout; ++i) wk->res[i] = NULL;
   wk->arg[0] = t;
   wk->arg[1] = x;
   wk->arg[3] = p;
-  wk->res[GS_JAC_BLOCK] = val;
-  if (GS_JAC(wk->arg, wk->res, wk->iw, wk->w, 0)) return GS_ERR_EVAL;
+  wk->res[gs_jac_block] = val;
+  if (gs_model_jac(wk->arg, wk->res, wk->iw, wk->w, 0)) return GS_ERR_EVAL;
   if (!sp || sp[0] != n || sp[1] != n) return GS_ERR_ARGS;
   if (sp[2] == 1) { /* CasADi's compressed form of a dense pattern: [nrow, ncol, 1] */
     for (int c = 0; c < n; ++c)
@@ -29,8 +28,8 @@ GS_HIDDEN int gs_eval_jac(gs_work* wk, const double* t, const double* x, const d
   }
   return 0;
 }
-#else
-/* Forward-difference Jacobian (fallback when no Jacobian was compiled in). */
+
+/* Forward-difference Jacobian (when the model has no compiled Jacobian). */
 GS_HIDDEN int gs_fd_jac(gs_work* wk, const double* t, const double* x, const double* p,
                         const double* f, double atol, double* J) {
   const int n = gs_nx;
@@ -47,4 +46,3 @@ GS_HIDDEN int gs_fd_jac(gs_work* wk, const double* t, const double* x, const dou
   }
   return 0;
 }
-#endif

@@ -1,8 +1,8 @@
 /*
  * grasping_sym driver: projection of a state onto the model's constraints (gs_project),
  * and gs_project_state, the same projection used by the integrators after every accepted
- * step (see GS_PROJECT_STEP in gs_internal.h).  Needs GS_HAS_CON; otherwise this file
- * compiles to nothing (gs_con_info, in driver.c, then reports no constraints).
+ * step (see GS_PROJECT_STEP in gs_internal.h).  Needs constraints: gs_project
+ * refuses a model without them (gs_con_info, in driver.c, reports none).
  */
 #include "gs_internal.h"
 
@@ -10,7 +10,6 @@
 #define GS_PROJ_MAXIT 8 /* Gauss-Newton iterations on the positions */
 #endif
 
-#if GS_HAS_CON
 /* Solve A y = b in place (A m x m row-major, overwritten) by Gaussian elimination with
  * partial pivoting.  Returns 1 when a pivot is at most m eps max|A| (numerically
  * singular: dependent constraints), else 0. */
@@ -129,10 +128,9 @@ GS_EXPORT int gs_project(double* x, const double* p, const int* mask, double tol
                          double* stats) {
   GS_DECLARE_WORK(wk);
   double st[GS_NSTATS] = {0};
-  if (!x || !mask || !(tol > 0.0)) return GS_ERR_ARGS;
+  if (!gs_has_con || !x || !mask || !(tol > 0.0)) return GS_ERR_ARGS;
   const int rc = gs_project_state(wk, x, p, mask, tol, st, NULL);
   if (stats)
     for (int i = 0; i < GS_NSTATS; ++i) stats[i] = st[i];
   return rc;
 }
-#endif /* GS_HAS_CON */

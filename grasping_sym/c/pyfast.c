@@ -4,7 +4,7 @@
  * library.  It exists because a ctypes call plus NumPy allocation costs a few
  * microseconds, while a METH_FASTCALL function costs a few hundred nanoseconds.
  *
- * Needs the same -D macros as driver.c (GS_HAS_OUT), reads the model's sizes (gs_nx, gs_np,
+ * Needs the same -D macros as driver.c (the work sizes), reads the model's sizes and features (gs_nx, gs_np,
  * gs_ny, gs_driver.h) at run time, and needs the include directories of Python.h and numpy/arrayobject.h.  The module
  * uses multi-phase initialisation, so a rebuilt library loaded from the same
  * path is never served from CPython's single-phase extension cache.
@@ -13,8 +13,8 @@
  * when np == 0; anything array-like is converted to contiguous float64):
  *   rhs(x, p=None)            -> ndarray (nx,)
  *   rhs_batch(X, p=None)      -> ndarray (n, nx)
- *   outputs(x, p=None)        -> ndarray (ny,)      (only if GS_HAS_OUT)
- *   outputs_batch(X, p=None)  -> ndarray (n, ny)    (only if GS_HAS_OUT)
+ *   outputs(x, p=None)        -> ndarray (ny,)      (only with outputs)
+ *   outputs_batch(X, p=None)  -> ndarray (n, ny)    (only with outputs)
  *   adaptive(method, t_out, x0, p, rtol, atol, h0, max_steps, nstiff, lo, hi, mask,
  *            proj_tol, out, stats) -> (rc, t_fail)
  *       gs_radau5 (method 0), gs_dopri5 (method 1) or gs_dop853 (2) with the GIL released; the
@@ -197,7 +197,6 @@ static PyObject* py_rhs_batch(PyObject* self, PyObject* const* args, Py_ssize_t 
   return call_batch("rhs_batch", gs_rhs_batch, gs_nx, args, nargs, kwnames);
 }
 
-#if GS_HAS_OUT
 static PyObject* py_outputs(PyObject* self, PyObject* const* args, Py_ssize_t nargs,
                         PyObject* kwnames) {
   (void)self;
@@ -209,7 +208,6 @@ static PyObject* py_outputs_batch(PyObject* self, PyObject* const* args, Py_ssiz
   (void)self;
   return call_batch("outputs_batch", gs_outputs_batch, gs_ny, args, nargs, kwnames);
 }
-#endif
 
 /* The array argument `name` of adaptive(): NULL with an exception unless it is an ndarray of
  * `type`, C-contiguous and aligned (writeable if `write`), with ndim 1 and n entries
@@ -307,19 +305,21 @@ static PyMethodDef gs_methods[] = {
      "rhs(x, p=None) -> xdot, shape (nx,)"},
     {"rhs_batch", (PyCFunction)(void (*)(void))py_rhs_batch, METH_FASTCALL | METH_KEYWORDS,
      "rhs_batch(X, p=None) -> XDOT, shape (n, nx)"},
-#if GS_HAS_OUT
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL | METH_KEYWORDS,
      "outputs(x, p=None) -> y, shape (ny,)"},
     {"outputs_batch", (PyCFunction)(void (*)(void))py_outputs_batch, METH_FASTCALL | METH_KEYWORDS,
      "outputs_batch(X, p=None) -> Y, shape (n, ny)"},
-#endif
     {NULL, NULL, 0, NULL}};
 
 static int gs_exec(PyObject* m) {
   if (_import_array() < 0) return -1;
   if (PyModule_AddIntConstant(m, "nx", gs_nx) < 0) return -1;
   if (PyModule_AddIntConstant(m, "np", gs_np) < 0) return -1;
-  if (PyModule_AddIntConstant(m, "ny", GS_HAS_OUT ? gs_ny : -1) < 0) return -1;
+  if (PyModule_AddIntConstant(m, "ny", gs_has_out ? gs_ny : -1) < 0) return -1;
+  /* a model without outputs (the link file's gs_has_out) has no outputs functions */
+  if (!gs_has_out && (PyObject_DelAttrString(m, "outputs") < 0 ||
+                      PyObject_DelAttrString(m, "outputs_batch") < 0))
+    return -1;
   return 0;
 }
 

@@ -157,7 +157,7 @@ static inline void gs_radau_solve_complex(const gs_radau_mats* M, const int n, i
  *   lo, hi      bounds checked on every accepted step's end state (may be NULL)
  *   proj_mask, proj_tol
  *               NULL, or project every accepted step's end state and every output
- *               between steps onto the constraints (see gs_project; needs GS_HAS_CON)
+ *               between steps onto the constraints (see gs_project; needs constraints)
  *   out         row-major, nx columns, at least n_out + 1 rows (see failures)
  *   stats       NULL or GS_NSTATS doubles (GS_ST_*): [0] accepted steps, [1] rejected
  *               steps (error test or Newton failures), [2] right-hand-side evaluations,
@@ -212,9 +212,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
   for (int i = 0; i < n; ++i) yold[i] = Q[i][0] = Q[i][1] = Q[i][2] = 0.0;
   if ((rc = gs_adaptive_begin(t0, n_out, t_out, x0, lo, hi, y, ynew, out, &row))) goto fail;
   if (row == n_out) goto done;
-#if GS_HAS_OUT
   if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p, t_out[n_out - 1]))) goto fail;
-#endif
 
   if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
   st[2] += 1;
@@ -263,28 +261,22 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         for (int i = 0; i < n; ++i) tmp[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
         yj = tmp;
       }
-#if GS_HAS_OUT && !GS_HAS_JAC
       /* gs_watch_refine's trials: the differenced Jacobian at their common start, once */
-      const int kept = yj == y && gs_refine_jac_get(t, y, M->J);
-#else
-      const int kept = 0;
-#endif
+      const int kept = !gs_has_jac && yj == y && gs_refine_jac_get(t, y, M->J);
       if (!kept) {
-#if GS_HAS_JAC
-        if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J, M->LUr))) goto fail; /* LUr: scratch */
-#else
-        if (yj != y) {
+        if (gs_has_jac) {
+          if ((rc = gs_eval_jac(wk, &tj, yj, p, M->J, M->LUr))) goto fail; /* LUr: scratch */
+        } else if (yj != y) {
           if ((rc = gs_eval_rhs(wk, &tj, yj, p, fnew))) goto fail;
           st[2] += 1;
           if ((rc = gs_fd_jac(wk, &tj, yj, p, fnew, atol, M->J))) goto fail;
         } else if ((rc = gs_fd_jac(wk, &t, y, p, f, atol, M->J))) {
           goto fail;
         }
-        st[2] += n;
-#endif
-#if GS_HAS_OUT && !GS_HAS_JAC
-        if (yj == y) gs_refine_jac_put(t, y, M->J);
-#endif
+        if (!gs_has_jac) {
+          st[2] += n;
+          if (yj == y) gs_refine_jac_put(t, y, M->J);
+        }
         st[3] += 1;
       }
       m2 = gs_second_order_rows(M->J, n);
@@ -491,7 +483,6 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
       st[7] = h;
       int event = 0;
       double t_ev = t;
-#if GS_HAS_OUT
       if (gs_watching()) {
         const gs_radau_dense dense = {yold, &Q[0][0], told, hsol};
         event = gs_watch_step(wk, told, t, y, p, gs_radau_interp, &dense, &t_ev, tmp);
@@ -501,7 +492,6 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         }
         while (event == 2 && row > 0 && t_out[row - 1] >= t_ev) --row; /* an earlier step's */
       }
-#endif
       while (row < n_out && (event ? t_out[row] < t_ev : t_out[row] <= t)) {
         double* o = out + row * n;
         if (t_out[row] == t) {
@@ -510,12 +500,10 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
           const double x = (t_out[row] - told) / hsol;
           const double x2 = x * x, x3 = x2 * x;
           for (int i = 0; i < n; ++i) o[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
-#if GS_HAS_CON
           if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
             for (int i = 0; i < n; ++i) ynew[i] = o[i];
             goto fail;
           }
-#endif
         }
         ++row;
       }
@@ -524,9 +512,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
           y[i] = tmp[i];
           ynew[i] = yold[i];
         }
-#if GS_HAS_OUT
         if (event == 2) gs_watch_event_start(ynew);
-#endif
         t = t_ev;
         rc = GS_EVENT;
         goto fail;
@@ -575,9 +561,7 @@ done:
   return gs_adaptive_end(n_out, row, t, st, stats, t_fail, out, y, ynew);
 
 fail:
-#if GS_HAS_OUT
   rc = gs_watch_failed(wk, rc, p, t_out, &row, &t, y, ynew); /* an event left unwatched first */
-#endif
   return gs_adaptive_end(rc, row, t, st, stats, t_fail, out, y, ynew);
 }
 

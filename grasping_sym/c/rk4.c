@@ -23,7 +23,7 @@
  *   GS_ERR_BOUNDS    (-2)  a component left [lo[i], hi[i]],
  *   GS_ERR_EVAL      (-3)  the CasADi function returned an error,
  *   GS_ERR_ARGS      (-4)  h not finite, nsteps < 0 or stride < 1, or projection asked
- *                          without GS_HAS_CON or with proj_tol <= 0 (nothing written),
+ *                          without constraints or with proj_tol <= 0 (nothing written),
  *   GS_ERR_PROJECT   (-7)  the projection failed (see gs_project).
  * x0 itself is not checked.  stats: NULL or GS_NSTATS doubles (GS_ST_STEPS, GS_ST_RHS
  * and the projection entries are written).  On success the number of rows written is

@@ -50,7 +50,6 @@
 
 #include "gs_internal.h"
 
-#if GS_HAS_OUT
 /* One watch: its witnesses (terms in compressed rows), and the run's state of them. */
 typedef struct {
   int on, resume, n, in_k, in_m;
@@ -412,9 +411,7 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
   }
   return 0;
 }
-#endif
 
-#if GS_HAS_OUT
 /* The last event's witness at the state integrated again from the step's start (t_step,
  * x_step) to t, one step of the loop `method` tried (0 radau5, 1 dopri5, 2 dop853), the watch
  * off: into *g (less its level: 0 armed, -tol not), the state into x. */
@@ -448,7 +445,6 @@ static int gs_refine_at(int method, double t, const double* x_step, const double
   if (isnan(*g)) *g = -1e300; /* a blow-up counts as past the event */
   return 0;
 }
-#endif
 
 /* The last event located on the trajectory integrated again from its step's start (t_step
  * of gs_watch_result; its state x_step) by the run's loop `method` with the run's p, rtol,
@@ -461,7 +457,6 @@ static int gs_refine_at(int method, double t, const double* x_step, const double
 GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p, double rtol,
                               double atol, long max_steps, const double* lo, const double* hi,
                               double ttol, long steps, double* t, double* x, double* g) {
-#if GS_HAS_OUT
   if (gs_w.which < 0 || !(ttol > 0.0) || method < 0 || method > 2)
     return GS_ERR_ARGS;
   const int on = gs_watch_suspend();
@@ -518,11 +513,6 @@ done:
   gs_rj.x = NULL;
   gs_watch_restore(on);
   return rc;
-#else
-  (void)method, (void)x_step, (void)p, (void)rtol, (void)atol, (void)max_steps, (void)lo, (void)hi,
-      (void)ttol, (void)steps, (void)t, (void)x, (void)g;
-  return GS_ERR_ARGS;
-#endif
 }
 
 /* Watch n witnesses in this thread's next runs: witness k is sum_j coef[j] y[idx[j]] over
@@ -536,8 +526,7 @@ done:
 GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const double* coef,
                            const long* norm, const double* tol, const long* probe, long in_k,
                            long in_m, double dt, double safety) {
-#if GS_HAS_OUT
-  if (n < 0 || n > GS_WATCH_MAX || !ptr || ptr[0] != 0 || ptr[n] > GS_WATCH_TERMS ||
+  if (!gs_has_out || n < 0 || n > GS_WATCH_MAX || !ptr || ptr[0] != 0 || ptr[n] > GS_WATCH_TERMS ||
       !(dt >= 0.0) || !isfinite(dt) || !(safety >= 0.0) || !isfinite(safety) || in_m < 0 || in_k < 0 || in_k + 2 * in_m > gs_np)
     return GS_ERR_ARGS;
   for (long k = 0; k < n; ++k) {
@@ -570,47 +559,30 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.resume = 0;
   gs_w.on = 1;
   return 0;
-#else
-  (void)n, (void)ptr, (void)idx, (void)coef, (void)norm, (void)tol, (void)probe, (void)in_k, (void)in_m, (void)dt,
-      (void)safety;
-  return GS_ERR_ARGS;
-#endif
 }
 
 GS_EXPORT void gs_watch_clear(void) {
-#if GS_HAS_OUT
   gs_w.on = 0;
   free(gs_w.kept);
   gs_w.kept = NULL;
-#endif
 }
 
 /* The next run continues the last one (a piece of a table of inputs after a knot): its
  * witnesses keep what they were armed by. */
 GS_EXPORT void gs_watch_resume(void) {
-#if GS_HAS_OUT
   gs_w.resume = 1;
-#endif
 }
 
 /* gs_batch: its runs never watch, the calling thread's too (the watch is off during the
  * batch and restored after it). */
 GS_HIDDEN int gs_watch_suspend(void) {
-#if GS_HAS_OUT
   const int on = gs_w.on;
   gs_w.on = 0;
   return on;
-#else
-  return 0;
-#endif
 }
 
 GS_HIDDEN void gs_watch_restore(int on) {
-#if GS_HAS_OUT
   gs_w.on = on;
-#else
-  (void)on;
-#endif
 }
 
 /* The last event of this thread's watched run: out[0] the witness (-1: none), out[1] 1 if it
@@ -620,7 +592,6 @@ GS_HIDDEN void gs_watch_restore(int on) {
  * witnesses that fired at the end of the event's step when it was left unwatched (more than
  * one: which is first is the secants' guess, runtime/modes.py looks again), else 0. */
 GS_EXPORT void gs_watch_result(double* out) {
-#if GS_HAS_OUT
   out[0] = gs_w.which;
   out[1] = gs_w.armed_at_event;
   out[2] = gs_w.t_lo;
@@ -630,8 +601,4 @@ GS_EXPORT void gs_watch_result(double* out) {
   out[6] = gs_w.n_eval;
   out[7] = gs_w.n_left;
   out[8] = gs_w.n_fired;
-#else
-  out[0] = -1;
-  for (int i = 1; i < 9; ++i) out[i] = NAN;
-#endif
 }

@@ -11,7 +11,7 @@ the command line ``simulate_defaults``, ``write_figures()``, ``summary_lines()``
 Layers are cached apart, each under its own hash:
 
 - the runtime: the hand-written C driver (integrators, projection, the CPython front end),
-  compiled once per set of features into ``<cache root>/objects/`` (``toolchain.objects``);
+  compiled once per set of work sizes into ``<cache root>/objects/`` (``toolchain.objects``);
 - a 2D scene's structure: the closed loop of its template with its constants, as functions of
   the contour values, written and compiled once into ``<cache root>/structures/``
   (``codegen.structure``, ``codegen.structure_cache``; the built-in ones are committed under

@@ -142,8 +142,8 @@ def predicted_defines(*, outputs: bool, constraints: bool, jac: bool,
     """The driver's macros of a model with outputs the driver calls or not, constraints or
     not, a generated Jacobian or not and a 4-lane rhs or not, before its functions exist:
     ``driver_defines`` of stand-in functions (2 states, 1 parameter, 1 output, 1 constraint).
-    The driver's objects depend on these features alone (``objects.object_defines`` leaves
-    the sizes out), and on the work sizes, which are the stand-ins', below what
+    The driver's objects depend on the work sizes alone (``objects.object_defines`` leaves
+    the sizes and features to the link file), which are the stand-ins', below what
     ``object_defines`` rounds every size up to: the objects are the model's whenever its own
     work sizes are too."""
 
@@ -222,7 +222,7 @@ def compile_model(casadi_c, out: Path | str, defines: dict, fast: bool = True,
 
     ``defines`` is ``driver_defines(...)`` (stored in a model's manifest, so a cached or
     committed C file compiles without the CasADi functions at hand). The driver's objects
-    come from the object cache (``toolchain.objects``: compiled once per set of features,
+    come from the object cache (``toolchain.objects``: compiled once per set of work sizes,
     whatever the sizes); only the model's C and a file giving the driver the model's sizes
     and forwarding its names to the model's functions are compiled here; ``objects`` (a
     structure's, ``codegen.structure_cache``) are linked in too.

@@ -1,16 +1,16 @@
 """The runtime layer: the hand-written C driver compiled once into object files that every
-model library with the same features links, whatever its sizes.
+model library links, whatever its sizes and features.
 
 A model's driver macros (``library.driver_defines``) hold its sizes (states, parameters,
 outputs, constraints), the names of its CasADi functions, its features (outputs, Jacobian,
-constraints, 4-lane rhs) and CasADi's work sizes.  The driver's objects are compiled with the
-features alone: the names are replaced by fixed ones (``gs_model_rhs``, ...) and the sizes
-left out, and a small file per library (:func:`links_c`, compiled with the model's own C)
-forwards the fixed names to the model's functions and defines the sizes the driver reads at
-run time (``gs_nx``, ... in ``c/gs_driver.h``); CasADi's work sizes are rounded up to a power
-of two. The objects are compiled once per set of features, into
-``<cache root>/objects/driver-<hash16>/``: a model of a new size, shape, start or name
-compiles only its own C.
+constraints, 4-lane rhs) and CasADi's work sizes. The driver's objects are compiled with the
+work sizes alone, rounded up to powers of two: a small file per library (:func:`links_c`,
+compiled with the model's own C) forwards fixed names (``gs_model_rhs``, ...) to the model's
+functions, with a stub that fails for each function the model lacks, and defines the sizes
+and features the driver reads at run time (``gs_nx``, ``gs_has_out``, ... in
+``c/gs_driver.h``). The objects are compiled once per set of work sizes, into
+``<cache root>/objects/driver-<hash16>/``: a model of a new size, shape, start, name or set
+of features compiles only its own C.
 
 The hash covers the driver's C text, the macros, every compile flag (instruction set
 included), the compiler's version and, for the CPython front end, the include directories
@@ -39,23 +39,31 @@ from grasping_sym.toolchain.compiler import (
     isa_flags,
 )
 
-__all__ = ["ALIASES", "SIZES", "cached_objects", "driver_objects", "flags_digest", "links_c",
+__all__ = ["ALIASES", "FEATURES", "SIZES", "cached_objects", "driver_objects", "flags_digest", "links_c",
            "object_defines", "prefetch_driver_objects"]
 
 #: The model's sizes among the driver's macros, and the run-time variable each one defines in
-#: the link file (``c/gs_driver.h``); the driver's objects are compiled without them.
+#: the link file (``c/gs_driver.h``).
 SIZES: dict[str, str] = {"GS_NX": "gs_nx", "GS_NP": "gs_np", "GS_NY": "gs_ny", "GS_NC": "gs_nc",
                          "GS_OUT_TIME": "gs_out_time"}
+#: The model's features among the driver's macros, and the run-time variable of each (0 when
+#: the macro is absent); the Jacobian's block index is 1 unless given.
+FEATURES: dict[str, str] = {
+    "GS_HAS_OUT": "gs_has_out", "GS_HAS_JAC": "gs_has_jac", "GS_HAS_CON": "gs_has_con",
+    "GS_HAS_RHS_LANES": "gs_has_lanes", "GS_JAC_NIN": "gs_jac_nin", "GS_JAC_NOUT": "gs_jac_nout",
+    "GS_JAC_BLOCK": "gs_jac_block",
+}
 #: The driver's macros that name a model function, and the fixed name each one gets.
 ALIASES: dict[str, str] = {
     "GS_RHS": "gs_model_rhs", "GS_OUT": "gs_model_outputs", "GS_JAC": "gs_model_jac",
     "GS_CON": "gs_model_constraints", "GS_RHS_LANES": "gs_model_rhs_lanes",
 }
 #: The work sizes and the least each is rounded up to: most models' sizes are below these, so
-#: that their driver objects depend on the model's features alone. Unused stack costs nothing.
+#: that nearly every model links the same driver objects. Unused stack costs nothing.
 _WORK_SIZES = {"GS_SZ_ARG": 64, "GS_SZ_RES": 64, "GS_SZ_IW": 64, "GS_SZ_W": 4096}
 _CASADI_SIG = "(const double** arg, double** res, long long int* iw, double* w, int mem)"
 _LANES_SIG = "(const double* t, const double* const* x, const double* p, double* const* xdot)"
+_SPARSITY_SIG = "(long long int i)"
 
 
 def _bucket(n: int, least: int) -> int:
@@ -64,41 +72,51 @@ def _bucket(n: int, least: int) -> int:
 
 
 def object_defines(defines: Mapping[str, str | int]) -> dict[str, str | int]:
-    """The macros the driver's objects are compiled with: function names replaced by
-    :data:`ALIASES`, the sizes (:data:`SIZES`) left out (``links_c`` defines them), work sizes
-    rounded up to powers of two (at least ``_WORK_SIZES``')."""
-    out = {k: v for k, v in defines.items() if k not in SIZES}
-    for k, alias in ALIASES.items():
-        if k in out:
-            out[k] = alias
-    for k, least in _WORK_SIZES.items():
-        out[k] = _bucket(int(out[k]), least)
-    return out
+    """The macros the driver's objects are compiled with: the work sizes alone, each rounded
+    up to a power of two (at least ``_WORK_SIZES``'); the sizes, features and names are the
+    link file's (:func:`links_c`)."""
+    return {k: _bucket(int(defines[k]), least) for k, least in _WORK_SIZES.items()}
 
 
 def links_c(defines: Mapping[str, str | int]) -> str:
     """C source forwarding each fixed name of :data:`ALIASES` to the model's function (and,
-    for the Jacobian, its sparsity pattern), for the functions ``defines`` names, and defining
-    the model's sizes the driver reads (:data:`SIZES`; outputs and constraints 0 when the
-    driver has none)."""
+    for the Jacobian, its sparsity pattern), or to a stub that fails (returns 1; the
+    sparsity NULL) for a function ``defines`` does not name, and defining the model's sizes
+    (:data:`SIZES`; outputs and constraints 0 when the driver has none) and features
+    (:data:`FEATURES`) the driver reads.
+
+    Raises ``ValueError`` when the Jacobian's inputs or outputs exceed the work sizes the
+    driver's objects are compiled with (``object_defines``)."""
+    work = object_defines(defines)
     has = {"GS_NY": bool(defines.get("GS_HAS_OUT")), "GS_NC": bool(defines.get("GS_HAS_CON"))}
-    lines = ["/* grasping_sym: this model's sizes and functions, for the driver (toolchain.objects) */"]
+    values = {k: int(defines.get(k, 0)) for k in FEATURES}
+    values["GS_JAC_BLOCK"] = int(defines.get("GS_JAC_BLOCK", 1))
+    if values["GS_HAS_JAC"] and not (5 <= values["GS_JAC_NIN"] <= int(work["GS_SZ_ARG"])
+                                     and values["GS_JAC_BLOCK"] < values["GS_JAC_NOUT"]
+                                     <= int(work["GS_SZ_RES"])):
+        raise ValueError(f"the Jacobian's GS_JAC_NIN / GS_JAC_NOUT / GS_JAC_BLOCK {values} are "
+                         f"inconsistent with each other or with the work sizes {work}")
+    lines = ["/* grasping_sym: this model's sizes, features and functions, for the driver "
+             "(toolchain.objects) */"]
     for k, var in SIZES.items():
         value = int(defines.get(k, 0)) if has.get(k, True) else 0
         lines.append(f'__attribute__((visibility("hidden"))) const int {var} = {value};')
+    for k, var in FEATURES.items():
+        lines.append(f'__attribute__((visibility("hidden"))) const int {var} = {values[k]};')
     for k, alias in ALIASES.items():
-        if k not in defines:
+        sig = _LANES_SIG if k == "GS_RHS_LANES" else _CASADI_SIG
+        target = defines.get(k)
+        if target is None:  # a stub the driver never calls (its feature is 0), failing if it did
+            lines.append(f"int {alias}{sig} {{ return 1; }}")
+            if k == "GS_JAC":
+                lines.append(f"const long long int* {alias}_sparsity_out{_SPARSITY_SIG} "
+                             "{ return 0; }")
             continue
-        target = defines[k]
-        if k == "GS_RHS_LANES":
-            lines += [f"int {target}{_LANES_SIG};",
-                      f"int {alias}{_LANES_SIG} {{ return {target}(t, x, p, xdot); }}"]
-            continue
-        lines += [f"int {target}{_CASADI_SIG};",
-                  f"int {alias}{_CASADI_SIG} {{ return {target}(arg, res, iw, w, mem); }}"]
+        args = "t, x, p, xdot" if k == "GS_RHS_LANES" else "arg, res, iw, w, mem"
+        lines += [f"int {target}{sig};", f"int {alias}{sig} {{ return {target}({args}); }}"]
         if k == "GS_JAC":
-            lines += [f"const long long int* {target}_sparsity_out(long long int i);",
-                      f"const long long int* {alias}_sparsity_out(long long int i) "
+            lines += [f"const long long int* {target}_sparsity_out{_SPARSITY_SIG};",
+                      f"const long long int* {alias}_sparsity_out{_SPARSITY_SIG} "
                       f"{{ return {target}_sparsity_out(i); }}"]
     return "\n".join(lines) + "\n"
 
