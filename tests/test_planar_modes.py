@@ -134,6 +134,23 @@ def test_slip_starts_where_the_rolling_model_leaves_its_cone(base, rolling, slid
     assert np.max(slide["cone_ratio"]) <= 0.2 + 1e-12
 
 
+def test_the_slip_onset_is_located_in_c_down_to_the_witness_noise(model, slide, monkeypatch):
+    """The cone's witness on the trajectory integrated again one step at a time carries the
+    Newton iterations' noise (~3e-13 here, 1e-13 s): a secant trial no nearer 0 within 1e-12 s
+    ends the location in C (``gs_watch_refine``) at the nearer trial, where it used to fall to
+    Python's secants and Brent's method (~20 integrations more) chasing 1e-14 s."""
+    from grasping_sym.runtime import events
+
+    def no_python(*args, **kwargs):
+        raise AssertionError("located in Python")
+
+    monkeypatch.setattr(events, "refine", no_python)
+    again = model.simulate(0.25, mu=0.2, t_eval=np.linspace(0.0, 0.25, 2501), **TOL)
+    assert [(e["from"], e["to"]) for e in again.events] == [(e["from"], e["to"]) for e in slide.events]
+    assert abs(again.events[0]["t"] - slide.events[0]["t"]) < 1e-12
+    assert abs(again.events[0]["value"]) < 1e-12
+
+
 def test_the_rolling_model_runs_the_rolling_stretches(model, slide):
     """Where the contact rolls with ``u0 = u1`` (paper2d's one contact parameter), the base
     scene's rolling model integrates the run (``Model.rolling``), watching its own

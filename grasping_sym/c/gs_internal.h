@@ -324,6 +324,8 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 #define GS_WATCH_TTOL 1e-9  /* a root on the dense output: to this fraction of its
                                interval (runtime/events.py locates it exactly)         */
 #define GS_WATCH_ITERATIONS 60
+#define GS_WATCH_NOISE 100  /* gs_watch_refine: a bracket this many times its ttol where a
+                             * trial is no nearer 0 than the last is the witness's noise     */
 #define GS_WATCH_PROBES 16  /* points of the dense output an unarmed witness's firing
                              * interval is probed at for a time it was above its tol      */
 #define GS_WATCH_SKIPS 16   /* steps' ends at most left unwatched in a row (watch.c)      */

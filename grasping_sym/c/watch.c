@@ -450,7 +450,8 @@ static int gs_refine_at(int method, double t, const double* x_step, const double
  * of gs_watch_result; its state x_step) by the run's loop `method` with the run's p, rtol,
  * atol, max_steps, lo, hi: secant steps from the dense output's root and slope, each trial
  * one step from t_step (runtime/events.py's refine, in C), stopped when the next step would
- * be below ttol s. Returns 0 with the time in *t, the state in x and the witness (less its
+ * be below ttol s, or when the bracket is within GS_WATCH_NOISE ttol and a trial is no nearer 0
+ * than the one before (the witness's noise: the nearer is taken). Returns 0 with the time in *t, the state in x and the witness (less its
  * level) in *g; 1 when the secant steps do not converge in `steps` or the trajectory
  * integrated again shows no sign change where it is looked for (the caller takes Brent's
  * method); < 0 an integration's error code. The watch is off meanwhile. */
@@ -495,6 +496,14 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
       a = t2;
     else
       b = t2;
+    if (b - a <= GS_WATCH_NOISE * ttol && !(fabs(g2) < fabs(g1))) {
+      /* the witness integrated again is at its noise (the Newton iterations'): no closer to 0
+       * within GS_WATCH_NOISE ttol; t1 is the nearer, x holds its state */
+      *t = t1;
+      *g = g1;
+      rc = 0;
+      break;
+    }
     const double t3 = g2 != g1 ? t2 - g2 * (t2 - t1) / (g2 - g1) : 0.5 * (a + b);
     for (int i = 0; i < gs_nx; ++i) x[i] = xt[i];
     if (g2 == 0.0 || fabs(t3 - t2) <= ttol) { /* the next secant step would be below ttol */
