@@ -89,8 +89,9 @@ def main() -> None:
         "# A hand read from URDF: TriFinger Pro on a free superquadric",
         "",
         f"`python -m benchmarks.urdf_hand` on {out['machine']}, Python {out['python']}, 2 cores. "
-        "Builds: one fresh process each, the first with an empty cache, the second (another "
-        "object on the same hand) with the first's. Runs: 1 s simulated at rtol 1e-8, atol "
+        "Builds: one fresh process each (the package imported from its compiled bytecode, as "
+        "an install's is: `timing.in_fresh_process`), the first with an empty cache, the second "
+        "(another object on the same hand) with the first's. Runs: 1 s simulated at rtol 1e-8, atol "
         f"1e-10, the scene's default method, best of {REPEAT}; *bare*: `t_eval=[0, 1]`; "
         "*outputs*: the default grid (every ms) with the outputs and the run-time checks; "
         "error: the final state against radau at rtol 1e-12. paper3d is the baseline of the "

@@ -281,7 +281,8 @@ def finger_dynamics(kin: FingerKinematics, gravity: Sequence[Scalar] | None = No
         m/s^2, gravity acceleration in the inertial frame, numbers or symbols, e.g.
         ``(0, -9.81, 0)``; ``None`` for no gravity.
     simplify
-        If true, ``G`` is trigsimp'ed entry by entry (about 1 s for a three-joint finger;
+        If true, ``G`` is trigsimp'ed entry by entry, its upper triangle mirrored (about
+        0.85 s for TriFinger's three-joint finger, 1.15 s entry by entry;
         it shrinks G about fourfold and removes the dependence on the first joint angle that
         an unsimplified G only cancels numerically), and ``K = 1/2 q'^T G q'`` and ``h`` are
         rebuilt from the simplified G, which is exact since K is quadratic in q'.
@@ -294,8 +295,10 @@ def finger_dynamics(kin: FingerKinematics, gravity: Sequence[Scalar] | None = No
         wk = R.T * (Wk * dq)  # body-frame angular velocity of link k
         kinetic += m * vc.dot(vc) / 2 + (wk.T * I_k * wk)[0, 0] / 2
     G = sp.hessian(kinetic, dq).applyfunc(sp.expand)
-    if simplify:
-        G = G.applyfunc(sp.trigsimp)
+    if simplify:  # G is symmetric: its upper triangle simplified, mirrored (a third less trigsimp)
+        n = G.shape[0]
+        upper = {(i, j): sp.trigsimp(G[i, j]) for i in range(n) for j in range(i, n)}
+        G = sp.Matrix(n, n, lambda i, j: upper[(min(i, j), max(i, j))])
         kinetic = (dq.T * G * dq)[0, 0] / 2
     Gv = G * dq
     h = Gv.jacobian(q) * dq - sp.Matrix([kinetic]).jacobian(q).T
