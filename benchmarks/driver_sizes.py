@@ -5,7 +5,8 @@ CPython front end) used to be compiled into object files once per set of model s
 (``GS_NX``, ``GS_NP``, ``GS_NY``, ``GS_NC``, ``GS_RADAU_M`` preprocessor constants). It now
 reads the sizes at run time (``gs_nx``, ... hidden ``const int`` globals the library's link
 file defines, ``toolchain.objects.links_c``), so its objects depend on the model's features
-alone and are compiled once per set of them. Here every model is linked twice, with the same
+alone and are compiled once per set of them (since issue 28 the features are read at run time
+too, and the objects are compiled once per set of work sizes). Here every model is linked twice, with the same
 CasADi-generated objects, flags and link line:
 
 * **A, per size**: the driver's C of the revision before the change (``BEFORE``, read with
@@ -19,7 +20,7 @@ integrator (``model.library.<method>``, output every ms), the two libraries inte
 one process (A B B A ...), min and median of repeated samples; the results of A and B are
 compared bit for bit (these runs, and rk4, a projected radau run and a batch of radau runs);
 and the serial gcc seconds of the driver's objects (the files one after another), which A
-pays for every new set of sizes and B once per set of features.
+pays for every new set of sizes and B once per set of work sizes.
 
     python -m benchmarks.driver_sizes   ->  benchmarks/results/driver_sizes.md (GS_BENCH_SAMPLES: samples)
 """
@@ -93,10 +94,16 @@ def _positions(names) -> int:
 
 def per_size_defines(model) -> dict:
     """A's macros: the model's driver macros as the per-size revision compiled them."""
-    from grasping_sym.toolchain.objects import object_defines
+    from grasping_sym.toolchain.objects import ALIASES, object_defines
 
     d = model.manifest["driver_defines"]
-    out = object_defines(d)
+    # the old revision read its features and the functions' names as macros too (they are the
+    # link file's now, ``objects.links_c``): the aliased names and the feature flags, as
+    # ``object_defines`` gave them before the features went to run time
+    out = {k: v for k, v in d.items() if k.startswith("GS_HAS_") or k in ("GS_JAC_NIN", "GS_JAC_NOUT",
+                                                                         "GS_JAC_BLOCK")}
+    out.update({k: ALIASES[k] for k in ALIASES if k in d})
+    out.update(object_defines(d))
     out.update({k: d[k] for k in ("GS_NX", "GS_NP", "GS_NY", "GS_NC") if k in d})
     if d.get("GS_HAS_JAC"):
         out["GS_RADAU_M"] = _positions(model.state_names)

@@ -344,3 +344,22 @@ def test_radau_matrices_of_a_large_model_go_on_the_heap(tmp_path):
     _, X, stats = lib.radau5(x0, t_out, p=[1.5], rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(X, np.exp(-1.5 * t_out)[:, None] * x0, rtol=1e-8)
     assert stats["n_lu"] > 0
+
+
+def test_the_link_file_refuses_a_feature_without_its_function():
+    """The driver reads its features from the model's link file (``objects.links_c``): a
+    feature flagged without its function's name, or a Jacobian whose inputs exceed the work
+    sizes, is refused by name before anything is compiled (the driver's ``#error``s did it
+    when the features were macros)."""
+    from grasping_sym.toolchain import objects
+
+    base = {"GS_RHS": "m_rhs", "GS_NX": 2, "GS_NP": 0, "GS_SZ_ARG": 8, "GS_SZ_RES": 8,
+            "GS_SZ_IW": 1, "GS_SZ_W": 1}
+    assert "int gs_model_outputs(" in objects.links_c(base)  # the stub, never called
+    with pytest.raises(ValueError, match="GS_HAS_OUT"):
+        objects.links_c({**base, "GS_HAS_OUT": 1})
+    with pytest.raises(ValueError, match="GS_RHS"):
+        objects.links_c({k: v for k, v in base.items() if k != "GS_RHS"})
+    with pytest.raises(ValueError, match="GS_JAC_NIN"):
+        objects.links_c({**base, "GS_HAS_JAC": 1, "GS_JAC": "jac_m_rhs", "GS_JAC_NIN": 99,
+                         "GS_JAC_NOUT": 20, "GS_JAC_BLOCK": 1})

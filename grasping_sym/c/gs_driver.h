@@ -17,7 +17,8 @@ extern __attribute__((visibility("hidden"))) const int gs_out_time;
 /* The model's features, read at run time too (the link file's): whether it has outputs, a
  * compiled Jacobian, constraints, a 4-lane rhs; the Jacobian's numbers of inputs and outputs
  * and the index of its block d ode / d x.  A function the model lacks is a stub there that
- * fails (GS_ERR_EVAL), never called: the driver asks these first.  So one build of the
+ * fails (its evaluation an error), never called: the driver asks these first, and its
+ * exported functions refuse (GS_ERR_ARGS) what the model lacks.  So one build of the
  * driver serves models of every feature too. */
 extern __attribute__((visibility("hidden"))) const int gs_has_out, gs_has_jac, gs_has_con,
     gs_has_lanes, gs_jac_nin, gs_jac_nout, gs_jac_block;

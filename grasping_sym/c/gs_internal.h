@@ -64,7 +64,7 @@
 #define GS_ST_NEWTON 5      /* Newton iterations (gs_radau5)                       */
 #define GS_ST_ROWS 6        /* output rows written                                 */
 #define GS_ST_HLAST 7       /* last step size                                      */
-#define GS_ST_CON_EVALS 8   /* evaluations of GS_CON by the projection             */
+#define GS_ST_CON_EVALS 8   /* evaluations of the constraints by the projection     */
 #define GS_ST_DRIFT_C 9     /* largest max|C| found before a projection            */
 #define GS_ST_DRIFT_CDOT 10 /* largest max|Cdot| found before a velocity projection */
 #define GS_ST_PROJ_PHASE 11 /* projection failure: 1 positions, 2 velocities       */
@@ -138,7 +138,7 @@ static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, con
 }
 
 /* xdot[s] = f(t[s], x[s], p) for s = 0, 1, 2: one call of the 4-lane rhs when the library
- * has it (codegen/lanes.py; bit-identical to three calls of GS_RHS), else three calls. */
+ * has it (codegen/lanes.py; bit-identical to three calls of the rhs), else three calls. */
 static inline int gs_eval_rhs3(gs_work* wk, const double* t, const double* const* x,
                                const double* p, double* const* xdot) {
   if (gs_has_lanes) {

@@ -450,15 +450,16 @@ static int gs_refine_at(int method, double t, const double* x_step, const double
  * of gs_watch_result; its state x_step) by the run's loop `method` with the run's p, rtol,
  * atol, max_steps, lo, hi: secant steps from the dense output's root and slope, each trial
  * one step from t_step (runtime/events.py's refine, in C), stopped when the next step would
- * be below ttol s, or when the bracket is within GS_WATCH_NOISE ttol and a trial is no nearer 0
- * than the one before (the witness's noise: the nearer is taken). Returns 0 with the time in *t, the state in x and the witness (less its
+ * be below ttol s, or when the bracket of the sign change is within GS_WATCH_NOISE ttol and a
+ * trial is no nearer 0 than the one before (the witness's noise: the one before is taken
+ * when inside the bracket, else the trial). Returns 0 with the time in *t, the state in x and the witness (less its
  * level) in *g; 1 when the secant steps do not converge in `steps` or the trajectory
  * integrated again shows no sign change where it is looked for (the caller takes Brent's
  * method); < 0 an integration's error code. The watch is off meanwhile. */
 GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p, double rtol,
                               double atol, long max_steps, const double* lo, const double* hi,
                               double ttol, long steps, double* t, double* x, double* g) {
-  if (gs_w.which < 0 || !(ttol > 0.0) || method < 0 || method > 2)
+  if (!gs_has_out || gs_w.which < 0 || !(ttol > 0.0) || method < 0 || method > 2)
     return GS_ERR_ARGS;
   const int on = gs_watch_suspend();
   gs_rj.x = malloc((size_t)(gs_nx + gs_nx * gs_nx) * sizeof(double)); /* none: J every trial */
@@ -497,10 +498,17 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
     else
       b = t2;
     if (b - a <= GS_WATCH_NOISE * ttol && !(fabs(g2) < fabs(g1))) {
-      /* the witness integrated again is at its noise (the Newton iterations'): no closer to 0
-       * within GS_WATCH_NOISE ttol; t1 is the nearer, x holds its state */
-      *t = t1;
-      *g = g1;
+      /* the witness integrated again is at its noise (the Newton iterations'): the bracket
+       * [a, b] of its sign change is within GS_WATCH_NOISE ttol and t2 came no nearer 0 than
+       * t1. Taken: t1 when inside the bracket (x holds its state), else t2 (an end of it) */
+      if (a <= t1 && t1 <= b) {
+        *t = t1;
+        *g = g1;
+      } else {
+        *t = t2;
+        *g = g2;
+        for (int i = 0; i < gs_nx; ++i) x[i] = xt[i];
+      }
       rc = 0;
       break;
     }
@@ -601,6 +609,11 @@ GS_HIDDEN void gs_watch_restore(int on) {
  * witnesses that fired at the end of the event's step when it was left unwatched (more than
  * one: which is first is the secants' guess, runtime/modes.py looks again), else 0. */
 GS_EXPORT void gs_watch_result(double* out) {
+  if (!gs_has_out) { /* nothing is ever watched */
+    out[0] = -1;
+    for (int i = 1; i < 9; ++i) out[i] = NAN;
+    return;
+  }
   out[0] = gs_w.which;
   out[1] = gs_w.armed_at_event;
   out[2] = gs_w.t_lo;

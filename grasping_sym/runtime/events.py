@@ -13,9 +13,9 @@ re-integrated one there.
 - ``refine``: the event was seen by the C loop itself (``c/watch.c``), inside one step, with
   the root of its dense output as a first guess and the dense output's slope: secant steps
   from it, each trial one step from the step's start, until the next would be below
-  ``TIME_TOL`` or, within ``NOISE`` times it, a trial is no nearer 0 than the last (the
-  witness's noise); Brent's method between the watched points around it when they do not
-  converge.
+  ``TIME_TOL`` or, with the bracket within ``NOISE`` times it, a trial is no nearer 0
+  than the last (the witness's noise: the last taken if inside the bracket, else the
+  trial); Brent's method between the watched points around it when they do not converge.
 """
 from __future__ import annotations
 
@@ -33,10 +33,11 @@ from grasping_sym.runtime.parameters import complete
 TIME_TOL = 1e-14
 
 
-#: ``refine`` stops where the bracket is within this many times ``TIME_TOL`` and a trial is no
-#: nearer 0 than the last: the witness on the trajectory integrated again one step at a time is
-#: at its noise there (the Newton iterations' tolerance; ~3e-13 of paper2d's cone, 1e-13 s, at
-#: rtol 1e-10), and the nearer trial is taken (``c/watch.c``: ``GS_WATCH_NOISE``).
+#: ``refine`` stops where the bracket of the sign change is within this many times ``TIME_TOL``
+#: and a trial is no nearer 0 than the last: the witness on the trajectory integrated again one
+#: step at a time is at its noise there (the Newton iterations' tolerance; ~3e-13 of paper2d's
+#: cone, 1e-13 s, at rtol 1e-10). The last trial is taken if it is inside the bracket, else this
+#: one (an end of it): either is within the bracket (``c/watch.c``: ``GS_WATCH_NOISE``).
 NOISE = 100
 
 #: Most secant steps of ``refine`` before it falls back to Brent's method.
@@ -132,7 +133,7 @@ def refine(model, s, sched, p, t_step: float, x_step: np.ndarray, t_lo: float, t
             else:
                 b = t2
             if b - a <= NOISE * TIME_TOL and not abs(g2) < abs(g1):  # at the witness's noise
-                return t1, x_at(t1)
+                return (t1, x_at(t1)) if a <= t1 <= b else (t2, x_at(t2))  # inside the bracket
             t3 = t2 - g2 * (t2 - t1) / (g2 - g1) if g2 != g1 else 0.5 * (a + b)
             if g2 == 0 or abs(t3 - t2) <= TIME_TOL:  # the next secant step would be below TIME_TOL
                 return t2, x_at(t2)

@@ -63,9 +63,10 @@ def driver_defines(rhs_fn: Any, outputs_fn: Any | None = None,
         GS_JAC_NIN, GS_JAC_NOUT, GS_JAC_BLOCK,] GS_HAS_CON, [GS_CON, GS_NC,]
         GS_HAS_RHS_LANES, [GS_RHS_LANES,] GS_SZ_ARG, GS_SZ_RES, GS_SZ_IW, GS_SZ_W``; sizes
         are maxima over all the functions given; ``GS_OUT_TIME`` 1 when the outputs take the
-        time as one more last entry of p. The sizes (``GS_NX``, ``GS_NP``, ``GS_NY``,
-        ``GS_NC``, and ``GS_OUT_TIME``) are not compiled into the driver: the library's link file defines them for
-        it to read at run time (``objects.links_c``).
+        time as one more last entry of p. Only the work sizes are compiled into the driver:
+        the sizes (``GS_NX``, ``GS_NP``, ``GS_NY``, ``GS_NC``, ``GS_OUT_TIME``), the features
+        (``GS_HAS_*``, ``GS_JAC_*``) and the functions' names are the library's link file's, read
+        at run time (``objects.links_c``).
     """
     fns = [rhs_fn] + [f for f in (outputs_fn, jac_fn, constraints_fn) if f is not None]
     defines: dict[str, str | int] = {

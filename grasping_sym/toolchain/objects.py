@@ -85,8 +85,9 @@ def links_c(defines: Mapping[str, str | int]) -> str:
     (:data:`SIZES`; outputs and constraints 0 when the driver has none) and features
     (:data:`FEATURES`) the driver reads.
 
-    Raises ``ValueError`` when the Jacobian's inputs or outputs exceed the work sizes the
-    driver's objects are compiled with (``object_defines``)."""
+    Raises ``ValueError`` when the rhs or a feature's function is not named, or the
+    Jacobian's inputs or outputs exceed the work sizes the driver's objects are compiled with
+    (``object_defines``), as the driver's ``#error``s did when they were macros."""
     work = object_defines(defines)
     has = {"GS_NY": bool(defines.get("GS_HAS_OUT")), "GS_NC": bool(defines.get("GS_HAS_CON"))}
     values = {k: int(defines.get(k, 0)) for k in FEATURES}
@@ -96,6 +97,13 @@ def links_c(defines: Mapping[str, str | int]) -> str:
                                      <= int(work["GS_SZ_RES"])):
         raise ValueError(f"the Jacobian's GS_JAC_NIN / GS_JAC_NOUT / GS_JAC_BLOCK {values} are "
                          f"inconsistent with each other or with the work sizes {work}")
+    named = {"GS_HAS_OUT": "GS_OUT", "GS_HAS_JAC": "GS_JAC", "GS_HAS_CON": "GS_CON",
+             "GS_HAS_RHS_LANES": "GS_RHS_LANES"}
+    unnamed = [flag for flag, name in named.items() if values[flag] and name not in defines]
+    if "GS_RHS" not in defines or unnamed:
+        raise ValueError(f"the driver's macros {dict(defines)!r:.300} name no function for "
+                         f"{['GS_RHS'] if 'GS_RHS' not in defines else unnamed}: give each "
+                         "feature's function (library.driver_defines makes them)")
     lines = ["/* grasping_sym: this model's sizes, features and functions, for the driver "
              "(toolchain.objects) */"]
     for k, var in SIZES.items():
