@@ -31,7 +31,7 @@ from pathlib import Path
 import casadi as ca
 
 from grasping_sym.assemble import kinds
-from grasping_sym.derive.bodies3d import surface_sx
+from grasping_sym.derive.bodies3d import object_rotation, state_slices, surface_sx
 from grasping_sym.store import files as stored
 from grasping_sym.store import safety
 from grasping_sym.store.platform import library_tag
@@ -98,20 +98,17 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
     return out
 
 
-#: The object's pose among a free 3D object's states: its centre and its quaternion (w, x, y, z).
-POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")
-
-
 def _squeezes(scene) -> bool:
     """Whether ``scene`` is a 3D grasp of a free object by two contacts (``squeeze``'s)."""
     return getattr(scene, "kind", None) == "grasp3d" and len(scene.fingers) == 2 \
-        and set(POSE) <= set(scene.state_names)
+        and bool(getattr(scene, "free", False))
 
 
 def _squeeze(scene, x: ca.SX) -> ca.Function:
     """``squeeze (x, mu) -> margin``: the two contacts' points ``p_i`` and unit normals into
     the object ``n_i`` (the object surface's at ``(u_o{i}, v_o{i})``, carried by the object's
-    pose, its quaternion normalised first), ``e = (p_2 - p_1)/|p_2 - p_1|``; per contact the
+    pose: its centre and the rotation of its quaternion, ``bodies3d.object_rotation``, exact
+    for any length), ``e = (p_2 - p_1)/|p_2 - p_1|``; per contact the
     cosine of the angle between the direction it pushes along the line (``e``, ``-e``) and
     its normal, less the cosine of its friction angle: ``e . n_1 - c_1``, ``-e . n_2 - c_2``,
     ``c_i = 1/sqrt(1 + mu_i^2)`` (``mu_i >= 0``). Both >= 0 iff the line lies in both cones
@@ -121,16 +118,12 @@ def _squeeze(scene, x: ca.SX) -> ca.Function:
     epsilon is exactly 0; smooth where the points are apart. With ``time`` it is the same
     function (it does not read the time)."""
     names = list(scene.state_names)
-    at = {k: x[names.index(k)] for k in (*POSE, "u_o1", "v_o1", "u_o2", "v_o2")}
-    q = ca.vertcat(*(at[k] for k in POSE[3:]))
-    w, a, b, c = ca.vertsplit(q / ca.norm_2(q))
-    R = ca.vertcat(ca.horzcat(1 - 2 * (b * b + c * c), 2 * (a * b - w * c), 2 * (a * c + w * b)),
-                   ca.horzcat(2 * (a * b + w * c), 1 - 2 * (a * a + c * c), 2 * (b * c - w * a)),
-                   ca.horzcat(2 * (a * c - w * b), 2 * (b * c + w * a), 1 - 2 * (a * a + b * b)))
-    centre = ca.vertcat(at["x"], at["y"], at["z"])
+    at = state_slices(scene)
+    R, _, _ = object_rotation(x[at["quat"]], ca.SX.zeros(3))
+    centre = x[at["pos"]]
     points, normals = [], []
     for i in (1, 2):
-        geo = surface_sx(scene.object_surface, at[f"u_o{i}"], at[f"v_o{i}"])
+        geo = surface_sx(scene.object_surface, x[names.index(f"u_o{i}")], x[names.index(f"v_o{i}")])
         out = R @ geo["n"]
         points.append(centre + R @ geo["S"])
         normals.append(-out / ca.norm_2(out))

@@ -68,7 +68,7 @@ def planar_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     t1 = time.perf_counter()
 
     def make(name):
-        _prefetch_driver(scene, jac=True, lanes=True)
+        _prefetch_driver()
         template, source = templates.planar_template(spec.shared, spec.gravity, scene.n_fingers,
                                                      spec.free)
         return structure_functions(template, spec, name), f"template: {source}"
@@ -110,16 +110,12 @@ def _in_layers(scene, spec: StructureSpec, make, own_functions, ctrl, say: Progr
                              "structure_compile": t2 - t1, "compose": t3 - t2}
 
 
-def _prefetch_driver(scene, *, jac: bool, lanes: bool) -> None:
-    """Start compiling the driver's objects for the model's features
-    (``library.predicted_defines``) while a new structure is derived and compiled: in a cache
-    that has not seen these features (the driver's objects do not depend on the model's
-    sizes), the first model then waits for them no longer than for its own C."""
-
-    # outputs that read the time are the driver's too (watch.c); every scene has contact
-    # constraints
-    library.prefetch_driver(library.predicted_defines(
-        outputs=bool(scene.outputs), constraints=True, jac=jac, lanes=lanes))
+def _prefetch_driver() -> None:
+    """Start compiling the driver's objects (``library.predicted_defines``) while a new
+    structure is derived and compiled: in a cache that has none yet (they depend on the work
+    sizes alone, not on the model's sizes or features), the first model then waits for them
+    no longer than for its own C."""
+    library.prefetch_driver(library.predicted_defines())
 
 
 def planar_single_piece(scene) -> SceneFunctions:
@@ -162,7 +158,7 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
     spec = Grasp3DStructureSpec(scene.structure_key())
 
     def make(name):
-        _prefetch_driver(scene, jac=False, lanes=False)
+        _prefetch_driver()
         return structure3d_functions(scene, name), "SymPy and CasADi's AD"
 
     surfaces = [s for f in scene.fingers for s in (f.tip, scene.object_surface)]

@@ -138,27 +138,17 @@ def outputs_read_time(cm, n_p: int) -> bool:
     return cm.outputs is not None and cm.outputs.nnz_in(1) == n_p + 1
 
 
-def predicted_defines(*, outputs: bool, constraints: bool, jac: bool,
-                      lanes: bool) -> dict[str, str | int]:
-    """The driver's macros of a model with outputs the driver calls or not, constraints or
-    not, a generated Jacobian or not and a 4-lane rhs or not, before its functions exist:
-    ``driver_defines`` of stand-in functions (2 states, 1 parameter, 1 output, 1 constraint).
-    The driver's objects depend on the work sizes alone (``objects.object_defines`` leaves
-    the sizes and features to the link file), which are the stand-ins', below what
-    ``object_defines`` rounds every size up to: the objects are the model's whenever its own
-    work sizes are too."""
-
-
+def predicted_defines() -> dict[str, str | int]:
+    """The driver's macros of a model before its functions exist: ``driver_defines`` of a
+    stand-in rhs (2 states, 1 parameter). The driver's objects depend on the work sizes alone
+    (``objects.object_defines`` leaves the sizes, the features and the names to the link
+    file), and the stand-in's are below what ``object_defines`` rounds every size up to: the
+    objects are the model's whenever its own work sizes are too."""
     x, p = ca.SX.sym("x", 2), ca.SX.sym("p", 1)
     none = ca.SX(0, 1)
     rhs = ca.Function("m_rhs", [ca.SX.sym("t"), x, ca.SX.sym("z", 0), p, ca.SX.sym("u", 0)],
                       [x, none, none, none], ca.dyn_in(), ca.dyn_out())
-    out = ca.Function("m_outputs", [x, p], [ca.SX.zeros(1)]) if outputs else None
-    dense = ca.densify(ca.SX.zeros(1, 2))
-    con = ca.Function("m_constraints", [x, p], [ca.SX.zeros(1), dense, ca.SX.zeros(1), dense]
-                      ) if constraints else None
-    return driver_defines(rhs, out, jac_fn=rhs.jacobian() if jac else None, constraints_fn=con,
-                          rhs_lanes=lanes_symbol(rhs) if lanes else None)
+    return driver_defines(rhs)
 
 
 def prefetch_driver(defines: dict, fast: bool = True) -> None:
