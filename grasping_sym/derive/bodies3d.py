@@ -24,7 +24,7 @@ from grasping_sym.derive.spatial import (
     quaternion_rate_matrix,
     quaternion_to_matrix,
 )
-from grasping_sym.geometry.surfaces import ParametricSurface, U, V
+from grasping_sym.geometry.surfaces import CHART, ParametricSurface, U, V
 from grasping_sym.model.grasp3d import GraspScene3D
 from grasping_sym.symbolic.translate import SympyToCasadi
 
@@ -107,11 +107,17 @@ def _placed(chain, g, q: ca.SX, dq: ca.SX) -> dict[str, ca.SX]:
     return {**out, **placed}
 
 
-def surface_sx(surface: ParametricSurface, u, v, extra: bool = False) -> dict[str, ca.SX]:
+def surface_sx(surface: ParametricSurface, u, v, extra: bool = False, chart=None) -> dict[str, ca.SX]:
     """Point, Montana frame and forms of ``surface`` at ``(u, v)`` as SX: ``S``, ``x``,
     ``y``, ``n``, ``M``, ``K``, ``T``; with ``extra`` also the tangent map ``Tm = [S_u S_v]``
-    and the second fundamental form ``II`` (surface frame)."""
-    tr = SympyToCasadi({U: u, V: v})
+    and the second fundamental form ``II`` (surface frame). ``chart``: for a surface with an
+    atlas (``geometry.atlas``), the chart (an SX, 0 or 1 at run time) at which its blended
+    surface is written; None (or a surface without one): the surface itself."""
+    if chart is not None and surface.atlas is not None:
+        surface = surface.atlas.blended
+        tr = SympyToCasadi({U: u, V: v, CHART: chart})
+    else:
+        tr = SympyToCasadi({U: u, V: v})
     x, y, n = surface.frame
     out = {"S": tr(surface.S), "x": tr(x), "y": tr(y), "n": tr(n),
            "M": tr(surface.montana_metric), "K": tr(surface.curvature_form),

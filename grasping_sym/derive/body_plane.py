@@ -64,7 +64,8 @@ def derive_body_plane(scene) -> dict:
     gain = float(scene.gain)
 
     R, quat_dot, _ = object_rotation(quat, om)
-    s = surface_sx(scene.surface, uv[0], uv[1], extra=True)
+    chart = p[scene.p_names.index("chart")] if "chart" in scene.p_names else None
+    s = surface_sx(scene.surface, uv[0], uv[1], extra=True, chart=chart)
     S, N, Tm = s["S"], s["n"], s["Tm"]
     N_uv = ca.jacobian(N, uv)
     # the support point: d/dt (R N) = R (om x N + N_uv uv') = -gain (R N + n)

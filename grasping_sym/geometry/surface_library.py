@@ -21,6 +21,9 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym.errors import InvalidSurfaceError
+from grasping_sym.geometry.atlas import LAT as ATLAS_LAT
+from grasping_sym.geometry.atlas import LON as ATLAS_LON
+from grasping_sym.geometry.atlas import directions, make_atlas, surface_of
 from grasping_sym.geometry.curves import PlanarCurve, T
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 from grasping_sym.geometry.values import as_real
@@ -86,17 +89,41 @@ def _placement(center, rotation) -> tuple[list[str], np.ndarray, np.ndarray]:
     return problems, c, R
 
 
-def _make(name: str, xyz, center, rotation, domain, problems: list[str]) -> ParametricSurface:
+def _make(name: str, xyz, center, rotation, domain, problems: list[str], atlas=None) -> ParametricSurface:
+    """The surface ``center + rotation @ xyz``; with ``atlas = (axes, kind, n)`` the first
+    chart of an atlas of two (``geometry.atlas``), placed alike."""
     more, c, R = _placement(center, rotation)
     problems = problems + more
     if problems:
         raise InvalidSurfaceError(name, problems)
-    out = []
-    for i in range(3):  # skip zero entries so the identity placement leaves S unchanged
-        e = sum((xyz[j] if R[i, j] == 1.0 else sp.Float(R[i, j]) * xyz[j]) for j in range(3) if R[i, j] != 0.0)
-        out.append(e + sp.Float(c[i]) if c[i] != 0.0 else e)
     dom = tuple(tuple(_num(x) for x in pair) for pair in domain)
-    return ParametricSurface(out, (U, V), dom, name)
+
+    def place(shape_xyz, label: str, chart: bool = False) -> ParametricSurface:
+        out = []
+        for i in range(3):  # skip zero entries so the identity placement leaves S unchanged
+            e = sum((shape_xyz[j] if R[i, j] == 1.0 else sp.Float(R[i, j]) * shape_xyz[j])
+                    for j in range(3) if R[i, j] != 0.0)
+            out.append(e + sp.Float(c[i]) if c[i] != 0.0 else e)
+        return ParametricSurface(out, (U, V), dom, label, charted=chart)
+
+    if atlas is None:
+        return place(xyz, name)
+    axes, kind, n = atlas
+    first = place(surface_of(directions(0), axes, kind, n), name)
+    object.__setattr__(first, "atlas", make_atlas(name, axes, kind, n, place))
+    return first
+
+
+def _charts(atlas, lon, lat, defaults) -> tuple[list[str], tuple, tuple]:
+    """``(problems, lon, lat)``: an atlas's own domain (``geometry.atlas``) when ``atlas``;
+    a ``lon`` or ``lat`` given with it is refused by name."""
+    if atlas is not True:
+        return ([] if atlas is False else [f"atlas = {atlas!r} must be True or False"]), lon, lat
+    if (lon, lat) != defaults:
+        return (["lon and lat are the atlas's own with atlas=True (longitude (-3 pi, 3 pi), both "
+                 "charts' latitude (-1.3, 1.3), where a contact switches chart): leave them out"],
+                ATLAS_LON, ATLAS_LAT)
+    return [], ATLAS_LON, ATLAS_LAT
 
 
 def _latlon_problems(lon, lat) -> list[str]:
@@ -105,35 +132,43 @@ def _latlon_problems(lon, lat) -> list[str]:
 
 def sphere(radius: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
            lon: tuple[float, float] = (-_PI, _PI), lat: tuple[float, float] = (-1.3, 1.3),
-           name: str = "sphere") -> ParametricSurface:
+           name: str = "sphere", atlas: bool = False) -> ParametricSurface:
     """Sphere ``r (cos v cos u, cos v sin u, sin v)``: ``u`` longitude, ``v`` latitude (rad).
 
     ``lat`` must lie strictly inside ``(-pi/2, pi/2)`` (the poles are singular points of the
     chart). Orthogonal chart: ``E = r^2 cos^2 v``, ``F = 0``, ``G = r^2``.
+
+    ``atlas=True``: the whole sphere, in two charts (``geometry.atlas``): a contact that
+    reaches latitude +-1.3 of one continues in the other, poles and seam included.
     """
-    problems = _finite_positive(radius=radius) + _latlon_problems(lon, lat)
+    atlas_problems, lon, lat = _charts(atlas, lon, lat, ((-_PI, _PI), (-1.3, 1.3)))
+    problems = _finite_positive(radius=radius) + _latlon_problems(lon, lat) + atlas_problems
     r = sp.Float(as_real(radius)) if not problems else sp.Integer(1)
     xyz = (r * sp.cos(V) * sp.cos(U), r * sp.cos(V) * sp.sin(U), r * sp.sin(V))
-    return _make(name, xyz, center, rotation, (lon, lat), problems)
+    return _make(name, xyz, center, rotation, (lon, lat), problems,
+                 atlas=((r, r, r), "linear", 2) if atlas is True else None)
 
 
 def ellipsoid(a: float, b: float, c: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
               lon: tuple[float, float] = (-_PI, _PI), lat: tuple[float, float] = (-1.3, 1.3),
-              name: str = "ellipsoid") -> ParametricSurface:
+              name: str = "ellipsoid", atlas: bool = False) -> ParametricSurface:
     """Ellipsoid ``(a cos v cos u, b cos v sin u, c sin v)`` with semi-axes ``a, b, c`` (m).
 
     Same latitude-longitude chart as :func:`sphere` (parametric, not geodetic, latitude);
-    not orthogonal unless ``a == b``.
+    not orthogonal unless ``a == b``. ``atlas=True``: the whole ellipsoid in two charts, as
+    :func:`sphere`'s.
     """
-    problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat)
+    atlas_problems, lon, lat = _charts(atlas, lon, lat, ((-_PI, _PI), (-1.3, 1.3)))
+    problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat) + atlas_problems
     ka, kb, kc = (sp.Float(as_real(s)) for s in (a, b, c)) if not problems else (1, 1, 1)
     xyz = (ka * sp.cos(V) * sp.cos(U), kb * sp.cos(V) * sp.sin(U), kc * sp.sin(V))
-    return _make(name, xyz, center, rotation, (lon, lat), problems)
+    return _make(name, xyz, center, rotation, (lon, lat), problems,
+                 atlas=((ka, kb, kc), "linear", 2) if atlas is True else None)
 
 
 def superquadric(a: float, b: float, c: float, n: int = 4, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
                  lon: tuple[float, float] = (-_PI, _PI), lat: tuple[float, float] = (-1.3, 1.3),
-                 name: str = "superquadric") -> ParametricSurface:
+                 name: str = "superquadric", atlas: bool = False) -> ParametricSurface:
     """Superquadric ``|x/a|^n + |y/b|^n + |z/c|^n = 1`` with an even integer ``n >= 2`` (m).
 
     Written in radial form over the sphere's latitude-longitude chart:
@@ -143,16 +178,20 @@ def superquadric(a: float, b: float, c: float, n: int = 4, center: Vec3 = (0.0, 
     (analytic) and positive; the chart is regular wherever the sphere's is
     (``(S_u x S_v) . d = rho^2 cos v > 0``), i.e. away from the poles. Barr's usual
     ``sign(cos)|cos|^(2/n)`` form is neither smooth nor regular at the flat faces' centres.
+    ``atlas=True``: the whole surface in two charts, as :func:`sphere`'s.
     """
-    problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat)
+    atlas_problems, lon, lat = _charts(atlas, lon, lat, ((-_PI, _PI), (-1.3, 1.3)))
+    problems = _finite_positive(a=a, b=b, c=c) + _latlon_problems(lon, lat) + atlas_problems
     if not (isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 2 and n % 2 == 0):
         problems.append(f"n = {n!r} must be an even integer >= 2 for a smooth surface")
     if problems:
         raise InvalidSurfaceError(name, problems)
     n = int(n)
     d = (sp.cos(V) * sp.cos(U), sp.cos(V) * sp.sin(U), sp.sin(V))
-    rho = sum(di**n / sp.Float(as_real(s)) ** n for di, s in zip(d, (a, b, c))) ** sp.Rational(-1, n)
-    return _make(name, tuple(rho * di for di in d), center, rotation, (lon, lat), [])
+    axes = tuple(sp.Float(as_real(s)) for s in (a, b, c))
+    rho = sum(di**n / s**n for di, s in zip(d, axes)) ** sp.Rational(-1, n)
+    return _make(name, tuple(rho * di for di in d), center, rotation, (lon, lat), [],
+                 atlas=(axes, "radial", n) if atlas is True else None)
 
 
 def plane(size_x: float, size_y: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,

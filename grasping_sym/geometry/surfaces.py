@@ -34,6 +34,8 @@ from grasping_sym.geometry.values import as_component, as_real
 #: The parameter symbols every surface is written in (surfaces are re-expressed in them).
 U = sp.Symbol("u", real=True)
 V = sp.Symbol("v", real=True)
+#: The chart of an atlas's blended surface (``geometry.atlas``): 0 or 1, a run-time parameter.
+CHART = sp.Symbol("chart", real=True)
 
 def _read_domain(domain) -> tuple[tuple[float, float], tuple[float, float]] | None:
     """``((u_min, u_max), (v_min, v_max))`` as floats, or None if it is not two pairs of real
@@ -76,6 +78,11 @@ class ParametricSurface:
     domain: tuple[tuple[float, float], tuple[float, float]] = ((-1.0, 1.0), (-1.0, 1.0))
     name: str = "surface"
     _checked: bool = field(default=False, repr=False)
+    #: an atlas of two charts of which this surface is the first (``geometry.atlas.Atlas``;
+    #: the library's closed surfaces with ``atlas=True``), else None
+    atlas: object = field(default=None, repr=False)
+    #: True for an atlas's blended surface, whose expressions hold ``CHART`` too
+    charted: bool = field(default=False, repr=False)
 
     def __post_init__(self) -> None:
         names = {str(self.params[0]): self.params[0], str(self.params[1]): self.params[1],
@@ -264,7 +271,8 @@ class ParametricSurface:
     def key(self) -> str:
         """A canonical text of the definition, for content hashing."""
         (u0, u1), (v0, v1) = self.domain
-        return "|".join([*(sp.srepr(c) for c in self.S), repr(u0), repr(u1), repr(v0), repr(v1)])
+        return "|".join([*(sp.srepr(c) for c in self.S), repr(u0), repr(u1), repr(v0), repr(v1),
+                         *([] if self.atlas is None else [self.atlas.key()])])
 
     # ----------------------------------------------------------------- numeric
     @cached_property
@@ -330,7 +338,7 @@ class ParametricSurface:
             elif not a < b:
                 problems.append(f"{label}-domain ({a}, {b}) is empty: give {label}_min < {label}_max")
         for label, e in zip(("S_x", "S_y", "S_z"), self.S):
-            extra = e.free_symbols - {U, V}
+            extra = e.free_symbols - ({U, V, CHART} if self.charted else {U, V})
             if extra:
                 names = ", ".join(sorted(map(str, extra)))
                 problems.append(f"{label}(u, v) has free symbols {names} besides the parameters u, v: "

@@ -105,6 +105,8 @@ class BodyScene:
         object.__setattr__(self, "outputs", names_tuple(self.outputs))
         motion, motion_problems = translation_of_time(self.plane_motion, "plane_motion")
         object.__setattr__(self, "plane_motion", motion)
+        if getattr(self.surface, "atlas", None) is not None:  # the chart: a run-time parameter
+            object.__setattr__(self, "runtime", (*RUNTIME, "chart"))
         problems = motion_problems + self._problems()
         if problems:
             raise InvalidSceneError(problems)
@@ -154,7 +156,8 @@ class BodyScene:
     @property
     def params(self) -> dict[str, float]:
         mu = self.friction.per_contact(1)[0] if self.friction is not None else math.inf
-        return {"mode": 0.0, "mu": min(mu, 1e300), "slip_x": 0.0, "slip_y": 0.0, "slip_z": 0.0}
+        own = {"mode": 0.0, "mu": min(mu, 1e300), "slip_x": 0.0, "slip_y": 0.0, "slip_z": 0.0}
+        return {**own, "chart": 0.0} if "chart" in self.runtime else own
 
     @property
     def p_names(self) -> tuple[str, ...]:
@@ -185,7 +188,9 @@ class BodyScene:
         return {"kind": "body", "modes": list(MODES),
                 "body": {"mass": float(self.mass), "inertia": [list(r) for r in self.inertia],
                          "plane_normal": list(self.plane_normal), "gain": float(self.gain)},
-                "param_rules": {"mu": "nonnegative"}}
+                "param_rules": {"mu": "nonnegative"},
+                **({} if self.surface.atlas is None else {"atlas": [
+                    {"param": "chart", "u": "u", "v": "v", "psi": None, **self.surface.atlas.manifest()}]})}
 
     def bounds(self) -> tuple[list, list]:
         lower: list = [None] * 15

@@ -55,6 +55,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import events, failures, fastpath, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
+from grasping_sym.runtime.atlas import Atlases
 from grasping_sym.runtime.parameters import complete
 from grasping_sym.runtime.result import SimulationResult
 
@@ -201,12 +202,17 @@ class _Run:
                 "mode": [names.index(self.key(self.MODE, j)) for j in self.contacts],
                 "slip": [names.index(self.key(self.SLIP, j)) for j in self.contacts],
                 "mu": [names.index(self.key("mu", j)) for j in self.contacts],
-                "own": _Leg.of(model), "rolling": {}}
+                "own": _Leg.of(model), "rolling": {},
+                "atlases": Atlases(model) if model.manifest.get("atlas") else None}
         self.p = static["p"].copy()
         self.i_mode, self.i_slip = static["mode"], static["slip"]
         for j, i in zip(self.contacts, static["mu"]):
             self.p[i] = min(self.mus[j - 1], 1e300)
         self.events: list[dict] = []
+        #: the model's atlases (``runtime.atlas``; None: no surface has one) and the run's
+        #: chart switches, in time order
+        self.atlases = static["atlases"]
+        self.chart_switches: list[dict] = []
         #: ``switch_time``: seconds spent locating the switches and making them
         #: segments: one per mode's stretch (the start's and one after each switch); chunks:
         #: the integrations they were run in (one per segment, and per piece of an inputs' table)
@@ -1222,7 +1228,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched)
         _count(r, st, own)
         t_look = perf_counter()
-        found = None if hit is None else _locate(r, leg, pl, watched, hit)
+        at_edge = hit is not None and "atlas" in hit
+        found = None if hit is None or at_edge else _locate(r, leg, pl, watched, hit)
         keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
         if found is not None and found[0] > hit["t"]:  # output times between the dense output's
             late = t_eval[(t_eval >= hit["t"]) & (t_eval < found[0])]  # root and the event's
@@ -1244,6 +1251,12 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         rows_p.append(p)
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
+        if at_edge:  # a contact at its chart's edge: on in the chart that covers it
+            x_now, p_new, record = r.atlases.switch(hit["atlas"], hit["t"], hit["x"], p)
+            _chart_switch(r, record, hit["x"], p_new)
+            r.stats["switch_time"] += perf_counter() - t_look
+            t_now = hit["t"]
+            continue
         if found is None:
             break
         t_ev, x_ev, name, j, value_ = found
@@ -1260,6 +1273,22 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
     if short is not None and rolls is not None and r.sched is None and not r.events:
         _remember(model, short, s, r, rolls)
     return res
+
+
+def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) -> None:
+    """Keep a chart switch (``runtime.atlas``): its record, and the new chart in the run's
+    parameters. A second switch of the same contact at the same time (its state mapped back
+    onto the chart's edge) stops the run by name rather than going round."""
+    last = r.chart_switches[-1] if r.chart_switches else None
+    again = last is not None and last["chart"] == record["chart"] \
+        and abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"]))
+    if again:
+        raise ContactLeftContourError(record["t"], x_at, f"{record['chart']}: the contact left both charts of "
+                                      f"its atlas at the same time (u, v = {record['u'][0]:.6g}, "
+                                      f"{record['v'][0]:.6g}): report this scene", r.model.state_names)
+    i = r.model.p_names.index(record["chart"])
+    r.p[i] = p_new[i]
+    r.chart_switches.append(record)
 
 
 def _new_run(model, s, mus, e: float) -> _Run:
@@ -1291,15 +1320,25 @@ def _finish(r: _Run, s, start: float, rows_t, rows_x, rows_mode, rows_p) -> Simu
         Y = parts[0] if len(parts) == 1 else np.concatenate(parts) if parts else \
             np.zeros((0, len(model.columns)))
         outs = outputs_.by_name(model, Y, shown=True) if model.columns else {}
-    if s.drop_first and len(t_all) and t_all[0] == 0.0:
+    first = bool(s.drop_first and len(t_all) and t_all[0] == 0.0)
+    if first:
         t_all, X_all, modes_all = t_all[1:], X_all[1:], modes_all[1:]
         outs = {k: v[1:] for k, v in outs.items()}
+    charts = {}
+    for entry, i, _ in (() if r.atlases is None else r.atlases.slots):
+        rows = [np.full(len(tt), int(pp[i])) for tt, pp in zip(rows_t, rows_p)]
+        charts[entry["param"]] = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+    if first:
+        charts = {k: v[1:] for k, v in charts.items()}
     stats = {**r.stats, "n_events": len(r.events), "wall_time": perf_counter() - start}
+    if r.atlases is not None:
+        stats["chart_switches"] = len(r.chart_switches)
     pdict = {"mu": mus[0] if r.k == 1 else mus, "e": e}
     names = np.array(NAMES)[modes_all.astype(int)]
     return SimulationResult(t=t_all, x=X_all, state_names=model.state_names, outputs=outs,
                             method=s.method, stats=stats, params=pdict, scene=model.scene,
-                            events=r.events, modes=names[:, 0] if r.k == 1 else names)
+                            events=r.events, modes=names[:, 0] if r.k == 1 else names,
+                            charts=charts, chart_switches=r.chart_switches)
 
 
 #: Start states the short way keeps per set of settings (the oldest dropped beyond this).
@@ -1441,7 +1480,19 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 t, X, st = integrators.c_loop(model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
                                               max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
             except IntegratorError as exc:
-                raise _in_own_state(r, leg, failures.classify(model, exc)) from None
+                err = _in_own_state(r, leg, failures.classify(model, exc))
+                slot = None if r.atlases is None or leg.back is not None else r.atlases.slot_of(err)
+                if slot is None:
+                    raise err from None
+                # a contact at its chart's edge: the rows up to the step there, and where it is
+                t, X = err.trajectory
+                rows_t.append(t if k == 0 else t[1:])
+                rows_x.append(X if k == 0 else X[1:])
+                for key in ("n_steps", "n_rhs"):
+                    stats[key] = stats.get(key, 0) + int(getattr(err, "stats", {}).get(key, 0))
+                _watched(r, lib)
+                hit = {"atlas": slot, "t": float(err.t), "x": np.asarray(err.x, dtype=float)}
+                return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             rows_t.append(t if k == 0 else t[1:])
             rows_x.append(X if k == 0 else X[1:])
             for key in ("n_steps", "n_rhs"):

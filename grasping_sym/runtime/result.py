@@ -68,6 +68,13 @@ class SimulationResult:
     modes
         With contact modes: the contact's mode at each output time (``"rolling"``,
         ``"sliding"``, ``"separated"``), else None.
+    charts
+        A model whose surfaces have atlases (``geometry.atlas``): per chart parameter (e.g.
+        ``"chart"``), the chart (0 or 1) each row's contact coordinates are in; else empty.
+    chart_switches
+        Every switch of chart, in time order, a dict with ``t``, ``chart`` (the parameter),
+        ``from``, ``to``, ``u`` and ``v`` (before, after) and ``delta`` (the frame's turn,
+        rad; ``runtime.atlas``).
     """
 
     t: np.ndarray
@@ -80,6 +87,8 @@ class SimulationResult:
     scene: object = field(default=None, repr=False, compare=False)
     events: list = field(default_factory=list, repr=False, compare=False)
     modes: np.ndarray | None = field(default=None, repr=False, compare=False)
+    charts: dict = field(default_factory=dict, repr=False, compare=False)
+    chart_switches: list = field(default_factory=list, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # shapes only, every run makes one: one row per time, one column per state name, one

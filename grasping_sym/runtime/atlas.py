@@ -1,0 +1,132 @@
+"""A contact carried across the charts of an atlas (``geometry.atlas``; ``docs/conventions.md``
+section 16).
+
+A surface with an atlas is compiled once, its chart a run-time parameter (0 or 1). The
+integration stops, at the step where it happens, where a contact's coordinates reach the
+chart's edge (its bounds: latitude +-1.3, longitude +-3 pi). There the state is mapped onto
+the chart that covers the point best, and the run goes on in it:
+
+- ``(u, v)`` through the point's direction ``d``: ``d = P_c e(u, v)``, ``e' = P_c'^T d``,
+  ``u' = atan2(e'_2, e'_1)``, ``v' = asin(e'_3)`` (exact: the same point, the same normal);
+- the contact's frame angle ``psi`` (a grasp's; a body on a plane has none) by the angle
+  ``delta`` from the old chart's frame axis ``x = S_u / |S_u|`` to the new one's, about the
+  surface's own normal: ``psi' = psi + delta`` for either surface of the contact.
+
+A longitude past +-3 pi is the same point 2 pi round: the chart stays and ``u`` wraps.
+Nothing is located: any point of the charts' overlap serves, and the step's end is one.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from grasping_sym.errors import ContactLeftContourError
+
+#: The longitude's period (rad).
+TURN = 2.0 * math.pi
+
+
+def _cross(a, b) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _unit(a) -> tuple[float, float, float]:
+    n = math.sqrt(_dot(a, a))
+    return (a[0] / n, a[1] / n, a[2] / n)
+
+
+def _turn(chart: int, e) -> tuple[float, float, float]:
+    """``P e`` for chart 1 (``P``: ``(e1, e2, e3) -> (e3, e1, e2)``), ``e`` for chart 0."""
+    return (e[2], e[0], e[1]) if chart else tuple(e)
+
+
+def _frame(entry: dict, chart: int, u: float, v: float):
+    """``(d, x, n)`` of the atlas ``entry`` (its manifest) at ``(u, v)`` of ``chart``: the
+    direction, the frame's unit ``S_u`` and the outward normal, in the shape's frame (Python
+    floats: NumPy's overhead on 3-vectors would be most of a switch's cost)."""
+    cu, su, cv, sv = math.cos(u), math.sin(u), math.cos(v), math.sin(v)
+    e = _turn(chart, (cv * cu, cv * su, sv))
+    e_u = _turn(chart, (-cv * su, cv * cu, 0.0))
+    e_v = _turn(chart, (-sv * cu, -sv * su, cv))
+    a = entry["axes"]
+    if entry["kind"] == "linear":               # F(d) = diag(a) d
+        S_u = (a[0] * e_u[0], a[1] * e_u[1], a[2] * e_u[2])
+        S_v = (a[0] * e_v[0], a[1] * e_v[1], a[2] * e_v[2])
+    else:  # F(d) = rho(d) d, rho = (sum (d_i/a_i)^n)^(-1/n): DF w = rho w + d (grad rho . w)
+        n = int(entry["n"])
+        s = sum((e[i] / a[i]) ** n for i in range(3))
+        rho = s ** (-1.0 / n)
+        grad = [-(s ** (-1.0 / n - 1.0)) * e[i] ** (n - 1) / a[i] ** n for i in range(3)]
+        gu, gv = _dot(grad, e_u), _dot(grad, e_v)
+        S_u = tuple(rho * e_u[i] + e[i] * gu for i in range(3))
+        S_v = tuple(rho * e_v[i] + e[i] * gv for i in range(3))
+    return e, _unit(S_u), _unit(_cross(S_u, S_v))
+
+
+def coordinates(d, chart: int) -> tuple[float, float]:
+    """``(u, v)`` in ``chart`` of the unit direction ``d``, ``u`` in ``(-pi, pi]``
+    (``e = P^T d`` for chart 1)."""
+    e = (d[1], d[2], d[0]) if chart else d
+    return math.atan2(e[1], e[0]), math.asin(max(-1.0, min(1.0, float(e[2]))))
+
+
+def transition(entry: dict, chart: int, u: float, v: float) -> tuple[int, float, float, float]:
+    """``(chart', u', v', delta)``: the point ``(u, v)`` of ``chart`` in the chart where its
+    latitude is smaller (the same chart, ``u`` wrapped into ``(-pi, pi]``, if that is this
+    one), and the angle ``delta`` from the old frame's ``x`` to the new one's about the normal."""
+    d, x_old, n = _frame(entry, chart, u, v)
+    other = 1 - chart
+    u1, v1 = coordinates(d, other)
+    if abs(v1) >= abs(v):                       # the seam: the same chart, the same frame
+        return chart, math.remainder(u, TURN), v, 0.0
+    _, x_new, _ = _frame(entry, other, u1, v1)
+    y_old = _cross(n, x_old)
+    return other, u1, v1, math.atan2(_dot(x_new, y_old), _dot(x_new, x_old))
+
+
+class Atlases:
+    """A model's atlases (its manifest's ``atlas``): each slot's chart parameter, state
+    columns and map; ``switch`` carries a state across."""
+
+    def __init__(self, model):
+        names, p_names = model.state_names, model.p_names
+        self.model = model
+        self.slots = []
+        for entry in model.manifest.get("atlas", ()):
+            cols = (names.index(entry["u"]), names.index(entry["v"]),
+                    None if entry["psi"] is None else names.index(entry["psi"]))
+            self.slots.append((entry, p_names.index(entry["param"]), cols))
+        self.columns = {c: k for k, (_, _, cols) in enumerate(self.slots) for c in cols[:2]}
+
+    def slot_of(self, err) -> int | None:
+        """The atlas slot whose coordinates left their chart in ``err`` (a
+        ``ContactLeftContourError`` of this model), or None (another state's bound)."""
+        if not isinstance(err, ContactLeftContourError) or err.x is None:
+            return None
+        bad = getattr(err, "x_rejected", None)
+        bad = np.asarray(err.x if bad is None else bad, dtype=float)
+        m = self.model
+        out = np.flatnonzero((bad < m.lower) | (bad > m.upper) | ~np.isfinite(bad))
+        if not out.size or int(out[0]) not in self.columns:
+            return None
+        return self.columns[int(out[0])]
+
+    def switch(self, k: int, t: float, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """``(x', p', record)``: the state ``x`` and parameters ``p`` at ``t`` with slot ``k``
+        carried to the chart that covers its point best (``transition``)."""
+        entry, i_chart, (iu, iv, ipsi) = self.slots[k]
+        chart = int(round(float(p[i_chart])))
+        new, u1, v1, delta = transition(entry, chart, float(x[iu]), float(x[iv]))
+        x2, p2 = np.array(x, dtype=float), np.array(p, dtype=float)
+        x2[iu], x2[iv] = u1, v1
+        if ipsi is not None:
+            x2[ipsi] = x2[ipsi] + delta
+        p2[i_chart] = float(new)
+        record = {"t": float(t), "chart": entry["param"], "from": chart, "to": new,
+                  "u": (float(x[iu]), u1), "v": (float(x[iv]), v1), "delta": delta}
+        return x2, p2, record

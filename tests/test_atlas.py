@@ -1,0 +1,160 @@
+"""Atlases of charts (``geometry.atlas``, ``runtime.atlas``; docs/conventions.md section 16).
+
+The map across charts is checked against the charts themselves (SymPy's surfaces evaluated at
+both ends: the same point, the same normal, the frame turned by the angle the run time
+adds to ``psi``). A whole run is checked against a case with a closed form (MODELS.md
+section 3): a ball rolling without spin round a circle on a turntable, whose contact runs
+over its chart's poles lap after lap.
+"""
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import grasping_sym as gs
+from grasping_sym.derive.bodies3d import surface_sx
+from grasping_sym.errors import ContactLeftContourError, InvalidSurfaceError
+from grasping_sym.geometry import surface_library as sl
+from grasping_sym.runtime import atlas as atlas_
+
+TURNED = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
+SURFACES = {
+    "sphere": lambda: sl.sphere(0.05, center=(0.01, 0.0, -0.02), rotation=TURNED, atlas=True),
+    "ellipsoid": lambda: sl.ellipsoid(0.05, 0.035, 0.02, rotation=TURNED, atlas=True),
+    "superquadric": lambda: sl.superquadric(0.04, 0.03, 0.05, n=4, center=(0.0, 0.02, 0.0), atlas=True),
+}
+
+
+def _chart(surface, chart: int):
+    return surface if chart == 0 else surface.atlas.second
+
+
+@pytest.mark.parametrize("name", sorted(SURFACES))
+def test_a_point_at_a_charts_edge_maps_to_the_same_point_normal_and_turned_frame(name):
+    """At random points near either chart's edge (|v| in [1.2, 1.3]) and on the longitude's
+    seam: the run time's map gives the same point and normal in the other chart (SymPy's
+    charts evaluated at both ends, 1e-15 m), the frame turned by exactly ``delta`` (the
+    angle added to psi), and a latitude well inside the new chart."""
+    surface = SURFACES[name]()
+    entry = surface.atlas.manifest()
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        chart = int(rng.integers(2))
+        u, v = rng.uniform(-3 * math.pi, 3 * math.pi), rng.choice([-1, 1]) * rng.uniform(1.2, 1.3)
+        new, u1, v1, delta = atlas_.transition(entry, chart, u, v)
+        assert new == 1 - chart and abs(v1) < 0.38 and -math.pi <= u1 <= math.pi
+        a, b = _chart(surface, chart).evaluate(u, v), _chart(surface, new).evaluate(u1, v1)
+        assert np.abs(a["point"] - b["point"]).max() < 1e-15
+        assert np.abs(a["normal"] - b["normal"]).max() < 1e-14
+        turn = math.atan2(b["x"] @ a["y"], b["x"] @ a["x"])
+        assert abs(math.remainder(turn - delta, 2 * math.pi)) < 1e-13
+    # the seam: a longitude past the chart's +-3 pi wraps in the same chart, nothing turned
+    assert atlas_.transition(entry, 0, 3 * math.pi + 0.01, 0.2) == pytest.approx((0, -math.pi + 0.01, 0.2, 0.0))
+
+
+@pytest.mark.parametrize("name", sorted(SURFACES))
+def test_the_blended_surface_is_each_chart_exactly(name):
+    """The compiled model's one surface (both charts, the chart a parameter) is chart 0 at
+    c = 0 and chart 1 at c = 1: point, frame and Montana's forms, to round-off."""
+    surface = SURFACES[name]()
+    u, v, c = ca.SX.sym("u"), ca.SX.sym("v"), ca.SX.sym("c")
+    keys = ("S", "x", "y", "n", "M", "K", "T")
+    both = surface_sx(surface, u, v, chart=c)
+    f = ca.Function("f", [u, v, c], [both[k] for k in keys])
+    for chart in (0, 1):
+        one = surface_sx(_chart(surface, chart), u, v)
+        g = ca.Function("g", [u, v], [one[k] for k in keys])
+        for uv in ((0.3, -0.7), (-2.5, 1.25), (2.0, 0.1)):
+            for got, want in zip(f(*uv, chart), g(*uv)):
+                assert np.abs(np.array(got) - np.array(want)).max() <= 1e-15 * max(1.0, np.abs(np.array(want)).max())
+
+
+def test_an_atlas_takes_no_domain_of_its_own():
+    with pytest.raises(InvalidSurfaceError, match="lon and lat are the atlas's own"):
+        sl.sphere(0.05, lat=(-1.0, 1.0), atlas=True)
+    with pytest.raises(InvalidSurfaceError, match="atlas = 'yes' must be True or False"):
+        sl.ellipsoid(0.05, 0.04, 0.03, atlas="yes")
+
+
+# --------------------------------------------------------------- a whole run across charts
+R, M, OMEGA, RC = 0.05, 0.1, 10.0, 0.1
+
+
+def _lap_scene(atlas: bool):
+    """A ball rolling without spin (relative to the table) round a circle of radius ``RC``
+    about a turntable's axis (MODELS.md section 3, in the table's frame); its chart's pole on
+    the contact's path, which the contact therefore crosses every lap.
+
+    Closed form: the centre turns about the axis at 2 Omega / 7, ``c = Rz(2 Omega t / 7) c0``;
+    the ball at ``R(t) = Rz(2 Omega t / 7) Rot(a, beta phi) R0`` with ``phi = 5 Omega t / 7``
+    (the lap angle on the table), ``beta = sqrt(1 + (RC / R)^2)``, ``a`` the unit vector from
+    the circle's centre to the ball's. After a lap on the table (``phi = 2 pi``) the ball has
+    turned by ``2 pi beta`` about ``a``, as MODELS.md says."""
+    a = np.array([RC, 0.0, R]) / math.hypot(RC, R)
+    s = 0.5                      # the pole w: w . a = -R / |(RC, R)| (on the contact's circle)
+    wx = -R * (1 + s) / RC
+    w = np.array([wx, math.sqrt(1 - wx**2 - s**2), s])
+    xb = np.cross([0.0, 1.0, 0.0], w)
+    xb /= np.linalg.norm(xb)
+    R0 = np.column_stack([xb, np.cross(w, xb), w])
+    c0 = np.array([RC, 0.0, R])
+    v0 = 2 / 7 * OMEGA * np.cross([0.0, 0.0, 1.0], c0)
+    om = np.array([5 * OMEGA * RC / (7 * R), 0.0, OMEGA])    # no spin relative to the table
+    d = R0.T @ [0.0, 0.0, -1.0]
+    surface = sl.sphere(R, atlas=True) if atlas else sl.sphere(R, lon=(-3 * math.pi, 3 * math.pi))
+    scene = gs.scenes.body_on_plane(surface, mass=M, inertia=(0.4 * M * R * R,) * 3, plane_spin=OMEGA,
+                                    position=tuple(c0), rotation=R0, velocity=tuple(v0),
+                                    omega=tuple(R0.T @ om), support=(math.atan2(d[1], d[0]), math.asin(d[2])),
+                                    name="lap_atlas" if atlas else "lap_one_chart")
+    return scene, a, R0, c0
+
+
+@pytest.fixture(scope="module")
+def lap_model():
+    scene, a, R0, c0 = _lap_scene(atlas=True)
+    return gs.build(scene), a, R0, c0
+
+
+def test_a_ball_rolls_lap_after_lap_over_its_charts_poles(lap_model):
+    """Five laps on the table: the contact runs 11 times round its circle on the ball,
+    through chart 0's pole each time. Every row's pose is the closed form's (rotation 5e-9,
+    centre 1e-10 m), at the lap times too (MODELS.md's lap case: turned by 2 pi beta about
+    ``a``); each row's contact coordinates, read in the row's chart, are the ball's lowest
+    point."""
+    model, a, R0, c0 = lap_model
+    lap = 14 * math.pi / (5 * OMEGA)
+    t_eval = np.union1d(np.linspace(0.0, 5 * lap, 401), lap * np.arange(1, 6))
+    res = model.simulate(5 * lap, t_eval=t_eval, rtol=1e-10, atol=1e-12)
+    assert not res.events and set(res.modes) == {"rolling"}
+    switches = res.chart_switches
+    assert len(switches) >= 10 and res.stats["chart_switches"] == len(switches)
+    assert {s["from"] for s in switches} == {0, 1} and set(res.charts["chart"]) == {0, 1}
+    t = res.t
+    beta = math.sqrt(1 + (RC / R) ** 2)
+    Rz = Rotation.from_rotvec(np.outer(2 * OMEGA * t / 7, [0.0, 0.0, 1.0])).as_matrix()
+    exact = Rz @ Rotation.from_rotvec(np.outer(beta * 5 * OMEGA * t / 7, a)).as_matrix() @ R0
+    assert np.abs(res.object_rotations() - exact).max() < 5e-9
+    assert np.abs(res.x[:, :3] - Rz @ c0).max() < 1e-10
+    at_laps = np.isin(t, lap * np.arange(1, 6))
+    turned = Rotation.from_rotvec(np.outer(2 * np.pi * beta * np.arange(1, 6), a)).as_matrix() @ R0
+    assert np.abs(Rz[at_laps] @ turned - res.object_rotations()[at_laps]).max() < 5e-9
+    # each row's (u, v) in its chart is the ball's point touching the table
+    body = model.scene.surface
+    lowest = np.einsum("nji,j->ni", res.object_rotations(), [0.0, 0.0, -R])
+    for chart in (0, 1):
+        rows = res.charts["chart"] == chart
+        point = (body if chart == 0 else body.atlas.second).evaluate(res["u"][rows], res["v"][rows])["point"]
+        assert np.abs(point - lowest[rows]).max() < 1e-9
+    # the contact went over the pole of chart 0: the rows in chart 1 reach it
+    d = body.atlas.second.evaluate(res["u"][res.charts["chart"] == 1], res["v"][res.charts["chart"] == 1])["point"] / R
+    assert np.abs(d[:, 2]).max() > math.cos(0.05)
+
+
+def test_the_same_run_on_one_chart_stops_at_its_edge_by_name():
+    scene, *_ = _lap_scene(atlas=False)
+    with pytest.raises(ContactLeftContourError, match=r"v = 1\.30.* left \[-1\.3, 1\.3\]"):
+        gs.build(scene).simulate(1.0, rtol=1e-10, atol=1e-12)
