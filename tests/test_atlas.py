@@ -8,6 +8,7 @@ over its chart's poles lap after lap.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import casadi as ca
@@ -17,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 import grasping_sym as gs
 from grasping_sym.derive.bodies3d import surface_sx
-from grasping_sym.errors import ContactLeftContourError, InvalidSurfaceError
+from grasping_sym.errors import InvalidSceneError, InvalidSurfaceError
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.runtime import atlas as atlas_
 
@@ -84,7 +85,7 @@ def test_an_atlas_takes_no_domain_of_its_own():
 R, M, OMEGA, RC = 0.05, 0.1, 10.0, 0.1
 
 
-def _lap_scene(atlas: bool):
+def _lap_scene():
     """A ball rolling without spin (relative to the table) round a circle of radius ``RC``
     about a turntable's axis (MODELS.md section 3, in the table's frame); its chart's pole on
     the contact's path, which the contact therefore crosses every lap.
@@ -105,17 +106,17 @@ def _lap_scene(atlas: bool):
     v0 = 2 / 7 * OMEGA * np.cross([0.0, 0.0, 1.0], c0)
     om = np.array([5 * OMEGA * RC / (7 * R), 0.0, OMEGA])    # no spin relative to the table
     d = R0.T @ [0.0, 0.0, -1.0]
-    surface = sl.sphere(R, atlas=True) if atlas else sl.sphere(R, lon=(-3 * math.pi, 3 * math.pi))
+    surface = sl.sphere(R, atlas=True)
     scene = gs.scenes.body_on_plane(surface, mass=M, inertia=(0.4 * M * R * R,) * 3, plane_spin=OMEGA,
                                     position=tuple(c0), rotation=R0, velocity=tuple(v0),
                                     omega=tuple(R0.T @ om), support=(math.atan2(d[1], d[0]), math.asin(d[2])),
-                                    name="lap_atlas" if atlas else "lap_one_chart")
+                                    name="lap_atlas")
     return scene, a, R0, c0
 
 
 @pytest.fixture(scope="module")
 def lap_model():
-    scene, a, R0, c0 = _lap_scene(atlas=True)
+    scene, a, R0, c0 = _lap_scene()
     return gs.build(scene), a, R0, c0
 
 
@@ -154,7 +155,100 @@ def test_a_ball_rolls_lap_after_lap_over_its_charts_poles(lap_model):
     assert np.abs(d[:, 2]).max() > math.cos(0.05)
 
 
-def test_the_same_run_on_one_chart_stops_at_its_edge_by_name():
-    scene, *_ = _lap_scene(atlas=False)
-    with pytest.raises(ContactLeftContourError, match=r"v = 1\.30.* left \[-1\.3, 1\.3\]"):
-        gs.build(scene).simulate(1.0, rtol=1e-10, atol=1e-12)
+# --------------------------------------------------------------- a grasp across charts
+BALL_R, BALL_M = 0.025, 0.04
+
+
+def _ball_grasp(name: str, tip, ball, guesses=None):
+    """paper3d's fingers holding a ball without the centre spring: the ball rolls down
+    between the fingertips, its contacts running 0.3-0.8 rad over both surfaces in 0.5 s.
+    ``guesses``: the state whose contact coordinates are the start's guesses."""
+    base = gs.scenes.paper3d()
+    fingers = [dataclasses.replace(base.fingers[0], tip=tip), base.fingers[1]]
+    if guesses is not None:
+        x, names = guesses
+        fingers = [dataclasses.replace(f, tip_contact=tuple(x[names.index(f"{c}_f{i}")] for c in "uv"),
+                                       object_contact=tuple(x[names.index(f"{c}_o{i}")] for c in "uv"))
+                   for i, f in enumerate(fingers, 1)]
+    return gs.scenes.paper3d(name=name, fingers=fingers, k_center=0.0, object_surface=ball,
+                             inertia=(0.4 * BALL_M * BALL_R**2,) * 3, mass=BALL_M)
+
+
+def _pole_ahead(start: np.ndarray, toward, angle: float) -> np.ndarray:
+    """A rotation whose z axis (the chart's pole) lies ``angle`` rad from ``start`` toward
+    ``toward``."""
+    axis = np.cross(start, toward)
+    w = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).apply(start)
+    x = np.cross([0.0, 0.0, 1.0], w)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(w, x), w])
+
+
+def _in_chart(state, names, side_i, old, new, r):
+    """``state`` with contact ``side_i`` (``("f", 1)``, ...) carried from the surface ``old``
+    to ``new`` (the same shape, another chart): its point's coordinates in ``new`` and psi
+    turned by the angle between the charts' frames (docs/conventions.md section 16), by the
+    surfaces' own SymPy geometry."""
+    side, i = side_i
+    iu, iv, ip = names.index(f"u_{side}{i}"), names.index(f"v_{side}{i}"), names.index(f"psi{i}")
+    g0 = old.evaluate(state[iu], state[iv])
+    e = new.atlas_rotation.T @ (g0["point"] / r)
+    u, v = math.atan2(e[1], e[0]), math.asin(e[2])
+    g1 = new.evaluate(u, v)
+    assert np.abs(g1["point"] - g0["point"]).max() < 1e-16
+    out = state.copy()
+    out[iu], out[iv], out[ip] = u, v, state[ip] + math.atan2(g1["x"] @ g0["y"], g1["x"] @ g0["x"])
+    return out
+
+
+def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts():
+    """The same grasp twice: with one-chart surfaces whose poles are far from the contacts,
+    and with atlases whose chart-0 poles lie on the contacts' paths (fingertip 1's and the
+    ball's at contact 1), started at the same physical state. The run with atlases switches
+    chart on both sides of contact 1 (psi turned for a fingertip's chart and for an
+    object's); every other state agrees with the one-chart run to 1e-9, and each row's
+    contact point, read in its chart, to 1e-12 m."""
+    tip = sl.sphere(0.01, name="fingertip 1", lon=(-3 * math.pi, 3 * math.pi))
+    ball = sl.sphere(BALL_R, lon=(-math.pi / 2, 3 * math.pi / 2), name="ball")
+    ref = gs.build(_ball_grasp("ball_grasp_one_chart", tip, ball))
+    names, x0 = ref.state_names, ref.initial_state()
+    iu, iv = names.index("u_f1"), names.index("v_f1")
+    Rt = _pole_ahead(tip.evaluate(x0[iu], x0[iv])["point"] / 0.01, [0.0, 1.0, 0.0], 0.3)
+    io, jo = names.index("u_o1"), names.index("v_o1")
+    Ro = _pole_ahead(ball.evaluate(x0[io], x0[jo])["point"] / BALL_R, [0.0, 1.0, 0.0], 0.3)
+    atip = sl.sphere(0.01, rotation=Rt, atlas=True, name="fingertip 1")
+    aball = sl.sphere(BALL_R, rotation=Ro, atlas=True, name="ball")
+    object.__setattr__(atip, "atlas_rotation", Rt)
+    object.__setattr__(aball, "atlas_rotation", Ro)
+    xa = _in_chart(x0, names, ("f", 1), tip, atip, 0.01)
+    for i in (1, 2):
+        xa = _in_chart(xa, names, ("o", i), ball, aball, BALL_R)
+    model = gs.build(_ball_grasp("ball_grasp_atlases", atip, aball, (xa, names)))
+    assert model.p_names[-3:] == ("chart_f1", "chart_o1", "chart_o2")
+    kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.5, 251))
+    ra, rr = model.simulate(0.5, x0=xa, **kw), ref.simulate(0.5, x0=x0, **kw)
+    switched = {s["chart"] for s in ra.chart_switches}
+    assert {"chart_f1", "chart_o1"} <= switched
+    assert set(ra.charts["chart_f1"]) == {0, 1} and set(ra.charts["chart_o1"]) == {0, 1}
+    body = [k for k, n in enumerate(names) if not n.startswith(("u_", "v_", "psi"))]
+    assert np.abs(ra.x[:, body] - rr.x[:, body]).max() < 1e-9
+    for side, i, one, atlas in (("f", 1, tip, atip), ("o", 1, ball, aball), ("o", 2, ball, aball)):
+        chart = ra.charts[f"chart_{side}{i}"]
+        want = one.evaluate(rr[f"u_{side}{i}"], rr[f"v_{side}{i}"])["point"]
+        for c in (0, 1):
+            rows = chart == c
+            got = (atlas if c == 0 else atlas.atlas.second).evaluate(ra[f"u_{side}{i}"][rows],
+                                                                    ra[f"v_{side}{i}"][rows])["point"]
+            assert np.abs(got - want[rows]).max(initial=0.0) < 1e-12
+
+
+def test_what_does_not_take_an_atlas_yet_says_so():
+    """A grasp with contact modes, and the paper's formulation, refuse surfaces with atlases
+    by name (they would run on chart 0 alone)."""
+    tip = sl.sphere(0.01, atlas=True, name="fingertip 1")
+    base = gs.scenes.paper3d()
+    fingers = (dataclasses.replace(base.fingers[0], tip=tip), base.fingers[1])
+    with pytest.raises(InvalidSceneError, match="formulation='regular'"):
+        gs.scenes.paper3d(fingers=fingers, formulation="paper")
+    with pytest.raises(InvalidSceneError, match=r"atlases \(chart_f1\)"):
+        gs.scenes.with_modes(gs.scenes.paper3d(fingers=fingers))

@@ -99,9 +99,10 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
 
 
 def _squeezes(scene) -> bool:
-    """Whether ``scene`` is a 3D grasp of a free object by two contacts (``squeeze``'s)."""
+    """Whether ``scene`` is a 3D grasp of a free object by two contacts (``squeeze``'s) whose
+    surface is one chart (an atlas's chart is a run-time parameter ``squeeze`` does not take)."""
     return getattr(scene, "kind", None) == "grasp3d" and len(scene.fingers) == 2 \
-        and bool(getattr(scene, "free", False))
+        and bool(getattr(scene, "free", False)) and getattr(scene.object_surface, "atlas", None) is None
 
 
 def _squeeze(scene, x: ca.SX) -> ca.Function:

@@ -72,32 +72,39 @@ def contour_functions(leaves: list[list], slots: tuple[Slot, ...], reads: Reads,
 
 
 def jets_functions(surfaces, slots: tuple[Slot, ...], reads: Reads, nx: int, name: str,
-                   body: tuple[float, ...] = ()) -> dict[str, ca.Function]:
+                   body: tuple[float, ...] = (), charts: dict[int, int] | None = None,
+                   np_: int = 0) -> dict[str, ca.Function]:
     """Per function kind of a 3D structure, ``<name>_jets_<kind> (x) -> J``: the entries of
     the contour slots' jets (``structure3d.jet_values``; slot ``s`` of surface ``surfaces[s]``
     at its states ``u, v``), then of the object's mass properties ``body``
     (``structure3d.body_values``), that the structure's function of that kind reads
-    (``reads[kind]["J"]``)."""
+    (``reads[kind]["J"]``). ``charts``: the slots whose surface has an atlas
+    (``geometry.atlas``), each with the index of its chart in the model's ``p`` (of
+    ``np_`` entries); with any, the functions take ``(x, p)``."""
     x = ca.SX.sym("x", nx)
+    p = ca.SX.sym("p", np_) if charts else None
     jets = []
-    for surface, slot in zip(surfaces, slots):
+    for k, (surface, slot) in enumerate(zip(surfaces, slots)):
         u, v = (x[i] for i in slot.states)
-        jets.append(jet_values(surface_sx(surface, u, v), u, v))
-    return _by_kind(x, {"J": ca.vertcat(*jets, ca.DM(list(body)))}, reads, f"{name}_{SURFACE_JETS.what}")
+        chart = p[charts[k]] if charts and k in charts else None
+        jets.append(jet_values(surface_sx(surface, u, v, chart=chart), u, v))
+    return _by_kind(x, {"J": ca.vertcat(*jets, ca.DM(list(body)))}, reads, f"{name}_{SURFACE_JETS.what}", p)
 
 
-def _by_kind(x: ca.SX, values: dict, reads: Reads, prefix: str) -> dict[str, ca.Function]:
-    """Per function kind, ``<prefix>_<kind> (x) ->`` the entries of each of ``values`` (by
-    input name) that kind reads; kinds that read the same entries share one function."""
+def _by_kind(x: ca.SX, values: dict, reads: Reads, prefix: str, p: ca.SX | None = None) -> dict[str, ca.Function]:
+    """Per function kind, ``<prefix>_<kind> (x) ->`` (``(x, p)``, given ``p``) the entries of
+    each of ``values`` (by input name) that kind reads; kinds that read the same entries share
+    one function."""
     out, made = {}, {}
+    ins, in_names = ([x], ["x"]) if p is None else ([x, p], ["x", "p"])
     for kind, by_input in reads.items():
         names = [n for n in by_input if n in values]
         key = tuple((n, tuple(by_input[n])) for n in names)
         if key not in made:
             made[key] = ca.Function(
-                f"{prefix}_{kind}", [x],
+                f"{prefix}_{kind}", ins,
                 [ca.vertcat(*[values[n][i] for i in by_input[n]]) if by_input[n] else ca.SX(0, 1)
-                 for n in names], ["x"], names, FUNCTION_OPTIONS)
+                 for n in names], in_names, names, FUNCTION_OPTIONS)
         out[kind] = made[key]
     return out
 
@@ -135,14 +142,16 @@ def compose_layered(structure: dict[str, ca.Function], record: StructureRecord,
     t, x, p = ca.MX.sym("t"), ca.MX.sym("x", nx), ca.MX.sym("p", np_)
     z, u = ca.MX.sym("z", 0), ca.MX.sym("u", 0)
     empty = ca.MX(0, 1)
-    ps = p[:n_structure_p]
+    ps = p[:n_structure_p] if n_structure_p else ca.MX(0, 1)  # (p[:0] of a longer p is 1x0)
     controller = ctrl.function
     tau = controller(t, x, p)
 
-    def args(kind, p_structure=ps, torques=tau):
-        """The inputs of the structure's function ``kind``, in its order."""
+    def args(kind, p_structure=ps, torques=tau, p_model=p):
+        """The inputs of the structure's function ``kind``, in its order (``p_model``: the
+        model's ``p``, where the contact values read their charts)."""
         f = structure[kind]
-        values = dict(zip(own[kind].name_out(), own[kind].call([x])))
+        mine = own[kind]
+        values = dict(zip(mine.name_out(), mine.call([x] if mine.n_in() == 1 else [x, p_model])))
         kept = record.reads[kind].get("tau", ())
         given = {"t": t, "x": x, "z": z, "u": u, **values,
                  "p": ca.vertcat(p_structure, torques) if layout.torques_in_p else p_structure,
@@ -161,7 +170,8 @@ def compose_layered(structure: dict[str, ca.Function], record: StructureRecord,
         # the outputs are functions of (x, p): the torques at t = 0, or at the time in a last
         # entry of p when the law reads the time (``assemble.controller.outputs_p``)
         p_out, pm, t_out = outputs_p(p, np_, ctrl.reads_time)
-        y = structure["outputs"].call(args("outputs", pm[:n_structure_p], controller(t_out, x, pm)))
+        y = structure["outputs"].call(args("outputs", pm[:n_structure_p] if n_structure_p else ca.MX(0, 1),
+                                           controller(t_out, x, pm), pm))
         out_fn = ca.Function(f"{name}_outputs", [x, p_out], y, ["x", "p"], ["y"])
     tau0 = controller(0, x, p)
     constraints = ca.Function(f"{name}_constraints", [x, p],

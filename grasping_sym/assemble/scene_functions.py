@@ -163,9 +163,12 @@ def grasp3d_layered(scene, progress: Progress | None = None) -> SceneFunctions:
 
     surfaces = [s for f in scene.fingers for s in (f.tip, scene.object_surface)]
 
+    charts = {slot: scene.p_names.index(name) for slot, name, _ in scene.chart_slots()}
+
     def jets(record):
         return jets_functions(surfaces, record.slots, record.reads, len(scene.state_names),
-                              scene.name, body=tuple(body_values(scene.mass, scene.inertia)))
+                              scene.name, body=tuple(body_values(scene.mass, scene.inertia)),
+                              charts=charts, np_=len(scene.p_names))
 
     cm, _, record, timings = _in_layers(scene, spec, make, jets, ctrl, say,
                                         "the surfaces' jets (SymPy forms, CasADi AD)")

@@ -133,7 +133,8 @@ def derive_grasp3d(scene: GraspScene3D, surface_fn=None, torque_inputs: bool = F
     p_names = _param_names(scene, torque_inputs)
     p = ca.SX.sym("p", len(p_names))
     b = bodies(scene, x, form.n_eta, mass_properties)
-    surface_fn = surface_fn or (lambda slot, s, u, v, extra: surface_sx(s, u, v, extra))
+    charts = {slot: p[p_names.index(name)] for slot, name, _ in scene.chart_slots() if name in p_names}
+    surface_fn = surface_fn or (lambda slot, s, u, v, extra: surface_sx(s, u, v, extra, chart=charts.get(slot)))
     cs = contacts(scene, b, form, surface_fn)
     C = ca.vertcat(*[c.gap for c in cs])
     A, Cdot, Ahat, bhat = constraint_derivatives(C, b, *form.constraint_coordinates(b, cs))

@@ -105,8 +105,6 @@ class BodyScene:
         object.__setattr__(self, "outputs", names_tuple(self.outputs))
         motion, motion_problems = translation_of_time(self.plane_motion, "plane_motion")
         object.__setattr__(self, "plane_motion", motion)
-        if getattr(self.surface, "atlas", None) is not None:  # the chart: a run-time parameter
-            object.__setattr__(self, "runtime", (*RUNTIME, "chart"))
         problems = motion_problems + self._problems()
         if problems:
             raise InvalidSceneError(problems)
@@ -156,12 +154,17 @@ class BodyScene:
     @property
     def params(self) -> dict[str, float]:
         mu = self.friction.per_contact(1)[0] if self.friction is not None else math.inf
-        own = {"mode": 0.0, "mu": min(mu, 1e300), "slip_x": 0.0, "slip_y": 0.0, "slip_z": 0.0}
-        return {**own, "chart": 0.0} if "chart" in self.runtime else own
+        return {"mode": 0.0, "mu": min(mu, 1e300), "slip_x": 0.0, "slip_y": 0.0, "slip_z": 0.0}
+
+    @property
+    def chart_names(self) -> tuple[str, ...]:
+        """The chart of the body's surface when it has an atlas (``geometry.atlas``): a
+        parameter the run sets (``runtime.atlas``), after every other in ``p``."""
+        return ("chart",) if getattr(self.surface, "atlas", None) is not None else ()
 
     @property
     def p_names(self) -> tuple[str, ...]:
-        return self.runtime
+        return (*self.runtime, *self.chart_names)
 
     @property
     def n_contacts(self) -> int:
@@ -189,7 +192,7 @@ class BodyScene:
                 "body": {"mass": float(self.mass), "inertia": [list(r) for r in self.inertia],
                          "plane_normal": list(self.plane_normal), "gain": float(self.gain)},
                 "param_rules": {"mu": "nonnegative"},
-                **({} if self.surface.atlas is None else {"atlas": [
+                **({} if not self.chart_names else {"chart_param_names": ["chart"], "atlas": [
                     {"param": "chart", "u": "u", "v": "v", "psi": None, **self.surface.atlas.manifest()}]})}
 
     def bounds(self) -> tuple[list, list]:

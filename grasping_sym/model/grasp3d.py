@@ -210,6 +210,9 @@ class GraspScene3D:
             p.append(f"support {self.support!r} unknown: choose one of {SUPPORTS}")
         if self.formulation not in FORMULATIONS:
             p.append(f"formulation {self.formulation!r} unknown: choose one of {FORMULATIONS}")
+        elif self.chart_names and self.formulation != "regular":
+            p.append("a surface with an atlas (atlas=True) needs formulation='regular': the paper "
+                     "formulation's frames have no angle psi to carry across charts")
         if self.gravity is not None and (len(self.gravity) != 3
                                          or not all(math.isfinite(g) for g in self.gravity)):
             p.append(f"gravity {self.gravity!r} must be three finite numbers (m/s^2) or None")
@@ -303,8 +306,38 @@ class GraspScene3D:
     @property
     def p_names(self) -> tuple[str, ...]:
         """Every entry of the compiled functions' ``p``: the run-time parameters, the start's
-        values, the inputs' coefficients."""
-        return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names))
+        values, the inputs' coefficients, the charts (``chart_names``)."""
+        return (*self.runtime, *self.start_param_names, *coefficient_names(self.input_names),
+                *self.chart_names)
+
+    def chart_slots(self) -> tuple[tuple[int, str, str], ...]:
+        """``(slot, parameter, side)`` of each contact surface with an atlas
+        (``geometry.atlas``): contact ``i``'s fingertip (slot ``2 (i - 1)``, parameter
+        ``chart_f{i}``, side ``f``), the object there (``2 i - 1``, ``chart_o{i}``, ``o``). The
+        chart is a parameter the run sets (``runtime.atlas``), 0 at the start."""
+        out = []
+        for i, f in enumerate(self.fingers, 1):
+            for slot, side, surface in ((2 * i - 2, "f", f.tip), (2 * i - 1, "o", self.object_surface)):
+                if getattr(surface, "atlas", None) is not None:
+                    out.append((slot, f"chart_{side}{i}", side))
+        return tuple(out)
+
+    @property
+    def chart_names(self) -> tuple[str, ...]:
+        return tuple(name for _, name, _ in self.chart_slots())
+
+    def atlas_manifest(self) -> dict:
+        """The manifest's charts: their parameters' names, and what the run time reads to map
+        a contact across them (``runtime.atlas``)."""
+        if not self.chart_names:
+            return {}
+        entries = []
+        for slot, name, side in self.chart_slots():
+            i = slot // 2 + 1
+            surface = self.fingers[i - 1].tip if side == "f" else self.object_surface
+            entries.append({"param": name, "u": f"u_{side}{i}", "v": f"v_{side}{i}", "psi": f"psi{i}",
+                            **surface.atlas.manifest()})
+        return {"chart_param_names": list(self.chart_names), "atlas": entries}
 
     def structure_key(self) -> str:
         """What the code depends on besides the scene's name and its surfaces: the text of
@@ -359,7 +392,8 @@ class GraspScene3D:
         return {"kind": "grasp3d", "formulation": self.formulation,
                 "param_rules": {k: "positive" if k in ("fd", "c") else "nonnegative"
                                 for k in self.runtime},
-                **({"joint_limits": list(self.joint_limits())} if self.joint_limits() else {})}
+                **({"joint_limits": list(self.joint_limits())} if self.joint_limits() else {}),
+                **self.atlas_manifest()}
 
     def joint_limits(self) -> dict[str, tuple[float, float]]:
         """rad, ``{joint state name: (lower, upper)}`` of every joint that has limits."""

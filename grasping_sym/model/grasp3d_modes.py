@@ -89,6 +89,9 @@ class GraspModesScene(WithModes):
                             "constants (give their values in the scene); its run-time inputs are mu and e")
         if b.inputs is not None:
             problems.append("inputs: a scene with contact modes has no control inputs (use a controller)")
+        if b.chart_names:
+            problems.append(f"surfaces with atlases ({', '.join(b.chart_names)}): a grasp with contact modes "
+                            "is built on one chart per surface; build its surfaces without atlas=True")
         object.__setattr__(self, "planes", tuple(self.planes))
         if any(not isinstance(w, WorldPlane) for w in self.planes):
             problems.append("planes must be gs.scenes.world_plane(point, normal) values")

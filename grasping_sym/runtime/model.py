@@ -86,10 +86,12 @@ class Model:
         self.input_names: tuple[str, ...] = tuple(manifest.get("input_names", ()))
         coefficients = (*self.input_names, *(f"{k}_rate" for k in self.input_names))
         #: every entry of the compiled functions' ``p``: ``param_names``, the start's values,
-        #: then the inputs' coefficients (``u(t) = a + b t``: every ``a``, then every ``b``)
-        self.p_names: tuple[str, ...] = self.param_names + start_names + coefficients
+        #: the inputs' coefficients (``u(t) = a + b t``: every ``a``, then every ``b``),
+        #: then the charts of the surfaces with atlases (``runtime.atlas``: 0 at the start)
+        charts = tuple(manifest.get("chart_param_names", ()))
+        self.p_names: tuple[str, ...] = self.param_names + start_names + coefficients + charts
         self.default_params = np.array([*manifest["param_values"], *self.start_params.values(),
-                                        *[0.0] * len(coefficients)], dtype=float)
+                                        *[0.0] * (len(coefficients) + len(charts))], dtype=float)
         self.lower = np.array([-math.inf if v is None else v for v in manifest["lower"]])
         self.upper = np.array([math.inf if v is None else v for v in manifest["upper"]])
         #: the joints whose bounds are their limits (a run stops there with ``JointLimitError``)
@@ -456,7 +458,7 @@ class Model:
             res = run_.run(self, s, x0, own_start, self.params(params), u)
             res.stats["fallback"] = f"radau: {exc.reason}"
             return res
-        if short:  # the settings and x0 passed: later calls may take the short way
+        if short and not res.chart_switches:  # the settings and x0 passed: later calls may take the short way
             fastpath.remember(self, plan_key, s)
             if checks:
                 fastpath.checked(self, None if own_start else x0)

@@ -19,6 +19,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime.atlas import Atlases
 from grasping_sym.runtime.inputs import as_schedule
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings, numbers_array
@@ -63,33 +64,128 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
         sched.segments(0.0, float(t_eval[-1]))
     p0 = p if sched is None else model.with_inputs(p, segments[0][2], segments[0][3])
     start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
-    t, X, stats = _segments(model, s, segments, sched, x0, p, start)
+    charted = _Charted(model)
+    t, X, stats = _segments(model, s, segments, sched, x0, p, start, charted)
+    pieces = charted.pieces(t)
     # the checks read the compiled outputs whether or not the result shows them; a run
     # that returns none and has no event (checks.clean, on the watched columns) needs no more
     quiet = s.checks and not s.outputs and sched is None and s.mu is None \
-        and checks_.clean(model, t, X, p)
-    outs = outputs_.along(model, t, X, p, sched) if (s.outputs or s.checks and not quiet) \
+        and all(checks_.clean(model, t[a:b], X[a:b], pk) for a, b, pk in pieces(p))
+    outs = _outputs_along(model, t, X, sched, pieces(p)) if (s.outputs or s.checks and not quiet) \
         and model.columns else {}
     cone = friction.quantities(model, outs, s.mu) if outs and s.mu is not None else {}
     if s.checks and outs:
         event = checks_.trajectory_event(model, t, X, outs, start)
         if cone and s.slip == "stop":
-            event = cone_event(model, s, sched, p, t, X, outs, cone, event)
+            event = cone_event(model, s, sched, pieces(p), t, X, outs, cone, event)
         if event is not None:
             raise event
     outs = {**{k: outs[k] for k in model.output_names}, **cone} if s.outputs and outs else {}
+    charts = charted.rows(t, p)
     if s.drop_first:
         t, X = t[1:], X[1:]
         outs = {k: v[1:].copy() for k, v in outs.items()}
+        charts = {k: v[1:] for k, v in charts.items()}
+    if charted.atlases is not None:
+        stats["chart_switches"] = len(charted.switches)
     pdict = dict(zip(model.param_names, [] if p is None else map(float, p)))
     return SimulationResult(t=t, x=X, state_names=model.state_names, outputs=outs,
-                            method=s.method, stats=stats, params=pdict, scene=model.scene)
+                            method=s.method, stats=stats, params=pdict, scene=model.scene,
+                            charts=charts, chart_switches=charted.switches)
 
 
-def cone_event(model, s: RunSettings, sched, p, t, X, outs, cone, event):
+def _outputs_along(model, t, X, sched, pieces) -> dict:
+    """The outputs at the rows, each piece of rows (between chart switches) with its ``p``."""
+    if len(pieces) == 1:
+        return outputs_.along(model, t, X, pieces[0][2], sched)
+    parts = [outputs_.along(model, t[a:b], X[a:b], pk, sched) for a, b, pk in pieces]
+    return {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+
+
+class _Charted:
+    """A run's chart switches (``runtime.atlas``; nothing for a model without atlases): where
+    a contact reaches its chart's edge, the state is carried to the other chart at that step
+    and the integration goes on from there with the new chart in ``p``."""
+
+    def __init__(self, model):
+        self.model = model
+        self.atlases = Atlases(model) if model.manifest.get("atlas") else None
+        #: every switch's record (``Atlases.switch``), in time order
+        self.switches: list[dict] = []
+
+    def integrate(self, s: RunSettings, x0, t_eval, p, start):
+        """``integrate`` across the chart switches: ``(t, X, stats, p)``, ``p`` the last
+        chart's."""
+        if self.atlases is None:
+            return (*integrate(self.model, s, x0, t_eval, p, start), p)
+        rows_t, rows_x, stats, x, grid = [], [], {}, x0, t_eval
+        while True:
+            try:
+                t, X, st = integrate(self.model, s, x, grid, p, start)
+            except ContactLeftContourError as err:
+                k = self.atlases.slot_of(err)
+                if k is None or getattr(err, "trajectory", None) is None:
+                    raise
+                t, X = err.trajectory
+                st = getattr(err, "stats", {})
+                x, p, record = self.atlases.switch(k, err.t, err.x, p)
+                self._keep(record, err)
+                grid = np.concatenate([[err.t], t_eval[t_eval > err.t]])
+            else:
+                grid = None
+            rows_t.append(t)
+            rows_x.append(X)
+            for key, v in st.items():
+                if isinstance(v, (int, float)) and key != "h":
+                    stats[key] = stats.get(key, 0) + v
+            if grid is None:
+                break
+        t, X = np.concatenate(rows_t), np.concatenate(rows_x)
+        keep = np.isin(t, t_eval)        # the switches' times are no output times
+        _, first = np.unique(t[keep], return_index=True)
+        return t[keep][first], X[keep][first], stats, p
+
+    def _keep(self, record: dict, err) -> None:
+        last = self.switches[-1] if self.switches else None
+        if last is not None and last["chart"] == record["chart"] and \
+                abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"])):
+            raise err  # carried across and straight back out: not a chart's edge
+        self.switches.append(record)
+
+    def pieces(self, t):
+        """``pieces(p)``: the rows ``[a, b)`` between switches, each with its ``p`` (``p``
+        with that stretch's charts)."""
+        def split(p):
+            if not self.switches:
+                return [(0, len(t), p)]
+            out, a, pk = [], 0, np.array(p, dtype=float)
+            for rec in self.switches:
+                b = int(np.searchsorted(t, rec["t"], side="right"))
+                out.append((a, b, pk.copy()))
+                pk[self.model.p_names.index(rec["chart"])] = rec["to"]
+                a = b
+            out.append((a, len(t), pk))
+            return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), p)]
+        return split
+
+    def rows(self, t, p) -> dict:
+        """Per chart parameter, each row's chart."""
+        if self.atlases is None:
+            return {}
+        out = {}
+        for entry, i, _ in self.atlases.slots:
+            col = np.full(len(t), int(p[i]), dtype=int)
+            for a, b, pk in self.pieces(t)(p):
+                col[a:b] = int(pk[i])
+            out[entry["param"]] = col
+        return out
+
+
+def cone_event(model, s: RunSettings, sched, pieces, t, X, outs, cone, event):
     """The earlier of ``event`` (another check's, or None) and the first exit of a contact's
     force from its friction cone along the samples (``runtime.friction``), that one located
-    between the samples around it (``runtime.events``); ``cone``: ``friction.quantities``."""
+    between the samples around it (``runtime.events``); ``cone``: ``friction.quantities``;
+    ``pieces``: the rows' ``p`` (``_Charted.pieces``)."""
     margins = np.column_stack([v for k, v in cone.items() if k.startswith("cone_margin")])
     hit = friction.first_exit(margins)
     if hit is None:
@@ -101,6 +197,7 @@ def cone_event(model, s: RunSettings, sched, p, t, X, outs, cone, event):
         y = {k: float(v[0]) for k, v in outs.items()}
         cone = friction.cone_error(model, float(t[0]), X[0], y, s.mu, c, "at the start")
     else:
+        p = next(pk for a, b, pk in pieces if a <= i - 1 < b)
         found = events.locate(model, s, sched, p, float(t[i - 1]), X[i - 1], float(t[i]),
                               friction.witness(model, s.mu, c))
         if found is not None:
@@ -119,8 +216,9 @@ def cone_event(model, s: RunSettings, sched, p, t, X, outs, cone, event):
     return cone if event is None or cone.t < event.t else event
 
 
-def _segments(model, s: RunSettings, segments, sched, x0, p, start):
-    """``(t, X, stats)`` over every segment of the inputs, at the output times."""
+def _segments(model, s: RunSettings, segments, sched, x0, p, start, charted):
+    """``(t, X, stats)`` over every segment of the inputs, at the output times (across the
+    charts of ``charted``, a ``_Charted``)."""
     t_eval = s.t_eval
     rows_t, rows_x, stats = [], [], {}
     x_now = x0
@@ -128,7 +226,11 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start):
         pk = p if sched is None else model.with_inputs(p, a, b)
         grid = t_eval if len(segments) == 1 else np.array(
             [s0, *t_eval[(t_eval > s0) & (t_eval < s1)], s1])
-        t, X, st = integrate(model, s, x_now, grid, pk, start)
+        t, X, st, p_end = charted.integrate(s, x_now, grid, pk, start)
+        if charted.switches and p is not None:  # the next segment goes on in the last charts
+            p = np.array(p, dtype=float)
+            for _entry, i, _ in charted.atlases.slots:
+                p[i] = p_end[i]
         if len(segments) == 1:  # one segment: its rows and counters as they are
             return t, X, st
         rows_t.append(t if k == 0 else t[1:])
