@@ -20,6 +20,7 @@ _LAZY = {
     "load": ("grasping_sym.runtime.loader", "load"),
     "scenes": ("grasping_sym.model.scenes", None),
     "curves": ("grasping_sym.geometry.library", None),
+    "surfaces": ("grasping_sym.geometry.surface_library", None),
     "PlanarCurve": ("grasping_sym.geometry.curves", "PlanarCurve"),
     "SimulationResult": ("grasping_sym.runtime.result", "SimulationResult"),
     "Model": ("grasping_sym.runtime.model", "Model"),
@@ -33,7 +34,7 @@ _LAZY = {
     "export": ("grasping_sym.export", None),
 }
 
-__all__ = ["build", "load", "scenes", "curves", "PlanarCurve", "SimulationResult", "Model",
+__all__ = ["build", "load", "scenes", "curves", "surfaces", "PlanarCurve", "SimulationResult", "Model",
            "controllers", "inputs", "sweep", "viz", "contact", "quality", "hands", "export", "__version__"]
 
 

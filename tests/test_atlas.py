@@ -1,4 +1,4 @@
-"""Atlases of charts (``geometry.atlas``, ``runtime.atlas``; docs/conventions.md section 16).
+"""Atlases of charts (``geometry.atlas``, ``runtime.atlas``; docs/conventions.md section 15).
 
 The map across charts is checked against the charts themselves (SymPy's surfaces evaluated at
 both ends: the same point, the same normal, the frame turned by the angle the run time
@@ -187,7 +187,7 @@ def _pole_ahead(start: np.ndarray, toward, angle: float) -> np.ndarray:
 def _in_chart(state, names, side_i, old, new, r):
     """``state`` with contact ``side_i`` (``("f", 1)``, ...) carried from the surface ``old``
     to ``new`` (the same shape, another chart): its point's coordinates in ``new`` and psi
-    turned by the angle between the charts' frames (docs/conventions.md section 16), by the
+    turned by the angle between the charts' frames (docs/conventions.md section 15), by the
     surfaces' own SymPy geometry."""
     side, i = side_i
     iu, iv, ip = names.index(f"u_{side}{i}"), names.index(f"v_{side}{i}"), names.index(f"psi{i}")

@@ -18,7 +18,7 @@ switches chart when it reaches ``|v| = 1.3`` (``runtime.atlas``) and never chatt
 The compiled model takes the chart as a run-time parameter ``c`` in ``{0, 1}`` and writes one
 surface, ``F(P_c e(u, v))`` with ``P_c = (1 - c) I + c P`` (:attr:`Atlas.blended`): exact at
 both values (a product with an exact 0 or 1), so one model serves both charts and a switch
-costs no build. ``docs/conventions.md`` section 16 has the state's map across a switch.
+costs no build. ``docs/conventions.md`` section 15 has the state's map across a switch.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """A contact carried across the charts of an atlas (``geometry.atlas``; ``docs/conventions.md``
-section 16).
+section 15).
 
 A surface with an atlas is compiled once, its chart a run-time parameter (0 or 1). The
 integration stops, at the step where it happens, where a contact's coordinates reach the
