@@ -113,6 +113,15 @@ def surface_sx(surface: ParametricSurface, u, v, extra: bool = False, chart=None
     and the second fundamental form ``II`` (surface frame). ``chart``: for a surface with an
     atlas (``geometry.atlas``), the chart (an SX, 0 or 1 at run time) at which its blended
     surface is written; None (or a surface without one): the surface itself."""
+    if chart is not None and surface.atlas is not None and surface.atlas.turned is not None:
+        # chart 1 is chart 0 turned by Q about the centre: S + c (Q - I)(S - centre), each
+        # vector v + c (Q - I) v (the frame's forms are the same): exact at c = 0
+        out = surface_sx(surface, u, v, extra)
+        turn = chart * (ca.DM(surface.atlas.turned) - ca.DM.eye(3))
+        out["S"] = out["S"] + turn @ (out["S"] - ca.DM(surface.atlas.center))
+        for k in ("x", "y", "n", *(("Tm",) if extra else ())):
+            out[k] = out[k] + turn @ out[k]
+        return out
     if chart is not None and surface.atlas is not None:
         surface = surface.atlas.blended
         tr = SympyToCasadi({U: u, V: v, CHART: chart})

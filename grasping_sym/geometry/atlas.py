@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 
 from grasping_sym.geometry.surfaces import CHART, ParametricSurface, U, V
@@ -62,6 +63,12 @@ class Atlas:
     kind: str
     axes: tuple[float, float, float]
     n: int = 2
+    #: where all three semi-axes are equal (a sphere, a cube-like superquadric), ``F(P d) = P
+    #: F(d)``: chart 1 is chart 0 turned by ``Q = R P R^T`` about the centre ``c`` (its
+    #: placement ``S = c + R F(d)``), which the model computes from chart 0's values at the
+    #: cost of a turn (``derive.bodies3d.surface_sx``); else None
+    turned: tuple | None = None
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def manifest(self) -> dict:
         """What the run time reads to map a contact's state from one chart to the other."""
@@ -80,10 +87,19 @@ def surface_of(d, axes, kind: str, n: int) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
     return tuple(rho * di for di in d)
 
 
-def make_atlas(name: str, axes, kind: str, n: int, place) -> Atlas:
+def make_atlas(name: str, axes, kind: str, n: int, place, center, rotation) -> Atlas:
     """The atlas of the surface ``F`` of kind ``kind`` (``KINDS``), ``place`` turning a shape
-    frame's ``(x, y, z)`` expressions into the surface placed in the body (its ``center`` and
-    ``rotation``: ``surface_library._make``'s)."""
+    frame's ``(x, y, z)`` expressions into the surface placed in the body at ``center`` turned
+    by ``rotation`` (``surface_library._make``'s)."""
     blended = place(surface_of(directions(CHART), axes, kind, n), f"{name} (both charts)", chart=True)
     second = place(surface_of(directions(1), axes, kind, n), f"{name} (chart 1)", chart=False)
-    return Atlas(blended, second, kind, tuple(float(a) for a in axes), n)
+    values = tuple(float(a) for a in axes)
+    turned = None
+    if values[0] == values[1] == values[2]:
+        R = np.asarray(rotation, dtype=float)
+        turned = tuple(map(tuple, (R @ P @ R.T).tolist()))
+    return Atlas(blended, second, kind, values, n, turned, tuple(float(c) for c in center))
+
+
+#: The cyclic permutation from chart 0's direction to chart 1's: ``d = P e``.
+P = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

@@ -110,7 +110,7 @@ def _make(name: str, xyz, center, rotation, domain, problems: list[str], atlas=N
         return place(xyz, name)
     axes, kind, n = atlas
     first = place(surface_of(directions(0), axes, kind, n), name)
-    object.__setattr__(first, "atlas", make_atlas(name, axes, kind, n, place))
+    object.__setattr__(first, "atlas", make_atlas(name, axes, kind, n, place, c, R))
     return first
 
 

@@ -1187,6 +1187,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
     t_now = 0.0
     last_t = -math.inf
     recent: list[float] = []
+    h_next = 0.0
     while True:
         p = r.params(modes, slips)
         r.t = t_now
@@ -1225,7 +1226,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         own = leg is r.own_leg
         watched = r.witnesses(modes, slips) if own else leg.watched
         pl = p if own else leg.model.default_params
-        t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched)
+        t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched, h_next)
+        h_next = 0.0
         _count(r, st, own)
         t_look = perf_counter()
         at_edge = hit is not None and "atlas" in hit
@@ -1254,6 +1256,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         if at_edge:  # a contact at its chart's edge: on in the chart that covers it
             x_now, p_new, record = r.atlases.switch(hit["atlas"], hit["t"], hit["x"], p)
             _chart_switch(r, record, hit["x"], p_new)
+            h_next = hit["h"]  # on from the step size reached (not a restart from a first guess)
             r.stats["switch_time"] += perf_counter() - t_look
             t_now = hit["t"]
             continue
@@ -1453,7 +1456,7 @@ def _at_start(r: _Run, modes, slips, y: dict) -> tuple[str, int, list] | None:
     return None
 
 
-def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched):
+def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray, watched, h0: float = 0.0):
     """``(t, X, stats, hit)``: one mode's integration over ``grid`` by ``leg`` (from its state
     ``x``, with its parameters ``p``), the C loop watching the mode's witnesses (``watched``,
     ``c/watch.c``) and stopping at the first event: ``hit`` (None: none) holds its witness,
@@ -1478,7 +1481,8 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 lib.watch_resume()
             try:
                 t, X, st = integrators.c_loop(model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
-                                              max_steps=s.max_steps, h=s.h, time_limit=s.time_limit)
+                                              max_steps=s.max_steps, h=s.h, time_limit=s.time_limit,
+                                              h0=h0 if k == 0 else 0.0)
             except IntegratorError as exc:
                 err = _in_own_state(r, leg, failures.classify(model, exc))
                 slot = None if r.atlases is None or leg.back is not None else r.atlases.slot_of(err)
@@ -1491,7 +1495,8 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 for key in ("n_steps", "n_rhs"):
                     stats[key] = stats.get(key, 0) + int(getattr(err, "stats", {}).get(key, 0))
                 _watched(r, lib)
-                hit = {"atlas": slot, "t": float(err.t), "x": np.asarray(err.x, dtype=float)}
+                hit = {"atlas": slot, "t": float(err.t), "x": np.asarray(err.x, dtype=float),
+                       "h": float(getattr(err, "stats", {}).get("h_last", 0.0))}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             rows_t.append(t if k == 0 else t[1:])
             rows_x.append(X if k == 0 else X[1:])

@@ -118,16 +118,19 @@ class _Charted:
         chart's."""
         if self.atlases is None:
             return (*integrate(self.model, s, x0, t_eval, p, start), p)
-        rows_t, rows_x, stats, x, grid = [], [], {}, x0, t_eval
+        rows_t, rows_x, stats, x, grid, h0 = [], [], {}, x0, t_eval, 0.0
         while True:
             try:
-                t, X, st = integrate(self.model, s, x, grid, p, start)
+                t, X, st = integrate(self.model, s, x, grid, p, start, h0)
             except ContactLeftContourError as err:
                 k = self.atlases.slot_of(err)
                 if k is None or getattr(err, "trajectory", None) is None:
                     raise
                 t, X = err.trajectory
                 st = getattr(err, "stats", {})
+                # on from the step size the loop had reached (the one it tried past the edge):
+                # a restart from a chosen first step would climb back to it over several steps
+                h0 = float(st.get("h_last", 0.0)) if s.method != "rk4" else 0.0
                 x, p, record = self.atlases.switch(k, err.t, err.x, p)
                 self._keep(record, err)
                 grid = np.concatenate([[err.t], t_eval[t_eval > err.t]])
@@ -246,15 +249,15 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start, charted):
     return t, X, stats
 
 
-def integrate(model, s: RunSettings, x0, t_eval, p, start):
+def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0):
     """One integration over ``t_eval`` (one segment of the inputs) with the settings ``s`` and
-    named errors: ``(t, X, stats)``."""
+    named errors: ``(t, X, stats)``; ``h0``: a C loop's first step (0: chosen)."""
     method, checks, rtol, atol, h = s.method, s.checks, s.rtol, s.atol, s.h
     if method in integrators.C_LOOPS:
         try:
             return integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
                                       max_steps=s.max_steps, h=h, projection=s.proj,
-                                      time_limit=s.time_limit)
+                                      time_limit=s.time_limit, h0=h0)
         except IntegratorError as exc:
             err = failures.blow_up(model, failures.classify(model, exc), method, h)
             if checks:
