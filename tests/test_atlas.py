@@ -18,9 +18,10 @@ from scipy.spatial.transform import Rotation
 
 import grasping_sym as gs
 from grasping_sym.derive.bodies3d import surface_sx
-from grasping_sym.errors import InvalidSceneError, InvalidSurfaceError
+from grasping_sym.errors import ContactLeftContourError, InvalidSceneError, InvalidSurfaceError, RunArgumentError
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.runtime import atlas as atlas_
+from grasping_sym.viz.plots3d import contact_traces
 
 TURNED = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
 SURFACES = {
@@ -201,13 +202,10 @@ def _in_chart(state, names, side_i, old, new, r):
     return out
 
 
-def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts():
-    """The same grasp twice: with one-chart surfaces whose poles are far from the contacts,
-    and with atlases whose chart-0 poles lie on the contacts' paths (fingertip 1's and the
-    ball's at contact 1), started at the same physical state. The run with atlases switches
-    chart on both sides of contact 1 (psi turned for a fingertip's chart and for an
-    object's); every other state agrees with the one-chart run to 1e-9, and each row's
-    contact point, read in its chart, to 1e-12 m."""
+@pytest.fixture(scope="module")
+def ball_grasps():
+    """The ball grasp on one-chart surfaces and on atlases whose chart-0 poles lie on the paths
+    of contact 1 (fingertip 1's and the ball's), and the same physical start in each."""
     tip = sl.sphere(0.01, name="fingertip 1", lon=(-3 * math.pi, 3 * math.pi))
     ball = sl.sphere(BALL_R, lon=(-math.pi / 2, 3 * math.pi / 2), name="ball")
     ref = gs.build(_ball_grasp("ball_grasp_one_chart", tip, ball))
@@ -224,6 +222,21 @@ def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts():
     for i in (1, 2):
         xa = _in_chart(xa, names, ("o", i), ball, aball, BALL_R)
     model = gs.build(_ball_grasp("ball_grasp_atlases", atip, aball, (xa, names)))
+    return {"ref": ref, "model": model, "x0": x0, "xa": xa, "tip": tip, "atip": atip, "ball": ball,
+            "aball": aball}
+
+
+def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts(ball_grasps):
+    """The same grasp twice: with one-chart surfaces whose poles are far from the contacts,
+    and with atlases whose chart-0 poles lie on the contacts' paths (fingertip 1's and the
+    ball's at contact 1), started at the same physical state. The run with atlases switches
+    chart on both sides of contact 1 (psi turned for a fingertip's chart and for an
+    object's); every other state agrees with the one-chart run to 1e-9, and each row's
+    contact point, read in its chart, to 1e-12 m."""
+    g = ball_grasps
+    ref, model, x0, xa = g["ref"], g["model"], g["x0"], g["xa"]
+    tip, atip, ball, aball = g["tip"], g["atip"], g["ball"], g["aball"]
+    names = ref.state_names
     assert model.p_names[-3:] == ("chart_f1", "chart_o1", "chart_o2")
     kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.5, 251))
     ra, rr = model.simulate(0.5, x0=xa, **kw), ref.simulate(0.5, x0=x0, **kw)
@@ -252,3 +265,27 @@ def test_what_does_not_take_an_atlas_yet_says_so():
         gs.scenes.paper3d(fingers=fingers, formulation="paper")
     with pytest.raises(InvalidSceneError, match=r"atlases \(chart_f1\)"):
         gs.scenes.with_modes(gs.scenes.paper3d(fingers=fingers))
+
+
+def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(ball_grasps, tmp_path):
+    """After a switch: the contacts' traces (each row read in its chart) run on without a
+    jump; a saved result keeps each row's charts; rk4 (one uniform grid) and simulate_many
+    (no per-run charts) refuse by name; a run that reaches no edge carries its charts (chart
+    0) on the short way too."""
+    model, xa = ball_grasps["model"], ball_grasps["xa"]
+    res = model.simulate(0.3, x0=xa, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.3, 301))
+    assert res.chart_switches
+    for trace in contact_traces(model.scene, res):
+        for points in (trace.object_points, trace.tip_points):
+            assert np.linalg.norm(np.diff(points, axis=0), axis=1).max() < 1e-3
+    back = gs.SimulationResult.load(res.save(tmp_path / "run.npz"))
+    assert all(np.array_equal(back.charts[k], v) for k, v in res.charts.items()) and back.charts
+    with pytest.raises(ContactLeftContourError, match="switches chart at the step, which rk4"):
+        model.simulate(0.3, x0=xa, method="rk4", h=1e-4, t_eval=np.linspace(0.0, 0.3, 31))
+    with pytest.raises(RunArgumentError, match="simulate_many does not carry each run.s charts"):
+        model.simulate_many(0.3, x0=np.stack([xa, xa]))
+    early = dict(x0=xa, rtol=1e-8, atol=1e-10, t_eval=np.linspace(0.0, 0.01, 11), outputs=False)
+    for _ in range(2):  # the second call takes the short way
+        quiet = model.simulate(0.01, **early)
+        assert not quiet.chart_switches and set(quiet.charts) == {"chart_f1", "chart_o1", "chart_o2"}
+        assert all((v == 0).all() for v in quiet.charts.values())

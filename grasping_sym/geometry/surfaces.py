@@ -285,14 +285,33 @@ class ParametricSurface:
                  *self.montana_metric, *self.curvature_form, *self.torsion_form]
         return sp.lambdify((U, V), exprs, "numpy", cse=True)
 
-    def evaluate(self, u, v) -> dict[str, np.ndarray]:
-        """Numeric geometry at parameter values ``u, v`` (broadcast together, shape ``sh``).
+    def _by_chart(self, method: str, u, v, chart) -> dict[str, np.ndarray]:
+        """``method`` at ``(u, v)`` each in its chart (``chart``: 0 or 1 per point; chart 1 is
+        the atlas's ``second``): the rows of a run whose contact switched chart."""
+        u, v, c = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float),
+                                      np.asarray(chart))
+        one = c == 1
+        if self.atlas is None or not one.any():
+            return getattr(self, method)(u, v)
+        out = getattr(self, method)(u, v)
+        other = getattr(self.atlas.second, method)(u[one], v[one])
+        for k in out:
+            out[k] = np.array(out[k], copy=True)
+            out[k][one] = other[k]
+        return out
+
+    def evaluate(self, u, v, chart=None) -> dict[str, np.ndarray]:
+        """Numeric geometry at parameter values ``u, v`` (broadcast together, shape ``sh``);
+        ``chart`` (a surface with an atlas): each point's chart (0 or 1), as a run's
+        ``SimulationResult.charts`` gives them.
 
         Returns ``point``, ``normal``, ``x``, ``y`` (``sh + (3,)``, local frame, m / unit);
         ``E F G L M N`` (``sh``); ``K`` Gaussian (1/m^2), ``H`` mean (1/m), ``k1 <= k2``
         principal curvatures (1/m, sign of ``H``, from ``H -+ sqrt(H^2 - K)``); ``shape_operator``, ``M_p``, ``K_p``
         (``sh + (2, 2)``) and ``T_p`` (``sh + (2,)``) as defined on the properties.
         """
+        if chart is not None:
+            return self._by_chart("evaluate", u, v, chart)
         u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
         vals = [np.broadcast_to(np.asarray(a, dtype=float), u.shape) for a in self._numeric(u, v)]
 
@@ -316,9 +335,12 @@ class ParametricSurface:
         x, y, n = self.frame
         return sp.lambdify((U, V), [*self.S, *n, *x, *y], "numpy", cse=True)
 
-    def evaluate_frame(self, u, v) -> dict[str, np.ndarray]:
+    def evaluate_frame(self, u, v, chart=None) -> dict[str, np.ndarray]:
         """``evaluate``'s ``point``, ``normal``, ``x``, ``y`` alone (``sh + (3,)`` each), without
-        the curvatures: what a contact's place and frame need (grasp quality along a run)."""
+        the curvatures: what a contact's place and frame need (grasp quality along a run);
+        ``chart`` as for ``evaluate``."""
+        if chart is not None:
+            return self._by_chart("evaluate_frame", u, v, chart)
         u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
         vals = np.stack([np.broadcast_to(np.asarray(a, dtype=float), u.shape)
                          for a in self._numeric_frame(u, v)], axis=-1)

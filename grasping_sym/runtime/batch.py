@@ -219,6 +219,12 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
                           time_limit=time_limit)
     threads = _threads(threads)
     dense = t_eval is not None
+    if model.manifest.get("atlas"):
+        charts = ", ".join(model.manifest["chart_param_names"])
+        raise RunArgumentError(f"model {model.name!r} has surfaces with atlases ({charts}): its runs switch "
+                               "chart at run time, and simulate_many does not carry each run's charts (a "
+                               "row's (u, v) mean nothing without them); loop over simulate, whose results "
+                               "do (SimulationResult.charts)")
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
         modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names))
         return _with_modes(model, s, t_final, x0, mu, e, u, dense, start)

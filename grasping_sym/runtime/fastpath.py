@@ -154,5 +154,9 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     if plan.checks and plan.mu is not None and not friction.inside(model, out[:m], plan.mu):
         return None  # a force leaves its cone: the full way locates it and names it
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
+    charts = {}
+    if "chart_param_names" in model.manifest:  # an atlas's run that reached no chart's edge: chart 0
+        charts = {k: np.zeros(m, dtype=int) for k in model.manifest["chart_param_names"]}
+        info["chart_switches"] = 0
     return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
-                            model.scene)
+                            model.scene, charts=charts)

@@ -1212,6 +1212,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         y_at, y_now = y_now, None
         if at_start is not None:  # a witness already past its event: it switches now
             name, j, terms = at_start
+            h_next = 0.0  # a mode switch: the next segment chooses its first step
             t_ev, x_ev, value_ = t_now, x_now, value(terms, y_at)
             recent = _chatter(model, recent, t_ev, x_ev)
             before = list(modes)

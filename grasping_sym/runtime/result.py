@@ -173,6 +173,7 @@ class SimulationResult:
 
         data = {k: ("t", self.x[:, i]) for i, k in enumerate(self.state_names)}
         data.update({k: ("t", np.asarray(v)) for k, v in self.outputs.items()})
+        data.update({k: ("t", np.asarray(v)) for k, v in self.charts.items()})
         attrs = {"method": self.method, "params": json.dumps(self.params),
                  "stats": json.dumps(_plain(self.stats))}
         return xr.Dataset(data, coords={"t": self.t}, attrs=attrs)
@@ -199,6 +200,9 @@ class SimulationResult:
                 "outputs": list(self.outputs), "stats": _plain(self.stats),
                 "params": _plain(self.params)}
         arrays = {f"output_{i}": np.asarray(v, dtype=float) for i, v in enumerate(self.outputs.values())}
+        if self.charts:  # each row's charts (a row's (u, v) mean nothing without them)
+            meta["charts"] = list(self.charts)
+            arrays.update({f"chart_{i}": np.asarray(v, dtype=np.int8) for i, v in enumerate(self.charts.values())})
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             np.savez(path, t=self.t, x=self.x, meta=np.array(json.dumps(meta)), **arrays)
@@ -338,7 +342,10 @@ def _from_npz(cls, f, path: Path) -> SimulationResult:
                  if not (v is None or isinstance(v, (int, float, str, bool)))]:
         raise bad(f"meta 'stats' {wrong} are not plain numbers or text")
     n_out = len(meta["outputs"])
-    expected = {"meta", "t", "x", *(f"output_{i}" for i in range(n_out))}
+    charts = meta.get("charts", [])
+    if not isinstance(charts, list) or not all(isinstance(n, str) for n in charts) or len(set(charts)) != len(charts):
+        raise bad(f"meta 'charts' = {_short(charts)} is not a list of names, each once")
+    expected = {"meta", "t", "x", *(f"output_{i}" for i in range(n_out)), *(f"chart_{i}" for i in range(len(charts)))}
     if absent := sorted(expected - set(f.files)):
         raise bad(f"the entries {absent} are missing (meta lists {len(meta['state_names'])} states "
                   f"and {n_out} outputs)")
@@ -358,8 +365,12 @@ def _from_npz(cls, f, path: Path) -> SimulationResult:
     outputs = {k: arrays[f"output_{i}"] for i, k in enumerate(meta["outputs"])}
     if problem := _shape_problem(t, x, tuple(meta["state_names"]), outputs):
         raise bad(problem)
+    rows = {k: arrays[f"chart_{i}"] for i, k in enumerate(charts)}
+    if wrong := [k for k, v in rows.items() if v.shape != t.shape or not np.isin(v, (0.0, 1.0)).all()]:
+        raise bad(f"the charts {wrong} are not one 0 or 1 per time")
     return cls(t=t, x=x, state_names=tuple(meta["state_names"]), outputs=outputs,
-               method=meta["method"], stats=meta["stats"], params=meta["params"])
+               method=meta["method"], stats=meta["stats"], params=meta["params"],
+               charts={k: v.astype(int) for k, v in rows.items()})
 
 
 def _short(v, most: int = 80) -> str:

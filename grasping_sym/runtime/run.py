@@ -8,6 +8,9 @@ A model with inputs restarts the integration at every knot of their table inside
 """
 from __future__ import annotations
 
+import dataclasses
+from time import perf_counter
+
 import numpy as np
 
 from grasping_sym.errors import (
@@ -69,8 +72,8 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
     pieces = charted.pieces(t)
     # the checks read the compiled outputs whether or not the result shows them; a run
     # that returns none and has no event (checks.clean, on the watched columns) needs no more
-    quiet = s.checks and not s.outputs and sched is None and s.mu is None \
-        and all(checks_.clean(model, t[a:b], X[a:b], pk) for a, b, pk in pieces(p))
+    quiet = s.checks and not s.outputs and sched is None and s.mu is None and not charted.switches \
+        and checks_.clean(model, t, X, p)  # (clean reads its rows against the first: one chart)
     outs = _outputs_along(model, t, X, sched, pieces(p)) if (s.outputs or s.checks and not quiet) \
         and model.columns else {}
     cone = friction.quantities(model, outs, s.mu) if outs and s.mu is not None else {}
@@ -102,6 +105,22 @@ def _outputs_along(model, t, X, sched, pieces) -> dict:
     return {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
 
 
+#: The methods that switch chart at the step (the adaptive C loops; rk4 reports on one uniform
+#: grid and SUNDIALS is seen only at the output times: they stop at a chart's edge, by name).
+SWITCHING = ("radau", "dop853", "dopri5")
+
+
+def _no_switch(model, err: ContactLeftContourError, method: str) -> ContactLeftContourError:
+    """``err`` (a contact at its chart's edge) for a method that cannot switch chart there."""
+    new = ContactLeftContourError(err.t, err.x, f"{err.reason}: a surface with an atlas switches chart at "
+                                  f"the step, which {method} cannot do; use method='radau', 'dop853' or "
+                                  "'dopri5'", model.state_names)
+    for key in ("x_rejected", "trajectory", "code", "stats"):
+        if hasattr(err, key):
+            setattr(new, key, getattr(err, key))
+    return new
+
+
 class _Charted:
     """A run's chart switches (``runtime.atlas``; nothing for a model without atlases): where
     a contact reaches its chart's edge, the state is carried to the other chart at that step
@@ -115,17 +134,20 @@ class _Charted:
 
     def integrate(self, s: RunSettings, x0, t_eval, p, start):
         """``integrate`` across the chart switches: ``(t, X, stats, p)``, ``p`` the last
-        chart's."""
+        chart's. ``max_steps`` and ``time_limit`` bound the whole, whatever its restarts."""
         if self.atlases is None:
             return (*integrate(self.model, s, x0, t_eval, p, start), p)
         rows_t, rows_x, stats, x, grid, h0 = [], [], {}, x0, t_eval, 0.0
+        began, now = perf_counter(), s
         while True:
             try:
-                t, X, st = integrate(self.model, s, x, grid, p, start, h0)
+                t, X, st = integrate(self.model, now, x, grid, p, start, h0)
             except ContactLeftContourError as err:
                 k = self.atlases.slot_of(err)
-                if k is None or getattr(err, "trajectory", None) is None:
+                if k is None:
                     raise
+                if s.method not in SWITCHING or getattr(err, "trajectory", None) is None:
+                    raise _no_switch(self.model, err, s.method) from None
                 t, X = err.trajectory
                 st = getattr(err, "stats", {})
                 # on from the step size the loop had reached (the one it tried past the edge):
@@ -138,11 +160,14 @@ class _Charted:
                 grid = None
             rows_t.append(t)
             rows_x.append(X)
-            for key, v in st.items():
-                if isinstance(v, (int, float)) and key != "h":
-                    stats[key] = stats.get(key, 0) + v
+            for key, v in st.items():  # the counters add up; the others (h_last, ...) are the last
+                counted = isinstance(v, (int, float)) and (key.startswith("n_") or key == "wall_time")
+                stats[key] = stats.get(key, 0) + v if counted else v
             if grid is None:
                 break
+            now = dataclasses.replace(s, max_steps=max(s.max_steps - int(stats.get("n_steps", 0)), 1),
+                                      time_limit=None if s.time_limit is None else
+                                      max(s.time_limit - (perf_counter() - began), 1e-9))
         t, X = np.concatenate(rows_t), np.concatenate(rows_x)
         keep = np.isin(t, t_eval)        # the switches' times are no output times
         _, first = np.unique(t[keep], return_index=True)

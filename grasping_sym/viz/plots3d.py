@@ -70,7 +70,11 @@ def geometry_at(geo, scene: GraspScene3D, result: SimulationResult,
     # the start's parameters (the centre spring's rest point) do not enter the geometry
     p = np.array([result.params.get(k, scene.params[k]) for k in scene.runtime]
                  + [0.0] * (len(scene.p_names) - len(scene.runtime)), dtype=float)
-    out = geo.map(len(rows))(x=result.x[rows].T, p=np.tile(p[:, None], (1, len(rows))))
+    P = np.tile(p[:, None], (1, len(rows)))
+    for name, col in result.charts.items():  # each row's charts (surfaces with atlases)
+        if name in scene.p_names:
+            P[scene.p_names.index(name)] = np.asarray(col)[rows]
+    out = geo.map(len(rows))(x=result.x[rows].T, p=P)
     out = {k: np.asarray(v) for k, v in out.items()}
     width = {name: a.shape[1] // len(rows) for name, a in out.items()}
     return [{name: a[:, k * w] if w == 1 else a[:, k * w:(k + 1) * w]
@@ -148,8 +152,9 @@ def contact_traces(scene: GraspScene3D, result: SimulationResult) -> list[Contac
         uv_o = np.column_stack([result[f"u_o{i}"], result[f"v_o{i}"]])
         uv_f = np.column_stack([result[f"u_f{i}"], result[f"v_f{i}"]])
         traces.append(ContactTrace(
-            i, uv_o, uv_f, scene.object_surface.evaluate(uv_o[:, 0], uv_o[:, 1])["point"],
-            finger.tip.evaluate(uv_f[:, 0], uv_f[:, 1])["point"]))
+            i, uv_o, uv_f,
+            scene.object_surface.evaluate(uv_o[:, 0], uv_o[:, 1], chart=result.charts.get(f"chart_o{i}"))["point"],
+            finger.tip.evaluate(uv_f[:, 0], uv_f[:, 1], chart=result.charts.get(f"chart_f{i}"))["point"]))
     return traces
 
 
