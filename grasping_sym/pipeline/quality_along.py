@@ -35,7 +35,7 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
     frames = []
     for i in range(1, len(scene.fingers) + 1):
         geo = scene.object_surface.evaluate_frame(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")],
-                                                  chart=result.charts.get(f"chart_o{i}"))
+                                                  chart=getattr(result, "charts", {}).get(f"chart_o{i}"))
         world = {key: np.einsum("nij,nj->ni", rot, geo[key]) for key in ("point", "normal", "x", "y")}
         world["point"] = c + world["point"]
         frames.append(world)

@@ -71,7 +71,7 @@ def geometry_at(geo, scene: GraspScene3D, result: SimulationResult,
     p = np.array([result.params.get(k, scene.params[k]) for k in scene.runtime]
                  + [0.0] * (len(scene.p_names) - len(scene.runtime)), dtype=float)
     P = np.tile(p[:, None], (1, len(rows)))
-    for name, col in result.charts.items():  # each row's charts (surfaces with atlases)
+    for name, col in getattr(result, "charts", {}).items():  # each row's charts (surfaces with atlases)
         if name in scene.p_names:
             P[scene.p_names.index(name)] = np.asarray(col)[rows]
     out = geo.map(len(rows))(x=result.x[rows].T, p=P)
@@ -151,10 +151,11 @@ def contact_traces(scene: GraspScene3D, result: SimulationResult) -> list[Contac
     for i, finger in enumerate(scene.fingers, start=1):
         uv_o = np.column_stack([result[f"u_o{i}"], result[f"v_o{i}"]])
         uv_f = np.column_stack([result[f"u_f{i}"], result[f"v_f{i}"]])
+        charts = getattr(result, "charts", {})  # each row's chart (surfaces with atlases)
         traces.append(ContactTrace(
             i, uv_o, uv_f,
-            scene.object_surface.evaluate(uv_o[:, 0], uv_o[:, 1], chart=result.charts.get(f"chart_o{i}"))["point"],
-            finger.tip.evaluate(uv_f[:, 0], uv_f[:, 1], chart=result.charts.get(f"chart_f{i}"))["point"]))
+            scene.object_surface.evaluate(uv_o[:, 0], uv_o[:, 1], chart=charts.get(f"chart_o{i}"))["point"],
+            finger.tip.evaluate(uv_f[:, 0], uv_f[:, 1], chart=charts.get(f"chart_f{i}"))["point"]))
     return traces
 
 
