@@ -89,6 +89,15 @@ def transition(entry: dict, chart: int, u: float, v: float) -> tuple[int, float,
     return other, u1, v1, math.atan2(_dot(x_new, y_old), _dot(x_new, x_old))
 
 
+def repeated(switches: list[dict], record: dict) -> bool:
+    """Whether ``record`` switches the same chart at the same time as the last of
+    ``switches``: a state carried across and straight back out, which no chart's edge makes
+    (the run stops by name rather than going round)."""
+    last = switches[-1] if switches else None
+    return last is not None and last["chart"] == record["chart"] and \
+        abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"]))
+
+
 class Atlases:
     """A model's atlases (its manifest's ``atlas``): each slot's chart parameter, state
     columns and map; ``switch`` carries a state across."""

@@ -55,7 +55,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import events, failures, fastpath, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
-from grasping_sym.runtime.atlas import Atlases
+from grasping_sym.runtime.atlas import Atlases, repeated
 from grasping_sym.runtime.parameters import complete
 from grasping_sym.runtime.result import SimulationResult
 
@@ -1283,10 +1283,7 @@ def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) ->
     """Keep a chart switch (``runtime.atlas``): its record, and the new chart in the run's
     parameters. A second switch of the same contact at the same time (its state mapped back
     onto the chart's edge) stops the run by name rather than going round."""
-    last = r.chart_switches[-1] if r.chart_switches else None
-    again = last is not None and last["chart"] == record["chart"] \
-        and abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"]))
-    if again:
+    if repeated(r.chart_switches, record):
         raise ContactLeftContourError(record["t"], x_at, f"{record['chart']}: the contact left both charts of "
                                       f"its atlas at the same time (u, v = {record['u'][0]:.6g}, "
                                       f"{record['v'][0]:.6g}): report this scene", r.model.state_names)

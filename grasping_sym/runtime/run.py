@@ -22,7 +22,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
-from grasping_sym.runtime.atlas import Atlases
+from grasping_sym.runtime.atlas import Atlases, repeated
 from grasping_sym.runtime.inputs import as_schedule
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings, numbers_array
@@ -152,7 +152,7 @@ class _Charted:
                 st = getattr(err, "stats", {})
                 # on from the step size the loop had reached (the one it tried past the edge):
                 # a restart from a chosen first step would climb back to it over several steps
-                h0 = float(st.get("h_last", 0.0)) if s.method != "rk4" else 0.0
+                h0 = float(st.get("h_last", 0.0))
                 x, p, record = self.atlases.switch(k, err.t, err.x, p)
                 self._keep(record, err)
                 grid = np.concatenate([[err.t], t_eval[t_eval > err.t]])
@@ -174,10 +174,8 @@ class _Charted:
         return t[keep][first], X[keep][first], stats, p
 
     def _keep(self, record: dict, err) -> None:
-        last = self.switches[-1] if self.switches else None
-        if last is not None and last["chart"] == record["chart"] and \
-                abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"])):
-            raise err  # carried across and straight back out: not a chart's edge
+        if repeated(self.switches, record):
+            raise err
         self.switches.append(record)
 
     def pieces(self, t):
