@@ -164,6 +164,19 @@ BOX = (0.020, 0.025, 0.030)
 TURN_Y = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 
 
+def test_a_batch_of_bodies_carries_each_runs_charts(lap_model):
+    """simulate_many of a body on a plane runs run by run (its modes): each run's charts, as
+    simulate gives them, with its switches."""
+    model = lap_model[0]
+    t_eval = np.linspace(0.0, 0.5, 51)
+    one = model.simulate(0.5, t_eval=t_eval, rtol=1e-10, atol=1e-12)
+    batch = model.simulate_many(0.5, x0=np.stack([model.initial_state()] * 2), t_eval=t_eval,
+                                rtol=1e-10, atol=1e-12)
+    assert one.chart_switches and (batch.status == 0).all()
+    for charts, x in zip(batch.charts, batch.x):
+        assert np.array_equal(charts["chart"], one.charts["chart"]) and np.array_equal(x, one.x)
+
+
 def _pivot(name: str, tip, box, guesses=None):
     """pivot3d with the fingertip ``tip`` and the object ``box``; ``guesses``: the state whose
     contact coordinates are the start's guesses."""
@@ -272,7 +285,7 @@ def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_gra
     assert all(np.array_equal(back.charts[k], v) for k, v in res.charts.items()) and back.charts
     with pytest.raises(ContactLeftContourError, match="switches chart at the step, which rk4"):
         model.simulate(0.3, x0=xa, method="rk4", h=1e-4, t_eval=np.linspace(0.0, 0.3, 31))
-    with pytest.raises(RunArgumentError, match="simulate_many does not carry each run.s charts"):
+    with pytest.raises(RunArgumentError, match="which the batch's C loops do not"):
         model.simulate_many(0.3, x0=np.stack([xa, xa]))
     early = dict(x0=xa, rtol=1e-8, atol=1e-10, t_eval=np.linspace(0.0, 0.01, 11), outputs=False)
     for _ in range(2):  # the second call takes the short way

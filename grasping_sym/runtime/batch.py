@@ -74,6 +74,9 @@ class BatchResult:
     modes
         A model with contact modes: each run's modes at the output times
         (``SimulationResult.modes``; None for a run that failed); else None.
+    charts
+        A model with contact modes whose surface has an atlas: each run's charts at the output
+        times (``SimulationResult.charts``; None for a run that failed); else None.
     fallback
         None, or why runs ran again with radau (the model's own explicit method found them
         stiff; ``simulate_many``'s ``method`` None): those runs only, ``stats["radau"]``
@@ -94,6 +97,7 @@ class BatchResult:
     wall_time: float = 0.0
     events: list | None = None
     modes: list | None = None
+    charts: list | None = None
     fallback: str | None = None
 
     @property
@@ -219,12 +223,12 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
                           time_limit=time_limit)
     threads = _threads(threads)
     dense = t_eval is not None
-    if model.manifest.get("atlas"):
+    if model.manifest.get("atlas") and not model.manifest.get("modes"):
         charts = ", ".join(model.manifest["chart_param_names"])
         raise RunArgumentError(f"model {model.name!r} has surfaces with atlases ({charts}): its runs switch "
-                               "chart at run time, and simulate_many does not carry each run's charts (a "
-                               "row's (u, v) mean nothing without them); loop over simulate, whose results "
-                               "do (SimulationResult.charts)")
+                               "chart at run time, which the batch's C loops do not (a body on a plane's "
+                               "batch does, run by run); loop over simulate, whose results carry each "
+                               "row's chart (SimulationResult.charts)")
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
         modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names))
         return _with_modes(model, s, t_final, x0, mu, e, u, dense, start)
@@ -287,7 +291,8 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],
                        x=got["x"], outputs=got["outputs"], wall_time=perf_counter() - start,
-                       events=got["events"], modes=got["modes"])
+                       events=got["events"], modes=got["modes"],
+                       charts=got["charts"] if model.manifest.get("atlas") else None)
 
 
 def _threads(threads) -> int:

@@ -1724,6 +1724,7 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
     errors = np.full(n, "", dtype=object)
     events: list = [[] for _ in range(n)]
     run_modes: list = [None] * n
+    charts: list = [None] * n
     for i in range(n):
         try:
             res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i])
@@ -1739,12 +1740,13 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
             outs[k][i] = res.outputs[k]
         events[i] = res.events
         run_modes[i] = res.modes
+        charts[i] = res.charts if dense else {k: v[-1:] for k, v in res.charts.items()}
     return {"x_final": x_final, "x": X if dense else None, "status": status, "errors": errors,
             "outputs": outs if dense else {k: v[:, -1] for k, v in outs.items()},
             "params": {"mu": np.array([_first_or_all(friction_law(model, mu_i, e_i)[0])
                                        for mu_i, e_i in zip(mus, es)]),
                        "e": np.array([friction_law(model, mu_i, e_i)[1] for mu_i, e_i in zip(mus, es)])},
-            "events": events, "modes": run_modes}
+            "events": events, "modes": run_modes, "charts": charts}
 
 
 def _first_or_all(mus: tuple):
