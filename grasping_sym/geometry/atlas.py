@@ -16,9 +16,11 @@ Where one chart nears its pole the other is near its equator: a point at latitud
 switches chart when it reaches ``|v| = 1.3`` (``runtime.atlas``) and never chatters.
 
 The compiled model takes the chart as a run-time parameter ``c`` in ``{0, 1}`` and writes one
-surface, ``F(P_c e(u, v))`` with ``P_c = (1 - c) I + c P`` (:attr:`Atlas.blended`): exact at
-both values (a product with an exact 0 or 1), so one model serves both charts and a switch
-costs no build. ``docs/conventions.md`` section 15 has the state's map across a switch.
+surface, exact at both values (a product with an exact 0 or 1), so one model serves both
+charts and a switch costs no build: where ``F(P d) = P F(d)`` (equal semi-axes) chart 0's
+values turned by ``c`` (:attr:`Atlas.turned`), else ``F(P_c e(u, v))`` with ``P_c = (1 - c) I
++ c P`` (:attr:`Atlas.blended`). ``docs/conventions.md`` section 15 has the state's map across
+a switch.
 """
 from __future__ import annotations
 
@@ -34,9 +36,6 @@ from grasping_sym.geometry.surfaces import CHART, ParametricSurface, U, V
 #: the longitude reaches past +-pi so that a contact crossing the seam wraps (by 2 pi) rarely.
 LON = (-3 * math.pi, 3 * math.pi)
 LAT = (-1.3, 1.3)
-#: The kinds of ``F``: ``linear`` (``F(d) = diag(axes) d``) or ``radial`` (``F(d) = rho(d) d``,
-#: ``rho = (sum (d_i / a_i)^n)^(-1/n)``).
-KINDS = ("linear", "radial")
 
 
 def directions(chart) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
@@ -54,11 +53,13 @@ def directions(chart) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
 class Atlas:
     """Two charts of a surface ``S = F(d)`` (module docstring).
 
-    ``blended``: the surface in ``U, V`` and ``CHART`` that the compiled model evaluates;
-    ``second``: chart 1 alone (the first is the surface that holds this atlas); ``kind``,
-    ``axes`` and ``n``: ``F`` as the run time maps a contact across charts (``manifest``)."""
+    ``second``: chart 1 alone (the first is the surface that holds this atlas); ``blended``:
+    the surface in ``U, V`` and ``CHART`` that the compiled model evaluates, None where it
+    turns chart 0 instead (``turned``); ``kind`` (``linear``: ``F(d) = diag(axes) d``;
+    ``radial``: ``F(d) = rho(d) d``, ``rho = (sum (d_i / a_i)^n)^(-1/n)``), ``axes`` and ``n``:
+    ``F`` as the run time maps a contact across charts (``manifest``)."""
 
-    blended: ParametricSurface
+    blended: ParametricSurface | None
     second: ParametricSurface
     kind: str
     axes: tuple[float, float, float]
@@ -72,8 +73,7 @@ class Atlas:
 
     def manifest(self) -> dict:
         """What the run time reads to map a contact's state from one chart to the other."""
-        return {"kind": self.kind, "axes": [float(a) for a in self.axes], "n": int(self.n),
-                "lat": float(LAT[1])}
+        return {"kind": self.kind, "axes": [float(a) for a in self.axes], "n": int(self.n)}
 
     def key(self) -> str:
         return f"atlas:{self.kind}:{self.axes!r}:{self.n}"
@@ -88,17 +88,17 @@ def surface_of(d, axes, kind: str, n: int) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
 
 
 def make_atlas(name: str, axes, kind: str, n: int, place, center, rotation) -> Atlas:
-    """The atlas of the surface ``F`` of kind ``kind`` (``KINDS``), ``place`` turning a shape
+    """The atlas of the surface ``F`` of kind ``kind`` (``Atlas``), ``place`` turning a shape
     frame's ``(x, y, z)`` expressions into the surface placed in the body at ``center`` turned
     by ``rotation`` (``surface_library._make``'s)."""
-    blended = place(surface_of(directions(CHART), axes, kind, n), f"{name} (both charts)", chart=True)
     second = place(surface_of(directions(1), axes, kind, n), f"{name} (chart 1)", chart=False)
     values = tuple(float(a) for a in axes)
-    turned = None
     if values[0] == values[1] == values[2]:
         R = np.asarray(rotation, dtype=float)
-        turned = tuple(map(tuple, (R @ P @ R.T).tolist()))
-    return Atlas(blended, second, kind, values, n, turned, tuple(float(c) for c in center))
+        return Atlas(None, second, kind, values, n, tuple(map(tuple, (R @ P @ R.T).tolist())),
+                     tuple(float(c) for c in center))
+    blended = place(surface_of(directions(CHART), axes, kind, n), f"{name} (both charts)", chart=True)
+    return Atlas(blended, second, kind, values, n, None, tuple(float(c) for c in center))
 
 
 #: The cyclic permutation from chart 0's direction to chart 1's: ``d = P e``.

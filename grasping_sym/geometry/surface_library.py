@@ -23,7 +23,7 @@ import sympy as sp
 from grasping_sym.errors import InvalidSurfaceError
 from grasping_sym.geometry.atlas import LAT as ATLAS_LAT
 from grasping_sym.geometry.atlas import LON as ATLAS_LON
-from grasping_sym.geometry.atlas import directions, make_atlas, surface_of
+from grasping_sym.geometry.atlas import make_atlas
 from grasping_sym.geometry.curves import PlanarCurve, T
 from grasping_sym.geometry.surfaces import ParametricSurface, U, V
 from grasping_sym.geometry.values import as_real
@@ -108,8 +108,8 @@ def _make(name: str, xyz, center, rotation, domain, problems: list[str], atlas=N
 
     if atlas is None:
         return place(xyz, name)
-    axes, kind, n = atlas
-    first = place(surface_of(directions(0), axes, kind, n), name)
+    axes, kind, n = atlas  # ``xyz`` is chart 0's F(e(u, v))
+    first = place(xyz, name)
     object.__setattr__(first, "atlas", make_atlas(name, axes, kind, n, place, c, R))
     return first
 

@@ -69,18 +69,18 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
     start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
     charted = _Charted(model)
     t, X, stats = _segments(model, s, segments, sched, x0, p, start, charted)
-    pieces = charted.pieces(t)
+    pieces = charted.pieces(t, p)  # the rows between switches, each with its p
     # the checks read the compiled outputs whether or not the result shows them; a run
     # that returns none and has no event (checks.clean, on the watched columns) needs no more
     quiet = s.checks and not s.outputs and sched is None and s.mu is None and not charted.switches \
         and checks_.clean(model, t, X, p)  # (clean reads its rows against the first: one chart)
-    outs = _outputs_along(model, t, X, sched, pieces(p)) if (s.outputs or s.checks and not quiet) \
+    outs = _outputs_along(model, t, X, sched, pieces) if (s.outputs or s.checks and not quiet) \
         and model.columns else {}
     cone = friction.quantities(model, outs, s.mu) if outs and s.mu is not None else {}
     if s.checks and outs:
         event = checks_.trajectory_event(model, t, X, outs, start)
         if cone and s.slip == "stop":
-            event = cone_event(model, s, sched, pieces(p), t, X, outs, cone, event)
+            event = cone_event(model, s, sched, pieces, t, X, outs, cone, event)
         if event is not None:
             raise event
     outs = {**{k: outs[k] for k in model.output_names}, **cone} if s.outputs and outs else {}
@@ -178,30 +178,29 @@ class _Charted:
             raise err
         self.switches.append(record)
 
-    def pieces(self, t):
-        """``pieces(p)``: the rows ``[a, b)`` between switches, each with its ``p`` (``p``
-        with that stretch's charts)."""
-        def split(p):
-            if not self.switches:
-                return [(0, len(t), p)]
-            out, a, pk = [], 0, np.array(p, dtype=float)
-            for rec in self.switches:
-                b = int(np.searchsorted(t, rec["t"], side="right"))
-                out.append((a, b, pk.copy()))
-                pk[self.model.p_names.index(rec["chart"])] = rec["to"]
-                a = b
-            out.append((a, len(t), pk))
-            return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), p)]
-        return split
+    def pieces(self, t, p) -> list[tuple[int, int, np.ndarray]]:
+        """The rows ``[a, b)`` between switches, each with its ``p`` (``p`` with that
+        stretch's charts)."""
+        if not self.switches:
+            return [(0, len(t), p)]
+        out, a, pk = [], 0, np.array(p, dtype=float)
+        for rec in self.switches:
+            b = int(np.searchsorted(t, rec["t"], side="right"))
+            out.append((a, b, pk.copy()))
+            pk[self.model.p_names.index(rec["chart"])] = rec["to"]
+            a = b
+        out.append((a, len(t), pk))
+        return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), p)]
 
     def rows(self, t, p) -> dict:
         """Per chart parameter, each row's chart."""
         if self.atlases is None:
             return {}
+        pieces = self.pieces(t, p)
         out = {}
         for entry, i, _ in self.atlases.slots:
-            col = np.full(len(t), int(p[i]), dtype=int)
-            for a, b, pk in self.pieces(t)(p):
+            col = np.empty(len(t), dtype=int)
+            for a, b, pk in pieces:
                 col[a:b] = int(pk[i])
             out[entry["param"]] = col
         return out
