@@ -20,12 +20,12 @@ import json
 import math
 import platform
 from pathlib import Path
-from time import perf_counter
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 import grasping_sym as gs
+from benchmarks import timing
 from grasping_sym.geometry import surface_library as sl
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -36,15 +36,8 @@ ROUNDS = 15
 
 
 def interleaved(calls: dict) -> dict:
-    """The best wall time of each of ``calls`` (name -> a function of no arguments), called in
-    turn ``ROUNDS`` times."""
-    best = {k: float("inf") for k in calls}
-    for _ in range(ROUNDS):
-        for k, fn in calls.items():
-            t0 = perf_counter()
-            fn()
-            best[k] = min(best[k], perf_counter() - t0)
-    return best
+    """``timing.interleaved`` over ``ROUNDS`` rounds."""
+    return timing.interleaved(calls, ROUNDS)
 R, M, OMEGA, RC = 0.05, 0.1, 10.0, 0.1
 TOL = {"rtol": 1e-10, "atol": 1e-12}
 

@@ -25,6 +25,19 @@ def best_per_call(fn: Callable[[], object], *, number: int, repeat: int) -> floa
     return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
 
 
+def interleaved(calls: dict, rounds: int) -> dict:
+    """The best wall time of each of ``calls`` (name -> a function of no arguments), called in
+    turn ``rounds`` times: this machine's speed drifts by 10-30 % over seconds, which
+    back-to-back repeats of one case would read as a difference between cases."""
+    best = {k: float("inf") for k in calls}
+    for _ in range(rounds):
+        for k, fn in calls.items():
+            t0 = time.perf_counter()
+            fn()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return best
+
+
 def timed(fn: Callable[[], object]) -> tuple[float, object]:
     """Seconds taken by one call of ``fn`` and its result."""
     t0 = time.perf_counter()

@@ -396,3 +396,46 @@ def test_projection_3d(tmp_path):
     psi = [model.state_names.index(k) for k in ("psi1", "psi2")]
     np.testing.assert_array_equal(xp[psi], x_bad[psi])
     assert np.abs(projection.constraints(model, xp)["C"]).max() <= projection.PROJECT_TOL
+
+
+def test_a_3d_grasp_projects_its_steps_by_default(paper3d_model):
+    """paper3d has no stabilisation gain (``GraspScene3D.gain`` 0 in the regular formulation):
+    ``simulate``'s default projects every accepted step (``project="steps"``); the output rows
+    between steps are the dense output of projected steps, and projecting them too
+    (``project=True``) changes the rows only, never the steps: the same final state, bit for
+    bit, at 24 times the constraint evaluations (1 237 against 51 over 1 s)."""
+    m = paper3d_model
+    assert m.scene.gain == 0 and m.manifest["defaults"]["project"] is True
+    default, steps = m.simulate(1.0), m.simulate(1.0, project="steps")
+    full, none = m.simulate(1.0, project=True), m.simulate(1.0, project=False)
+    assert np.array_equal(default.x, steps.x)
+    assert np.array_equal(steps.x[-1], full.x[-1]) and 0 < np.max(np.abs(steps.x - full.x)) <= 1e-8
+    n = steps.stats["n_steps"]
+    assert n <= steps.stats["n_constraint_evals"] <= 2 * n < len(steps.t) <= full.stats["n_constraint_evals"]
+
+    def worst(res, rows):
+        c = [projection.constraints(m, x) for x in res.x[rows]]
+        return max(max(np.abs(d["C"]).max(), np.abs(d["Cdot"]).max()) for d in c)
+
+    end = slice(-1, None)
+    assert worst(steps, end) <= projection.PROJECT_TOL          # a step's end: projected
+    assert worst(none, end) > 1e-12                             # measured 4e-12 without
+    assert worst(full, slice(None)) <= projection.PROJECT_TOL
+    # the rows between steps: on the constraints to the run's accuracy (measured 1.8e-10 m/s)
+    assert projection.PROJECT_TOL < worst(steps, slice(None)) <= 1e-9
+    # a method that cannot project takes the default without it
+    assert "n_constraint_evals" not in m.simulate(0.2, method="cvodes").stats
+
+
+def test_the_stabilisation_gain_where_nothing_projects():
+    """The paper's formulation keeps a gain (its velocity constraints are singular where a
+    contact stops rolling: no projection there), and a grasp with contact modes, whose runs do
+    not project, holds its base's constraints with ``MODES_GAIN``; a gain given is kept."""
+    from grasping_sym.model.grasp3d import PAPER_GAIN
+    from grasping_sym.model.grasp3d_modes import MODES_GAIN
+
+    paper = gs.scenes.paper3d(formulation="paper")
+    assert paper.gain == PAPER_GAIN and paper.simulate_defaults["project"] is False
+    assert gs.scenes.paper3d(gain=50.0).simulate_defaults["project"] is False
+    assert gs.scenes.with_modes(gs.scenes.paper3d()).base.gain == MODES_GAIN
+    assert gs.scenes.with_modes(gs.scenes.paper3d(gain=50.0)).base.gain == 50.0

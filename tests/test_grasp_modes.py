@@ -16,6 +16,7 @@ from grasping_sym.errors import FrictionConeError, InvalidSceneError
 from grasping_sym.geometry import surface_library
 from grasping_sym.model import chains
 from grasping_sym.model.grasp3d import Finger3D
+from grasping_sym.model.grasp3d_modes import MODES_GAIN
 from grasping_sym.runtime import modes
 from grasping_sym.runtime.modes import rotation
 
@@ -40,8 +41,11 @@ def model(base):
 
 
 @pytest.fixture(scope="module")
-def rolling(base):
-    return gs.build(base)
+def rolling(model):
+    """The base's rolling model as the modes hold it: paper3d's gain 0 (its runs project)
+    made ``MODES_GAIN`` (the modes' runs do not)."""
+    assert model.scene.base.gain == MODES_GAIN
+    return gs.build(model.scene.base)
 
 
 def test_rolling_modes_are_the_rolling_model(model, rolling):

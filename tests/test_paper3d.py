@@ -179,7 +179,7 @@ def test_pivot3d_matches_the_numpy_reference():
     from tests.oracles.reference3d_paper import rolling_start
 
     ref = Reference3D()
-    model = gs.build(gs.scenes.pivot3d(position=tuple(ref.pivot), name="pivot3d_ref"))
+    model = gs.build(gs.scenes.pivot3d(position=tuple(ref.pivot), gain=ref.scene.gain, name="pivot3d_ref"))
     assert model.state_names[:11] == ("q11", "q12", "qw", "qx", "qy", "qz", "dq11", "dq12",
                                       "omegaX", "omegaY", "omegaZ")
     sol = solve_ivp(ref, (0, 0.05), rolling_start(ref, 2.0), method="LSODA", rtol=1e-10, atol=1e-12,

@@ -129,6 +129,8 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
   if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
                            proj_tol))
     return GS_ERR_ARGS;
+  const int proj_rows = proj_mask && proj_tol > 0.0; /* gs_proj_args_ok */
+  proj_tol = fabs(proj_tol);
   gs_stop_reset();
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   const double interval = t_end - t0;
@@ -294,7 +296,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
         for (int i = 0; i < n; ++i)
           o[i] = y[i] + s * (dense[0][i] + s1 * (dense[1][i] + s * (dense[2][i] + s1 * (
                  dense[3][i] + s * (dense[4][i] + s1 * (dense[5][i] + s * dense[6][i]))))));
-        if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
+        if (proj_rows && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
           for (int i = 0; i < n; ++i) y1[i] = o[i];
           goto fail;
         }

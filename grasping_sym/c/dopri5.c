@@ -68,8 +68,8 @@ static const double gs_dp_d[7] = {-12715105075.0 / 11282082432.0, 0.0,
  *   nstiff      run the stiffness test on every nstiff-th accepted step (DOPRI5's NSTIFF,
  *               Hairer's default 1000); <= 0: never (max_steps then bounds the work)
  *   t_out       the outputs between steps come from the continuous extension of order 4
- *               (continuous; a state at a step end is the step's); with proj_mask they
- *               are projected onto the constraints, like the step ends.
+ *               (continuous; a state at a step end is the step's); with proj_mask and
+ *               proj_tol > 0 they are projected onto the constraints, like the step ends.
  *   stats       as gs_radau5 ([3], [4], [5] stay 0), and [13] the last estimate of
  *               h |lambda|, [14] the number of stiffness tests above 3.25.
  * Error estimate: weights atol + rtol max(|x_old|, |x_new|), RMS norm (as gs_radau5);
@@ -114,6 +114,8 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
   if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
                            proj_tol))
     return GS_ERR_ARGS;
+  const int proj_rows = proj_mask && proj_tol > 0.0; /* gs_proj_args_ok */
+  proj_tol = fabs(proj_tol);
   gs_stop_reset();
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   const double interval = t_end - t0;
@@ -280,7 +282,7 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
         for (int i = 0; i < n; ++i)
           o[i] = dense[0][i] +
                  s * (dense[1][i] + s1 * (dense[2][i] + s * (dense[3][i] + s1 * dense[4][i])));
-        if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
+        if (proj_rows && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
           for (int i = 0; i < n; ++i) y1[i] = o[i];
           goto fail;
         }

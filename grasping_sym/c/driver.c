@@ -116,9 +116,9 @@
  * see gs_rk4, gs_radau5, gs_dopri5 and gs_project for their codes; a function the model
  * lacks (gs_outputs without outputs, ...) returns GS_ERR_ARGS.
  *
- * Projection (proj_mask not NULL, needs constraints): after every accepted step (and at
- * every dense-output time between steps) the state is projected onto the constraints,
- * see gs_project.  The stats array (GS_NSTATS doubles, see GS_ST_* in gs_internal.h)
+ * Projection (proj_mask not NULL, needs constraints): after every accepted step (and, with
+ * proj_tol > 0, at every dense-output time between steps; proj_tol < 0: the steps only, to
+ * -proj_tol) the state is projected onto the constraints, see gs_project.  The stats array (GS_NSTATS doubles, see GS_ST_* in gs_internal.h)
  * counts the constraint evaluations and records the largest residuals found before
  * projecting.
  *

@@ -204,9 +204,11 @@ static inline double gs_rms(const double* v, const double* scale, int m) {
   return sqrt(s / (double)m);
 }
 
-/* Validity of the projection arguments of the integrators. */
+/* Validity of the projection arguments of the integrators: with a mask, a tolerance > 0
+ * projects every accepted step and every output row between steps; a tolerance < 0 projects
+ * the steps only, to -proj_tol (the rows are the dense output between projected steps). */
 static inline int gs_proj_args_ok(const int* proj_mask, double proj_tol) {
-  return !proj_mask || (gs_has_con && proj_tol > 0.0 && isfinite(proj_tol));
+  return !proj_mask || (gs_has_con && proj_tol != 0.0 && isfinite(proj_tol));
 }
 
 /* Validity of the arguments gs_radau5 and gs_dopri5 share (see gs_radau5): finite scalars,

@@ -156,8 +156,9 @@ static inline void gs_radau_solve_complex(const gs_radau_mats* M, const int n, i
  *   max_steps   maximum number of accepted steps (>= 1)
  *   lo, hi      bounds checked on every accepted step's end state (may be NULL)
  *   proj_mask, proj_tol
- *               NULL, or project every accepted step's end state and every output
- *               between steps onto the constraints (see gs_project; needs constraints)
+ *               NULL, or project every accepted step's end state and (proj_tol > 0)
+ *               every output between steps onto the constraints, to |proj_tol| (see
+ *               gs_project and gs_proj_args_ok; needs constraints)
  *   out         row-major, nx columns, at least n_out + 1 rows (see failures)
  *   stats       NULL or GS_NSTATS doubles (GS_ST_*): [0] accepted steps, [1] rejected
  *               steps (error test or Newton failures), [2] right-hand-side evaluations,
@@ -205,6 +206,8 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
   if (!gs_adaptive_args_ok(t0, n_out, t_out, x0, out, max_steps, rtol, atol, h0, proj_mask,
                            proj_tol))
     return GS_ERR_ARGS;
+  const int proj_rows = proj_mask && proj_tol > 0.0; /* gs_proj_args_ok */
+  proj_tol = fabs(proj_tol);
   gs_stop_reset();
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   fnewt = fmax(GS_RADAU_FNEWT, GS_RADAU_NEWTON_FLOOR * GS_EPS / rtol);
@@ -500,7 +503,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
           const double x = (t_out[row] - told) / hsol;
           const double x2 = x * x, x3 = x2 * x;
           for (int i = 0; i < n; ++i) o[i] = yold[i] + Q[i][0] * x + Q[i][1] * x2 + Q[i][2] * x3;
-          if (proj_mask && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
+          if (proj_rows && (rc = gs_project_state(wk, o, p, proj_mask, proj_tol, st, NULL))) {
             for (int i = 0; i < n; ++i) ynew[i] = o[i];
             goto fail;
           }

@@ -43,6 +43,7 @@ GS_EXPORT long gs_rk4(double t0, double h, long nsteps, long stride, const doubl
   if (!isfinite(h) || !isfinite(t0) || nsteps < 0 || stride < 1 ||
       !gs_proj_args_ok(proj_mask, proj_tol))
     return GS_ERR_ARGS;
+  proj_tol = fabs(proj_tol); /* its rows are its steps' states */
   gs_stop_reset();
   for (int i = 0; i < gs_nx; ++i) {
     x[i] = out[i] = x0[i];

@@ -50,6 +50,10 @@ SUPPORTS = ("free", "pivot")
 #: bodies fix the initial configuration).
 RUNTIME_ALLOWED = ("fd", "c", "k_center", "gain")
 
+#: 1/s, the constraint stabilisation of the paper's formulation by default (``gain`` None);
+#: the regular formulation's is 0, its runs projecting instead.
+PAPER_GAIN = 300.0
+
 #: Outputs a 3D model can generate; ``{i}`` is the contact (finger) number 1..N.
 OUTPUTS: dict[str, str] = {
     "constraint_residual": "m, largest |Qn|, |Qb|, |Qe| over the contacts",
@@ -106,7 +110,12 @@ class GraspScene3D:
         about the normal (a soft finger's); 0 is the paper's rigid contact, where a spin of
         the object about the line through two contacts is resisted by nothing.
     gain
-        1/s, constraint stabilisation: ``C'' + 2 g C' + g^2 C = 0`` (critically damped).
+        1/s, constraint stabilisation: ``C'' + 2 g C' + g^2 C = 0`` (critically damped); 0:
+        none in the equations, the runs project onto the constraints after every step instead
+        (``simulate``'s ``project``, on by default for such a scene: the fastest reliable run,
+        ``simulate_defaults``). None (the default): 0 in the regular formulation;
+        ``PAPER_GAIN`` in the paper's, whose velocity constraints cannot be projected onto at
+        a contact that stops rolling (their Jacobian is singular there).
     dq0
         rad/s, joint speeds wished at the start (all fingers, in order); the start uses the
         admissible motion closest to them in kinetic energy (None: rest).
@@ -132,7 +141,7 @@ class GraspScene3D:
     c: float = 0.006
     r_ctrl: float = 0.010
     k_center: float = 0.0
-    gain: float = 300.0
+    gain: float | None = None
     spin_damping: float = 0.0
     formulation: str = "regular"
     dq0: tuple[float, ...] | None = None
@@ -151,6 +160,8 @@ class GraspScene3D:
     dimension: ClassVar[int] = 3
 
     def __post_init__(self) -> None:
+        if self.gain is None:
+            object.__setattr__(self, "gain", 0.0 if self.formulation == "regular" else PAPER_GAIN)
         object.__setattr__(self, "fingers", tuple(self.fingers))
         object.__setattr__(self, "outputs", names_tuple(self.outputs))
         object.__setattr__(self, "runtime", tuple(self.runtime))
@@ -378,13 +389,16 @@ class GraspScene3D:
         return []
 
     # ------------------------------------------------------------------ scene protocol
-    #: 3D scenes have no generated Jacobian (the integrators difference the rhs): Radau IIA
-    #: at moderate tolerances is the fast choice (a 5 s paper3d run in ~0.1 s).
-    #: dop853: 1.8 to 2.9 times faster than radau at every rtol from 1e-3 to 1e-11 on paper3d,
-    #: at the same final-state error (benchmarks/results/tolerances.md); a scene too stiff for
-    #: it falls back to radau (Model.simulate)
-    simulate_defaults: ClassVar[dict] = {"t_final": 5.0, "method": "dop853",
-                                         "tolerances": {"dop853": (1e-7, 1e-9), "radau": (1e-6, 1e-9)}}
+    @property
+    def simulate_defaults(self) -> dict:
+        """dop853 (1.8 to 2.9 times faster than radau at every rtol from 1e-3 to 1e-11 on
+        paper3d at the same final-state error, benchmarks/results/tolerances.md; a scene too
+        stiff for it falls back to radau, ``Model.simulate``); with ``gain = 0`` (the default)
+        the runs project onto the constraints after every step (``project``), which holds
+        them without the stiffness the gain brings: paper3d's 3 s run takes 81 steps where
+        the gain 300 1/s takes 306 (``benchmarks/results/defaults3d.md``)."""
+        return {"t_final": 5.0, "method": "dop853", "project": self.gain == 0 and self.formulation == "regular",
+                "tolerances": {"dop853": (1e-7, 1e-9), "radau": (1e-6, 1e-9)}}
 
     def manifest_extra(self) -> dict:
         """What a 3D scene adds to its manifest: its formulation; the rule each run-time

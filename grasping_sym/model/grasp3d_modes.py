@@ -12,6 +12,7 @@ on the object's surface (where its normal is minus the plane's).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -63,6 +64,12 @@ class WorldPlane:
             raise InvalidSceneError(p)
 
 
+#: 1/s, the constraint stabilisation of a grasp with modes whose base has none (``gain = 0``,
+#: the base's runs project): the runs of a model with modes do not project, so its rolling,
+#: sliding and touching contacts are held by ``C'' + 2 g C' + g^2 C = 0`` (paper3d's former gain).
+MODES_GAIN = 300.0
+
+
 @dataclass(frozen=True, eq=False)
 class GraspModesScene(WithModes):
     """``base`` with its contacts' modes and the world's ``planes`` (module docstring)."""
@@ -92,6 +99,8 @@ class GraspModesScene(WithModes):
         if b.chart_names:
             problems.append(f"surfaces with atlases ({', '.join(b.chart_names)}): a grasp with contact modes "
                             "is built on one chart per surface; build its surfaces without atlas=True")
+        if b.gain == 0:  # the modes' runs do not project: their constraints need the gain
+            object.__setattr__(self, "base", dataclasses.replace(b, gain=MODES_GAIN))
         object.__setattr__(self, "planes", tuple(self.planes))
         if any(not isinstance(w, WorldPlane) for w in self.planes):
             problems.append("planes must be gs.scenes.world_plane(point, normal) values")

@@ -220,13 +220,14 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
 
 
 def _run_defaults(scene) -> dict:
-    """The method and tolerances ``simulate``, ``simulate_many``, sweeps and the command line
-    take when given none (the scene's ``simulate_defaults``; tolerances None: the method's own,
-    ``runtime.settings.DEFAULT_TOLERANCES``)."""
+    """The method, tolerances and projection ``simulate``, ``simulate_many``, sweeps and the
+    command line take when given none (the scene's ``simulate_defaults``; tolerances None: the
+    method's own, ``runtime.settings.DEFAULT_TOLERANCES``; ``project``: whether the C loops
+    project onto the constraints when ``project`` is not given, ``runtime.projection``)."""
     d = getattr(scene, "simulate_defaults", {})
     method = d.get("method", "radau")
     rtol, atol = d.get("tolerances", {}).get(method, (None, None))
-    return {"method": method, "rtol": rtol, "atol": atol}
+    return {"method": method, "rtol": rtol, "atol": atol, "project": bool(d.get("project", False))}
 
 
 def with_check_outputs(scene) -> tuple[object, tuple[str, ...]]:

@@ -139,7 +139,7 @@ def default_threads() -> int:
 
 def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = None, u=None,
                   method: str | None = None, rtol: float | None = None, atol: float | None = None, t_eval=None,
-                  h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float = False,
+                  h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float | None = None,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None, mu=None, slip: str = "stop", e=None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""

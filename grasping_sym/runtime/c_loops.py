@@ -321,7 +321,7 @@ def projection_reason(stats_a: np.ndarray, tol: float, after: str) -> str:
             else "the velocity constraints Cdot")
     where = f" {after}" if after else ""
     return (f"the projection onto {what} failed{where}: max residual {stats_a[12]:.3g} > "
-            f"tolerance {tol:.3g} after Gauss-Newton (not converging, a singular constraint "
+            f"tolerance {abs(tol):.3g} after Gauss-Newton (not converging, a singular constraint "
             "Jacobian, or non-finite values): the contact configuration is singular, or the "
             "tolerance is below the rounding level of the constraints (use a larger "
             "projection tolerance, e.g. simulate(..., project=1e-10))")

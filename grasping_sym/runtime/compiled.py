@@ -742,15 +742,16 @@ class CompiledLibrary:
         """The projection mask as int32 (None: no projection), validated."""
         if proj_mask is None:
             return None
-        if proj_mask is self._mask_checked and math.isfinite(proj_tol) and proj_tol > 0:
+        if proj_mask is self._mask_checked and math.isfinite(proj_tol) and proj_tol != 0:
             return proj_mask  # the int32 array validated last time (models reuse theirs)
         self._need_constraints()
         mask = np.ascontiguousarray(proj_mask, dtype=np.int32)
         if mask.shape != (self.nx,) or not np.all((mask >= 0) & (mask <= 2)):
             raise ValueError(f"proj_mask must have shape ({self.nx},) with entries 0 (keep), "
                              f"1 (position) or 2 (velocity); got {proj_mask!r}")
-        if not (math.isfinite(proj_tol) and proj_tol > 0):
-            raise ValueError(f"proj_tol must be finite and > 0 with a proj_mask, got {proj_tol}")
+        if not (math.isfinite(proj_tol) and proj_tol != 0):
+            raise ValueError(f"proj_tol must be finite and not 0 with a proj_mask (< 0: the steps "
+                             f"only, to -proj_tol), got {proj_tol}")
         self._mask_checked = mask
         return mask
 

@@ -5,7 +5,8 @@ position constraints C (the planar ``(Q, R)``, the 3D gaps ``(Qn, Qb, Qe)`` per 
 their total time derivative along the closed loop, the Jacobian of C and the speeds' columns
 of the Jacobian of Cdot. With
 ``simulate(..., project=True)`` the C integration loops ('radau', 'dopri5', 'dop853', 'rk4') project
-after every accepted step (``c/project.c::gs_project``):
+after every accepted step and at every output row between steps (``project="steps"``: after
+the steps only) (``c/project.c::gs_project``):
 
 1. Gauss-Newton onto ``C(x) = 0`` with the least-norm change of the *position states* (those
    C depends on), until ``max|C| <= tol``;
@@ -32,16 +33,26 @@ POSITION, VELOCITY = 1, 2
 def settings(model, project, method: str) -> tuple[np.ndarray | None, float]:
     """``(mask, tol)`` for ``simulate(project=...)``; ``(None, 0.0)`` without projection.
 
-    ``project`` is False, True (tolerance ``PROJECT_TOL``) or a tolerance > 0.
+    ``project`` is False, True (tolerance ``PROJECT_TOL``), a tolerance > 0, ``"steps"`` (the
+    accepted steps only, to ``PROJECT_TOL``: the output rows between them are the dense output
+    of projected steps, on the constraints to the run's accuracy, and cost no constraint
+    evaluation; the C loops take it as ``-tol``), or None: the model's default (the
+    manifest's ``defaults``: ``"steps"`` for a 3D grasp without a stabilisation gain) with a
+    method whose loop projects, else none.
     """
-    if project is False or project is None:
+    if project is None:
+        default = bool((model.manifest.get("defaults") or {}).get("project"))
+        project = "steps" if default and method in METHODS else False
+    if project is False:
         return None, 0.0
     if project is True:
         tol = PROJECT_TOL
+    elif project == "steps":
+        tol = -PROJECT_TOL
     elif isinstance(project, (int, float)) and math.isfinite(project) and project > 0:
         tol = float(project)
     else:
-        raise ValueError(f"project = {project!r} must be False, True or a tolerance > 0 (m)")
+        raise ValueError(f"project = {project!r:.40} must be False, True, 'steps' or a tolerance > 0 (m)")
     if method not in METHODS:
         raise ValueError(f"project=True needs a method whose loop runs in C, one of {METHODS}; "
                          f"{method!r} (SUNDIALS) does not project: use method='radau'")

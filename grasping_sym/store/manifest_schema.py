@@ -144,10 +144,12 @@ def manifest_problems(m: object) -> list[str]:
         out.append("start_hold must list states of the model")
     defaults = m.get("defaults")
     if defaults is not None and not (
-            isinstance(defaults, dict) and set(defaults) == {"method", "rtol", "atol"}
+            isinstance(defaults, dict) and set(defaults) == {"method", "rtol", "atol", "project"}
             and isinstance(defaults["method"], str) and _IDENT.match(defaults["method"])
-            and all(v is None or (_is_num(v) and 0 < v < 1) for v in (defaults["rtol"], defaults["atol"]))):
-        out.append("defaults must be {method: a method's name, rtol, atol: numbers in (0, 1) or null}")
+            and all(v is None or (_is_num(v) and 0 < v < 1) for v in (defaults["rtol"], defaults["atol"]))
+            and isinstance(defaults["project"], bool)):
+        out.append("defaults must be {method: a method's name, rtol, atol: numbers in (0, 1) or null, "
+                   "project: true or false}")
     rolling = m.get("rolling_map")
     if rolling is not None and not (
             isinstance(rolling, dict) and set(rolling) == {"to", "from"}
