@@ -252,9 +252,10 @@ def trifinger(object_surface=None, *, mass: float | None = None, inertia=None, *
     - gravity 9.81 m/s^2 along -z (the URDF's world: z up), compensated by the controller;
     - controller: ``fd = 0.5 N``, ``r_ctrl = 0.035 m``, ``c = 0.02 N m s``,
       ``k_center = 200 N/m``; torsional friction ``spin_damping = 2e-5 N m s``;
-    - stabilisation gain 100 1/s: at 300 (paper3d's) dop853's step is held by it (315 steps
-      for 1 s at rtol 1e-8, 15 ms); at 100, 89 steps and 4.6 ms, the final state 3.5e-11
-      from a reference at 1e-12 (measured; ``benchmarks/urdf_hand.py``).
+    - no stabilisation gain (``gain = 0``): the runs project each step onto the constraints
+      (``simulate``'s default for it): 1 s at rtol 1e-8 in 41 steps and 2.5 ms, the final
+      state 9e-10 from a reference at 1e-12, where the gain of 100 1/s it had took 107 steps
+      and 5.7 ms (measured; ``benchmarks/urdf_hand.py``).
 
     Any field of ``GraspScene3D`` may be overridden by keyword.
     """
@@ -280,7 +281,7 @@ def trifinger(object_surface=None, *, mass: float | None = None, inertia=None, *
     kwargs = dict(
         name="trifinger", fingers=fingers, object_surface=object_surface, mass=mass,
         inertia=inertia, support="free", position=tuple(float(v) for v in centre),
-        gravity=(0.0, 0.0, -9.81), fd=0.5, c=0.02, r_ctrl=0.035, k_center=200.0, gain=100.0,
+        gravity=(0.0, 0.0, -9.81), fd=0.5, c=0.02, r_ctrl=0.035, k_center=200.0,
         spin_damping=2e-5, outputs=TRIFINGER_OUTPUTS)
     kwargs.update(overrides)
     return GraspScene3D(**kwargs)
