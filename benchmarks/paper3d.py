@@ -434,7 +434,9 @@ def run(*, quick: bool, log=_log) -> dict:
     log("paper3d 1. build stages (fresh processes, private caches)")
     res["build"] = build_stages(quick=quick, main_cache=Path(os.environ["GRASPING_SYM_CACHE"]),
                                 log=log)
-    scene = gs.scenes.paper3d()
+    # the curves without projection run the scene with a stabilisation gain (300 1/s):
+    # paper3d's own is 0, its runs projecting (proj_model below)
+    scene = gs.scenes.paper3d(gain=300.0, name="paper3d_gain300")
     model = gs.build(scene)
     model2d = gs.build(gs.scenes.paper2d())
     staged = res["build"]["staged"]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import grasping_sym as gs
-from grasping_sym.errors import ContactLeftContourError, IntegratorError
+from grasping_sym.errors import ContactLeftContourError, IntegratorError, RunArgumentError
 from grasping_sym.runtime import projection
 from grasping_sym.runtime.compiled import CompiledLibrary
 from grasping_sym.toolchain.library import build_library
@@ -423,8 +423,10 @@ def test_a_3d_grasp_projects_its_steps_by_default(paper3d_model):
     assert worst(full, slice(None)) <= projection.PROJECT_TOL
     # the rows between steps: on the constraints to the run's accuracy (measured 1.8e-10 m/s)
     assert projection.PROJECT_TOL < worst(steps, slice(None)) <= 1e-9
-    # a method that cannot project takes the default without it
-    assert "n_constraint_evals" not in m.simulate(0.2, method="cvodes").stats
+    # a method that cannot project is refused by name, unless told to run without
+    with pytest.raises(RunArgumentError, match="SUNDIALS.*cannot do.*gain=300.0.*project=False"):
+        m.simulate(0.2, method="cvodes")
+    assert "n_constraint_evals" not in m.simulate(0.2, method="cvodes", project=False).stats
 
 
 def test_the_stabilisation_gain_where_nothing_projects():

@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from grasping_sym.errors import RunArgumentError
+
 #: Default tolerance of the projection: max|C| (m) and max|Cdot| (m/s) after projecting.
 PROJECT_TOL = 1e-13
 #: The integration methods whose loops (in C) can project.
@@ -42,7 +44,14 @@ def settings(model, project, method: str) -> tuple[np.ndarray | None, float]:
     """
     if project is None:
         default = bool((model.manifest.get("defaults") or {}).get("project"))
-        project = "steps" if default and method in METHODS else False
+        if default and method not in METHODS:
+            raise RunArgumentError(
+                f"model {model.name!r} holds its contact constraints by projecting its steps (its "
+                f"scene's gain is 0), which {method} (SUNDIALS) cannot do: the run would drift off "
+                "them (paper3d at rtol 1e-8: a final-state error of 2e-7). Use method='dop853' or "
+                "'radau', which project; or build the scene with a stabilisation gain (e.g. "
+                "gain=300.0); or give project=False to run it without either")
+        project = "steps" if default else False
     if project is False:
         return None, 0.0
     if project is True:
