@@ -18,9 +18,10 @@ from scipy.spatial.transform import Rotation
 
 import grasping_sym as gs
 from grasping_sym.derive.bodies3d import surface_sx
-from grasping_sym.errors import ContactLeftContourError, InvalidSceneError, InvalidSurfaceError, RunArgumentError
+from grasping_sym.errors import ContactLeftContourError, InvalidSceneError, InvalidSurfaceError
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.runtime import atlas as atlas_
+from grasping_sym.runtime import batch as batch_
 from grasping_sym.viz.plots3d import contact_traces
 
 TURNED = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
@@ -272,9 +273,10 @@ def test_what_does_not_take_an_atlas_yet_says_so():
 
 def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_grasps, tmp_path):
     """After a switch: the contacts' traces (each row read in its chart) run on without a
-    jump; a saved result keeps each row's charts; rk4 (one uniform grid) and simulate_many
-    (no per-run charts) refuse by name; a run that reaches no edge carries its charts (chart
-    0) on the short way too."""
+    jump; a saved result keeps each row's charts; rk4 (one uniform grid) refuses by name;
+    simulate_many runs each run by simulate's code (the batch's C loops do not switch): the
+    same rows, outputs and charts, and a run it refuses recorded beside them; a run that
+    reaches no edge carries its charts (chart 0) on the short way too."""
     model, xa = pivot_grasps["model"], pivot_grasps["xa"]
     res = model.simulate(0.3, x0=xa, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.3, 301))
     assert res.chart_switches
@@ -285,8 +287,15 @@ def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_gra
     assert all(np.array_equal(back.charts[k], v) for k, v in res.charts.items()) and back.charts
     with pytest.raises(ContactLeftContourError, match="switches chart at the step, which rk4"):
         model.simulate(0.3, x0=xa, method="rk4", h=1e-4, t_eval=np.linspace(0.0, 0.3, 31))
-    with pytest.raises(RunArgumentError, match="which the batch's C loops do not"):
-        model.simulate_many(0.3, x0=np.stack([xa, xa]))
+    off = xa.copy()
+    off[model.state_names.index("q11")] += 1e-6                    # off the contact constraints
+    batch = model.simulate_many(0.3, x0=np.stack([xa, off]), rtol=1e-10, atol=1e-12,
+                                t_eval=np.linspace(0.0, 0.3, 301), outputs=True)
+    assert batch.status.tolist() == [0, batch_.REFUSED]
+    assert batch.errors[1].startswith("InconsistentInitialStateError") and batch.charts[1] is None
+    assert np.array_equal(batch.x[0], res.x) and np.isnan(batch.x[1]).all()
+    assert all(np.array_equal(batch.charts[0][k], v) for k, v in res.charts.items())
+    assert batch.outputs and all(np.array_equal(batch.outputs[k][0], v) for k, v in res.outputs.items())
     early = dict(x0=xa, rtol=1e-8, atol=1e-10, t_eval=np.linspace(0.0, 0.01, 11), outputs=False)
     for _ in range(2):  # the second call takes the short way
         quiet = model.simulate(0.01, **early)

@@ -20,7 +20,15 @@ from time import perf_counter
 
 import numpy as np
 
-from grasping_sym.errors import GraspingSymError, RunArgumentError
+from grasping_sym.errors import (
+    ContactOpenedError,
+    FrictionConeError,
+    GraspingSymError,
+    InconsistentInitialStateError,
+    RelativeCurvatureError,
+    RunArgumentError,
+    StateLeftDomainError,
+)
 from grasping_sym.runtime import c_loops, friction, modes
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
@@ -75,8 +83,10 @@ class BatchResult:
         A model with contact modes: each run's modes at the output times
         (``SimulationResult.modes``; None for a run that failed); else None.
     charts
-        A model with contact modes whose surface has an atlas: each run's charts at the output
-        times (``SimulationResult.charts``; None for a run that failed); else None.
+        A model whose surfaces have atlases (a body on a plane, a grasp): each run's charts at
+        the output times (``SimulationResult.charts``; None for a run that failed); else None.
+        Such a model's runs run one after the other by ``simulate``'s code, which switches
+        chart at the step where a contact reaches a chart's edge (the threads' C loops do not).
     fallback
         None, or why runs ran again with radau (the model's own explicit method found them
         stiff; ``simulate_many``'s ``method`` None): those runs only, ``stats["radau"]``
@@ -223,12 +233,11 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
                           time_limit=time_limit)
     threads = _threads(threads)
     dense = t_eval is not None
-    if model.manifest.get("atlas") and not model.manifest.get("modes"):
-        charts = ", ".join(model.manifest["chart_param_names"])
-        raise RunArgumentError(f"model {model.name!r} has surfaces with atlases ({charts}): its runs switch "
-                               "chart at run time, which the batch's C loops do not (a body on a plane's "
-                               "batch does, run by run); loop over simulate, whose results carry each "
-                               "row's chart (SimulationResult.charts)")
+    if model.manifest.get("atlas") and not model.manifest.get("modes"):  # run by run: they switch
+        if e is not None:
+            raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
+                                   "restitution applies to a model with modes (gs.scenes.body_on_plane)")
+        return _with_atlases(model, s, t_final, x0, params, u, mu, dense, start)
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
         modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names))
         return _with_modes(model, s, t_final, x0, mu, e, u, dense, start)
@@ -293,6 +302,56 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
                        x=got["x"], outputs=got["outputs"], wall_time=perf_counter() - start,
                        events=got["events"], modes=got["modes"],
                        charts=got["charts"] if model.manifest.get("atlas") else None)
+
+
+def _with_atlases(model, s: RunSettings, t_final, x0, params, u, mu, dense: bool, start: float) -> BatchResult:
+    """``simulate_many`` of a grasp whose surfaces have atlases: each run by ``simulate``'s own
+    code (``run.run``, which switches chart at the step where a contact reaches a chart's edge;
+    the batch's C loops do not), one after the other; a run that stops by name is recorded
+    with ``simulate``'s message and the batch's code for it, the others go on. The rows'
+    charts in ``BatchResult.charts``."""
+    n = _count(model, x0, params, u, None if isinstance(mu, tuple) else mu)
+    MU = friction.per_run(model, mu, n)
+    X0 = _initial_states(model, x0, n)
+    P, pdict = _parameters(model, params, n)
+    per_run_u = u is not None and not hasattr(u, "segments") and np.ndim(u) == 2
+    m = len(s.t_eval) - (1 if s.drop_first else 0)
+    x_final = np.full((n, len(model.state_names)), np.nan)
+    X = np.full((n, m, len(model.state_names)), np.nan)
+    outs: dict = {}
+    status = np.zeros(n, dtype=np.int64)
+    errors = np.full(n, "", dtype=object)
+    charts: list = [None] * n
+    for i in range(n):
+        s.mu = None if MU is None else MU[i]
+        try:
+            res = run_.run(model, s, X0[i], x0 is None, P[i], u[i] if per_run_u else u)
+        except (GraspingSymError, ValueError) as exc:
+            status[i] = _status_of(exc)
+            errors[i] = f"{type(exc).__name__}: {exc}"
+            continue
+        x_final[i], X[i] = res.x[-1], res.x
+        for k, v in res.outputs.items():
+            outs.setdefault(k, np.full((n, m), np.nan))[i] = v
+        charts[i] = res.charts if dense else {k: v[-1:] for k, v in res.charts.items()}
+    t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
+    return BatchResult(x_final=x_final, status=status, errors=errors, t=t_out, state_names=model.state_names,
+                       method=s.method, x0=X0, params=pdict, x=X if dense else None,
+                       outputs=outs if dense else {k: v[:, -1] for k, v in outs.items()},
+                       wall_time=perf_counter() - start, charts=charts)
+
+
+def _status_of(exc: Exception) -> int:
+    """The batch's code (``STATUS``) for the error ``simulate`` raised for a run."""
+    if isinstance(exc, InconsistentInitialStateError):
+        return REFUSED
+    if isinstance(exc, (ContactOpenedError, FrictionConeError, RelativeCurvatureError)):
+        return EVENT
+    if isinstance(exc, StateLeftDomainError):
+        return -2
+    if getattr(exc, "stiff", False):
+        return _STIFF
+    return int(getattr(exc, "code", -3))
 
 
 def _threads(threads) -> int:
