@@ -226,7 +226,8 @@ def test_a_free_pinch_with_modes_slips_and_lets_go_as_the_3d_model_does():
     the grasp. The 2D model with modes (``derive.planar_modes`` of the free template) and the 3D
     one kept in its plane (``derive.grasp3d_modes``) locate the same four switches and follow
     the same motion through them."""
-    scene = _pinch(gf=300.0, gl=300.0, wf=300.0**2, wl=300.0**2, outputs=("constraint_residual",))
+    # the outputs of the agreement test's scene: its model is this one's rolling model, built once
+    scene = _pinch(gf=300.0, gl=300.0, wf=300.0**2, wl=300.0**2, outputs=("constraint_residual", "f1", "f2"))
     m2 = gs.build(gs.scenes.with_modes(scene))
     m3 = gs.build(gs.scenes.with_modes(_planar_3d(scene)))
     t = np.linspace(0.0, 0.06, 61)
