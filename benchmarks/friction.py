@@ -111,9 +111,10 @@ def finger_modes() -> dict:
              ("paper3d grasp over a table, mu 0.08", gs.scenes.paper3d(object_surface=ellipsoid), [table],
               gs.contact.coulomb((0.08, 0.08, 0.5)), 1e-9))
     for label, base, planes, mu, rtol in cases:
-        rolling = gs.build(base)
+        scene = gs.scenes.with_modes(base, planes=planes)
+        rolling = gs.build(scene.base)   # the base as the modes hold it (a 3D grasp: MODES_GAIN)
         t0 = perf_counter()
-        model = gs.build(gs.scenes.with_modes(base, planes=planes), force=True)
+        model = gs.build(scene, force=True)
         build = perf_counter() - t0
         tol = dict(rtol=rtol, atol=rtol / 100, t_eval=np.linspace(0.0, 0.25, 251))
         res = model.simulate(0.25, mu=mu, **tol)
@@ -160,8 +161,9 @@ def rolling_only() -> dict:
              ("paper2d, 3 s, an output each ms", gs.scenes.paper2d(), [], 1.0, 1e-10, 3.0, True),
              ("paper3d, 3 s, an output each ms", gs.scenes.paper3d(), [], (1.0, 1.0), 1e-9, 3.0, True))
     for label, base, planes, held, rtol, t_final, shown in cases:
-        rolling = gs.build(base)
-        model = gs.build(gs.scenes.with_modes(base, planes=planes))
+        scene = gs.scenes.with_modes(base, planes=planes)
+        rolling = gs.build(scene.base)   # the base as the modes hold it (a 3D grasp: MODES_GAIN)
+        model = gs.build(scene)
         tol = dict(rtol=rtol, atol=rtol / 100, t_eval=np.linspace(0.0, t_final, round(1000 * t_final) + 1)) \
             if shown else dict(rtol=rtol, atol=rtol / 100, t_eval=[0.0, t_final], outputs=False)
         law = gs.contact.coulomb(held)

@@ -61,7 +61,7 @@ def curves(model, x_ref: np.ndarray, sundials=None) -> list[dict]:
             except GraspingSymError as exc:
                 rows.append({"method": method, "rtol": rtol, "failed": f"{type(exc).__name__}: {str(exc)[:80]}"})
                 continue  # an explicit method stiff at a loose tolerance may run at a tight one
-            wall = once if once > 0.2 else best_per_call(lambda m=method, r=rtol: _run(runs, m, r), number=1,
+            wall = once if once > 0.2 else best_per_call(lambda m=method, r=rtol, mod=runs: _run(mod, m, r), number=1,
                                                          repeat=3)
             rows.append({"method": method, "rtol": rtol, "s": wall, "steps": int(res.stats["n_steps"]),
                          "error": float(np.max(np.abs(res.x[-1] - x_ref)))})

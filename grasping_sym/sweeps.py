@@ -456,7 +456,7 @@ def _starts(model, given: list[tuple[str, np.ndarray]]):
 def sweep(model, grid, t_final: float, *, store: str | Path = "sweep.zarr", client=None,
           chunk: int | None = None, outputs: Sequence[str] = (), measures: Sequence[str] = (),
           samples: int = SAMPLES, settle_tol: float = SETTLE_TOL, method: str | None = None,
-          rtol: float | None = None, atol: float | None = None, project: bool | float | None = None,
+          rtol: float | None = None, atol: float | None = None, project: bool | float | str | None = None,
           max_steps: int = 1_000_000, checks: bool = True, progress: bool = True, mu=None):
     """Run ``model`` (a built model, or a scene: built first) at every point of ``grid`` for
     ``t_final`` seconds and return the results as an ``xarray.Dataset`` (module docstring).

@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 import grasping_sym as gs
 from grasping_sym.derive.bodies3d import surface_sx
-from grasping_sym.errors import ContactLeftContourError, InvalidSceneError, InvalidSurfaceError
+from grasping_sym.errors import ContactLeftContourError, FrictionConeError, InvalidSceneError, InvalidSurfaceError
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.runtime import atlas as atlas_
 from grasping_sym.runtime import batch as batch_
@@ -296,6 +296,18 @@ def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_gra
     assert np.array_equal(batch.x[0], res.x) and np.isnan(batch.x[1]).all()
     assert all(np.array_equal(batch.charts[0][k], v) for k, v in res.charts.items())
     assert batch.outputs and all(np.array_equal(batch.outputs[k][0], v) for k, v in res.outputs.items())
+    assert batch.stats["chart_switches"][0] == len(res.chart_switches) > 0 and batch.stats["n_steps"][1] == 0
+    # a friction limit: stop at the cone (an event, simulate's message) or record it, as simulate does
+    grid = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.3, 301))
+    with pytest.raises(FrictionConeError) as err:
+        model.simulate(0.3, x0=xa, mu=0.01, **grid)
+    stopped = model.simulate_many(0.3, x0=np.stack([xa]), mu=0.01, **grid)
+    assert stopped.status.tolist() == [batch_.EVENT] and stopped.errors[0] == f"FrictionConeError: {err.value}"
+    kept = model.simulate_many(0.3, x0=np.stack([xa]), mu=0.01, slip="record", outputs=True, **grid)
+    assert kept.status.tolist() == [0] and kept.outputs["cone_margin1"][0].min() < 0
+    # the batch's wall-time limit is the whole call's
+    late = model.simulate_many(0.3, x0=np.stack([xa, xa]), time_limit=1e-9, **grid)
+    assert (late.status == -9).all() and "the batch's wall-time limit" in late.errors[1]
     early = dict(x0=xa, rtol=1e-8, atol=1e-10, t_eval=np.linspace(0.0, 0.01, 11), outputs=False)
     for _ in range(2):  # the second call takes the short way
         quiet = model.simulate(0.01, **early)

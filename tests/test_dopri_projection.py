@@ -432,7 +432,8 @@ def test_a_3d_grasp_projects_its_steps_by_default(paper3d_model):
 def test_the_stabilisation_gain_where_nothing_projects():
     """The paper's formulation keeps a gain (its velocity constraints are singular where a
     contact stops rolling: no projection there), and a grasp with contact modes, whose runs do
-    not project, holds its base's constraints with ``MODES_GAIN``; a gain given is kept."""
+    not project, holds its base's constraints with ``MODES_GAIN`` where the base has none (a
+    gain above 0 given is kept); a gain given at run time may be 0: its model projects."""
     from grasping_sym.model.grasp3d import PAPER_GAIN
     from grasping_sym.model.grasp3d_modes import MODES_GAIN
 
@@ -441,3 +442,4 @@ def test_the_stabilisation_gain_where_nothing_projects():
     assert gs.scenes.paper3d(gain=50.0).simulate_defaults["project"] is False
     assert gs.scenes.with_modes(gs.scenes.paper3d()).base.gain == MODES_GAIN
     assert gs.scenes.with_modes(gs.scenes.paper3d(gain=50.0)).base.gain == 50.0
+    assert gs.scenes.paper3d(gain=50.0, runtime=("gain",)).simulate_defaults["project"] is True

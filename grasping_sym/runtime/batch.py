@@ -27,6 +27,7 @@ from grasping_sym.errors import (
     InconsistentInitialStateError,
     RelativeCurvatureError,
     RunArgumentError,
+    RunInterruptedError,
     StateLeftDomainError,
 )
 from grasping_sym.runtime import c_loops, friction, modes
@@ -149,7 +150,7 @@ def default_threads() -> int:
 
 def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = None, u=None,
                   method: str | None = None, rtol: float | None = None, atol: float | None = None, t_eval=None,
-                  h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float | None = None,
+                  h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float | str | None = None,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None, mu=None, slip: str = "stop", e=None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
@@ -206,8 +207,12 @@ def _merged(res: BatchResult, again: BatchResult, idx: np.ndarray) -> BatchResul
     if res.x is not None and again.x is not None:
         res.x[idx] = again.x
     for k, v in again.outputs.items():
-        if k in res.outputs:
-            res.outputs[k][idx] = v
+        if k not in res.outputs:  # every run of res failed: none made it
+            res.outputs[k] = np.full((len(res), *np.shape(v)[1:]), np.nan)
+        res.outputs[k][idx] = v
+    if res.charts is not None and again.charts is not None:
+        for j, i in enumerate(idx):
+            res.charts[i] = again.charts[j]
     n = len(res)
     for k, v in again.stats.items():
         if k not in res.stats:
@@ -237,7 +242,7 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
         if e is not None:
             raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")
-        return _with_atlases(model, s, t_final, x0, params, u, mu, dense, start)
+        return _with_atlases(model, s, x0, params, u, mu, slip, dense, start)
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
         modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names))
         return _with_modes(model, s, t_final, x0, mu, e, u, dense, start)
@@ -250,10 +255,7 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
 
     n_runs = _count(model, x0, params, u, None if isinstance(mu, tuple) else mu)
     MU = friction.per_run(model, mu, n_runs)
-    if MU is not None and checks and not dense:
-        raise RunArgumentError("mu given with checks, but no t_eval: the friction cone is checked at the "
-                               "output times, and without t_eval a batch keeps only the start and the "
-                               "end; give t_eval (e.g. np.linspace(0, t_final, 301)), or checks=False")
+    _refuse_mu_without_t_eval(MU, checks, dense)
     s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n_runs)
     P, pdict = _parameters(model, params, n_runs)
@@ -272,6 +274,13 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
     errors = _errors(model, s, status, X0, x0 is None, P, U, sched, MU)
     return _result(model, s, res, status, errors, dense, X0=X0, pdict=pdict,
                    wall=perf_counter() - start, mu=MU)
+
+
+def _refuse_mu_without_t_eval(MU, checks: bool, dense: bool) -> None:
+    if MU is not None and checks and not dense:
+        raise RunArgumentError("mu given with checks, but no t_eval: the friction cone is checked at the "
+                               "output times, and without t_eval a batch keeps only the start and the "
+                               "end; give t_eval (e.g. np.linspace(0, t_final, 301)), or checks=False")
 
 
 def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start: float) -> BatchResult:
@@ -304,28 +313,44 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
                        charts=got["charts"] if model.manifest.get("atlas") else None)
 
 
-def _with_atlases(model, s: RunSettings, t_final, x0, params, u, mu, dense: bool, start: float) -> BatchResult:
+def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, start: float) -> BatchResult:
     """``simulate_many`` of a grasp whose surfaces have atlases: each run by ``simulate``'s own
     code (``run.run``, which switches chart at the step where a contact reaches a chart's edge;
-    the batch's C loops do not), one after the other; a run that stops by name is recorded
-    with ``simulate``'s message and the batch's code for it, the others go on. The rows'
-    charts in ``BatchResult.charts``."""
+    the batch's C loops do not), one after the other, within the batch's ``time_limit``; a run
+    that stops by name is recorded with ``simulate``'s message and the batch's code for it,
+    the others go on. The rows' charts in ``BatchResult.charts``, each run's counters in
+    ``stats``."""
     n = _count(model, x0, params, u, None if isinstance(mu, tuple) else mu)
     MU = friction.per_run(model, mu, n)
+    _refuse_mu_without_t_eval(MU, s.checks, dense)
+    s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n)
     P, pdict = _parameters(model, params, n)
     per_run_u = u is not None and not hasattr(u, "segments") and np.ndim(u) == 2
+    us = list(np.asarray(u, dtype=float)) if per_run_u else [u] * n
+    for u_i in us if per_run_u else us[:1]:  # a bad u is the call's error, not each run's
+        run_.schedule(model, u_i, s.method, s.t_eval)
     m = len(s.t_eval) - (1 if s.drop_first else 0)
     x_final = np.full((n, len(model.state_names)), np.nan)
     X = np.full((n, m, len(model.state_names)), np.nan)
     outs: dict = {}
+    stats: dict = {}
     status = np.zeros(n, dtype=np.int64)
     errors = np.full(n, "", dtype=object)
     charts: list = [None] * n
+    deadline = None if s.time_limit is None else start + s.time_limit
     for i in range(n):
-        s.mu = None if MU is None else MU[i]
+        left = None if deadline is None else deadline - perf_counter()
+        if left is not None and left <= 0:
+            status[i] = c_loops.ERR_INTERRUPT
+            errors[i] = (f"stopped: the batch's wall-time limit of {s.time_limit:g} s was reached "
+                         "before this run finished (raise time_limit, or run fewer at a time)")
+            continue
+        si = replace(s, mu=None if MU is None else MU[i], time_limit=left)
         try:
-            res = run_.run(model, s, X0[i], x0 is None, P[i], u[i] if per_run_u else u)
+            res = run_.run(model, si, X0[i], x0 is None, P[i], us[i])
+        except (RunArgumentError, RunInterruptedError):
+            raise  # the call's, not the run's
         except (GraspingSymError, ValueError) as exc:
             status[i] = _status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"
@@ -333,11 +358,14 @@ def _with_atlases(model, s: RunSettings, t_final, x0, params, u, mu, dense: bool
         x_final[i], X[i] = res.x[-1], res.x
         for k, v in res.outputs.items():
             outs.setdefault(k, np.full((n, m), np.nan))[i] = v
+        for k, v in res.stats.items():
+            if isinstance(v, numbers.Real):
+                stats.setdefault(k, np.zeros(n))[i] = v
         charts[i] = res.charts if dense else {k: v[-1:] for k, v in res.charts.items()}
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=x_final, status=status, errors=errors, t=t_out, state_names=model.state_names,
                        method=s.method, x0=X0, params=pdict, x=X if dense else None,
-                       outputs=outs if dense else {k: v[:, -1] for k, v in outs.items()},
+                       outputs=outs if dense else {k: v[:, -1] for k, v in outs.items()}, stats=stats,
                        wall_time=perf_counter() - start, charts=charts)
 
 

@@ -207,7 +207,7 @@ def adaptive(lib, method: str, x0: Any, t_out: Any, p: Any, rtol: float, atol: f
         if not (np.all(np.isfinite(t_arr)) and np.all(np.diff(t_arr) > 0)):
             raise ValueError(_T_OUT)
         raise ValueError(f"{c_name} rejected its arguments (rtol = {rtol}, atol = {atol}, "
-                         f"h0 = {h0}, max_steps = {max_steps}, proj_tol = {proj_tol})")
+                         f"h0 = {h0}, max_steps = {max_steps}, proj_tol = {abs(proj_tol)})")
     bad = violation(x0a, lo_a, hi_a, lib.state_names) if stats_a[0] == 0 else ""
     if bad:  # the C code refused the initial state itself
         raise IntegratorError(float(t_arr[0]), x0a, f"initial state: {bad}", lib.state_names)

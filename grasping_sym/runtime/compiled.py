@@ -802,6 +802,8 @@ class CompiledLibrary:
         """
         xa = as_vector(x, self.nx, "x").copy()
         pa = self._p(p)
+        if not (math.isfinite(proj_tol) and proj_tol > 0):
+            raise ValueError(f"proj_tol must be finite and > 0, got {proj_tol}")
         mask = self._mask(proj_mask, float(proj_tol))
         stats_a = np.zeros(c_loops.NSTATS)
         rc = self._c_project(xa.ctypes.data, self._ptr(pa), mask.ctypes.data, float(proj_tol),

@@ -277,7 +277,7 @@ class Model:
                  rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
                  outputs: bool = True, checks: bool = True,
-                 project: bool | float | None = None,
+                 project: bool | float | str | None = None,
                  time_limit: float | None = None, u=None, mu=None,
                  slip: str = "stop", e=None) -> SimulationResult:
         """Integrate from ``x0`` (default ``initial_state()``) to ``t_final`` seconds.
@@ -395,7 +395,8 @@ class Model:
             the constraints, where projecting every millisecond's row costs 4 ms of the 7).
             None (the default): the model's own, ``"steps"`` for a 3D grasp without a
             stabilisation gain (``GraspScene3D.gain = 0``, the default) with a method that
-            projects; False for every other model.
+            projects (cvodes and idas are refused on it, by name: give ``project=False`` to
+            run them unstabilised); False for every other model.
 
         Raises
         ------
@@ -472,7 +473,7 @@ class Model:
 
     def simulate_many(self, t_final: float, *, x0=None, params=None, u=None, method: str | None = None,
                       rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
-                      max_steps: int = 1_000_000, project: bool | float | None = None,
+                      max_steps: int = 1_000_000, project: bool | float | str | None = None,
                       outputs: bool = False, checks: bool = True, threads: int | None = None,
                       time_limit: float | None = None, mu=None, slip: str = "stop", e=None):
         """Many runs in one call: N simulations over a pool of threads in C, the GIL released
