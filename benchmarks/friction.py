@@ -30,6 +30,7 @@ from time import perf_counter
 import numpy as np
 
 import grasping_sym as gs
+from benchmarks import timing
 from benchmarks.timing import best_per_call
 from grasping_sym.geometry import surface_library
 
@@ -46,8 +47,9 @@ def cone_check_cost() -> dict:
                            lambda m=model, mu=mu: m.simulate(3.0, t_eval=[0.0, 3.0], outputs=False, mu=mu)),
         }
         for case, (plain, cone) in cases.items():
-            t0 = best_per_call(plain, number=3, repeat=7)
-            t1 = best_per_call(cone, number=3, repeat=7)
+            # interleaved (this machine's speed drifts by 10-30 % over seconds)
+            best = timing.interleaved({"plain": plain, "cone": cone}, 21)
+            t0, t1 = best["plain"], best["cone"]
             out[f"{name}/{case}"] = {"without_mu_s": t0, "with_mu_s": t1, "ratio": t1 / t0}
     return out
 

@@ -141,6 +141,10 @@ def _make_out(out: Path) -> Path:
     return out
 
 
+#: ``--project``'s choices, as ``simulate``'s ``project``.
+PROJECT = {"default": None, "steps": "steps", "rows": True, "off": False}
+
+
 def _check_run(method: str, t_final: float, rtol, atol, h: float = 1e-4) -> None:
     """The simulated time (at most ``MAX_T_FINAL``) and the integrator's settings, as the
     model will check them (``runtime.settings.run_settings``)."""
@@ -198,6 +202,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         scene = factory(runtime=tuple(params)) if params else factory()
     t_final, method, rtol, atol = simulate_settings(args, scene)
     _check_run(method, t_final, rtol, atol, args.h)
+    project = PROJECT[args.project]
+    if project is None and method in ("cvodes", "idas") and scene.simulate_defaults.get("project"):
+        raise UsageError(f"--method {method}: {scene.name} holds its contact constraints by projecting its "
+                         f"steps, which {method} (SUNDIALS) cannot do: use --method dop853 or radau, or "
+                         "give --project off to run it without (its constraints then drift)")
     _check_param_values(scene, params)
     _make_out(out)
     model = build(scene, progress=_say)
@@ -206,7 +215,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     # no --method: the model's own, as simulate() takes it (a stiff run falls back to radau)
     result = model.simulate(t_final, method=args.method, rtol=rtol, atol=atol, h=args.h,
-                            params=params or None)
+                            params=params or None, project=project)
     sim_wall = time.perf_counter() - t0
     csv_path = result.write_csv(out / "trajectory.csv")
     _say(f"writing figures into {out}")
@@ -424,13 +433,17 @@ def make_parser() -> argparse.ArgumentParser:
                         f"{MAX_T_FINAL:g})")
     p.add_argument("--out", required=True, help="output directory (created if missing)")
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="integrator (default cvodes for 2D scenes, radau for 3D scenes)")
+                   help="integrator (default the scene's: radau for 2D scenes, dop853 for 3D grasps)")
+    p.add_argument("--project", choices=tuple(PROJECT), default="default",
+                   help="projection onto the contact constraints: 'steps' after every step, 'rows' at "
+                        "every output row too, 'off' none; default the scene's ('steps' for a 3D "
+                        "grasp without a stabilisation gain, else none)")
     p.add_argument("--rtol", type=_positive_float, default=None,
-                   help="relative tolerance of the adaptive integrators (default 1e-10; "
-                        "1e-6 for radau on 3D scenes)")
+                   help="relative tolerance of the adaptive integrators (default the scene's for "
+                        "its method, else the method's own)")
     p.add_argument("--atol", type=_positive_float, default=None,
-                   help="absolute tolerance of the adaptive integrators (default 1e-12; "
-                        "1e-9 for radau on 3D scenes)")
+                   help="absolute tolerance of the adaptive integrators (default the scene's for "
+                        "its method, else the method's own)")
     p.add_argument("--h", type=_positive_float, default=1e-4,
                    help="fixed step of rk4 in s (default 1e-4)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",

@@ -112,3 +112,17 @@ def test_figures_without_outputs_skip_the_multipliers(caplog):
     assert "skipping" in caplog.text
     fig = plots3d.arclength_figure(scene, res, plots3d.contact_traces(scene, res))
     assert len(fig.axes) == 2  # arclengths and residuals; no orthonormality panel
+
+
+def test_sundials_on_a_grasp_that_projects_is_refused_before_the_build(tmp_path, capsys):
+    """paper3d projects its steps (no stabilisation gain), which cvodes cannot: the command
+    says so, and how to run it, before it builds or writes anything; ``--project`` takes
+    simulate's settings by name."""
+    code = cli.main(["simulate", "paper3d", "--method", "cvodes", "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot do" in err and "--project off" in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists()
+    parse = cli.make_parser().parse_args
+    assert [cli.PROJECT[parse(["simulate", "paper3d", "--out", "x", *extra]).project]
+            for extra in ([], ["--project", "steps"], ["--project", "rows"], ["--project", "off"])] == \
+        [None, "steps", True, False]
