@@ -430,8 +430,8 @@ def test_a_3d_grasp_projects_its_steps_by_default(paper3d_model):
 
 
 def test_the_stabilisation_gain_where_nothing_projects():
-    """The paper's formulation keeps a gain (its velocity constraints are singular where a
-    contact stops rolling: no projection there), and a grasp with contact modes, whose runs do
+    """The paper's formulation keeps a gain (the projection onto its velocity constraints
+    fails, their Jacobian on the speeds singular), and a grasp with contact modes, whose runs do
     not project, holds its base's constraints with ``MODES_GAIN`` where the base has none (a
     gain above 0 given is kept); a gain given at run time may be 0: its model projects."""
     from grasping_sym.model.grasp3d import PAPER_GAIN

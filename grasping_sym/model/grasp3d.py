@@ -113,9 +113,10 @@ class GraspScene3D:
         1/s, constraint stabilisation: ``C'' + 2 g C' + g^2 C = 0`` (critically damped); 0:
         none in the equations, the runs project onto the constraints after every step instead
         (``simulate``'s ``project``, on by default for such a scene: the fastest reliable run,
-        ``simulate_defaults``; in the paper's formulation a projection fails by name where a
-        contact stops rolling, its velocity constraints' Jacobian singular there). None (the
-        default): 0 in the regular formulation, ``PAPER_GAIN`` in the paper's.
+        ``simulate_defaults``; in the paper's formulation the projection onto the velocity
+        constraints fails by name, their Jacobian on the speeds singular: at paper3d's start
+        already). None (the default): 0 in the regular formulation, ``PAPER_GAIN`` in the
+        paper's.
     dq0
         rad/s, joint speeds wished at the start (all fingers, in order); the start uses the
         admissible motion closest to them in kinetic energy (None: rest).
