@@ -39,15 +39,17 @@ def settings(model, project, method: str) -> tuple[np.ndarray | None, float]:
     accepted steps only, to ``PROJECT_TOL``: the output rows between them are the dense output
     of projected steps, on the constraints to the run's accuracy, and cost no constraint
     evaluation; the C loops take it as ``-tol``), or None: the model's default (the
-    manifest's ``defaults``: ``"steps"`` for a 3D grasp without a stabilisation gain) with a
-    method whose loop projects, else none.
+    manifest's ``defaults``: ``"steps"`` for a 3D grasp without a stabilisation gain, or
+    with one set at run time) with a method whose loop projects; such a model refuses
+    SUNDIALS by name (``RunArgumentError``); every other model: none.
     """
     if project is None:
         default = bool((model.manifest.get("defaults") or {}).get("project"))
         if default and method not in METHODS:
             raise RunArgumentError(
                 f"model {model.name!r} holds its contact constraints by projecting its steps (its "
-                f"scene's gain is 0), which {method} (SUNDIALS) cannot do: the run would drift off "
+                f"scene has no stabilisation gain, or one set at run time), which {method} (SUNDIALS) "
+                "cannot do: the run would drift off "
                 "them (paper3d at rtol 1e-8: a final-state error of 2e-7). Use method='dop853' or "
                 "'radau', which project; or build the scene with a stabilisation gain (e.g. "
                 "gain=300.0); or give project=False to run it without either")
