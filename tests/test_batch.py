@@ -153,3 +153,24 @@ def test_a_law_that_reads_the_time_runs_and_is_checked_as_simulate_runs_it():
         assert np.array_equal(single.x, batch.x[i])
         assert np.array_equal(single.outputs["f"], batch.outputs["f"][i])
     assert "Cdot" in batch.errors[2]
+
+
+def test_the_runs_run_by_simulates_code_get_the_batchs_codes():
+    """``failures.status_of``, shared by the batches of models with modes and with atlases: a
+    refused start, an event, a contact off its contour, a stiff run, a C loop's own code."""
+    from grasping_sym import errors
+    from grasping_sym.runtime import batch, failures
+
+    x = np.zeros(2)
+    stiff = errors.IntegratorError(0.0, x, "stiff")
+    stiff.stiff = True
+    steps = errors.IntegratorError(0.0, x, "too many steps")
+    steps.code = -6
+    cases = [(errors.InconsistentInitialStateError(1e-6, "off"), batch.REFUSED),
+             (errors.FrictionConeError(0.1, x, "slips"), batch.EVENT),
+             (errors.ContactModeError(0.1, x, "Painleve"), batch.EVENT),
+             (errors.ContactLeftContourError(0.1, x, "left"), -2),
+             (stiff, -8), (steps, -6), (errors.IntegratorError(0.0, x, "?"), -3)]
+    for exc, code in cases:
+        assert failures.status_of(exc) == code, exc
+        assert code in batch.STATUS

@@ -20,17 +20,8 @@ from time import perf_counter
 
 import numpy as np
 
-from grasping_sym.errors import (
-    ContactOpenedError,
-    FrictionConeError,
-    GraspingSymError,
-    InconsistentInitialStateError,
-    RelativeCurvatureError,
-    RunArgumentError,
-    RunInterruptedError,
-    StateLeftDomainError,
-)
-from grasping_sym.runtime import c_loops, friction, modes
+from grasping_sym.errors import GraspingSymError, RunArgumentError, RunInterruptedError
+from grasping_sym.runtime import c_loops, failures, friction, modes
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -41,7 +32,7 @@ METHODS = ("radau", "dopri5", "dop853", "rk4")
 #: Most threads a batch may run on.
 MAX_THREADS = 1024
 #: ``BatchResult.status`` values besides 0 (success) and the C loops' codes (-1 ... -9).
-REFUSED, EVENT = -10, -11
+REFUSED, EVENT = failures.REFUSED, failures.EVENT
 #: the status of a run an explicit method found stiff
 _STIFF = -8
 STATUS = {0: "ok", -1: "non-finite state", -2: "a contact left its contour or a joint reached a limit",
@@ -290,21 +281,14 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
     sizes = {len(v) for v in (mu, e) if v is not None and not hasattr(v, "per_contact") and np.ndim(v) >= 1}
     if x0 is not None and np.ndim(x0) == 2:
         sizes.add(len(x0))
-    per_run_u = u is not None and not hasattr(u, "segments") and np.ndim(u) == 2
-    if per_run_u:
+    if u is not None and not hasattr(u, "segments") and np.ndim(u) == 2:
         sizes.add(len(u))
     if len(sizes) > 1:
         raise RunArgumentError(f"simulate_many: x0, mu, e and u give different numbers of runs {sorted(sizes)}: "
                                "give every per-run array the same length N")
     n = sizes.pop() if sizes else 1
     X0 = _initial_states(model, x0, n)
-    try:
-        us = list(np.asarray(u, dtype=float)) if per_run_u else [u] * n
-    except ValueError as exc:
-        raise RunArgumentError(f"u = {u!r}: give numbers, (n_inputs,) or (N, n_inputs), or one table") from exc
-    for u_i in us[:1] if not per_run_u else us:  # a bad u is the call's error, not each run's
-        run_.schedule(model, u_i, s.method, s.t_eval)
-    got = modes.run_many(model, s, X0, mu, e, us)
+    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n))
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],
@@ -326,10 +310,7 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
     s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n)
     P, pdict = _parameters(model, params, n)
-    per_run_u = u is not None and not hasattr(u, "segments") and np.ndim(u) == 2
-    us = list(np.asarray(u, dtype=float)) if per_run_u else [u] * n
-    for u_i in us if per_run_u else us[:1]:  # a bad u is the call's error, not each run's
-        run_.schedule(model, u_i, s.method, s.t_eval)
+    us = _inputs_by_run(model, s, u, n)
     m = len(s.t_eval) - (1 if s.drop_first else 0)
     x_final = np.full((n, len(model.state_names)), np.nan)
     X = np.full((n, m, len(model.state_names)), np.nan)
@@ -342,9 +323,7 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
     for i in range(n):
         left = None if deadline is None else deadline - perf_counter()
         if left is not None and left <= 0:
-            status[i] = c_loops.ERR_INTERRUPT
-            errors[i] = (f"stopped: the batch's wall-time limit of {s.time_limit:g} s was reached "
-                         "before this run finished (raise time_limit, or run fewer at a time)")
+            status[i], errors[i] = c_loops.ERR_INTERRUPT, _out_of_time(s)
             continue
         si = replace(s, mu=None if MU is None else MU[i], time_limit=left)
         try:
@@ -352,7 +331,7 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
         except (RunArgumentError, RunInterruptedError):
             raise  # the call's, not the run's
         except (GraspingSymError, ValueError) as exc:
-            status[i] = _status_of(exc)
+            status[i] = failures.status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"
             continue
         x_final[i], X[i] = res.x[-1], res.x
@@ -369,17 +348,24 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
                        wall_time=perf_counter() - start, charts=charts)
 
 
-def _status_of(exc: Exception) -> int:
-    """The batch's code (``STATUS``) for the error ``simulate`` raised for a run."""
-    if isinstance(exc, InconsistentInitialStateError):
-        return REFUSED
-    if isinstance(exc, (ContactOpenedError, FrictionConeError, RelativeCurvatureError)):
-        return EVENT
-    if isinstance(exc, StateLeftDomainError):
-        return -2
-    if getattr(exc, "stiff", False):
-        return _STIFF
-    return int(getattr(exc, "code", -3))
+def _inputs_by_run(model, s: RunSettings, u, n: int) -> list:
+    """Each of the ``n`` runs' ``u`` for a batch run by ``simulate``'s code: one row each of
+    ``(N, n_inputs)``, else ``u`` (constant inputs, one table, or None) for every run; a bad
+    ``u`` is the call's error, raised once, not each run's."""
+    per_run = u is not None and not hasattr(u, "segments") and np.ndim(u) == 2
+    try:
+        us = list(np.asarray(u, dtype=float)) if per_run else [u] * n
+    except ValueError as exc:
+        raise RunArgumentError(f"u = {u!r}: give numbers, (n_inputs,) or (N, n_inputs), or one table") from exc
+    for u_i in us if per_run else us[:1]:
+        run_.schedule(model, u_i, s.method, s.t_eval)
+    return us
+
+
+def _out_of_time(s: RunSettings) -> str:
+    """The message of a run the batch's wall-time limit stopped."""
+    return (f"stopped: the batch's wall-time limit of {s.time_limit:g} s was reached before this "
+            "run finished (raise time_limit, or run fewer at a time)")
 
 
 def _threads(threads) -> int:
@@ -415,8 +401,7 @@ def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched, mu=None) 
     errors = np.full(len(status), "", dtype=object)
     for i in np.flatnonzero(status != 0):
         if status[i] == c_loops.ERR_INTERRUPT:  # the batch's time limit: not the run's doing
-            errors[i] = (f"stopped: the batch's wall-time limit of {s.time_limit:g} s was reached "
-                         "before this run finished (raise time_limit, or run fewer at a time)")
+            errors[i] = _out_of_time(s)
             continue
         u = sched if sched is not None else (None if U is None else U[i])
         si = s if mu is None else replace(s, mu=mu[i])

@@ -14,10 +14,34 @@ import numpy as np
 
 from grasping_sym.errors import (
     ContactLeftContourError,
+    ContactModeError,
+    ContactOpenedError,
+    FrictionConeError,
     IntegratorError,
     JointLimitError,
+    RelativeCurvatureError,
     StateLeftDomainError,
 )
+from grasping_sym.runtime import c_loops
+
+#: A batch's codes (``runtime.batch.STATUS``) beside the C loops' (-1 ... -9): a run whose
+#: initial state ``simulate`` refuses, and a run stopped by an event along it.
+REFUSED, EVENT = -10, -11
+
+
+def status_of(exc: Exception) -> int:
+    """A batch's code for the error ``simulate`` raised for one of its runs (the batches that
+    run their runs by ``simulate``'s code: a model with contact modes, or with atlases)."""
+    if isinstance(exc, ValueError):  # InconsistentInitialStateError among them: refused
+        return REFUSED
+    if isinstance(exc, (ContactModeError, ContactOpenedError, FrictionConeError, RelativeCurvatureError)):
+        return EVENT
+    if isinstance(exc, StateLeftDomainError):
+        return c_loops.ERR_BOUNDS
+    if getattr(exc, "stiff", False):
+        return c_loops.ERR_STIFF
+    return int(getattr(exc, "code", c_loops.ERR_EVAL))
+
 
 #: Fraction of a contour's domain crossed in one rejected step that names a blow-up.
 BLOW_UP_JUMP = 0.25

@@ -50,7 +50,6 @@ from grasping_sym.errors import (
     JointLimitError,
     PainleveError,
     RunArgumentError,
-    StateLeftDomainError,
 )
 from grasping_sym.runtime import events, failures, fastpath, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
@@ -1729,9 +1728,7 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
         try:
             res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i])
         except (GraspingSymError, ValueError) as exc:
-            status[i] = -11 if isinstance(exc, ContactModeError) else \
-                -2 if isinstance(exc, StateLeftDomainError) else \
-                -10 if isinstance(exc, ValueError) else -3
+            status[i] = failures.status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"
             continue
         x_final[i] = res.x[-1]
