@@ -1,6 +1,11 @@
 """Shared fixtures. Every build in the test session goes to a private cache under tmp, one
 for the session's workers together under pytest-xdist (the cache is safe for concurrent
-builds: tests/test_cache_security.py), so that a model one worker built is the other's too."""
+builds: tests/test_cache_security.py), so that a model one worker built is the other's too.
+
+The session compiles at the quick level (``GRASPING_SYM_OPT=quick``, -Og: half of gcc's
+time, about half of the suite's): the numbers are the full level's, bit for bit
+(``test_compiled_runtime.py::test_a_quick_build_computes_what_a_full_build_does``, which
+builds both)."""
 from __future__ import annotations
 
 import os
@@ -11,6 +16,8 @@ import pytest
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
     old = os.environ.get("GRASPING_SYM_CACHE")
+    old_level = os.environ.get("GRASPING_SYM_OPT")
+    os.environ["GRASPING_SYM_OPT"] = "quick"
     if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers' base directories share a parent
         root = tmp_path_factory.getbasetemp().parent / "gs-cache"
         root.mkdir(exist_ok=True)
@@ -22,6 +29,10 @@ def _private_cache(tmp_path_factory):
         os.environ.pop("GRASPING_SYM_CACHE", None)
     else:
         os.environ["GRASPING_SYM_CACHE"] = old
+    if old_level is None:
+        os.environ.pop("GRASPING_SYM_OPT", None)
+    else:
+        os.environ["GRASPING_SYM_OPT"] = old_level
 
 
 @pytest.fixture(scope="session")
@@ -44,3 +55,20 @@ def paper2d_result(paper2d_model):
         3.0, rtol=1e-10, atol=1e-12,
         t_eval=None,
     )
+
+
+#: The heaviest test files (their builds, mostly), longest first: collected before the others so
+#: that pytest-xdist's workers (one file at a time, ``--dist loadfile``) start them first and
+#: finish together instead of one worker running a long file alone at the end. A file not
+#: named keeps its place after these; the order within a file is kept.
+HEAVY_FIRST = (
+    "test_planar_free.py", "test_docs.py", "test_examples_control.py", "test_grasp_modes.py",
+    "test_layers.py", "test_planar_multifinger.py", "test_runtime_guards.py",
+    "test_cache_security.py", "test_paper3d.py", "test_sweep.py", "test_generated_golden.py",
+    "test_compiled_vs_symbolic.py", "test_modes.py", "test_compiled_runtime.py",
+)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: k for k, name in enumerate(HEAVY_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: files stay whole

@@ -223,7 +223,48 @@ def test_isa_level(monkeypatch, machine, flags, env, level):
     from grasping_sym.store.platform import library_tag  # noqa: PLC0415
     mvec = "-mvec" if compiler.vector_libm() else ""  # glibc's vector libm (test_vecmath)
     assert mvec == "" or level == "x86-64-v3"
-    assert library_tag().endswith("-" + level + mvec)  # the level is part of the name
+    quick = "-quick" if platform_.optimization() == "quick" else ""  # the suite's (conftest)
+    assert library_tag().endswith("-" + level + mvec + quick)  # the level is part of the name
+
+
+def test_the_optimisation_level_is_in_the_flags_and_the_name(monkeypatch):
+    """``GRASPING_SYM_OPT``: ``full`` (unset) compiles at -O2, ``quick`` at -Og (the last -O
+    of every command), each library under its own name; anything else is refused by name."""
+    from grasping_sym.store.platform import library_tag  # noqa: PLC0415
+
+    names = {}
+    for level, flag in (("full", "-O2"), ("quick", "-Og")):
+        monkeypatch.setenv("GRASPING_SYM_OPT", level)
+        flags = compiler._common_flags({}, [], [])
+        assert [f for f in flags if f.startswith("-O")][-1] == flag
+        assert flag in compiler.toolchain_id().split("|")[-1].split()[-1:] or level == "full"
+        names[level] = library_tag()
+    assert names["quick"] == names["full"] + "-quick" or "-cc" in names["full"]
+    monkeypatch.setenv("GRASPING_SYM_OPT", "O3")
+    with pytest.raises(ValueError, match="GRASPING_SYM_OPT='O3'.*'full'.*'quick'"):
+        library_tag()
+
+
+def test_a_quick_build_computes_what_a_full_build_does(tmp_path, monkeypatch):
+    """The quick level (-Og, the test suite's: conftest) and the full one (-O2) compute the
+    same numbers, bit for bit: paper3d's compiled rhs (vector libm and shared reciprocals
+    included) at random states, and a run of its default method, projection and outputs."""
+    import grasping_sym as gs  # noqa: PLC0415
+    from grasping_sym.store import paths  # noqa: PLC0415
+
+    models = {}
+    for level in ("full", "quick"):
+        monkeypatch.setenv("GRASPING_SYM_OPT", level)
+        with paths.root_override(tmp_path / level):
+            models[level] = gs.build(gs.scenes.paper3d())
+        assert models[level].library_path.name.endswith("-quick.so") == (level == "quick")
+    full, quick = models["full"], models["quick"]
+    x0 = np.asarray(full.initial_state())
+    X = x0 + np.random.default_rng(3).normal(scale=1e-2, size=(50, x0.size))
+    assert np.array_equal(np.array([full.rhs(x) for x in X]), np.array([quick.rhs(x) for x in X]))
+    a, b = (m.simulate(0.5) for m in (full, quick))
+    assert np.array_equal(a.x, b.x) and a.outputs.keys() == b.outputs.keys()
+    assert all(np.array_equal(a.outputs[k], b.outputs[k]) for k in a.outputs)
 
 
 def test_isa_setting_unknown(monkeypatch):

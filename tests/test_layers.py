@@ -243,9 +243,11 @@ def test_a_full_inertia_reaches_the_structure_whole():
 
 def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     """``compile_objects(quick=...)``: the files named compile with ``QUICK_FLAGS`` (last, so
-    they override -O2), the others with the base flags only."""
+    they override -O2), the others with the base flags only (at the full level: the suite's is
+    quick, conftest)."""
     from grasping_sym.toolchain import compiler
 
+    monkeypatch.setenv("GRASPING_SYM_OPT", "full")
     commands = []
     monkeypatch.setattr(compiler, "_run_all",
                         lambda jobs, at_once=None: commands.extend(cmd for cmd, _ in jobs))

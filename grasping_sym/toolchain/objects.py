@@ -37,6 +37,7 @@ from grasping_sym.toolchain.compiler import (
     compiler_command,
     compiler_version,
     isa_flags,
+    level_flags,
 )
 
 __all__ = ["ALIASES", "FEATURES", "SIZES", "cached_objects", "driver_objects", "flags_digest", "links_c",
@@ -130,16 +131,16 @@ def links_c(defines: Mapping[str, str | int]) -> str:
 
 
 @functools.lru_cache(maxsize=8)
-def _flags_digest(cc: tuple[str, ...], isa: tuple[str, ...]) -> str:
-    text = "\0".join([" ".join(cc), compiler_version(), " ".join(BASE_FLAGS),
+def _flags_digest(cc: tuple[str, ...], isa: tuple[str, ...], level: tuple[str, ...]) -> str:
+    text = "\0".join([" ".join(cc), compiler_version(), " ".join(BASE_FLAGS + level),
                       " ".join(CASADI_FILE_FLAGS), " ".join(isa)])
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def flags_digest() -> str:
     """Hash of what an object file depends on besides its source: the compiler and its
-    version, the flags and the instruction set."""
-    return _flags_digest(tuple(compiler_command()), tuple(isa_flags()))
+    version, the flags (the optimisation level's included) and the instruction set."""
+    return _flags_digest(tuple(compiler_command()), tuple(isa_flags()), level_flags())
 
 
 def _digest(sources: Sequence[Path], defines: Mapping, include_dirs: Sequence[str]) -> str:
