@@ -272,3 +272,34 @@ def test_what_cannot_be_read_as_a_hand_is_refused_by_name(tmp_path):
     hand = gs.hands.from_urdf(boxed, tips={"1": "tip"},
                               surfaces={"1": gs.scenes.surface_library.sphere(0.02)})
     assert hand.tips[0].name == "sphere" and hand.chains[0].joints[0].limits is None
+
+
+def test_a_hand_read_again_comes_from_its_parsed_record_without_yourdfpy(tmp_path, monkeypatch):
+    """The first read of a URDF file keeps what the reading uses of it in the cache
+    (``<root>/urdf/``); a later process reads the same hand from that record without importing
+    yourdfpy (and trimesh); a record that does not parse as one is parsed again, and a changed
+    file is a new record."""
+    import subprocess
+    import sys
+
+    monkeypatch.setenv("GRASPING_SYM_CACHE", str(tmp_path / "cache"))
+    first = gs.hands.from_urdf(TRIFINGER, tips=TRIFINGER_TIPS)
+    (record,) = (tmp_path / "cache" / "urdf").glob("*.json")
+    code = ("import sys, pickle; import grasping_sym as gs; "
+            "h = gs.hands.from_urdf(gs.hands.TRIFINGER_URDF, tips=gs.hands.TRIFINGER_TIPS); "
+            "sys.stdout.buffer.write(pickle.dumps((h.chains, h.joints, h.tip_links, h.name, "
+            "[str(t.S) for t in h.tips], 'yourdfpy' in sys.modules, 'trimesh' in sys.modules)))")
+    import pickle
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, check=True).stdout
+    chains_, joints, tip_links, name, tips, yourdfpy_loaded, trimesh_loaded = pickle.loads(out)
+    assert not yourdfpy_loaded and not trimesh_loaded
+    assert (chains_, joints, tip_links, name) == (first.chains, first.joints, first.tip_links, first.name)
+    assert tips == [str(t.S) for t in first.tips]
+    record.write_text('{"key": "not this file", "robot": []}')
+    again = gs.hands.from_urdf(TRIFINGER, tips=TRIFINGER_TIPS)
+    assert again.chains == first.chains and '"robot": {' in record.read_text()  # parsed, rewritten
+    edited = tmp_path / "edited.urdf"
+    edited.write_text(TRIFINGER.read_text().replace('radius="0.01"', 'radius="0.012"', 1))
+    other = gs.hands.from_urdf(edited, tips=TRIFINGER_TIPS)
+    assert len(list((tmp_path / "cache" / "urdf").glob("*.json"))) == 2 and other.chains == first.chains
+    assert other.tips[0].S != first.tips[0].S

@@ -24,6 +24,12 @@ mass and inertia are a uniform rod's along it to 4 ulp is read as the rod (``com
 ``inertia`` None, as ``RevoluteJoint`` writes one), so that it is the same chain as one typed
 in.
 
+The file is parsed once: what the reading below uses of it (the robot's name, its links'
+inertials and collision geometries, its joints) is kept as a JSON record in the cache
+(``<cache root>/urdf/<hash>.json``, keyed by the file's bytes and yourdfpy's version), so that a
+later process reads the same hand without importing yourdfpy and trimesh (0.7 s). Only data
+is kept; a missing, unreadable or malformed record is parsed again.
+
 Joint limits: a ``revolute`` joint's ``<limit lower upper>`` becomes ``RevoluteJoint.limits``
 (a run stops at them with ``JointLimitError``); a ``continuous`` joint has none. Prismatic,
 floating and planar joints, mimic joints, a joint shared by two fingers and a moving joint
@@ -31,10 +37,12 @@ that hangs off a finger without leading to a tip are refused by name.
 """
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping
 from dataclasses import dataclass
-from importlib import resources
+from importlib import metadata, resources
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import sympy as sp
@@ -46,6 +54,9 @@ from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain, RevoluteJoint
 from grasping_sym.model.grasp3d import Finger3D
 from grasping_sym.model.hand_poses import facing, tip_pose  # noqa: F401 - gs.hands.tip_pose, .facing
+from grasping_sym.store import files as stored
+from grasping_sym.store import paths as cache
+from grasping_sym.store import safety
 
 #: TriFinger Pro as published (``grasping_sym/data/trifinger_pro.urdf``: our URDF of the
 #: published geometry, with a 0.01 m collision sphere as its fingertip) and its tip links.
@@ -117,16 +128,8 @@ def from_urdf(path, tips: Mapping[str, str], *, surfaces: Mapping[str, Parametri
         Listing every problem (unreadable file, unknown links, joint types a finger cannot
         hold, tips without a usable surface, ...) with its fix.
     """
-    import yourdfpy  # noqa: PLC0415 - lxml and trimesh only for a hand read from a file
-
     path = Path(path)
-    try:
-        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
-                                  build_collision_scene_graph=False, load_collision_meshes=False)
-    except Exception as exc:  # yourdfpy and lxml raise many types for a bad file
-        raise URDFError(path, [f"cannot be read as URDF: {type(exc).__name__}: {exc}; check "
-                               "that it is a URDF file (XML, a <robot> element)"]) from None
-    robot = urdf.robot
+    robot = _as_namespace(_robot_record(path))
     surfaces = dict(surfaces or {})
     links = {link.name: link for link in robot.links}
     by_child = {j.child: j for j in robot.joints}
@@ -195,6 +198,87 @@ def from_urdf(path, tips: Mapping[str, str], *, surfaces: Mapping[str, Parametri
         raise URDFError(path, problems)
     return Hand(name=robot.name, chains=tuple(chains), tips=tuple(surfs),
                 tip_links=tuple(tips.values()), joints=joint_names)
+
+
+#: The record's layout (``_robot_record``): a record of another layout is parsed again.
+_RECORD_FORMAT = 1
+
+
+def _robot_record(path: Path) -> dict:
+    """What ``from_urdf`` reads of the URDF file at ``path`` (``_record_of``), from the cache
+    when a record of the same bytes and yourdfpy version is there, else parsed with yourdfpy
+    and recorded."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise URDFError(path, [f"cannot be read: {exc.strerror or exc}; check the path"]) from None
+    version = metadata.version("yourdfpy")
+    key = hashlib.sha256(b"\0".join([data, version.encode(), str(_RECORD_FORMAT).encode()])).hexdigest()[:32]
+    root = cache.cache_root()
+    where = root / "urdf" / f"{key}.json"
+    if where.is_file():
+        safety.check_file(where)
+        kept = stored.read_json(where)
+        if kept is not None and kept.get("key") == key and isinstance(kept.get("robot"), dict):
+            return kept["robot"]
+    import yourdfpy  # noqa: PLC0415 - lxml and trimesh only for a hand read from a file
+
+    try:
+        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+                                  build_collision_scene_graph=False, load_collision_meshes=False)
+    except Exception as exc:  # yourdfpy and lxml raise many types for a bad file
+        raise URDFError(path, [f"cannot be read as URDF: {type(exc).__name__}: {exc}; check "
+                               "that it is a URDF file (XML, a <robot> element)"]) from None
+    record = _record_of(urdf.robot)
+    try:
+        safety.ensure_dir(where.parent, root=root)
+        stored.write_json(where, {"key": key, "robot": record})
+    except OSError:  # a full or read-only cache (CacheWriteError included): parsed again next time
+        pass
+    return record
+
+
+def _matrix(value) -> list | None:
+    return None if value is None else np.asarray(value, dtype=float).tolist()
+
+
+def _record_of(robot) -> dict:
+    """The parts of yourdfpy's ``robot`` that ``from_urdf`` reads, as plain JSON data (floats
+    kept exactly: JSON writes their shortest round-tripping repr)."""
+    def geometry(g):
+        if g is None:
+            return None
+        return {"sphere": None if g.sphere is None else {"radius": float(g.sphere.radius)},
+                "cylinder": None if g.cylinder is None else {"radius": float(g.cylinder.radius),
+                                                             "length": float(g.cylinder.length)},
+                "box": None if getattr(g, "box", None) is None else {},
+                "mesh": None if getattr(g, "mesh", None) is None else {}}
+
+    def inertial(i):
+        if i is None:
+            return None
+        return {"mass": None if i.mass is None else float(i.mass), "origin": _matrix(i.origin),
+                "inertia": _matrix(i.inertia)}
+
+    links = [{"name": link.name, "inertial": inertial(link.inertial),
+              "collisions": [{"origin": _matrix(c.origin), "geometry": geometry(c.geometry)}
+                             for c in link.collisions]} for link in robot.links]
+    joints = [{"name": j.name, "type": j.type, "parent": j.parent, "child": j.child,
+               "origin": _matrix(j.origin), "axis": _matrix(j.axis),
+               "limit": None if j.limit is None else {
+                   "lower": None if j.limit.lower is None else float(j.limit.lower),
+                   "upper": None if j.limit.upper is None else float(j.limit.upper)},
+               "mimic": None if j.mimic is None else {"joint": j.mimic.joint}} for j in robot.joints]
+    return {"name": robot.name, "links": links, "joints": joints}
+
+
+def _as_namespace(value):
+    """A record (``_record_of``) as attributes, as yourdfpy's objects have them."""
+    if isinstance(value, dict):
+        return SimpleNamespace(**{k: _as_namespace(v) for k, v in value.items()})
+    if isinstance(value, list) and value and isinstance(value[0], dict):
+        return [_as_namespace(v) for v in value]
+    return value
 
 
 def _tree_problems(robot, links) -> list[str]:

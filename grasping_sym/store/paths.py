@@ -165,6 +165,7 @@ SHARED_DIRS = {
     "templates": re.compile(r"(planar|finger)-[\w.+-]+\.json"),  # codegen.templates
     "objects": re.compile(r"driver-[0-9a-f]{16}"),  # codegen.objects
     "definitions": re.compile(r"[0-9a-f]{32}\.json"),  # pipeline.stages (definition_key)
+    "urdf": re.compile(r"[0-9a-f]{32}\.json"),  # model.hands (a URDF file's parsed record)
 }
 #: The files an unfinished build (no manifest yet) may have left in a model's directory.
 _BUILD_FILE = re.compile(r"[\w.+-]+\.(c|h|json|so|o|dylib|lock)")
