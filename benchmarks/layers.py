@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.timing import REPO, in_fresh_process, median
+from benchmarks.timing import REPO, in_fresh_process, median, reference_compile_s
 
 RESULTS = Path(__file__).resolve().parent / "results"
 #: The last commit before the start was split from the code (solved numbers were constants).
@@ -185,32 +185,9 @@ def _generate_check(log) -> list[dict]:
     return rows
 
 
-#: A fixed compile that tells how fast the machine runs gcc during this run (it is shared with
-#: other work, and its speed moves by tens of percent): the driver's LU routines for 14
-#: states, as the first build of a 2-finger structure compiles them.
-_REFERENCE_DEFINES = {"GS_RHS": "r", "GS_NX": 14, "GS_NP": 2, "GS_HAS_OUT": 0, "GS_HAS_JAC": 0,
-                      "GS_HAS_CON": 0, "GS_HAS_RHS_LANES": 0, "GS_SZ_ARG": 64, "GS_SZ_RES": 64,
-                      "GS_SZ_IW": 64, "GS_SZ_W": 4096}
-
-
-def _reference_compile_s() -> float:
-    """The best of 5 wall times of gcc compiling ``c/lu.c`` with ``_REFERENCE_DEFINES``."""
-    from grasping_sym.toolchain.compiler import compile_objects
-    from grasping_sym.toolchain.library import DRIVER_SOURCES
-
-    lu = next(s for s in DRIVER_SOURCES if s.name == "lu.c")
-    times = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for _ in range(5):
-            t0 = time.perf_counter()
-            compile_objects([lu], tmp, _REFERENCE_DEFINES)
-            times.append(time.perf_counter() - t0)
-    return min(times)
-
-
 def run(*, runs: int = 3, log=print) -> dict:
     os.environ["PYTHONPATH"] = str(REPO)  # the fresh processes import this tree's package
-    ref = _reference_compile_s()
+    ref = reference_compile_s()
     log(f"reference compile (c/lu.c, 14 states): {ref:.3f} s")
     return {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version(),
                         "reference_compile_s": ref},

@@ -81,3 +81,26 @@ def in_fresh_process(code: str, cache_dir: Path, timeout: float = 300.0) -> dict
         raise RuntimeError(f"benchmark subprocess failed (exit {proc.returncode}):\n"
                            f"{proc.stderr[-3000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+#: A fixed compile that tells how fast the machine runs gcc during this run (it is shared with
+#: other work, and its speed moves by tens of percent): the driver's LU routines for 14
+#: states, as the first build of a 2-finger structure compiles them.
+_REFERENCE_DEFINES = {"GS_RHS": "r", "GS_NX": 14, "GS_NP": 2, "GS_HAS_OUT": 0, "GS_HAS_JAC": 0,
+                      "GS_HAS_CON": 0, "GS_HAS_RHS_LANES": 0, "GS_SZ_ARG": 64, "GS_SZ_RES": 64,
+                      "GS_SZ_IW": 64, "GS_SZ_W": 4096}
+
+
+def reference_compile_s() -> float:
+    """The best of 5 wall times of gcc compiling ``c/lu.c`` with ``_REFERENCE_DEFINES``."""
+    from grasping_sym.toolchain.compiler import compile_objects  # noqa: PLC0415
+    from grasping_sym.toolchain.library import DRIVER_SOURCES  # noqa: PLC0415
+
+    lu = next(s for s in DRIVER_SOURCES if s.name == "lu.c")
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(5):
+            t0 = time.perf_counter()
+            compile_objects([lu], tmp, _REFERENCE_DEFINES)
+            times.append(time.perf_counter() - t0)
+    return min(times)
