@@ -228,13 +228,6 @@ def support(points, normals, mu, directions, centre=None, length: float | None =
     return np.max(an + m[None] * at, axis=1)
 
 
-def _in_cone(v: np.ndarray, n: np.ndarray, mu) -> np.ndarray:
-    """Whether each row of ``v`` lies in the smooth friction cone about the matching row of
-    ``n`` (unit) of coefficient ``mu``: ``v.n >= 0`` and ``|v - (v.n) n| <= mu v.n``."""
-    vn = np.einsum("...i,...i->...", v, n)
-    return (vn >= 0) & (np.linalg.norm(v - vn[..., None] * n, axis=-1) <= mu * vn)
-
-
 def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
     """For two 3D point contacts, row by row (``points``, ``normals``: ``(..., 2, 3)``;
     ``mu``: one coefficient or one per contact): whether the line between them lies in both
@@ -263,9 +256,16 @@ def _squeeze(p: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
     """``two_contacts_squeeze`` of checked arrays (``m``: one coefficient per contact)."""
     d = p[..., 1, :] - p[..., 0, :]
     apart = np.linalg.norm(d, axis=-1) > 0
-    one_way = _in_cone(d, n[..., 0, :], m[0]) & _in_cone(-d, n[..., 1, :], m[1])
-    other_way = _in_cone(-d, n[..., 0, :], m[0]) & _in_cone(d, n[..., 1, :], m[1])
-    return apart & (one_way | other_way)
+    # whether d, and -d, lies in each contact's cone (``v.n >= 0`` and ``|v - (v.n) n| <= mu
+    # v.n``) at once: -d has the negated normal part and the very same tangential norm
+    # (negation is exact)
+    forward, backward = [], []
+    for i in range(2):
+        vn = np.einsum("...i,...i->...", d, n[..., i, :])
+        tangential = np.linalg.norm(d - vn[..., None] * n[..., i, :], axis=-1)
+        forward.append((vn >= 0) & (tangential <= m[i] * vn))
+        backward.append((-vn >= 0) & (tangential <= m[i] * -vn))
+    return apart & ((forward[0] & backward[1]) | (backward[0] & forward[1]))
 
 
 def epsilon(points, normals, mu, centre=None, length: float | None = None,

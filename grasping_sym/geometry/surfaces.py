@@ -342,8 +342,9 @@ class ParametricSurface:
         if chart is not None:
             return self._by_chart("evaluate_frame", u, v, chart)
         u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
-        vals = np.stack([np.broadcast_to(np.asarray(a, dtype=float), u.shape)
-                         for a in self._numeric_frame(u, v)], axis=-1)
+        vals = np.empty(u.shape + (12,))
+        for k, a in enumerate(self._numeric_frame(u, v)):
+            vals[..., k] = a  # an entry that does not depend on u, v is a number: broadcast
         return {"point": vals[..., 0:3], "normal": vals[..., 3:6], "x": vals[..., 6:9], "y": vals[..., 9:12]}
 
     def in_domain(self, u: float, v: float) -> bool:

@@ -160,8 +160,9 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
     out = []
     for i, ((f, lam, eta), fr) in enumerate(zip(cols, frames), start=1):
         psi = X[:, names.index(f"psi{i}")][:, None]
-        x_f = np.cos(psi) * fr["x"] - np.sin(psi) * fr["y"]
-        y_f = -np.sin(psi) * fr["x"] - np.cos(psi) * fr["y"]
+        cos, sin = np.cos(psi), np.sin(psi)
+        x_f = cos * fr["x"] - sin * fr["y"]
+        y_f = -sin * fr["x"] - cos * fr["y"]
         out.append(-result[f][:, None] * fr["normal"] + result[lam][:, None] * x_f + result[eta][:, None] * y_f)
     return np.stack(out, axis=1)
 
