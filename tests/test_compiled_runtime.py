@@ -232,14 +232,15 @@ def test_the_optimisation_level_is_in_the_flags_and_the_name(monkeypatch):
     of every command), each library under its own name; anything else is refused by name."""
     from grasping_sym.store.platform import library_tag  # noqa: PLC0415
 
-    names = {}
+    names, ids = {}, set()
     for level, flag in (("full", "-O2"), ("quick", "-Og")):
         monkeypatch.setenv("GRASPING_SYM_OPT", level)
         flags = compiler._common_flags({}, [], [])
         assert [f for f in flags if f.startswith("-O")][-1] == flag
-        assert flag in compiler.toolchain_id().split("|")[-1].split()[-1:] or level == "full"
         names[level] = library_tag()
-    assert names["quick"] == names["full"] + "-quick" or "-cc" in names["full"]
+        ids.add(compiler.toolchain_id())
+    assert "-quick" in names["quick"] and names["quick"].replace("-quick", "") == names["full"]
+    assert len(ids) == 1  # the manifest's compiled_with: a model keeps a library of each level
     monkeypatch.setenv("GRASPING_SYM_OPT", "O3")
     with pytest.raises(ValueError, match="GRASPING_SYM_OPT='O3'.*'full'.*'quick'"):
         library_tag()
@@ -257,7 +258,7 @@ def test_a_quick_build_computes_what_a_full_build_does(tmp_path, monkeypatch):
         monkeypatch.setenv("GRASPING_SYM_OPT", level)
         with paths.root_override(tmp_path / level):
             models[level] = gs.build(gs.scenes.paper3d())
-        assert models[level].library_path.name.endswith("-quick.so") == (level == "quick")
+        assert ("-quick" in models[level].library_path.name) == (level == "quick")
     full, quick = models["full"], models["quick"]
     x0 = np.asarray(full.initial_state())
     X = x0 + np.random.default_rng(3).normal(scale=1e-2, size=(50, x0.size))

@@ -5,6 +5,7 @@ joint limits stop a run by name where the joint crosses them."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import casadi as ca
@@ -295,9 +296,13 @@ def test_a_hand_read_again_comes_from_its_parsed_record_without_yourdfpy(tmp_pat
     assert not yourdfpy_loaded and not trimesh_loaded
     assert (chains_, joints, tip_links, name) == (first.chains, first.joints, first.tip_links, first.name)
     assert tips == [str(t.S) for t in first.tips]
-    record.write_text('{"key": "not this file", "robot": []}')
-    again = gs.hands.from_urdf(TRIFINGER, tips=TRIFINGER_TIPS)
-    assert again.chains == first.chains and '"robot": {' in record.read_text()  # parsed, rewritten
+    key = json.loads(record.read_text())["key"]
+    for damaged in ('{"key": "not this file", "robot": []}', json.dumps({"key": key, "robot": {}}),
+                    json.dumps({"key": key, "robot": {"name": "x", "links": [{}], "joints": []}})):
+        record.write_text(damaged)
+        again = gs.hands.from_urdf(TRIFINGER, tips=TRIFINGER_TIPS)
+        assert again.chains == first.chains and '"robot": {' in record.read_text()  # parsed, rewritten
+        assert json.loads(record.read_text())["robot"]["links"]
     edited = tmp_path / "edited.urdf"
     edited.write_text(TRIFINGER.read_text().replace('radius="0.01"', 'radius="0.012"', 1))
     other = gs.hands.from_urdf(edited, tips=TRIFINGER_TIPS)

@@ -38,6 +38,8 @@ that hangs off a finger without leading to a tip are refused by name.
 from __future__ import annotations
 
 import hashlib
+import io
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import metadata, resources
@@ -47,7 +49,7 @@ from types import SimpleNamespace
 import numpy as np
 import sympy as sp
 
-from grasping_sym.errors import InvalidBodyError, URDFError  # noqa: F401 - gs.hands.URDFError
+from grasping_sym.errors import InvalidBodyError, UnsafeCacheError, URDFError  # noqa: F401 - gs.hands.URDFError
 from grasping_sym.geometry import surface_library
 from grasping_sym.geometry.curves import PlanarCurve, T
 from grasping_sym.geometry.surfaces import ParametricSurface
@@ -200,7 +202,8 @@ def from_urdf(path, tips: Mapping[str, str], *, surfaces: Mapping[str, Parametri
                 tip_links=tuple(tips.values()), joints=joint_names)
 
 
-#: The record's layout (``_robot_record``): a record of another layout is parsed again.
+#: The record's layout (``_robot_record``; raise it whenever ``_record_of`` changes): a record
+#: of another layout is parsed again.
 _RECORD_FORMAT = 1
 
 
@@ -216,15 +219,22 @@ def _robot_record(path: Path) -> dict:
     key = hashlib.sha256(b"\0".join([data, version.encode(), str(_RECORD_FORMAT).encode()])).hexdigest()[:32]
     root = cache.cache_root()
     where = root / "urdf" / f"{key}.json"
-    if where.is_file():
-        safety.check_file(where)
-        kept = stored.read_json(where)
-        if kept is not None and kept.get("key") == key and isinstance(kept.get("robot"), dict):
-            return kept["robot"]
+    kept = None
+    try:
+        if os.path.lexists(where):
+            safety.ensure_dir(where.parent, root=root)  # the directory yours alone, as the file
+            safety.check_file(where)
+            kept = stored.read_json(where)
+    except UnsafeCacheError:
+        raise
+    except OSError:  # gone meanwhile (a cache clear) or unreadable: parsed again
+        kept = None
+    if kept is not None and kept.get("key") == key and _is_record(kept.get("robot")):
+        return kept["robot"]
     import yourdfpy  # noqa: PLC0415 - lxml and trimesh only for a hand read from a file
 
-    try:
-        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+    try:  # the very bytes hashed, not the file read again (it may have been saved meanwhile)
+        urdf = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
                                   build_collision_scene_graph=False, load_collision_meshes=False)
     except Exception as exc:  # yourdfpy and lxml raise many types for a bad file
         raise URDFError(path, [f"cannot be read as URDF: {type(exc).__name__}: {exc}; check "
@@ -236,6 +246,18 @@ def _robot_record(path: Path) -> dict:
     except OSError:  # a full or read-only cache (CacheWriteError included): parsed again next time
         pass
     return record
+
+
+def _is_record(robot) -> bool:
+    """Whether ``robot`` has the shape ``_record_of`` writes (else the file is parsed again)."""
+    link_keys, joint_keys = {"name", "inertial", "collisions"}, {
+        "name", "type", "parent", "child", "origin", "axis", "limit", "mimic"}
+    return (isinstance(robot, dict) and isinstance(robot.get("name"), str)
+            and isinstance(robot.get("links"), list) and isinstance(robot.get("joints"), list)
+            and all(isinstance(x, dict) and link_keys <= x.keys() and isinstance(x["collisions"], list)
+                    and all(isinstance(c, dict) and {"origin", "geometry"} <= c.keys() for c in x["collisions"])
+                    for x in robot["links"])
+            and all(isinstance(j, dict) and joint_keys <= j.keys() for j in robot["joints"]))
 
 
 def _matrix(value) -> list | None:

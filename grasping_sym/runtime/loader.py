@@ -47,8 +47,8 @@ def load(path: Path | str) -> Model:
             "rebuild the model with gs.build(scene, force=True)")
     lib = directory / library_name(manifest["name"])
     if not lib.exists():
-        raise FileNotFoundError(f"{lib} is missing: the model was built by another Python, NumPy or "
-                                "CPU level; build it here with gs.build(scene)")
+        raise FileNotFoundError(f"{lib} is missing: the model was built by another Python, NumPy, "
+                                "CPU level or GRASPING_SYM_OPT; build it here with gs.build(scene)")
     if problem := safety.library_problem(lib, manifest):
         raise safety.CorruptCacheError(f"{problem}: not loaded; rebuild the model with "
                                        "gs.build(scene, force=True)")

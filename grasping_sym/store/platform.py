@@ -88,9 +88,10 @@ def optimization() -> str:
 
     ``quick`` is for iterating on shapes and for test suites: the model's C compiles in about
     half the time and runs about 10 % slower (paper3d: compile 1.2 s against 2.9 s, a 3 s run
-    2.90 ms against 2.60 ms), with the same results, since no level fuses or reorders floating-point
-    operations (``-ffp-contract=off``, no ``-ffast-math``; ``tests/test_compiled_runtime.py``
-    checks it bit for bit). The libraries of the two levels have different names.
+    2.90 ms against 2.60 ms), with the same results on x86-64, where no level fuses or reorders
+    floating-point operations (no ``-ffast-math``; the baseline has no fused multiply-add, and
+    x86-64-v3 is compiled with ``-ffp-contract=off``; ``tests/test_compiled_runtime.py`` checks
+    it bit for bit). The libraries of the two levels have different names.
 
     Raises
     ------

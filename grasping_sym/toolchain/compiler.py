@@ -123,9 +123,11 @@ def level_flags() -> tuple[str, ...]:
 
 def toolchain_id() -> str:
     """What a compiled library depends on beyond its C: the compiler and the flags every
-    library is compiled with, its optimisation level's included (recorded as a manifest's
-    ``compiled_with``)."""
-    return f"{compiler_version()} | {' '.join(COMPILER_FLAGS + level_flags())}"
+    library is compiled with (recorded as a manifest's ``compiled_with``). The instruction set
+    and the optimisation level are in the library's name instead (``store.platform.
+    library_tag``): a model's directory keeps a library of each side by side, each with its
+    checksum, and a build at one level does not undo the other's."""
+    return f"{compiler_version()} | {' '.join(COMPILER_FLAGS)}"
 
 
 @functools.lru_cache(maxsize=None)
