@@ -34,7 +34,7 @@ from grasping_sym.assemble import kinds
 from grasping_sym.derive.bodies3d import object_rotation, state_slices, surface_sx
 from grasping_sym.store import files as stored
 from grasping_sym.store import safety
-from grasping_sym.store.platform import library_tag
+from grasping_sym.store.platform import library_tag, optimization
 from grasping_sym.toolchain.compiler import compile_shared
 
 __all__ = ["DERIVATIVE_OPTIONS", "output_rows", "public_functions"]
@@ -203,7 +203,9 @@ def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: Non
             f"({len(whole) // 1000} kB of C in {len(texts)} files)")
         sources = [safety.write_text(directory / f"{stem}-{i}.c", text)
                    for i, (_, text) in enumerate(texts)]
-        compile_shared(sources, lib, extra_flags=("-O1",))  # a failure keeps the C, to read
+        # -O1 at the full level (these derivatives are large and called a few hundred times
+        # per solve), the quick level's -Og else; a failure keeps the C, to read
+        compile_shared(sources, lib, extra_flags=("-O1",) if optimization() == "full" else ())
         for src in sources:
             src.unlink(missing_ok=True)
         stored.write_json(record, {"sha256": safety.sha256_file(lib)})
