@@ -2,8 +2,8 @@
 for the session's workers together under pytest-xdist (the cache is safe for concurrent
 builds: tests/test_cache_security.py), so that a model one worker built is the other's too.
 
-The session compiles at the quick level (``GRASPING_SYM_OPT=quick``, -Og: half of gcc's
-time, about half of the suite's): the numbers are the full level's, bit for bit
+The session compiles at the quick level (``GRASPING_SYM_OPT=quick``, -Og: about half of gcc's
+time, which was half of the suite's CPU): the numbers are the full level's, bit for bit
 (``test_compiled_runtime.py::test_a_quick_build_computes_what_a_full_build_does``, which
 builds both)."""
 from __future__ import annotations

@@ -83,7 +83,8 @@ QUICK_FLAGS: tuple[str, ...] = ("-Og",)
 LEVEL_FLAGS: dict[str, tuple[str, ...]] = {"full": (), "quick": ("-Og",)}
 #: Flags used when linking the shared library.
 LINK_FLAGS: tuple[str, ...] = ("-shared", "-lm")
-#: Every flag that influences the produced library; hash it into cache keys.
+#: Every flag that influences the produced library at every level; hash it into cache keys
+#: (the level's own flags, :data:`LEVEL_FLAGS`, are in the library's name instead).
 COMPILER_FLAGS: tuple[str, ...] = BASE_FLAGS + CASADI_FILE_FLAGS + QUICK_FLAGS + LINK_FLAGS
 
 #: CPU flags (as /proc/cpuinfo names them) that the x86-64-v3 level requires (v2 + v3).
