@@ -338,7 +338,7 @@ def test_impact_laws(base, model):
     assert internal["names"] == ["W_nn", "W_nt", "W_tt", *(f"Minv_g{k}_{i}" for k in "QR" for i in range(3))]
     assert not set(internal["names"]) & set(model.columns)
     fn = model.library.function(internal["function"])
-    with pytest.raises(ValueError, match=f"takes rows of x of {len(model.state_names)} and p of"):
+    with pytest.raises(ValueError, match=f"takes x of {len(model.state_names)} and p of"):
         fn(x_start[:3], model.default_params)
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import threading
 from collections.abc import Sequence
 from importlib.machinery import ExtensionFileLoader
 from importlib.util import module_from_spec, spec_from_file_location
@@ -559,11 +560,28 @@ class CompiledLibrary:
     def function(self, symbol: str):
         """The library's CasADi-generated function ``symbol`` of two dense inputs ``(x, p)``
         (``nx`` and ``len(p)`` entries) and one dense output, as ``f(x, p) -> ndarray``
-        called through ctypes (no CasADi loaded)."""
-        rows = self.rows(symbol)
+        called through ctypes (no CasADi loaded). Each thread's CasADi work arrays are made at
+        its first call and kept (a switch of contact modes calls it once, from cold caches:
+        making them each time was half its cost)."""
+        addr, n_x, n_p, n_out, (sz_arg, sz_res, sz_iw, sz_w) = self._casadi_signature(symbol)
+        lib, local = self._lib, threading.local()
 
         def call(x, p) -> np.ndarray:
-            return rows(np.asarray(x, dtype=float)[None, :], p)[0]
+            xa = np.ascontiguousarray(x, dtype=float)
+            pa = np.ascontiguousarray(p, dtype=float)
+            if xa.shape != (n_x,) or pa.shape != (n_p,):
+                raise ValueError(f"{symbol} takes x of {n_x} and p of {n_p} entries, got shapes "
+                                 f"{xa.shape} and {pa.shape}")
+            work = getattr(local, "work", None)
+            if work is None:
+                kept = ((ctypes.c_void_p * sz_arg)(), (ctypes.c_void_p * sz_res)(),
+                        np.zeros(sz_iw, dtype=np.int64), np.zeros(sz_w))
+                work = local.work = (ctypes.addressof(kept[0]), ctypes.addressof(kept[1]),
+                                     kept[2].ctypes.data, kept[3].ctypes.data, kept)
+            y = np.empty(n_out)
+            if lib.gs_rows(addr, 1, xa.ctypes.data, n_x, pa.ctypes.data, y.ctypes.data, n_out, *work[:4]):
+                raise FloatingPointError(f"{symbol} failed at the state {xa.tolist()!r:.200}")
+            return y
 
         return call
 

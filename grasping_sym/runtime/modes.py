@@ -319,8 +319,8 @@ class _Run:
         mu = self.mus[j - 1]
         vt = self.slip_velocity(y, j)
         f, ft = y[self.key("normal_force", j)], y[self.key("tangential_force", j)]
-        if np.linalg.norm(vt) > SLIP_SPEED:
-            return self._slide_or_leave(t, x, modes, slips, j, y, vt / np.linalg.norm(vt))
+        if _norm(vt) > SLIP_SPEED:
+            return self._slide_or_leave(t, x, modes, slips, j, y, vt / _norm(vt))
         if f > 0 and (ft < mu * f or mu == math.inf):
             return ROLLING, None
         if f > 0:
@@ -437,11 +437,11 @@ class _BodyRun(_Run):
         n = self.n
         K, _, _, F_roll = self.contact(y)
         ft = F_roll - np.dot(F_roll, n) * n
-        d = -ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.cross(n, [1.0, 0.0, 0.0])
+        d = -ft / _norm(ft) if _norm(ft) > 0 else np.cross(n, [1.0, 0.0, 0.0])
         def slip_acceleration(d):  # at v_c = 0 and gap = 0 the rolling acceleration is 0
             dirn = n - self.mu * d
             a = K @ (np.dot(n, K @ F_roll) / np.dot(n, K @ dirn) * dirn - F_roll)
-            return a - np.dot(a, n) * n, 1e-12 * max(np.linalg.norm(a), 1.0)
+            return a - np.dot(a, n) * n, 1e-12 * max(_norm(a), 1.0)
 
         return _direction(d, slip_acceleration)
 
@@ -514,14 +514,14 @@ class _BodyRun(_Run):
         Pn = float(np.dot(P, n))
         Pt = P - Pn * n
         vt = vc - vn * n
-        stuck = bool(np.linalg.norm(Pt) <= mu * Pn)
+        stuck = bool(_norm(Pt) <= mu * Pn)
         if not stuck:  # on the cone's edge, against the slip
-            if np.linalg.norm(vt) > SLIP_SPEED:
-                d = vt / np.linalg.norm(vt)
+            if _norm(vt) > SLIP_SPEED:
+                d = vt / _norm(vt)
             else:  # no incoming slip: the slip the frictionless impulse would make
                 after0 = vc + K @ n * (-(1 + e) * vn / float(n @ K @ n))
                 a_t = after0 - np.dot(after0, n) * n
-                d = a_t / np.linalg.norm(a_t) if np.linalg.norm(a_t) > 0 else -Pt / np.linalg.norm(Pt)
+                d = a_t / _norm(a_t) if _norm(a_t) > 0 else -Pt / _norm(Pt)
             denominator = float(np.dot(n, K @ (n - mu * d)))
             if not denominator > 0:
                 raise PainleveError(t, x, f"an impact with mu = {mu:g} has no consistent impulse: "
@@ -540,7 +540,7 @@ class _BodyRun(_Run):
             d = _direction(d, slip_left, MOREAU_ITERATIONS)
             P = impulse(d)
             after_t = slip_left(d)[0]
-            if P is None or np.dot(after_t, d) < -1e-12 * max(1.0, np.linalg.norm(vt)):
+            if P is None or np.dot(after_t, d) < -1e-12 * max(1.0, _norm(vt)):
                 raise PainleveError(t, x, f"an impact with mu = {mu:g} has no impulse on the cone's edge "
                                     "that opposes the slip it leaves (Moreau's law); the rigid model "
                                     "has no answer here", self.model.state_names)
@@ -602,7 +602,7 @@ class _LineBodyRun(_Run):
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
         """The contact velocity set to 0 (the impulse that does it); the largest change."""
         K, vc, rc, _ = self.contact(y)
-        return self._apply(x, np.linalg.solve(K, -vc), rc), float(np.max(np.abs(vc)))
+        return self._apply(x, _solve2(K, -vc), rc), float(np.max(np.abs(vc)))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
                slips=None) -> tuple[np.ndarray, float, bool, bool]:
@@ -613,7 +613,7 @@ class _LineBodyRun(_Run):
         K, vc, rc, _ = self.contact(y)
         vn = float(np.dot(n, vc))
         e = self.e if -vn > REST_SPEED else 0.0
-        P = np.linalg.solve(K, -e * vn * n - vc)
+        P = _solve2(K, -e * vn * n - vc)
         stuck = bool(abs(np.dot(P, tan)) <= mu * np.dot(P, n))
         if not stuck:
             s0 = -math.copysign(1.0, float(np.dot(P, tan)))   # the slip the impulse opposes
@@ -660,28 +660,45 @@ class _PlanarRun(_Run):
     def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         return float(y["free_normal_acceleration"])
 
-    def _W(self, y: dict) -> np.ndarray:
-        return np.array([[y["W_nn"], y["W_nt"]], [y["W_nt"], y["W_tt"]]])
+    def _W(self, y: dict) -> tuple[float, float, float]:
+        """``W``'s entries ``(W_nn, W_nt, W_tt)`` (symmetric). The maps of a switch are on
+        Python floats: NumPy's calls on 2-vectors, from the caches a run leaves cold, were
+        most of a switch's cost (``np.linalg.solve`` alone ~40 us)."""
+        return float(y["W_nn"]), float(y["W_nt"]), float(y["W_tt"])
 
-    def _apply(self, x: np.ndarray, y: dict, P: np.ndarray) -> np.ndarray:
-        x = x.copy()
-        x[3:6] -= P[0] * np.array([y[f"Minv_gQ_{i}"] for i in range(3)]) \
-            + P[1] * np.array([y[f"Minv_gR_{i}"] for i in range(3)])
-        return x
+    def _solve(self, W: tuple[float, float, float], b0: float, b1: float) -> tuple[float, float]:
+        """``W^-1 (b0, b1)`` by Cramer's rule; ``W`` singular (its rows dependent) is refused
+        as ``np.linalg.solve`` refuses it."""
+        a, b, c = W
+        det = a * c - b * b
+        if not det != 0.0 or not math.isfinite(det):
+            return tuple(np.linalg.solve(np.array([[a, b], [b, c]]), np.array([b0, b1])))
+        return (c * b0 - b * b1) / det, (a * b1 - b * b0) / det
 
-    def _sliding_impulse(self, t, x, W, vn: float, vt: float, e: float, s0: float) -> np.ndarray:
+    _MQ = tuple(f"Minv_gQ_{i}" for i in range(3))
+    _MR = tuple(f"Minv_gR_{i}" for i in range(3))
+
+    def _apply(self, x: np.ndarray, y: dict, P) -> np.ndarray:
+        v = x.tolist()
+        p0, p1 = float(P[0]), float(P[1])
+        for i, (kq, kr) in enumerate(zip(self._MQ, self._MR)):
+            v[3 + i] -= p0 * y[kq] + p1 * y[kr]
+        return np.array(v)
+
+    def _sliding_impulse(self, t, x, W, vn: float, vt: float, e: float, s0: float) -> tuple[float, float]:
         """The impulse on the cone's edge, ``P_t = mu s P_n``, whose slip after the impact
         ``v_t+`` has the sign ``s`` (friction opposes the slip it leaves; Moreau's law), tried
         along the stick impulse's sign ``s0`` first."""
         mu = self.mu
+        w_nn, w_nt, w_tt = W
         for s in (s0, -s0):
-            denominator = float(W[0, 0] + mu * s * W[0, 1])
+            denominator = w_nn + mu * s * w_nt
             if not denominator > 0:
                 continue
             Pn = (1 + e) * vn / denominator
-            vt_after = vt - Pn * (W[1, 0] + mu * s * W[1, 1])
+            vt_after = vt - Pn * (w_nt + mu * s * w_tt)
             if Pn >= 0 and vt_after * s >= 0:
-                return np.array([Pn, mu * s * Pn])
+                return Pn, mu * s * Pn
         raise PainleveError(t, x, f"an impact with mu = {mu:g} has no consistent impulse: no impulse "
                             "on the cone's edge leaves a slip it opposes with a positive normal "
                             "row's coefficient (Painleve's paradox at an impact); the rigid model "
@@ -689,8 +706,8 @@ class _PlanarRun(_Run):
 
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int = 1) -> tuple[np.ndarray, float]:
         """The contact's normal and slip speeds set to 0 (the impulse that does it)."""
-        Jv = np.array([y["vn_fixed"], y["vt"]])
-        return self._apply(x, y, np.linalg.solve(self._W(y), Jv)), float(np.max(np.abs(Jv)))
+        vn, vt = float(y["vn_fixed"]), float(y["vt"])
+        return self._apply(x, y, self._solve(self._W(y), vn, vt)), max(abs(vn), abs(vt))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int = 1,
                slips=None) -> tuple[np.ndarray, float, bool, bool]:
@@ -699,7 +716,7 @@ class _PlanarRun(_Run):
         mu, W = self.mu, self._W(y)
         vn, vt = float(y["vn_fixed"]), float(y["vt"])
         e = self.e if vn > REST_SPEED else 0.0
-        P = np.linalg.solve(W, np.array([(1 + e) * vn, vt]))
+        P = self._solve(W, (1 + e) * vn, vt)
         stuck = bool(abs(P[1]) <= mu * P[0])
         if not stuck:  # on the cone's edge, against the slip after the impact (Moreau)
             P = self._sliding_impulse(t, x, W, vn, vt, e, math.copysign(1.0, P[1]))
@@ -711,7 +728,8 @@ class _PlanarRun(_Run):
                                    f"energy from {before_k:.9g} J to {after_k:.9g} J (Newton's "
                                    "restitution with friction can when e > 0); the rigid model has no "
                                    "answer here: give e = 0", self.model.state_names)
-        return after, float(np.max(np.abs(W @ P))), stuck, e > 0
+        w_nn, w_nt, w_tt = W
+        return after, max(abs(w_nn * P[0] + w_nt * P[1]), abs(w_nt * P[0] + w_tt * P[1])), stuck, e > 0
 
 
 class _GraspRun(_Run):
@@ -734,6 +752,9 @@ class _GraspRun(_Run):
         self._w_rows, self._w_cols = np.triu_indices(n)
         self._w_keys = [f"W_{r}_{c}" for r, c in zip(self._w_rows, self._w_cols)]
         self._jv_keys = [f"{k}{j}" for j in self.contacts for k in self.JV_KEYS]
+        self._contact_rows = [list(range(self.ROWS * (j - 1), self.ROWS * j)) for j in self.contacts]
+        #: the outputs ``M^-1 A^T`` of every row, by speed
+        self._b_keys = [[f"MinvAT_{i}_{r}" for r in range(n)] for i in range(self.nv)]
         self._w_of = self._jv_of = None  # the outputs W and J V were last read from
 
     #: ``J V``'s outputs, per contact (its rows: normal, tangential)
@@ -750,7 +771,7 @@ class _GraspRun(_Run):
         ``d -> a_t(d)/|a_t(d)|`` (the slip's acceleration in the sliding equations) from the
         rolling solution's tangential force (at the cone's edge Coulomb's force equals it)."""
         ft = np.array([y[f"lam{j}"], y[f"eta{j}"]])
-        d = ft / np.linalg.norm(ft) if np.linalg.norm(ft) > 0 else np.array([1.0, 0.0])
+        d = ft / _norm(ft) if _norm(ft) > 0 else np.array([1.0, 0.0])
         if modes is None:
             return d
 
@@ -776,7 +797,7 @@ class _GraspRun(_Run):
         return np.asarray(x, dtype=float)
 
     def _rows(self, j: int) -> list[int]:
-        return list(range(self.ROWS * (j - 1), self.ROWS * j))
+        return self._contact_rows[j - 1]
 
     def _W(self, y: dict) -> np.ndarray:
         """``W = A M^-1 A^T`` of the outputs ``y`` (the last ``y``'s kept: an impact's Moreau
@@ -795,9 +816,10 @@ class _GraspRun(_Run):
             self._jv_of, self._jv = y, np.array([y[k] for k in self._jv_keys])
         return self._jv
 
-    def _apply(self, x: np.ndarray, y: dict, rows: list[int], P: np.ndarray) -> np.ndarray:
+    def _apply(self, x: np.ndarray, y: dict, P: np.ndarray) -> np.ndarray:
+        """``x`` after the impulses ``P`` (every contact's rows)."""
         x = x.copy()
-        B = np.array([[y[f"MinvAT_{i}_{r}"] for r in rows] for i in range(self.nv)])
+        B = np.array([[y[k] for k in keys] for keys in self._b_keys])
         x[self.v0:self.v0 + self.nv] -= B @ P
         return x
 
@@ -811,28 +833,33 @@ class _GraspRun(_Run):
         n3 = self.ROWS * self.k
         W, JV = self._W(y), self._JV(y)
         treat = self._treatment(y, modes, j) if treat is None else treat
-        cols, eqs, rhs = [], [], []
+        # B's columns: a held contact's unit rows, a sliding one's normal plus mu d on its
+        # tangents (its entries gathered, then written at once: NumPy's calls per column were
+        # most of an impulse's cost)
+        at, values, eqs, rhs = ([], []), [], [], []
         for c in self.contacts:
             rows = self._rows(c)
             how = (SLIDE, slide_j) if c == j and slide_j is not None else HOLD if c == j else treat[c]
             if how == OPEN:
                 continue
-            target = target_j if c == j else np.zeros(self.ROWS)
+            target = target_j if c == j else (0.0,) * self.ROWS
             if how != HOLD:
-                col = np.zeros(n3)
-                col[rows[0]] = 1.0
-                col[rows[1:]] = self.mus[c - 1] * np.asarray(how[1])
-                cols.append(col)
+                col = len(eqs)
+                at[0].extend(rows)
+                at[1].extend([col] * len(rows))
+                values.append(1.0)
+                values.extend(self.mus[c - 1] * float(dk) for dk in how[1])
                 eqs.append(rows[0])
                 rhs.append(JV[rows[0]] - target[0])
             else:
                 for k_, r_ in enumerate(rows):
-                    col = np.zeros(n3)
-                    col[r_] = 1.0
-                    cols.append(col)
+                    at[0].append(r_)
+                    at[1].append(len(eqs))
+                    values.append(1.0)
                     eqs.append(r_)
                     rhs.append(JV[r_] - target[k_])
-        B = np.column_stack(cols)
+        B = np.zeros((n3, len(eqs)))
+        B[at] = values
         u = np.linalg.solve(W[eqs, :] @ B, np.array(rhs))
         return B @ u, W, JV
 
@@ -847,7 +874,7 @@ class _GraspRun(_Run):
                 out[c] = HOLD
             elif modes[c - 1] == SLIDING:
                 vt = self.slip_velocity(y, c)
-                out[c] = (SLIDE, vt / max(np.linalg.norm(vt), 1e-300))
+                out[c] = (SLIDE, vt / max(_norm(vt), 1e-300))
             else:
                 out[c] = OPEN
         return out
@@ -872,9 +899,9 @@ class _GraspRun(_Run):
             if not pn >= -1e-12 * scale:
                 return (f"{what} at contact {j} would pull at contact {c} (normal impulse {pn:.6g} N s): "
                         f"contact {c} would open through an impulse")
-            if how == HOLD and not np.linalg.norm(pt) <= self.mus[c - 1] * pn + 1e-12:
+            if how == HOLD and not _norm(pt) <= self.mus[c - 1] * pn + 1e-12:
                 return (f"{what} at contact {j} pushes contact {c} out of its cone (impulse {pn:.6g} N s "
-                        f"normal, {np.linalg.norm(pt):.6g} N s tangential): a slip started by an impulse "
+                        f"normal, {_norm(pt):.6g} N s tangential): a slip started by an impulse "
                         "at another contact")
             if how != HOLD and np.dot(after[rows[1:]], how[1]) < -1e-12 * max(1.0, float(np.max(np.abs(JV)))):
                 return f"{what} at contact {j} would reverse contact {c}'s slip"
@@ -892,7 +919,7 @@ class _GraspRun(_Run):
         options = {}
         for c in closed:
             pt = P[self._rows(c)[1:]]
-            d = pt / np.linalg.norm(pt) if np.linalg.norm(pt) > 0 else np.eye(self.ROWS - 1)[0]
+            d = pt / _norm(pt) if _norm(pt) > 0 else np.eye(self.ROWS - 1)[0]
             opts = [HOLD, OPEN, (SLIDE, d), (SLIDE, -d)]
             if base[c] != HOLD:
                 opts = [base[c], *opts]
@@ -910,12 +937,12 @@ class _GraspRun(_Run):
         mu = self.mus[j - 1]
         rows = self._rows(j)
         P, W, JV = self._impulse(y, modes, j, target, treat=treat)
-        stuck = bool(np.linalg.norm(P[rows[1:]]) <= mu * P[rows[0]])
+        stuck = bool(_norm(P[rows[1:]]) <= mu * P[rows[0]])
         if stuck:
             return P, W, JV, True
         vt = JV[rows[1:]]
         pt = P[rows[1:]]
-        d = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else pt / np.linalg.norm(pt)
+        d = vt / _norm(vt) if _norm(vt) > SLIP_SPEED else pt / _norm(pt)
 
         def slip_left(d):  # Moreau: the impulse opposes the slip it leaves
             P, W, JV = self._impulse(y, modes, j, target, slide_j=d, treat=treat)
@@ -924,7 +951,7 @@ class _GraspRun(_Run):
         d = _direction(d, slip_left, MOREAU_ITERATIONS)
         P, W, JV = self._impulse(y, modes, j, target, slide_j=d, treat=treat)
         after_vt = (JV - W @ P)[rows[1:]]
-        if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, np.linalg.norm(vt))):
+        if not (P[rows[0]] > 0 and np.dot(after_vt, d) >= -1e-12 * max(1.0, _norm(vt))):
             raise PainleveError(t, x, f"the impact at contact {j} with mu = {mu:g} has no impulse on "
                                 "the cone's edge that opposes the slip it leaves (Moreau's law) with "
                                 "a pushing normal impulse; the rigid model has no answer here",
@@ -934,7 +961,7 @@ class _GraspRun(_Run):
     def stop_slip(self, x: np.ndarray, y: dict, modes, j: int) -> tuple[np.ndarray, float]:
         """Contact ``j``'s velocity set to 0, the other closed contacts as at an impact."""
         P, W, JV = self._impulse(y, modes, j, np.zeros(self.ROWS))
-        return self._apply(x, y, list(range(self.ROWS * self.k)), P), float(np.max(np.abs(JV[self._rows(j)])))
+        return self._apply(x, y, P), float(np.max(np.abs(JV[self._rows(j)])))
 
     def impact(self, t: float, x: np.ndarray, y: dict, modes, j: int,
                slips=None) -> tuple[np.ndarray, float, bool, bool]:
@@ -969,7 +996,7 @@ class _GraspRun(_Run):
             raise ContactModeError(t, x, f"{first}, and no other way of the other contacts (held, let go, "
                                    "sliding) is consistent; the rigid model has no answer here",
                                    self.model.state_names)
-        after = self._apply(x, y, list(range(self.ROWS * self.k)), P)
+        after = self._apply(x, y, P)
         before_k = float(y["kinetic_energy"])
         after_v = JV - W @ P
         for c, how in treat.items():
@@ -987,7 +1014,7 @@ class _GraspRun(_Run):
                 vt = after_v[self._rows(c)[1:]]
                 modes[c - 1] = SLIDING
                 if slips is not None:
-                    slips[c - 1] = vt / np.linalg.norm(vt) if np.linalg.norm(vt) > SLIP_SPEED else np.asarray(how[1])
+                    slips[c - 1] = vt / _norm(vt) if _norm(vt) > SLIP_SPEED else np.asarray(how[1])
         after_k = float(self.outputs(after, self.params(modes, slips))["kinetic_energy"])
         driven = set(self.model.manifest[self.INFO].get("driven", []))
         pushed = j in driven or any(c in driven and modes[c - 1] != SEPARATED for c in self.contacts)
@@ -1078,6 +1105,23 @@ _RUNS = {"body": _BodyRun, "body2d": _LineBodyRun, "planar_modes": _PlanarRun, "
          "planar_fingers": _FingersRun}
 
 
+def _norm(v) -> float:
+    """``|v|`` of a short vector (a slip, a force, an impulse: 1 to 3 entries) on Python
+    floats: NumPy's norm costs a switch 10-30 us a call from the caches a run leaves cold."""
+    return math.hypot(*v)
+
+
+def _solve2(K: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``K^-1 b`` for a 2 x 2 ``K`` by Cramer's rule on Python floats (``_solve3``); a
+    singular ``K`` is refused as ``np.linalg.solve`` refuses it."""
+    (a, b_), (c, d) = K.tolist()
+    u, v = b.tolist()
+    det = a * d - b_ * c
+    if not det != 0.0 or not math.isfinite(det):
+        return np.linalg.solve(K, b)
+    return np.array([(d * u - b_ * v) / det, (a * v - c * u) / det])
+
+
 def _solve3(K: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``K^-1 b`` for a 3 x 3 ``K`` by Cramer's rule on Python floats (``np.linalg.solve``
     spends ~10 us on its checks, a switch's largest part); a singular ``K`` gives inf or NaN."""
@@ -1104,10 +1148,10 @@ def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
         return _angle(d, along, iterations)
     for _ in range(iterations):
         v, small = along(d)
-        if not np.linalg.norm(v) > small:
+        if not _norm(v) > small:
             break
-        nd = v / np.linalg.norm(v)
-        if np.linalg.norm(nd - d) < 1e-14:
+        nd = v / _norm(v)
+        if _norm(nd - d) < 1e-14:
             break
         d = nd
     return d
@@ -1120,7 +1164,7 @@ def _angle(d: np.ndarray, along, iterations: int) -> np.ndarray:
     fewer evaluations of ``along`` (an impulse solved each, at an impact)."""
     def g(a: float):
         v, small = along(np.array([math.cos(a), math.sin(a)]))
-        if not np.linalg.norm(v) > small:
+        if not _norm(v) > small:
             return None
         return (math.atan2(v[1], v[0]) - a + math.pi) % (2 * math.pi) - math.pi
 
@@ -1676,8 +1720,8 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
         # event: below -SLIP_SPEED before it was ever above SLIP_SPEED) and is clearly faster
         # than that across it (2 SLIP_SPEED; in 2D it is a reversal: a stop)
-        if np.linalg.norm(vt) > (STOP_SPEED if armed else 2 * SLIP_SPEED):
-            slips[j - 1] = vt / np.linalg.norm(vt)
+        if _norm(vt) > (STOP_SPEED if armed else 2 * SLIP_SPEED):
+            slips[j - 1] = vt / _norm(vt)
             return modes, slips, x, None
         x2, reset = r.stop_slip(x, y, modes, j)
         modes[j - 1], slips[j - 1] = r.contact_start(t, x2, modes, slips, j)
