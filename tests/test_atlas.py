@@ -22,6 +22,7 @@ from grasping_sym.errors import ContactLeftContourError, FrictionConeError, Inva
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.runtime import atlas as atlas_
 from grasping_sym.runtime import batch as batch_
+from grasping_sym.runtime import modes as modes_
 from grasping_sym.viz.plots3d import contact_traces
 
 TURNED = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
@@ -260,15 +261,70 @@ def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts(pivot_grasps):
 
 
 def test_what_does_not_take_an_atlas_yet_says_so():
-    """A grasp with contact modes, and the paper's formulation, refuse surfaces with atlases
-    by name (they would run on chart 0 alone)."""
+    """The paper's formulation refuses surfaces with atlases by name (it has no frame angle
+    psi to carry across charts)."""
     tip = sl.sphere(0.01, atlas=True, name="fingertip 1")
     base = gs.scenes.paper3d()
     fingers = (dataclasses.replace(base.fingers[0], tip=tip), base.fingers[1])
     with pytest.raises(InvalidSceneError, match="formulation='regular'"):
         gs.scenes.paper3d(fingers=fingers, formulation="paper")
-    with pytest.raises(InvalidSceneError, match=r"atlases \(chart_f1\)"):
-        gs.scenes.with_modes(gs.scenes.paper3d(fingers=fingers))
+
+
+@pytest.fixture(scope="module")
+def pivot_modes(pivot_grasps):
+    """The grasps of ``pivot_grasps`` with contact modes: on the atlases, and on the
+    one-chart surfaces."""
+    g = pivot_grasps
+    return {"atlas": gs.build(gs.scenes.with_modes(g["model"].scene)),
+            "one": gs.build(gs.scenes.with_modes(g["ref"].scene))}
+
+
+def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, pivot_modes):
+    """A grasp with contact modes on atlases (pivot3d's one finger: its contact numbered too),
+    from the same physical start as on one chart:
+    - no friction limit: it rolls across both surfaces' charts as the rolling model does
+      (every other state to 1e-9 over 1.5 s, the contact points to 1e-12 m);
+    - mu = 0.1: it slides from the start, across the fingertip's and the object's chart
+      switches, its slip turning (re-aimed: ``REAIM_ANGLE``), and sticks when the one-chart
+      grasp with modes sticks (to 1e-7 s: a stop is taken below ``STOP_SPEED``), its states
+      within 1e-8 of that run's, its contact points within 1e-11 m (re-aimed at 90 degrees,
+      the blend of the slide's direction kicked the speeds by ~3e-7);
+    - a sliding contact's slip direction, kept in its fingertip's frame, turns with it at a
+      switch of the fingertip's chart: the same direction as the slip velocity's there."""
+    g, model, one = pivot_grasps, pivot_modes["atlas"], pivot_modes["one"]
+    ref, x0, xa = g["ref"], g["x0"], g["xa"]
+    names = ref.state_names
+    assert model.p_names[-2:] == ("chart_f1", "chart_o1") and model.rolling is None
+    body = [k for k, n in enumerate(names) if not n.startswith(("u_", "v_", "psi"))]
+    kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
+
+    def points_apart(ra, rr):
+        return max(np.abs(atlas.evaluate(ra[f"u_{side}1"], ra[f"v_{side}1"], chart=ra.charts[f"chart_{side}1"])["point"]
+                          - plain.evaluate(rr[f"u_{side}1"], rr[f"v_{side}1"])["point"]).max()
+                   for side, plain, atlas in (("f", g["tip"], g["atip"]), ("o", g["box"], g["abox"])))
+
+    ra, rr = model.simulate(1.5, x0=xa, **kw), ref.simulate(1.5, x0=x0, **kw)
+    assert {s["chart"] for s in ra.chart_switches} == {"chart_f1", "chart_o1"} and not ra.events
+    assert np.abs(ra.x[:, body] - rr.x[:, body]).max() < 1e-9 and points_apart(ra, rr) < 1e-12
+
+    ra, r1 = model.simulate(1.5, x0=xa, mu=0.1, **kw), one.simulate(1.5, x0=x0, mu=0.1, **kw)
+    stick = [e for e in ra.events if e["to"] == "rolling"]
+    assert ra.modes[0] == "sliding" and len(stick) == 1 and len(ra.events) == len(r1.events) == 1
+    assert {s["chart"] for s in ra.chart_switches if s["t"] < stick[0]["t"]} == {"chart_f1", "chart_o1"}
+    assert abs(stick[0]["t"] - r1.events[0]["t"]) < 1e-7
+    assert np.abs(ra.x[:, body] - r1.x[:, body]).max() < 1e-8 and points_apart(ra, r1) < 1e-11
+
+    sliding = model.default_params.copy()
+    sliding[[model.p_names.index(k) for k in ("mode1", "mu1")]] = (1.0, 0.1)
+    cols = [model.columns.index(k) for k in ("vt_x1", "vt_y1")]
+    x = ra.x[np.searchsorted(ra.t, 0.01)]
+    atlases = atlas_.Atlases(model)
+    k = next(i for i, (entry, _, _) in enumerate(atlases.slots) if entry["param"] == "chart_f1")
+    x1, p1, record = atlases.switch(k, 0.01, x, sliding)
+    v0, v1 = model.library.outputs(x, sliding)[cols], model.library.outputs(x1, p1)[cols]
+    assert abs(record["delta"]) > 1.0
+    (turned,) = modes_._slip_across(atlases.slots[k][0], record, [modes_.SLIDING], [v0 / np.linalg.norm(v0)])
+    assert np.abs(turned - v1 / np.linalg.norm(v1)).max() < 1e-12
 
 
 def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_grasps, tmp_path):

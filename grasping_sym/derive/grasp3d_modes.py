@@ -65,7 +65,9 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     p_base = ca.vertcat(*[p[names.index(n)] for n in base.p_names]) if base.p_names else ca.SX(0, 1)
     tau_joints, _, timed = torques(base, t, x[:len(base.state_names)], p_base)
     b = bodies(base, x, REGULAR.n_eta)
-    cs = contacts(base, b, REGULAR, lambda slot, s, u, v, extra: surface_sx(s, u, v, extra))
+    # a surface with an atlas is written in its chart, a run-time parameter (runtime.atlas)
+    charts = {slot: p[names.index(name)] for slot, name, *_ in scene.chart_slots() if slot is not None}
+    cs = contacts(base, b, REGULAR, lambda slot, s, u, v, extra: surface_sx(s, u, v, extra, chart=charts.get(slot)))
     C_f = ca.vertcat(*[c.gap for c in cs])
     M, h = dynamics(base, b)
     modes = [p[names.index(f"mode{i}")] for i in range(1, k + 1)]
@@ -94,7 +96,8 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     uvs, uv_rates, plane_rows = [], [], []
     for m, w in enumerate(scene.planes):
         uv = x[nb + 2 * m:nb + 2 * m + 2]
-        sd = surface_sx(base.object_surface, uv[0], uv[1], extra=True)
+        chart = p[names.index(f"chart_w{m + 1}")] if f"chart_w{m + 1}" in names else None
+        sd = surface_sx(base.object_surface, uv[0], uv[1], extra=True, chart=chart)
         n = ca.DM(w.normal)
         N_uv = ca.jacobian(sd["n"], uv)
         rhs_uv = -ca.cross(b.om, sd["n"]) - TRACK_GAIN * (sd["n"] + b.R.T @ n)

@@ -96,9 +96,6 @@ class GraspModesScene(WithModes):
                             "constants (give their values in the scene); its run-time inputs are mu and e")
         if b.inputs is not None:
             problems.append("inputs: a scene with contact modes has no control inputs (use a controller)")
-        if b.chart_names:
-            problems.append(f"surfaces with atlases ({', '.join(b.chart_names)}): a grasp with contact modes "
-                            "is built on one chart per surface; build its surfaces without atlas=True")
         if b.gain == 0:  # the modes' runs do not project: their constraints need the gain
             object.__setattr__(self, "base", dataclasses.replace(b, gain=MODES_GAIN))
         object.__setattr__(self, "planes", tuple(self.planes))
@@ -148,7 +145,40 @@ class GraspModesScene(WithModes):
 
     @property
     def p_names(self) -> tuple[str, ...]:
-        return (*self.runtime, *self.start_param_names)
+        return (*self.runtime, *self.start_param_names, *self.chart_names)
+
+    def chart_slots(self) -> tuple[tuple[int | None, str, str, str, str, str | None], ...]:
+        """``(slot, parameter, surface, u, v, psi)`` of each chart the run sets
+        (``runtime.atlas``): the base grasp's (``GraspScene3D.chart_slots``: each contact's
+        fingertip and object surface with an atlas), then, on an object with one, each plane's
+        support point (``chart_w{m}``: its ``(u_w{m}, v_w{m})``, no frame angle); 0 at the start."""
+        b = self.base
+        out = []
+        for slot, name, side in b.chart_slots():
+            i = slot // 2 + 1
+            out.append((slot, name, "tip" if side == "f" else "object", f"u_{side}{i}", f"v_{side}{i}", f"psi{i}"))
+        if getattr(b.object_surface, "atlas", None) is not None:
+            out += [(None, f"chart_w{m}", "object", f"u_w{m}", f"v_w{m}", None)
+                    for m in range(1, len(self.planes) + 1)]
+        return tuple(out)
+
+    @property
+    def chart_names(self) -> tuple[str, ...]:
+        return tuple(entry[1] for entry in self.chart_slots())
+
+    def atlas_manifest(self) -> dict:
+        """The manifest's charts (``GraspScene3D.atlas_manifest``, the planes' support points'
+        too)."""
+        if not self.chart_names:
+            return {}
+        entries = []
+        for slot, name, which, u, v, psi in self.chart_slots():
+            surface = self.base.object_surface if which == "object" else self.base.fingers[slot // 2].tip
+            entry = {"param": name, "u": u, "v": v, "psi": psi, **surface.atlas.manifest()}
+            if which == "tip":  # the contact's slip is in its fingertip's frame: turned with it
+                entry["slip_frame"] = slot // 2 + 1
+            entries.append(entry)
+        return {"chart_param_names": list(self.chart_names), "atlas": entries}
 
     @property
     def n_speeds(self) -> int:
@@ -194,8 +224,9 @@ class GraspModesScene(WithModes):
 
     def rolling_map(self) -> dict | None:
         """``WithModes.rolling_map``: None with planes of the world (the rolling model has no
-        gap to them to watch)."""
-        return None if self.planes else super().rolling_map()
+        gap to them to watch), or with atlases (a chart switch is the model with modes' to
+        make, in its own ``p``)."""
+        return None if self.planes or self.chart_names else super().rolling_map()
 
     def manifest_extra(self) -> dict:
         """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are,
@@ -206,7 +237,8 @@ class GraspModesScene(WithModes):
                                 "driven": [self.n_fingers + m for m, w in enumerate(self.planes, start=1)
                                            if w.motion is not None or w.spin is not None]},
                 "param_rules": {f"mu{i}": "nonnegative" for i in range(1, self.n_contacts + 1)},
-                **({"joint_limits": list(self.base.joint_limits())} if self.base.joint_limits() else {})}
+                **({"joint_limits": list(self.base.joint_limits())} if self.base.joint_limits() else {}),
+                **self.atlas_manifest()}
 
     def bounds(self) -> tuple[list, list]:
         lower, upper = self.base.bounds()

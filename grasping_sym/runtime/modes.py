@@ -71,8 +71,12 @@ CONTACT_GAP = 1e-9
 #: consistent): the round-off of a contact velocity that a reset set to 0.
 SLIP_SPEED = 1e-10
 #: Slip speed (m/s) at the located zero of ``v_t . slip`` above which the slip did not stop but
-#: turned past 90 degrees from ``slip``: the slide goes on, re-aimed (no switch, no reset).
+#: turned past 90 degrees from ``slip`` (a 3D grasp's: ``REAIM_ANGLE``): the slide goes on,
+#: re-aimed (no switch, no reset).
 STOP_SPEED = 1e-6
+#: rad: a 3D grasp's slide is re-aimed where it has turned this far from ``slip``
+#: (``_GraspRun.slip_terms``)
+REAIM_ANGLE = math.pi / 3
 #: Most switches within ``SWITCH_WINDOW`` seconds before a run stops as chattering.
 MAX_SWITCHES = 50
 SWITCH_WINDOW = 1e-3
@@ -760,11 +764,23 @@ class _GraspRun(_Run):
     #: ``J V``'s outputs, per contact (its rows: normal, tangential)
     JV_KEYS = ("vn_fixed", "vt_x", "vt_y")
 
+    def key(self, name: str, j: int) -> str:
+        """Contact ``j``'s output or parameter ``name``: a grasp numbers them with one contact
+        too (``mode1``, ``gap1``: a grasp of one finger, pivot3d's)."""
+        return f"{name}{j}"
+
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
         return np.array([y[f"vt_x{j}"], y[f"vt_y{j}"]])
 
-    def slip_terms(self, d: np.ndarray, j: int) -> list[tuple[str, float]]:
-        return [(f"vt_x{j}", d[0]), (f"vt_y{j}", d[1])]
+    def slip_terms(self, d: np.ndarray, j: int) -> list[tuple]:
+        """``v_t . slip - cos(REAIM_ANGLE) |v_t|``: 0 where the slip stops, or where a slide has
+        turned by ``REAIM_ANGLE`` from ``slip`` (then re-aimed, ``_switch``). The sliding
+        equations' direction blends toward ``slip`` where ``v_t . slip`` falls below
+        ``SLIP_FULL`` (``derive.grasp3d_modes``); re-aimed at 90 degrees, a fast slide met that
+        blend just before its event, and its speeds took a kick of ~1e-7 m/s whatever the
+        tolerance (found by a slide across an atlas's charts, against one chart)."""
+        c = math.cos(REAIM_ANGLE)
+        return [(f"vt_x{j}", d[0]), (f"vt_y{j}", d[1]), (f"vt_x{j}", c, True), (f"vt_y{j}", c, True)]
 
     def slip_direction(self, x: np.ndarray, y: dict, j: int, modes=None, slips=None) -> np.ndarray:
         """The direction a slide starts in from rest of the slip: the fixed point of
@@ -1300,6 +1316,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
         if at_edge:  # a contact at its chart's edge: on in the chart that covers it
             x_now, p_new, record = r.atlases.switch(hit["atlas"], hit["t"], hit["x"], p)
             _chart_switch(r, record, hit["x"], p_new)
+            slips = _slip_across(r.atlases.slots[hit["atlas"]][0], record, modes, slips)
             h_next = hit["h"]  # on from the step size reached (not a restart from a first guess)
             r.stats["switch_time"] += perf_counter() - t_look
             t_now = hit["t"]
@@ -1333,6 +1350,21 @@ def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) ->
     i = r.model.p_names.index(record["chart"])
     r.p[i] = p_new[i]
     r.chart_switches.append(record)
+
+
+def _slip_across(entry: dict, record: dict, modes, slips) -> list:
+    """``slips`` after a chart switch (``record``) of the atlas ``entry``: a sliding contact's
+    slip direction is in its fingertip's frame (``(x_f, y_f)``, the rows of ``J V``), whose
+    ``x_f`` turns by the switch's ``delta`` about the normal when the fingertip's chart changes
+    (``x' = cos delta x + sin delta y``): the same direction in the new frame."""
+    j = entry.get("slip_frame")
+    if j is None or modes[j - 1] != SLIDING or slips[j - 1] is None:
+        return slips
+    a, b = float(slips[j - 1][0]), float(slips[j - 1][1])
+    c, s = math.cos(record["delta"]), math.sin(record["delta"])
+    slips = list(slips)
+    slips[j - 1] = np.array([a * c + b * s, b * c - a * s])
+    return slips
 
 
 def _new_run(model, s, mus, e: float) -> _Run:
