@@ -358,6 +358,11 @@ GS_HIDDEN long gs_watch_failed(gs_work* wk, long rc, const double* p, const doub
  * 1 and J (nx x nx) copied when (t, x) is that state and J is kept, else 0; and kept. */
 GS_HIDDEN int gs_refine_jac_get(double t, const double* x, double* J);
 GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J);
+/* gs_radau5 at an event, with a differenced Jacobian: the J its last steps used, for
+ * gs_watch_refine's trials from the event's step start (a simplified Newton iteration takes
+ * any J near the true one: the trials converge to the same collocation solution, without a
+ * differenced J of their own, nx right-hand sides). Forgotten at the next gs_watch_begin. */
+GS_HIDDEN void gs_watch_offer_jac(const double* J);
 /* gs_batch: the watch off during the batch (returns whether it was on), then restored. */
 GS_HIDDEN int gs_watch_suspend(void);
 GS_HIDDEN void gs_watch_restore(int on);

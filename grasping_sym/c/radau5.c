@@ -511,6 +511,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         ++row;
       }
       if (event) { /* stop at the event: its state, and its step's start (gs_adaptive_end) */
+        if (!gs_has_jac) gs_watch_offer_jac(M->J);
         for (int i = 0; i < n; ++i) {
           y[i] = tmp[i];
           ynew[i] = yold[i];

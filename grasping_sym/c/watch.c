@@ -73,6 +73,12 @@ typedef struct {
   /* GS_WATCH_SKIPS + 2 states (malloc'd by gs_watch_witnesses, freed by gs_watch_clear):
    * the ends kept (x_kept(i), i = 0 .. n_kept) and the event's step start (x_step) */
   double* kept;
+  /* the Jacobian gs_radau5 offered at the event (gs_watch_offer_jac; nx x nx, malloc'd
+   * there): kept past gs_watch_clear for the event's gs_watch_refine, which frees it; a
+   * new watch or run forgets it (a thread that ends between an event and its refine leaves
+   * this one block) */
+  double* jac;
+  int jac_valid;
 } gs_watch_state;
 
 static _Thread_local gs_watch_state gs_w;
@@ -125,7 +131,15 @@ GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const dou
   gs_w.resume = 0;
   gs_w.t_prev = t0;
   gs_w.which = -1;
+  gs_w.jac_valid = 0;
   return 0;
+}
+
+GS_HIDDEN void gs_watch_offer_jac(const double* J) {
+  if (!gs_w.jac) gs_w.jac = malloc((size_t)gs_nx * gs_nx * sizeof(double));
+  if (!gs_w.jac) return; /* no memory: the trials difference their own */
+  for (int i = 0; i < gs_nx * gs_nx; ++i) gs_w.jac[i] = J[i];
+  gs_w.jac_valid = 1;
 }
 
 /* Whether witness k's value v (after gs_w.g_prev at gs_w.t_prev) is an event. */
@@ -465,6 +479,8 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
   gs_rj.x = malloc((size_t)(gs_nx + gs_nx * gs_nx) * sizeof(double)); /* none: J every trial */
   gs_rj.on = gs_rj.x != NULL;
   gs_rj.valid = 0;
+  if (method == 0 && gs_w.jac_valid) /* the loop's J, for the trials from the step's start */
+    gs_refine_jac_put(gs_w.t_step, x_step, gs_w.jac);
   double a = gs_w.t_lo, b = gs_w.t_hi, slope = gs_w.slope, xt[gs_nx];
   double t1 = fmin(fmax(gs_w.t_root, a), b), g1, g2, t2;
   int rc = gs_refine_at(method, t1, x_step, p, rtol, atol, max_steps, lo, hi, x, &g1);
@@ -528,6 +544,9 @@ done:
   gs_rj.on = 0;
   free(gs_rj.x);
   gs_rj.x = NULL;
+  free(gs_w.jac); /* the event's offered J: used */
+  gs_w.jac = NULL;
+  gs_w.jac_valid = 0;
   gs_watch_restore(on);
   return rc;
 }
@@ -560,6 +579,7 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.n_kept = 0;
   if (safety > 0.0 && !gs_w.kept) /* none (no memory): every point is watched */
     gs_w.kept = malloc((size_t)(GS_WATCH_SKIPS + 2) * gs_nx * sizeof(double));
+  gs_w.jac_valid = 0;
   gs_w.n_eval = 0.0;
   gs_w.n_left = 0.0;
   for (long k = 0; k <= n; ++k) gs_w.ptr[k] = (int)ptr[k];
