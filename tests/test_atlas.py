@@ -17,6 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import grasping_sym as gs
+from grasping_sym.assemble import casadi_api
 from grasping_sym.derive.bodies3d import surface_sx
 from grasping_sym.errors import ContactLeftContourError, FrictionConeError, InvalidSceneError, InvalidSurfaceError
 from grasping_sym.geometry import surface_library as sl
@@ -369,3 +370,38 @@ def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_gra
         quiet = model.simulate(0.01, **early)
         assert not quiet.chart_switches and set(quiet.charts) == {"chart_f1", "chart_o1"}
         assert all((v == 0).all() for v in quiet.charts.values())
+
+
+def test_the_casadi_functions_of_a_grasp_on_atlases_take_its_charts(pivot_grasps):
+    """``casadi_function`` of a grasp on atlases: ``p`` ends with its charts (it failed on an
+    internal assertion): the ode at a row of a switching run, in that row's charts, is the
+    compiled rhs there. ``squeeze`` of an object with an atlas takes the object's chart at
+    each contact: two contacts at opposite points of an ellipsoid's equator, written in
+    either chart, give the closed form of the plain one's test (``test_quality``)."""
+    model = pivot_grasps["model"]
+    fn = model.casadi_function()
+    res = model.simulate(0.5, x0=pivot_grasps["xa"], rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.5, 11))
+    charts = np.column_stack([res.charts[k] for k in ("chart_f1", "chart_o1")])
+    assert {tuple(c) for c in charts} >= {(0, 0), (1, 0), (1, 1)}
+    for x, c in zip(res.x, charts):
+        p = c.astype(float)
+        want = model.rhs(x, p)
+        assert np.abs(np.asarray(fn(x, [], p)).ravel() - want).max() <= 1e-12 * np.abs(want).max()
+
+    a, b, c = 0.020, 0.025, 0.030
+    scene = gs.scenes.paper3d(object_surface=sl.ellipsoid(a, b, c, atlas=True, name="atlas ellipsoid"))
+    names = list(scene.state_names)
+    squeeze = casadi_api._squeeze(scene, ca.SX.sym("x", len(names)))
+    assert squeeze.name_in() == ["x", "mu", "chart"]
+    mu = np.array([0.3, 1.2])
+    turn = np.array([0.9, 0.2, -0.3, 0.4]) * 1.1
+    for u in (0.4, 1.1, 2.5):
+        exact = 1.0 / (math.hypot(a * math.cos(u), b * math.sin(u)) * math.hypot(math.cos(u) / a, math.sin(u) / b))
+        for chart in (0, 1):
+            x = np.zeros(len(names))
+            coords = [atlas_.coordinates((math.cos(w), math.sin(w), 0.0), chart) for w in (u, u + math.pi)]
+            for k, v in zip(("x", "y", "z", "qw", "qx", "qy", "qz", "u_o1", "v_o1", "u_o2", "v_o2"),
+                            (0.01, -0.02, 0.03, *turn, *coords[0], *coords[1])):
+                x[names.index(k)] = v
+            got = np.asarray(squeeze(x, mu, [chart, chart])).ravel()
+            np.testing.assert_allclose(got, exact - 1.0 / np.sqrt(1.0 + mu ** 2), rtol=0, atol=1e-14)

@@ -70,9 +70,16 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
     t = ca.SX.sym("t")
     x = ca.SX.sym("x", nx)
     u = ca.SX.sym("u", n_u)
-    p = ca.SX.sym("p", len(scene.runtime))
-    full = ca.vertcat(p, *[ca.SX(float(start_values[k])) for k in scene.start_param_names],
-                      u, ca.SX.zeros(n_u))
+    # p: the run-time parameters, then the charts of the surfaces with atlases (0 or 1 each:
+    # a problem fixes each contact's chart; runtime.atlas switches them only in a run)
+    charts = tuple(getattr(scene, "chart_names", ()))
+    n_run = len(scene.runtime)
+    p = ca.SX.sym("p", n_run + len(charts))
+    entries = ca.vertsplit(p)
+    p_run = ca.vertcat(*entries[:n_run]) if n_run else ca.SX(0, 1)
+    p_charts = ca.vertcat(*entries[n_run:]) if charts else ca.SX(0, 1)
+    full = ca.vertcat(p_run, *[ca.SX(float(start_values[k])) for k in scene.start_param_names],
+                      u, ca.SX.zeros(n_u), p_charts)
     if full.numel() != len(names):
         raise AssertionError(f"p of {full.numel()} entries for {names}")
     reads_time = cm.outputs is not None and cm.outputs.nnz_in(1) == len(names) + 1
@@ -99,14 +106,15 @@ def public_functions(scene, start_values: dict[str, float], *, time: bool = Fals
 
 
 def _squeezes(scene) -> bool:
-    """Whether ``scene`` is a 3D grasp of a free object by two contacts (``squeeze``'s) whose
-    surface is one chart (an atlas's chart is a run-time parameter ``squeeze`` does not take)."""
+    """Whether ``scene`` is a 3D grasp of a free object by two contacts (``squeeze``'s)."""
     return getattr(scene, "kind", None) == "grasp3d" and len(scene.fingers) == 2 \
-        and bool(getattr(scene, "free", False)) and getattr(scene.object_surface, "atlas", None) is None
+        and bool(getattr(scene, "free", False))
 
 
 def _squeeze(scene, x: ca.SX) -> ca.Function:
-    """``squeeze (x, mu) -> margin``: the two contacts' points ``p_i`` and unit normals into
+    """``squeeze (x, mu) -> margin`` (an object with an atlas: ``(x, mu, chart)``, ``chart`` the
+    object's chart at each contact, ``chart_o1`` and ``chart_o2``, 0 or 1): the two contacts'
+    points ``p_i`` and unit normals into
     the object ``n_i`` (the object surface's at ``(u_o{i}, v_o{i})``, carried by the object's
     pose: its centre and the rotation of its quaternion, ``bodies3d.object_rotation``, exact
     for any length), ``e = (p_2 - p_1)/|p_2 - p_1|``; per contact the
@@ -123,8 +131,11 @@ def _squeeze(scene, x: ca.SX) -> ca.Function:
     R, _, _ = object_rotation(x[at["quat"]], ca.SX.zeros(3))
     centre = x[at["pos"]]
     points, normals = [], []
+    atlas = getattr(scene.object_surface, "atlas", None) is not None
+    chart = ca.SX.sym("chart", 2) if atlas else None
     for i in (1, 2):
-        geo = surface_sx(scene.object_surface, x[names.index(f"u_o{i}")], x[names.index(f"v_o{i}")])
+        geo = surface_sx(scene.object_surface, x[names.index(f"u_o{i}")], x[names.index(f"v_o{i}")],
+                         chart=None if chart is None else chart[i - 1])
         out = R @ geo["n"]
         points.append(centre + R @ geo["S"])
         normals.append(-out / ca.norm_2(out))
@@ -133,8 +144,8 @@ def _squeeze(scene, x: ca.SX) -> ca.Function:
     mu = ca.SX.sym("mu", 2)
     cos = 1 / ca.sqrt(1 + mu ** 2)
     margin = ca.vertcat(ca.dot(e, normals[0]) - cos[0], -ca.dot(e, normals[1]) - cos[1])
-    return ca.Function(f"{scene.name}_squeeze", [x, mu], [margin], ["x", "mu"], ["margin"],
-                       DERIVATIVE_OPTIONS)
+    args, arg_names = ([x, mu, chart], ["x", "mu", "chart"]) if atlas else ([x, mu], ["x", "mu"])
+    return ca.Function(f"{scene.name}_squeeze", args, [margin], arg_names, ["margin"], DERIVATIVE_OPTIONS)
 
 
 def output_rows(fn: ca.Function, names: list[str], rows: list[int]) -> ca.Function:

@@ -47,8 +47,11 @@ class BuiltModel(Model):
         both >= 0 where the contacts can squeeze the object along the line between them, where
         its grasp quality epsilon is 0, the best two contacts reach; conventions section 10);
         ``u`` the inputs
-        (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), the
-        start's values the model's. With ``time`` the ode and outputs take the time first.
+        (``input_names``; empty without), ``p`` the run-time parameters (``param_names``), then,
+        for surfaces with atlases, their charts (``chart_names``: 0 or 1 each, the chart a
+        contact's coordinates are in; a problem keeps them, a run switches them; ``"squeeze"``
+        of an object with an atlas takes its charts at the two contacts as a third argument
+        ``chart``), the start's values the model's. With ``time`` the ode and outputs take the time first.
         ``outputs`` (with ``"outputs"``): the names of the outputs to give, in that order (the
         others, and their derivatives, are never evaluated: what a problem that constrains a
         few of them needs).
