@@ -460,6 +460,37 @@ static int gs_refine_at(int method, double t, const double* x_step, const double
   return 0;
 }
 
+/* The witness (less its level, as gs_refine_at) at t near an anchor (ta, xa) of the
+ * trajectory integrated again, fa = f(ta, xa): one step of Heun's method from it, taken when
+ * it is far below the tolerances (the explicit Euler step differs from it by at most
+ * GS_REFINE_NEAR (atol + rtol |x|) in every component; Heun's own error is smaller still by
+ * |t - ta| times the rates' change). The secant steps near a root are 1e-11 s or less: there
+ * this is the trajectory to round-off, at two right-hand sides and one outputs' evaluation
+ * instead of a step of the loop integrated again from the step's start; and it is smooth in
+ * t, where the trials integrated again each carry their Newton iteration's noise. Returns 0
+ * (x, *g set), 1 when the step would be too long (the caller integrates again), or an error
+ * code. */
+#define GS_REFINE_NEAR 1e-3
+static int gs_refine_near(double t, double ta, const double* xa, const double* fa, const double* p,
+                          double rtol, double atol, double* x, double* g) {
+  GS_DECLARE_WORK(wk);
+  const double dt = t - ta;
+  double xe[gs_nx], fe[gs_nx], all[GS_WATCH_MAX];
+  for (int i = 0; i < gs_nx; ++i) xe[i] = xa[i] + dt * fa[i];
+  int rc = gs_eval_rhs(wk, &t, xe, p, fe);
+  if (rc) return rc;
+  for (int i = 0; i < gs_nx; ++i) {
+    const double change = 0.5 * dt * (fe[i] - fa[i]);
+    if (!(fabs(change) <= GS_REFINE_NEAR * (atol + rtol * fabs(xa[i])))) return 1;
+    x[i] = xe[i] + change;
+  }
+  if ((rc = gs_watch_eval(wk, t, x, p, all))) return rc;
+  const int k = gs_w.which;
+  *g = all[k] - (gs_w.armed_at_event ? 0.0 : -gs_w.tol[k]);
+  if (isnan(*g)) *g = -1e300;
+  return 0;
+}
+
 /* The last event located on the trajectory integrated again from its step's start (t_step
  * of gs_watch_result; its state x_step) by the run's loop `method` with the run's p, rtol,
  * atol, max_steps, lo, hi: secant steps from the dense output's root and slope, each trial
@@ -483,8 +514,18 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
     gs_refine_jac_put(gs_w.t_step, x_step, gs_w.jac);
   double a = gs_w.t_lo, b = gs_w.t_hi, slope = gs_w.slope, xt[gs_nx];
   double t1 = fmin(fmax(gs_w.t_root, a), b), g1, g2, t2;
+  /* the anchor of the trials near the first (gs_refine_near): its state, integrated again;
+   * none when its rates cannot be had */
+  double ta = t1, xa[gs_nx], fa[gs_nx];
+  int anchored = 0;
   int rc = gs_refine_at(method, t1, x_step, p, rtol, atol, max_steps, lo, hi, x, &g1);
   if (rc) goto done;
+  {
+    GS_DECLARE_WORK(wk);
+    for (int i = 0; i < gs_nx; ++i) xa[i] = x[i];
+    anchored = gs_eval_rhs(wk, &ta, xa, p, fa) == 0;
+    for (int i = 0; anchored && i < gs_nx; ++i) anchored = isfinite(fa[i]);
+  }
   if (g1 > 0.0)
     a = t1;
   else
@@ -504,7 +545,9 @@ GS_EXPORT int gs_watch_refine(int method, const double* x_step, const double* p,
       break;
     }
     if (!(a <= t2 && t2 <= b) || t2 == t1) t2 = 0.5 * (a + b);
-    const int r2 = gs_refine_at(method, t2, x_step, p, rtol, atol, max_steps, lo, hi, xt, &g2);
+    int r2 = anchored ? gs_refine_near(t2, ta, xa, fa, p, rtol, atol, xt, &g2) : 1;
+    if (r2 == 1)
+      r2 = gs_refine_at(method, t2, x_step, p, rtol, atol, max_steps, lo, hi, xt, &g2);
     if (r2) {
       rc = r2;
       break;
