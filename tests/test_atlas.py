@@ -405,3 +405,31 @@ def test_the_casadi_functions_of_a_grasp_on_atlases_take_its_charts(pivot_grasps
                 x[names.index(k)] = v
             got = np.asarray(squeeze(x, mu, [chart, chart])).ravel()
             np.testing.assert_allclose(got, exact - 1.0 / np.sqrt(1.0 + mu ** 2), rtol=0, atol=1e-14)
+
+
+def test_a_ball_on_a_table_with_its_support_at_chart_0s_pole_starts_in_chart_1():
+    """A ball with ``atlas=True`` on a table below it, placed as the library places it: its
+    support point is chart 0's pole (it failed with a NaN support point). The start is solved
+    in chart 1 (the model's ``chart`` at the start is 1). Launched rolling, it rolls on in a
+    straight line at its speed (the centre to 1e-10 m over 1.5 turns), its contact switching
+    chart six times, each row's contact point, read in its chart, the lowest point of the ball
+    (1e-10 m); a run that reaches no chart's edge reports chart 1, the short way too."""
+    R_, M_, V_ = 0.05, 0.1, 0.3
+    ball = sl.sphere(R_, atlas=True)
+    model = gs.build(gs.scenes.body_on_plane(ball, mass=M_, inertia=(0.4 * M_ * R_ * R_,) * 3,
+                                             velocity=(V_, 0.0, 0.0), omega=(0.0, V_ / R_, 0.0),
+                                             name="ball_at_the_pole"))
+    assert model.default_params[model.p_names.index("chart")] == 1.0
+    x0 = model.initial_state()
+    t_end = 1.5 * 2 * math.pi * R_ / V_
+    res = model.simulate(t_end, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, t_end, 301))
+    assert len(res.chart_switches) == 6 and res.charts["chart"][0] == 1 and not res.events
+    assert np.abs(res.x[:, 0] - (x0[0] + V_ * res.t)).max() < 1e-10
+    assert np.abs(res.x[:, 1:3] - x0[1:3]).max() < 1e-10
+    point = ball.evaluate(res["u"], res["v"], chart=res.charts["chart"])["point"]
+    q = res.x[:, 3:7]
+    turn = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, :1]])).as_matrix()
+    world = res.x[:, :3] + np.einsum("nij,nj->ni", turn, point)
+    assert np.abs(world - res.x[:, :3] + [0.0, 0.0, R_]).max() < 1e-10
+    short = [model.simulate(0.05, rtol=1e-10, atol=1e-12) for _ in range(2)]
+    assert all(not r.chart_switches and set(r.charts["chart"]) == {1} for r in short)

@@ -126,15 +126,17 @@ def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     quat = x0[[names.index(k) for k in ("qw", "qx", "qy", "qz")]]
     R = rotation_of(quat)
     pos = np.array(base.position, float) if not base.free else x0[[names.index(k) for k in "xyz"]]
-    extra = []
+    extra, charts = [], {}
     for m, w in enumerate(scene.planes, start=1):
-        uv, S = body_plane.support_point(base.object_surface, R, np.array(w.normal), w.support)
+        uv, S, chart = body_plane.support_in_a_chart(base.object_surface, R, np.array(w.normal), w.support)
         gap = float(np.dot(w.normal, pos + R @ S - np.array(w.point)))
         if not gap > 0:
             raise InvalidSceneError([f"plane {m} cuts the object at the start (gap {gap:.6g} m): put it "
                                      "below the object (its normal into the free side)"])
         extra += list(uv)
-    return np.concatenate([x0, extra]), values, info
+        if f"chart_w{m}" in scene.chart_names:
+            charts[f"chart_w{m}"] = chart
+    return np.concatenate([x0, extra]), values, {**info, **({"charts": charts} if charts else {})}
 
 
 def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:

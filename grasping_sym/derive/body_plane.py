@@ -31,6 +31,7 @@ import sympy as sp
 
 from grasping_sym.derive.bodies3d import object_rotation, quaternion_of, surface_sx
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.atlas import LAT as ATLAS_LAT
 from grasping_sym.model.body import TIME
 from grasping_sym.symbolic.translate import SympyToCasadi
 
@@ -149,7 +150,7 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
     moved along ``n``, the contact point's normal speed removed)."""
     R0 = np.asarray(scene.rotation, float)
     n = np.asarray(scene.plane_normal, float)
-    uv0, S0 = support_point(scene.surface, R0, n, scene.support)
+    uv0, S0, chart = support_in_a_chart(scene.surface, R0, n, scene.support)
     pos = np.asarray(scene.position, float)
     om = np.asarray(scene.omega, float)
     vel = np.asarray(scene.velocity, float)
@@ -159,21 +160,55 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
         pos = pos - np.dot(n, pos + R0 @ S0 - np.asarray(scene.plane_point)) * n
         vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0) - v_plane) * n
     x0 = np.concatenate([pos, quaternion_of(R0), vel, om, uv0])
-    return x0, {"support": [float(v) for v in uv0]}
+    charts = {"charts": {"chart": chart}} if getattr(scene.surface, "atlas", None) is not None else {}
+    return x0, {"support": [float(v) for v in uv0], **charts}
 
 
 def support_point(surface, R: np.ndarray, n: np.ndarray, guess) -> tuple[np.ndarray, np.ndarray]:
     """``((u, v), S)``: the point of ``surface`` (body frame, turned by ``R``) whose outward
     normal is ``-n`` (Newton's method from ``guess``); a named error where there is none near."""
+    found = _support_in(surface, R, n, guess)
+    if found is None:
+        raise InvalidSceneError([f"no support point near support = {tuple(guess)}: Newton's method from it "
+                                 "finds no point whose normal faces -plane_normal; give a guess "
+                                 "(support=(u, v)) where the surface faces the plane"])
+    return found
+
+
+def _support_in(surface, R: np.ndarray, n: np.ndarray, guess):
+    """``support_point`` on ``surface`` from ``guess``, or None where Newton's method ends
+    elsewhere (a point facing the plane's side, or not finite)."""
     uv = ca.SX.sym("uv", 2)
     s = surface_sx(surface, uv[0], uv[1], extra=True)
     resid = s["Tm"].T @ (s["n"] + ca.DM(R.T @ n))
     solver = ca.rootfinder("support", "newton", ca.Function("r", [uv], [resid]),
-                           {"abstol": 1e-15, "max_iter": 100})
+                           {"abstol": 1e-15, "max_iter": 100, "error_on_fail": False})
     uv0 = np.ravel(solver(ca.DM(guess)).full())
+    if not np.isfinite(uv0).all():
+        return None
     S0, N0 = (np.ravel(v.full()) for v in ca.Function("geo", [uv], [s["S"], s["n"]])(uv0))
-    if not np.dot(R @ N0, n) < -1 + 1e-12:
-        raise InvalidSceneError([f"no support point near support = {tuple(guess)}: the normal found "
-                                 f"at (u, v) = {tuple(uv0)} faces {R @ N0}, not -plane_normal; give "
-                                 "a guess (support=(u, v)) where the surface faces the plane"])
+    if not (np.isfinite(S0).all() and np.dot(R @ N0, n) < -1 + 1e-12):
+        return None
     return uv0, S0
+
+
+#: Longitudes from which the support point of a surface with an atlas is looked for in a
+#: chart, after the user's guess (each at latitude 0: its chart's equator)
+_LONGITUDES = (0.0, 0.5 * np.pi, np.pi, -0.5 * np.pi)
+
+
+def support_in_a_chart(surface, R: np.ndarray, n: np.ndarray, guess) -> tuple[np.ndarray, np.ndarray, int]:
+    """``((u, v), S, chart)``: ``support_point``, on a surface with an atlas
+    (``geometry.atlas``) in chart 0 where it lies inside it (``guess`` in chart 0, then from
+    its equator), else in chart 1 (from its equator): a start at chart 0's pole (a ball with
+    ``atlas=True`` on a table below it) starts in chart 1. A surface without one: chart 0
+    (``support_point``)."""
+    if getattr(surface, "atlas", None) is None:
+        return (*support_point(surface, R, n, guess), 0)
+    for chart, shape in ((0, surface), (1, surface.atlas.second)):
+        for start in ((tuple(guess),) if chart == 0 else ()) + tuple((u, 0.0) for u in _LONGITUDES):
+            found = _support_in(shape, R, n, start)
+            if found is not None and abs(found[0][1]) < ATLAS_LAT[1]:
+                return found[0], found[1], chart
+    raise InvalidSceneError([f"no support point of {surface.name!r} faces -plane_normal inside either chart "
+                             f"of its atlas (from support = {tuple(guess)} and each chart's equator)"])

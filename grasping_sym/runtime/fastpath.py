@@ -155,8 +155,9 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         return None  # a force leaves its cone: the full way locates it and names it
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     charts = {}
-    if "chart_param_names" in model.manifest:  # an atlas's run that reached no chart's edge: chart 0
-        charts = {k: np.zeros(m, dtype=int) for k in model.manifest["chart_param_names"]}
+    if "chart_param_names" in model.manifest:  # an atlas's run that reached no chart's edge: its start's
+        charts = {k: np.full(m, int(model.default_params[model.p_names.index(k)]))
+                  for k in model.manifest["chart_param_names"]}
         info["chart_switches"] = 0
     return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
                             model.scene, charts=charts)

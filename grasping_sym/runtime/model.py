@@ -90,8 +90,12 @@ class Model:
         #: then the charts of the surfaces with atlases (``runtime.atlas``: 0 at the start)
         charts = tuple(manifest.get("chart_param_names", ()))
         self.p_names: tuple[str, ...] = self.param_names + start_names + coefficients + charts
+        #: each chart at the start (``runtime.atlas``): 0, or the start's own where it was
+        #: solved in chart 1 (a body's support point at chart 0's pole)
+        at_start = ((start.get("info") or {}).get("charts") or {})
         self.default_params = np.array([*manifest["param_values"], *self.start_params.values(),
-                                        *[0.0] * (len(coefficients) + len(charts))], dtype=float)
+                                        *[0.0] * len(coefficients),
+                                        *[float(at_start.get(k, 0)) for k in charts]], dtype=float)
         self.lower = np.array([-math.inf if v is None else v for v in manifest["lower"]])
         self.upper = np.array([math.inf if v is None else v for v in manifest["upper"]])
         #: the joints whose bounds are their limits (a run stops there with ``JointLimitError``)
