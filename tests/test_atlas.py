@@ -19,7 +19,13 @@ from scipy.spatial.transform import Rotation
 import grasping_sym as gs
 from grasping_sym.assemble import casadi_api
 from grasping_sym.derive.bodies3d import surface_sx
-from grasping_sym.errors import ContactLeftContourError, FrictionConeError, InvalidSceneError, InvalidSurfaceError
+from grasping_sym.errors import (
+    ContactLeftContourError,
+    FrictionConeError,
+    InvalidSceneError,
+    InvalidSurfaceError,
+    RunArgumentError,
+)
 from grasping_sym.geometry import surface_library as sl
 from grasping_sym.runtime import atlas as atlas_
 from grasping_sym.runtime import batch as batch_
@@ -433,3 +439,29 @@ def test_a_ball_on_a_table_with_its_support_at_chart_0s_pole_starts_in_chart_1()
     assert np.abs(world - res.x[:, :3] + [0.0, 0.0, R_]).max() < 1e-10
     short = [model.simulate(0.05, rtol=1e-10, atol=1e-12) for _ in range(2)]
     assert all(not r.chart_switches and set(r.charts["chart"]) == {1} for r in short)
+
+
+def test_a_run_goes_on_from_a_row_in_its_own_charts(pivot_grasps, lap_model):
+    """``x0`` from a row of a run after a switch is written in that row's charts: ``params``
+    names them (a chart is 0 or 1, else a named error), and the run from it is the run's own
+    continuation: a grasp (plain run) and a ball on a turntable (a run with modes), and
+    ``simulate_many`` of the grasp with each run's charts."""
+    model, xa = pivot_grasps["model"], pivot_grasps["xa"]
+    kw = dict(rtol=1e-10, atol=1e-12)
+    whole = model.simulate(0.6, x0=xa, t_eval=np.linspace(0.0, 0.6, 61), **kw)
+    i = 30
+    charts = {k: int(v[i]) for k, v in whole.charts.items()}
+    assert charts != {k: 0 for k in charts}          # a row after a switch
+    on = model.simulate(0.3, x0=whole.x[i], params=charts, t_eval=np.linspace(0.0, 0.3, 31), **kw)
+    body = [k for k, n in enumerate(model.state_names) if not n.startswith(("u_", "v_", "psi"))]
+    assert np.abs(on.x[:, body] - whole.x[i:, body]).max() < 1e-8
+    batch = model.simulate_many(0.3, x0=np.stack([whole.x[i]] * 2), params=charts, **kw)
+    assert (batch.status == 0).all() and np.abs(batch.x_final[:, body] - whole.x[-1, body]).max() < 1e-8
+    with pytest.raises(RunArgumentError, match="a chart is 0 or 1"):
+        model.simulate(0.3, x0=whole.x[i], params={"chart_f1": 0.5})
+    ball = lap_model[0]
+    whole = ball.simulate(0.8, t_eval=np.linspace(0.0, 0.8, 81), **kw)
+    i = int(np.flatnonzero(whole.charts["chart"] != whole.charts["chart"][0])[0]) + 2
+    on = ball.simulate(0.8 - whole.t[i], x0=whole.x[i], params={"chart": int(whole.charts["chart"][i])},
+                       t_eval=whole.t[i:] - whole.t[i], **kw)
+    assert np.abs(on.x[:, :13] - whole.x[i:, :13]).max() < 1e-8

@@ -21,7 +21,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError, RunInterruptedError
-from grasping_sym.runtime import c_loops, failures, friction, modes
+from grasping_sym.runtime import c_loops, failures, friction, modes, parameters
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -235,8 +235,9 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")
         return _with_atlases(model, s, x0, params, u, mu, slip, dense, start)
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
-        modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names))
-        return _with_modes(model, s, t_final, x0, mu, e, u, dense, start)
+        modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names),
+                            charts=parameters.charts_of(model))
+        return _with_modes(model, s, t_final, x0, mu, e, u, dense, start, charts=params)
     if e is not None:
         raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
                                "restitution applies to a model with modes (gs.scenes.body_on_plane)")
@@ -274,7 +275,8 @@ def _refuse_mu_without_t_eval(MU, checks: bool, dense: bool) -> None:
                                "end; give t_eval (e.g. np.linspace(0, t_final, 301)), or checks=False")
 
 
-def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start: float) -> BatchResult:
+def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start: float,
+                charts: dict | None = None) -> BatchResult:
     """``simulate_many`` of a model with contact modes: ``modes.run_many``; ``u`` as for a model
     without modes (constant inputs ``(n_inputs,)`` or ``(N, n_inputs)``, or one table for every
     run), each run's by ``simulate``'s own reading."""
@@ -288,7 +290,8 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
                                "give every per-run array the same length N")
     n = sizes.pop() if sizes else 1
     X0 = _initial_states(model, x0, n)
-    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n))
+    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n),
+                         start_charts={k: np.broadcast_to(np.asarray(v), (n,)) for k, v in (charts or {}).items()})
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],
@@ -485,9 +488,13 @@ def _parameters(model, params, n: int) -> tuple[np.ndarray, dict[str, np.ndarray
     if params is not None and not isinstance(params, Mapping):
         raise RunArgumentError(f"params is {type(params).__name__}: give a dict name -> number or array (N,)")
     P = np.tile(model.default_params, (n, 1)) if model.p_names else np.zeros((n, 0))
-    allowed = (*model.param_names, *model.start_params)
+    charts = parameters.charts_of(model)
+    allowed = (*model.param_names, *model.start_params, *charts)
     rules = model.manifest.get("param_rules", {})
     for k, v in (params or {}).items():
+        if k in charts:  # the charts each run's x0 is written in: 0 or 1
+            P[:, model.p_names.index(k)] = [parameters.chart_value(k, c) for c in np.broadcast_to(v, (n,))]
+            continue
         if k not in allowed:
             folded = "" if model.param_names else " (this model has none: build the scene with runtime=(...))"
             raise RunArgumentError(f"{k!r} is not a run-time parameter of this model{folded}; run-time: "

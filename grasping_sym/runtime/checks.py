@@ -151,13 +151,16 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
     else:
         residual, what = 0.0, ""
     if not residual <= INITIAL_RESIDUAL:
+        charts = tuple(model.manifest.get("chart_param_names", ()))
         raise InconsistentInitialStateError(
             residual,
             f"x0 is off the contact constraints: {what} = {residual:.6g} m > "
             f"{INITIAL_RESIDUAL:g} m; start from model.initial_state() or a state on the "
             "constraint manifold (the surfaces touch and are tangent), or pass "
             "checks=False to integrate anyway (the constraint stabilisation then pulls the "
-            "state back, with a transient)",
+            "state back, with a transient)" + (
+                f"; a row of a run is written in that row's charts: give them, params={{name: "
+                f"result.charts[name][i]}} for {charts}" if charts else ""),
         )
     if rates:  # the speeds, once the positions are on the constraints
         _check_initial_rates(model, x0, p)

@@ -329,7 +329,10 @@ class Model:
             Output times (s); default every millisecond from 0 to ``t_final`` (and at least
             ``[0, t_final]``).
         params
-            Values of run-time parameters (see ``param_names``).
+            Values of run-time parameters (see ``param_names``). A model whose surfaces have
+            atlases also takes its charts here (``manifest["chart_param_names"]``, 0 or 1
+            each; default the start's): the charts ``x0`` is written in, a row of a run after a
+            switch being in that row's (``result.charts``).
         u
             The control inputs (``input_names``; a model built with ``inputs="torques"``): one
             number per input (N m, held constant), or a table of ``grasping_sym.runtime.inputs``
@@ -444,10 +447,11 @@ class Model:
                               h=h, max_steps=max_steps, project=project, outputs=outputs,
                               checks=checks, time_limit=time_limit)
         if self.manifest.get("modes"):  # contact that can change: runtime.modes
-            modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(self.input_names))
+            modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(self.input_names),
+                                charts=parameters.charts_of(self))
             x0, own_start = run_.start_state(self, x0)
             return modes.run(self, s, x0, mu, e, u, None if modes_key is None else
-                             (modes_key, b"" if own_start else x0.tobytes()))
+                             (modes_key, b"" if own_start else x0.tobytes()), charts=params)
         if e is not None:
             raise RunArgumentError(f"e given, but model {self.name!r} has no impacts (no contact modes): "
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")

@@ -51,7 +51,7 @@ from grasping_sym.errors import (
     PainleveError,
     RunArgumentError,
 )
-from grasping_sym.runtime import events, failures, fastpath, friction, integrators
+from grasping_sym.runtime import events, failures, fastpath, friction, integrators, parameters
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.atlas import Atlases, repeated
@@ -1204,9 +1204,12 @@ def _angle(d: np.ndarray, along, iterations: int) -> np.ndarray:
     return np.array([math.cos(a1), math.sin(a1)])
 
 
-def refuse_unused(*, params, u, slip, inputs: bool = False) -> None:
+def refuse_unused(*, params, u, slip, inputs: bool = False, charts=()) -> None:
     """Refuse by name what a run with modes does not read (it would be ignored silently);
-    ``inputs``: ``u`` is read (a model with inputs)."""
+    ``inputs``: ``u`` is read (a model with inputs); ``charts``: the model's chart parameters,
+    which ``params`` may name (the charts ``x0`` is written in)."""
+    if params is not None and set(params) <= set(charts):
+        params = None
     given = [k for k, v in (("params", params), ("u", None if inputs else u)) if v is not None]
     if slip != "stop":
         given.append("slip")
@@ -1226,11 +1229,13 @@ def rotation(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]]) / s
 
 
-def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -> SimulationResult:
+def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
+        charts: dict | None = None) -> SimulationResult:
     """``Model.simulate`` of a model with modes (module docstring); ``u``: the inputs of a
     model with inputs (``runtime.inputs``: numbers, or a table; each mode's segment restarts
     at the table's knots); ``short``: ``(plan key, start key)`` under which a run that ends
-    well keeps its settings and its start for the short way (``short_way``), or None."""
+    well keeps its settings and its start for the short way (``short_way``), or None;
+    ``charts``: the charts ``x0`` is written in (name -> 0 or 1; None: the start's)."""
     start = perf_counter()
     if s.method not in METHODS:
         raise RunArgumentError(f"method {s.method!r}: a model with contact modes runs one of {METHODS} "
@@ -1238,6 +1243,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None) -
                                "again)")
     mus, e = friction_law(model, mu_arg, e_arg)
     r = _new_run(model, s, mus, e)
+    for k, c in (charts or {}).items():
+        r.p[model.p_names.index(k)] = parameters.chart_value(k, c)
     t_eval = s.t_eval
     r.sched = run_.schedule(model, u, s.method, t_eval)
     x_now, modes, slips, y_now = _start(r, np.asarray(x0, dtype=float))
@@ -1783,9 +1790,10 @@ def _painleve(model, t, x, value, mu, j=1):
                         model.state_names)
 
 
-def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
+def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_charts: dict | None = None) -> dict:
     """``simulate_many`` of a model with modes: each run by ``run`` in turn (``mu``, ``e``:
-    None, one value, or one per run; ``us``: each run's inputs, None: none); a run that stops
+    None, one value, or one per run; ``us``: each run's inputs, None: none; ``start_charts``:
+    name -> each run's chart its ``x0`` is written in, None: the start's); a run that stops
     by name is recorded, the others go on. Returns the pieces of a ``runtime.batch.BatchResult``."""
     n = len(X0)
     mus = _per_run("mu", mu, n)
@@ -1802,7 +1810,8 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None) -> dict:
     charts: list = [None] * n
     for i in range(n):
         try:
-            res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i])
+            res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i],
+                      charts={k: v[i] for k, v in (start_charts or {}).items()})
         except (GraspingSymError, ValueError) as exc:
             status[i] = failures.status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"

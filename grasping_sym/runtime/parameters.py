@@ -14,11 +14,27 @@ from grasping_sym.errors import RunArgumentError
 from grasping_sym.runtime.settings import real
 
 
+def charts_of(model) -> tuple[str, ...]:
+    """The chart parameters of ``model``'s surfaces with atlases (``runtime.atlas``)."""
+    return tuple(model.manifest.get("chart_param_names", ()))
+
+
+def chart_value(k: str, v) -> float:
+    """The chart ``k`` given in ``params``: 0 or 1, else a named error."""
+    value = real(f"params[{k!r}]", v)
+    if value not in (0.0, 1.0):
+        raise RunArgumentError(f"params[{k!r}] = {value!r}: a chart is 0 or 1 (the chart the state's "
+                               "contact coordinates are written in: a row's own is result.charts[...])")
+    return value
+
+
 def values(model, params: Mapping[str, float] | None = None) -> np.ndarray | None:
     """``Model.params``: the scene's values of the run-time parameters overridden by
     ``params`` (checked against the scene's rules), then the start's values, then the inputs'
-    coefficients (zero); None for a model without ``p``."""
-    if params and not model.param_names:
+    coefficients (zero), then the charts (the start's, or those ``params`` names: an ``x0``
+    written in other charts, a row of a run after a switch); None for a model without ``p``."""
+    charts = charts_of(model)
+    if params and not model.param_names and not set(params) <= set(charts):
         raise RunArgumentError(
             f"parameters {sorted(params)} are folded into this model's code; build the "
             "scene with runtime=(...) naming them to vary them without a rebuild"
@@ -32,9 +48,12 @@ def values(model, params: Mapping[str, float] | None = None) -> np.ndarray | Non
     p = model.default_params.copy()
     rules = model.manifest.get("param_rules", {})
     for k, v in (params or {}).items():
+        if k in charts:
+            p[model.p_names.index(k)] = chart_value(k, v)
+            continue
         if k not in model.param_names:
             raise RunArgumentError(f"{k!r} is not a run-time parameter of this model "
-                                   f"(run-time: {model.param_names})")
+                                   f"(run-time: {model.param_names}{', charts: ' + str(charts) if charts else ''})")
         value = real(f"params[{k!r}]", v)
         rule = rules.get(k, "finite")
         if rule == "positive" and not value > 0 or rule == "nonnegative" and not value >= 0:
