@@ -419,7 +419,8 @@ def test_a_ball_on_a_table_with_its_support_at_chart_0s_pole_starts_in_chart_1()
     in chart 1 (the model's ``chart`` at the start is 1). Launched rolling, it rolls on in a
     straight line at its speed (the centre to 1e-10 m over 1.5 turns), its contact switching
     chart six times, each row's contact point, read in its chart, the lowest point of the ball
-    (1e-10 m); a run that reaches no chart's edge reports chart 1, the short way too."""
+    (1e-10 m); a run that reaches no chart's edge reports chart 1, the short way too. Its
+    start read in chart 0 (another point of the ball, not facing the table) is refused."""
     R_, M_, V_ = 0.05, 0.1, 0.3
     ball = sl.sphere(R_, atlas=True)
     model = gs.build(gs.scenes.body_on_plane(ball, mass=M_, inertia=(0.4 * M_ * R_ * R_,) * 3,
@@ -439,6 +440,9 @@ def test_a_ball_on_a_table_with_its_support_at_chart_0s_pole_starts_in_chart_1()
     assert np.abs(world - res.x[:, :3] + [0.0, 0.0, R_]).max() < 1e-10
     short = [model.simulate(0.05, rtol=1e-10, atol=1e-12) for _ in range(2)]
     assert all(not r.chart_switches and set(r.charts["chart"]) == {1} for r in short)
+    # the start's (u, v) read in the other chart is another point of the ball: refused by name
+    with pytest.raises(RunArgumentError, match=r"does not face the plane.*give it, params=\{'chart'"):
+        model.simulate(0.05, x0=x0, params={"chart": 0})
 
 
 def test_a_run_goes_on_from_a_row_in_its_own_charts(pivot_grasps, lap_model):

@@ -131,7 +131,9 @@ def derive_body_plane(scene) -> dict:
            "slip_speed": speed,
            "rolling_normal_force": f_roll, "rolling_tangential_force": ca.norm_2(Ft_roll),
            "painleve": painleve, "kinetic_energy": kinetic, "potential_energy": potential,
-           "energy": kinetic + potential}
+           "energy": kinetic + potential,
+           # |R N + n|: 0 where the support point (u, v) faces the plane (its rate keeps it so)
+           "support_facing": ca.norm_2(R @ N + n)}
     for k, c in enumerate("xyz"):
         out[f"vt_{c}"] = v_t[k]
         out[f"Ft_{c}"] = Ft[k]

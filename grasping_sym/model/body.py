@@ -142,7 +142,7 @@ class BodyScene:
         if self.controller is not None or self.inputs is not None:
             p.append("a body on a plane has no joints: controller and inputs must be None")
         p += friction_problems(self.friction, 1)
-        p += output_problems(self.outputs, OUTPUTS)
+        p += output_problems(self.outputs, (*OUTPUTS, "support_facing"))
         return p
 
     # ------------------------------------------------------------------ names
@@ -171,11 +171,12 @@ class BodyScene:
         return 1
 
     def check_outputs(self) -> tuple[str, ...]:
-        """Every output: the modes' events and maps read all of them."""
-        return OUTPUTS
+        """Every output: the modes' events and maps read all of them, and a run's start reads
+        whether its support point faces the plane (``support_facing``, not shown)."""
+        return (*OUTPUTS, "support_facing")
 
     def code_key(self) -> str:
-        return "\n".join(["body-v1", self.name, self.surface.key(), repr(self.mass),
+        return "\n".join(["body-v2", self.name, self.surface.key(), repr(self.mass),
                           repr(self.inertia), repr(self.plane_point), repr(self.plane_normal),
                           repr(self.gravity), repr(self.gain), ",".join(self.outputs),
                           f"spin={self.plane_spin!r}",

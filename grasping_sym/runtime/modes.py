@@ -252,6 +252,10 @@ class _Run:
             watched.append(("normal_force", j, [(fk, 1.0)]))
         return _Leg.of(rolling, where["to"], where["from"], watched)
 
+    def check_start(self, x0: np.ndarray, y: dict) -> None:
+        """Refuse by name an ``x0`` this kind of run cannot start from (``y``: its outputs with
+        every contact rolling); here none."""
+
     def leg(self, modes, x: np.ndarray) -> _Leg:
         """The leg that runs a segment from ``x`` with contacts in ``modes``: the rolling
         model's where every contact rolls and ``x`` is one of its states (a shared contact
@@ -411,6 +415,22 @@ class _BodyRun(_Run):
         self.n = np.array(info["plane_normal"], dtype=float)
         self.gain = float(info["gain"])
         self._n, self._Hinv = self.n.tolist(), self.Hinv.tolist()  # Python floats: 3-vectors
+
+    #: ``support_facing`` above which ``x0``'s support point does not face the plane
+    FACING_TOL = 1e-6
+
+    def check_start(self, x0: np.ndarray, y: dict) -> None:
+        """``x0``'s support point ``(u, v)`` must face the plane (its rate keeps it so; the
+        start solves it): else the run would follow another point of the surface. On a
+        surface with an atlas it is written in the run's chart (``params`` names it)."""
+        facing = y.get("support_facing")
+        if facing is not None and not facing <= self.FACING_TOL:
+            charts = tuple(self.model.manifest.get("chart_param_names", ()))
+            raise RunArgumentError(
+                f"x0's support point (u, v) = ({x0[-2]:.6g}, {x0[-1]:.6g}) does not face the plane "
+                f"(|R N + n| = {facing:.3g}): start from model.initial_state(), or solve (u, v) for the "
+                "body's pose" + ("; a row of a run is written in that row's chart: give it, "
+                                 "params={'chart': result.charts['chart'][i]}" if charts else ""))
 
     _K = tuple(tuple(f"K_{i}{j}" for j in range(3)) for i in range(3))
     _VC, _RC, _FT = (tuple(f"{v}_{c}" for c in "xyz") for v in ("vc", "rc", "rolling_Ft"))
@@ -1697,6 +1717,7 @@ def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list, dict |
     k = r.k
     modes, slips = [ROLLING] * k, [None] * k
     y = r.outputs(x0, r.params(modes))
+    r.check_start(x0, y)
     if any(y[r.key("gap", j)] > CONTACT_GAP for j in r.contacts):
         x0 = r.apart(x0)
         y = r.outputs(x0, r.params(modes))
