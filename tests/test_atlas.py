@@ -321,6 +321,15 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
     assert abs(stick[0]["t"] - r1.events[0]["t"]) < 1e-7
     assert np.abs(ra.x[:, body] - r1.x[:, body]).max() < 1e-8 and points_apart(ra, r1) < 1e-11
 
+    row = int(np.searchsorted(ra.t, 0.5))
+    charts = {k: int(v[row]) for k, v in ra.charts.items()}
+    assert charts == {"chart_f1": 1, "chart_o1": 1}
+    with pytest.raises(RunArgumentError, match=r"off the fingers' contact constraints.*give them"):
+        model.simulate(0.1, x0=ra.x[row], mu=0.1)
+    on = model.simulate(0.1, x0=ra.x[row], mu=0.1, params=charts, t_eval=ra.t[row:row + 21] - ra.t[row],
+                        rtol=1e-10, atol=1e-12)
+    assert np.abs(on.x[:, body] - ra.x[row:row + 21, body]).max() < 1e-8
+
     sliding = model.default_params.copy()
     sliding[[model.p_names.index(k) for k in ("mode1", "mu1")]] = (1.0, 0.1)
     cols = [model.columns.index(k) for k in ("vt_x1", "vt_y1")]
@@ -403,13 +412,13 @@ def test_the_casadi_functions_of_a_grasp_on_atlases_take_its_charts(pivot_grasps
     turn = np.array([0.9, 0.2, -0.3, 0.4]) * 1.1
     for u in (0.4, 1.1, 2.5):
         exact = 1.0 / (math.hypot(a * math.cos(u), b * math.sin(u)) * math.hypot(math.cos(u) / a, math.sin(u) / b))
-        for chart in (0, 1):
+        for chart in ((0, 0), (1, 1), (0, 1), (1, 0)):
             x = np.zeros(len(names))
-            coords = [atlas_.coordinates((math.cos(w), math.sin(w), 0.0), chart) for w in (u, u + math.pi)]
+            coords = [atlas_.coordinates((math.cos(w), math.sin(w), 0.0), c) for w, c in zip((u, u + math.pi), chart)]
             for k, v in zip(("x", "y", "z", "qw", "qx", "qy", "qz", "u_o1", "v_o1", "u_o2", "v_o2"),
                             (0.01, -0.02, 0.03, *turn, *coords[0], *coords[1])):
                 x[names.index(k)] = v
-            got = np.asarray(squeeze(x, mu, [chart, chart])).ravel()
+            got = np.asarray(squeeze(x, mu, list(chart))).ravel()
             np.testing.assert_allclose(got, exact - 1.0 / np.sqrt(1.0 + mu ** 2), rtol=0, atol=1e-14)
 
 
@@ -438,7 +447,8 @@ def test_a_ball_on_a_table_with_its_support_at_chart_0s_pole_starts_in_chart_1()
     turn = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, :1]])).as_matrix()
     world = res.x[:, :3] + np.einsum("nij,nj->ni", turn, point)
     assert np.abs(world - res.x[:, :3] + [0.0, 0.0, R_]).max() < 1e-10
-    short = [model.simulate(0.05, rtol=1e-10, atol=1e-12) for _ in range(2)]
+    short = [model.simulate(0.05, rtol=1e-10, atol=1e-12, t_eval=[0.0, 0.05]) for _ in range(2)]
+    assert model.run_cache.get("modes_short")                  # the short way kept a plan
     assert all(not r.chart_switches and set(r.charts["chart"]) == {1} for r in short)
     # the start's (u, v) read in the other chart is another point of the ball: refused by name
     with pytest.raises(RunArgumentError, match=r"does not face the plane.*give it, params=\{'chart'"):

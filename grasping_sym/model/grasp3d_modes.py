@@ -151,7 +151,8 @@ class GraspModesScene(WithModes):
         """``(slot, parameter, surface, u, v, psi)`` of each chart the run sets
         (``runtime.atlas``): the base grasp's (``GraspScene3D.chart_slots``: each contact's
         fingertip and object surface with an atlas), then, on an object with one, each plane's
-        support point (``chart_w{m}``: its ``(u_w{m}, v_w{m})``, no frame angle); 0 at the start."""
+        support point (``chart_w{m}``: its ``(u_w{m}, v_w{m})``, no frame angle); 0 at the start,
+        but a plane's where its support point was solved in chart 1."""
         b = self.base
         out = []
         for slot, name, side in b.chart_slots():

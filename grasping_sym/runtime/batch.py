@@ -285,13 +285,15 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
         sizes.add(len(x0))
     if u is not None and not hasattr(u, "segments") and np.ndim(u) == 2:
         sizes.add(len(u))
+    sizes |= {len(v) for v in (charts or {}).values() if np.ndim(v) >= 1}
     if len(sizes) > 1:
-        raise RunArgumentError(f"simulate_many: x0, mu, e and u give different numbers of runs {sorted(sizes)}: "
-                               "give every per-run array the same length N")
+        raise RunArgumentError(f"simulate_many: x0, mu, e, u and the charts in params give different numbers of "
+                               f"runs {sorted(sizes)}: give every per-run array the same length N")
     n = sizes.pop() if sizes else 1
     X0 = _initial_states(model, x0, n)
-    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n),
-                         start_charts={k: np.broadcast_to(np.asarray(v), (n,)) for k, v in (charts or {}).items()})
+    start_charts = {k: np.array([parameters.chart_value(k, c) for c in np.broadcast_to(np.asarray(v), (n,))])
+                    for k, v in (charts or {}).items()}       # checked before any run
+    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n), start_charts=start_charts)
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],

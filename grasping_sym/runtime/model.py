@@ -87,7 +87,8 @@ class Model:
         coefficients = (*self.input_names, *(f"{k}_rate" for k in self.input_names))
         #: every entry of the compiled functions' ``p``: ``param_names``, the start's values,
         #: the inputs' coefficients (``u(t) = a + b t``: every ``a``, then every ``b``),
-        #: then the charts of the surfaces with atlases (``runtime.atlas``: 0 at the start)
+        #: then the charts of the surfaces with atlases (``runtime.atlas``: the start's, 0 unless
+        #: a support point was solved in chart 1)
         charts = tuple(manifest.get("chart_param_names", ()))
         self.p_names: tuple[str, ...] = self.param_names + start_names + coefficients + charts
         #: each chart at the start (``runtime.atlas``): 0, or the start's own where it was

@@ -17,7 +17,9 @@ the model has one (``Model.rolling``, ``_Leg``; sections 8 and 9):
   ``-F_t/|F_t|``); ``f`` reaching 0 -> separated;
 - sliding: ``f`` reaching 0 -> separated; the slip velocity along its direction ``d`` at the
   slide's start, ``v_t . d``, reaching 0 -> the slip stopped if ``|v_t| <= STOP_SPEED`` there
-  (else it turned past 90 degrees: the slide goes on along the new ``v_t``, no switch): the contact velocity is set to
+  (else it turned past 90 degrees, a 3D grasp's past ``REAIM_ANGLE`` (its witness
+  ``v_t . d - cos(REAIM_ANGLE) |v_t|``): the slide goes on along the new ``v_t``, no
+  switch): the contact velocity is set to
   0 (a reset, recorded) and the run rolls if rolling is consistent there (``|F_t| <= mu f``
   in the rolling solution, ``f > 0``), else slides on in the direction the equations give;
 - separated: the gap reaching 0 while approaching -> an impact: Newton's restitution ``e``
@@ -416,21 +418,23 @@ class _BodyRun(_Run):
         self.gain = float(info["gain"])
         self._n, self._Hinv = self.n.tolist(), self.Hinv.tolist()  # Python floats: 3-vectors
 
-    #: ``support_facing`` above which ``x0``'s support point does not face the plane
-    FACING_TOL = 1e-6
+    #: ``support_facing = |R N + n| = 2 sin(a/2)`` above which ``x0``'s support point is
+    #: refused on a surface with an atlas: its normal ``a`` > 30 degrees from facing the plane
+    #: (a point read in the other chart is another point of the surface; one a little off is
+    #: pulled back by its rate's gain, as without an atlas)
+    FACING_TOL = 2 * math.sin(math.radians(15.0))
 
     def check_start(self, x0: np.ndarray, y: dict) -> None:
-        """``x0``'s support point ``(u, v)`` must face the plane (its rate keeps it so; the
-        start solves it): else the run would follow another point of the surface. On a
-        surface with an atlas it is written in the run's chart (``params`` names it)."""
+        """On a surface with an atlas, ``x0``'s support point ``(u, v)``, read in the run's
+        chart (``params`` names it), must face the plane (``FACING_TOL``)."""
+        charts = tuple(self.model.manifest.get("chart_param_names", ()))
         facing = y.get("support_facing")
-        if facing is not None and not facing <= self.FACING_TOL:
-            charts = tuple(self.model.manifest.get("chart_param_names", ()))
+        if charts and facing is not None and not facing <= self.FACING_TOL:
             raise RunArgumentError(
-                f"x0's support point (u, v) = ({x0[-2]:.6g}, {x0[-1]:.6g}) does not face the plane "
-                f"(|R N + n| = {facing:.3g}): start from model.initial_state(), or solve (u, v) for the "
-                "body's pose" + ("; a row of a run is written in that row's chart: give it, "
-                                 "params={'chart': result.charts['chart'][i]}" if charts else ""))
+                f"x0's support point (u, v) = ({x0[-2]:.6g}, {x0[-1]:.6g}), read in chart "
+                f"{int(self.p[self.model.p_names.index(charts[0])])}, does not face the plane (|R N + n| = "
+                f"{facing:.3g}: more than 30 degrees off): a row of a run is written in that row's chart: "
+                "give it, params={'chart': result.charts['chart'][i]}, or start from model.initial_state()")
 
     _K = tuple(tuple(f"K_{i}{j}" for j in range(3)) for i in range(3))
     _VC, _RC, _FT = (tuple(f"{v}_{c}" for c in "xyz") for v in ("vc", "rc", "rolling_Ft"))
@@ -788,6 +792,22 @@ class _GraspRun(_Run):
         """Contact ``j``'s output or parameter ``name``: a grasp numbers them with one contact
         too (``mode1``, ``gap1``: a grasp of one finger, pivot3d's)."""
         return f"{name}{j}"
+
+    #: m: the fingers' contact constraints' residual above which an ``x0`` of a grasp on
+    #: atlases is refused (``runtime.checks``' bound for a plain run's start)
+    RESIDUAL_TOL = 1e-8
+
+    def check_start(self, x0: np.ndarray, y: dict) -> None:
+        """On surfaces with atlases, ``x0`` read in the run's charts must be on the fingers'
+        contact constraints (a row read in other charts is off them: its points are others)."""
+        charts = tuple(self.model.manifest.get("chart_param_names", ()))
+        residual = y.get("constraint_residual")
+        if charts and residual is not None and not abs(residual) <= self.RESIDUAL_TOL:
+            read = {k: int(self.p[self.model.p_names.index(k)]) for k in charts}
+            raise RunArgumentError(
+                f"x0 is off the fingers' contact constraints (constraint_residual = {residual:.6g} m), read "
+                f"in the charts {read}: a row of a run is written in that row's charts: give them, "
+                "params={name: result.charts[name][i]}, or start from model.initial_state()")
 
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
         return np.array([y[f"vt_x{j}"], y[f"vt_y{j}"]])
@@ -1148,8 +1168,9 @@ def _norm(v) -> float:
 
 
 def _solve2(K: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``K^-1 b`` for a 2 x 2 ``K`` by Cramer's rule on Python floats (``_solve3``); a
-    singular ``K`` is refused as ``np.linalg.solve`` refuses it."""
+    """``K^-1 b`` for a 2 x 2 ``K`` by Cramer's rule on Python floats (NumPy's checks from cold
+    caches were most of a switch); a singular ``K`` is refused as ``np.linalg.solve`` refuses it
+    (not inf or NaN as ``_solve3`` gives)."""
     (a, b_), (c, d) = K.tolist()
     u, v = b.tolist()
     det = a * d - b_ * c
@@ -1228,15 +1249,15 @@ def refuse_unused(*, params, u, slip, inputs: bool = False, charts=()) -> None:
     """Refuse by name what a run with modes does not read (it would be ignored silently);
     ``inputs``: ``u`` is read (a model with inputs); ``charts``: the model's chart parameters,
     which ``params`` may name (the charts ``x0`` is written in)."""
-    if params is not None and set(params) <= set(charts):
-        params = None
-    given = [k for k, v in (("params", params), ("u", None if inputs else u)) if v is not None]
+    other = None if params is None else sorted(set(params) - set(charts))
+    given = [k for k, v in ((f"params {other}", other or None), ("u", None if inputs else u)) if v is not None]
     if slip != "stop":
         given.append("slip")
     if given:
         raise RunArgumentError(f"{', '.join(given)} given, but a model with contact modes takes none: "
                                "its mode and slip direction are its own, its friction is mu= and e= "
-                               "(or the scene's law), and it has no inputs")
+                               "(or the scene's law), and it has no inputs"
+                               + (f"; params may name its charts {tuple(charts)} (0 or 1)" if charts else ""))
 
 
 def rotation(q: np.ndarray) -> np.ndarray:
@@ -1776,7 +1797,8 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
     y = r.with_mode(x, modes, slips, j, ROLLING)
     if name == "slip":
         vt = r.slip_velocity(y, j)
-        # the slip turned past 90 degrees from its start's direction, it did not stop: faster
+        # the slip turned past 90 degrees (a 3D grasp's: REAIM_ANGLE) from its start's
+        # direction, it did not stop: faster
         # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
         # event: below -SLIP_SPEED before it was ever above SLIP_SPEED) and is clearly faster
         # than that across it (2 SLIP_SPEED; in 2D it is a reversal: a stop)
