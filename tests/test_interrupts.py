@@ -190,14 +190,20 @@ def _built():
                                      name="slow2d", outputs=(), gf=0.0, gl=0.0, wf=0.0, wl=0.0))
 
 
+#: s: Ctrl-C must stop a run within this of the signal. The runs would last 18 s or more
+#: (cvodes: up to its 60 s time limit), and a lone run stops within a few ms; under the whole
+#: suite (the other worker compiling) the process was seen to wait 0.26 s for the CPU.
+PROMPT = 1.0
+
+
 def test_ctrl_c_still_stops_every_way_after_cvodes_and_a_replaced_handler():
     """After a cvodes run and after a user's handler was set and taken back, Ctrl-C stops
-    radau (full and short path), simulate_many and cvodes within a tenth of a second."""
+    radau (full and short path), simulate_many and cvodes at once (``PROMPT``)."""
     report = _run("after_others")
     assert [r["way"] for r in report] == ["radau", "fast", "many", "cvodes"]
     for r in report:
         assert r["outcome"] == "KeyboardInterrupt", r
-        assert r["delay"] < 0.1, r
+        assert r["delay"] < PROMPT, r
 
 
 def test_a_users_sigint_handler_is_chained_not_replaced():
@@ -205,8 +211,8 @@ def test_a_users_sigint_handler_is_chained_not_replaced():
     returns: it is called, and the run stops with RunInterruptedError (not a silent finish,
     not a KeyboardInterrupt the user's handler did not ask for)."""
     raising, returning = _run("user_handler")
-    assert raising["outcome"] == "Stop" and raising["delay"] < 0.1, raising
-    assert returning["outcome"] == "RunInterruptedError" and returning["delay"] < 0.1, returning
+    assert raising["outcome"] == "Stop" and raising["delay"] < PROMPT, raising
+    assert returning["outcome"] == "RunInterruptedError" and returning["delay"] < PROMPT, returning
     assert returning["calls"] == ["raising", "returning"]
 
 
@@ -223,7 +229,7 @@ def test_an_ignored_sigint_stops_nothing(inherited):
 
 def test_ctrl_c_stops_a_model_first_loaded_in_another_thread():
     (r,) = _run("thread")
-    assert r["outcome"] == "KeyboardInterrupt" and r["delay"] < 0.1, r
+    assert r["outcome"] == "KeyboardInterrupt" and r["delay"] < PROMPT, r
     assert r["main_interrupted"], r  # Python's own handler still ran (chained)
 
 
