@@ -479,3 +479,29 @@ def test_a_run_goes_on_from_a_row_in_its_own_charts(pivot_grasps, lap_model):
     on = ball.simulate(0.8 - whole.t[i], x0=whole.x[i], params={"chart": int(whole.charts["chart"][i])},
                        t_eval=whole.t[i:] - whole.t[i], **kw)
     assert np.abs(on.x[:, :13] - whole.x[i:, :13]).max() < 1e-8
+
+
+def test_a_plane_under_a_grasped_object_with_an_atlas_starts_in_the_chart_that_holds_it():
+    """paper3d's grasp over a table with modes (mu 0.08: it slips, lets go and lands), its
+    ellipsoid written twice: on one chart, and on an atlas turned so that chart 0's pole is
+    where the table's support point starts (the same shape: its semi-axes permuted). The
+    support point is solved in chart 1 (``chart_w1`` = 1 at the start); the two runs switch
+    modes at the same events and agree to the tolerance's level (rtol 1e-9: 1e-7), the support
+    point, read in its chart, to 1e-10 m."""
+    a, b, c = 0.020, 0.025, 0.030
+    turn = Rotation.from_euler("x", 90, degrees=True).as_matrix()   # the shape's z onto -y
+    shapes = (sl.ellipsoid(a, b, c, lon=(-2.5, 4.0), name="held ellipsoid"),
+              sl.ellipsoid(*np.abs(turn.T @ [a, b, c]), rotation=turn, atlas=True, name="held ellipsoid atlas"))
+    table = gs.scenes.world_plane((0, -0.01, 0), (0, 1, 0), support=(-1.5708, 0.0))
+    kw = dict(mu=gs.contact.coulomb((0.08, 0.08, 0.5)), rtol=1e-9, atol=1e-11, t_eval=np.linspace(0.0, 0.15, 151))
+    models = [gs.build(gs.scenes.with_modes(gs.scenes.paper3d(object_surface=s), planes=[table])) for s in shapes]
+    assert models[1].default_params[models[1].p_names.index("chart_w1")] == 1.0
+    plain, atlas = (m.simulate(0.15, **kw) for m in models)
+    assert [(e["contact"], e["to"]) for e in plain.events] == [(e["contact"], e["to"]) for e in atlas.events]
+    assert max(abs(e["t"] - f["t"]) for e, f in zip(plain.events, atlas.events)) < 1e-8
+    assert any(e["contact"] == 3 and e["to"] == "rolling" for e in atlas.events)      # it landed
+    body = [k for k, n in enumerate(models[0].state_names) if not n.startswith(("u_", "v_", "psi"))]
+    assert np.abs(plain.x[:, body] - atlas.x[:, body]).max() < 1e-7
+    here = shapes[0].evaluate(plain["u_w1"], plain["v_w1"])["point"]
+    there = shapes[1].evaluate(atlas["u_w1"], atlas["v_w1"], chart=atlas.charts["chart_w1"])["point"]
+    assert np.abs(here - there).max() < 1e-10
