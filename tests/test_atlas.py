@@ -490,7 +490,8 @@ def test_a_plane_under_a_grasped_object_with_an_atlas_starts_in_the_chart_that_h
     point, read in its chart, to 1e-10 m."""
     a, b, c = 0.020, 0.025, 0.030
     turn = Rotation.from_euler("x", 90, degrees=True).as_matrix()   # the shape's z onto -y
-    shapes = (sl.ellipsoid(a, b, c, lon=(-2.5, 4.0), name="held ellipsoid"),
+    # the one-chart scene is test_grasp_modes.py's: one build for both (the session's cache)
+    shapes = (sl.ellipsoid(a, b, c, lon=(-2.5, 4.0), name="object ellipsoid"),
               sl.ellipsoid(*np.abs(turn.T @ [a, b, c]), rotation=turn, atlas=True, name="held ellipsoid atlas"))
     table = gs.scenes.world_plane((0, -0.01, 0), (0, 1, 0), support=(-1.5708, 0.0))
     kw = dict(mu=gs.contact.coulomb((0.08, 0.08, 0.5)), rtol=1e-9, atol=1e-11, t_eval=np.linspace(0.0, 0.15, 151))
