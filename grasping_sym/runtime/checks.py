@@ -151,7 +151,7 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
     else:
         residual, what = 0.0, ""
     if not residual <= INITIAL_RESIDUAL:
-        charts = tuple(model.manifest.get("chart_param_names", ()))
+        charts = parameters.charts_of(model)
         raise InconsistentInitialStateError(
             residual,
             f"x0 is off the contact constraints: {what} = {residual:.6g} m > "

@@ -19,7 +19,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import friction, interrupt
+from grasping_sym.runtime import friction, interrupt, parameters
 from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings
@@ -157,7 +157,7 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     charts = {}
     if "chart_param_names" in model.manifest:  # an atlas's run that reached no chart's edge: its start's
         charts = {k: np.full(m, int(model.default_params[model.p_names.index(k)]))
-                  for k in model.manifest["chart_param_names"]}
+                  for k in parameters.charts_of(model)}
         info["chart_switches"] = 0
     return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
                             model.scene, charts=charts)

@@ -427,7 +427,7 @@ class _BodyRun(_Run):
     def check_start(self, x0: np.ndarray, y: dict) -> None:
         """On a surface with an atlas, ``x0``'s support point ``(u, v)``, read in the run's
         chart (``params`` names it), must face the plane (``FACING_TOL``)."""
-        charts = tuple(self.model.manifest.get("chart_param_names", ()))
+        charts = parameters.charts_of(self.model)
         facing = y.get("support_facing")
         if charts and facing is not None and not facing <= self.FACING_TOL:
             raise RunArgumentError(
@@ -695,13 +695,8 @@ class _PlanarRun(_Run):
         return float(y["W_nn"]), float(y["W_nt"]), float(y["W_tt"])
 
     def _solve(self, W: tuple[float, float, float], b0: float, b1: float) -> tuple[float, float]:
-        """``W^-1 (b0, b1)`` by Cramer's rule; ``W`` singular (its rows dependent) is refused
-        as ``np.linalg.solve`` refuses it."""
-        a, b, c = W
-        det = a * c - b * b
-        if not det != 0.0 or not math.isfinite(det):
-            return tuple(np.linalg.solve(np.array([[a, b], [b, c]]), np.array([b0, b1])))
-        return (c * b0 - b * b1) / det, (a * b1 - b * b0) / det
+        """``W^-1 (b0, b1)`` (``_solve2_floats``)."""
+        return _solve2_floats(W[0], W[1], W[1], W[2], b0, b1)
 
     _MQ = tuple(f"Minv_gQ_{i}" for i in range(3))
     _MR = tuple(f"Minv_gR_{i}" for i in range(3))
@@ -800,7 +795,7 @@ class _GraspRun(_Run):
     def check_start(self, x0: np.ndarray, y: dict) -> None:
         """On surfaces with atlases, ``x0`` read in the run's charts must be on the fingers'
         contact constraints (a row read in other charts is off them: its points are others)."""
-        charts = tuple(self.model.manifest.get("chart_param_names", ()))
+        charts = parameters.charts_of(self.model)
         residual = y.get("constraint_residual")
         if charts and residual is not None and not abs(residual) <= self.RESIDUAL_TOL:
             read = {k: int(self.p[self.model.p_names.index(k)]) for k in charts}
@@ -1171,12 +1166,15 @@ def _solve2(K: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``K^-1 b`` for a 2 x 2 ``K`` by Cramer's rule on Python floats (NumPy's checks from cold
     caches were most of a switch); a singular ``K`` is refused as ``np.linalg.solve`` refuses it
     (not inf or NaN as ``_solve3`` gives)."""
-    (a, b_), (c, d) = K.tolist()
-    u, v = b.tolist()
-    det = a * d - b_ * c
+    return np.array(_solve2_floats(*np.ravel(K).tolist(), *np.ravel(b).tolist()))
+
+
+def _solve2_floats(a: float, b: float, c: float, d: float, u: float, v: float) -> tuple[float, float]:
+    """``[[a, b], [c, d]]^-1 (u, v)`` (``_solve2``) on Python floats."""
+    det = a * d - b * c
     if not det != 0.0 or not math.isfinite(det):
-        return np.linalg.solve(K, b)
-    return np.array([(d * u - b_ * v) / det, (a * v - c * u) / det])
+        return tuple(np.linalg.solve(np.array([[a, b], [c, d]]), np.array([u, v])))
+    return (d * u - b * v) / det, (a * v - c * u) / det
 
 
 def _solve3(K: np.ndarray, b: np.ndarray) -> np.ndarray:
