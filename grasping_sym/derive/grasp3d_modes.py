@@ -66,7 +66,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     tau_joints, _, timed = torques(base, t, x[:len(base.state_names)], p_base)
     b = bodies(base, x, REGULAR.n_eta)
     # a surface with an atlas is written in its chart, a run-time parameter (runtime.atlas)
-    charts = {slot: p[names.index(name)] for slot, name, *_ in scene.chart_slots() if slot is not None}
+    charts = {slot: p[names.index(name)] for slot, name, _ in base.chart_slots()}
     cs = contacts(base, b, REGULAR, lambda slot, s, u, v, extra: surface_sx(s, u, v, extra, chart=charts.get(slot)))
     C_f = ca.vertcat(*[c.gap for c in cs])
     M, h = dynamics(base, b)

@@ -147,39 +147,29 @@ class GraspModesScene(WithModes):
     def p_names(self) -> tuple[str, ...]:
         return (*self.runtime, *self.start_param_names, *self.chart_names)
 
-    def chart_slots(self) -> tuple[tuple[int | None, str, str, str, str, str | None], ...]:
-        """``(slot, parameter, surface, u, v, psi)`` of each chart the run sets
-        (``runtime.atlas``): the base grasp's (``GraspScene3D.chart_slots``: each contact's
-        fingertip and object surface with an atlas), then, on an object with one, each plane's
-        support point (``chart_w{m}``: its ``(u_w{m}, v_w{m})``, no frame angle); 0 at the start,
-        but a plane's where its support point was solved in chart 1."""
-        b = self.base
-        out = []
-        for slot, name, side in b.chart_slots():
-            i = slot // 2 + 1
-            out.append((slot, name, "tip" if side == "f" else "object", f"u_{side}{i}", f"v_{side}{i}", f"psi{i}"))
-        if getattr(b.object_surface, "atlas", None) is not None:
-            out += [(None, f"chart_w{m}", "object", f"u_w{m}", f"v_w{m}", None)
-                    for m in range(1, len(self.planes) + 1)]
-        return tuple(out)
+    def plane_charts(self) -> tuple[str, ...]:
+        """The charts of the planes' support points on an object with an atlas (``chart_w{m}``:
+        its ``(u_w{m}, v_w{m})``, no frame angle); 0 at the start unless a support point was
+        solved in chart 1; none on an object without one."""
+        if getattr(self.base.object_surface, "atlas", None) is None:
+            return ()
+        return tuple(f"chart_w{m}" for m in range(1, len(self.planes) + 1))
 
     @property
     def chart_names(self) -> tuple[str, ...]:
-        return tuple(entry[1] for entry in self.chart_slots())
+        """The base grasp's charts (``GraspScene3D.chart_slots``), then the planes'."""
+        return (*self.base.chart_names, *self.plane_charts())
 
     def atlas_manifest(self) -> dict:
-        """The manifest's charts (``GraspScene3D.atlas_manifest``, the planes' support points'
-        too)."""
-        if not self.chart_names:
-            return {}
-        entries = []
-        for slot, name, which, u, v, psi in self.chart_slots():
-            surface = self.base.object_surface if which == "object" else self.base.fingers[slot // 2].tip
-            entry = {"param": name, "u": u, "v": v, "psi": psi, **surface.atlas.manifest()}
-            if which == "tip":  # the contact's slip is in its fingertip's frame: turned with it
-                entry["slip_frame"] = slot // 2 + 1
-            entries.append(entry)
-        return {"chart_param_names": list(self.chart_names), "atlas": entries}
+        """The base grasp's (``GraspScene3D.atlas_manifest``), a fingertip's entry naming the
+        contact whose slip is in its frame (``slip_frame``: turned with it at a switch), and
+        the planes' support points'."""
+        entries = [{**e, "slip_frame": int(e["param"][len("chart_f"):])} if e["param"].startswith("chart_f") else e
+                   for e in self.base.atlas_manifest().get("atlas", [])]
+        entries += [{"param": name, "u": f"u_w{m}", "v": f"v_w{m}", "psi": None,
+                     **self.base.object_surface.atlas.manifest()}
+                    for m, name in enumerate(self.plane_charts(), start=1)]
+        return {"chart_param_names": list(self.chart_names), "atlas": entries} if entries else {}
 
     @property
     def n_speeds(self) -> int:
