@@ -27,10 +27,12 @@ from grasping_sym.errors import (
     RunArgumentError,
 )
 from grasping_sym.geometry import surface_library as sl
+from grasping_sym.geometry.atlas import manifest_entry
 from grasping_sym.runtime import atlas as atlas_
 from grasping_sym.runtime import batch as batch_
 from grasping_sym.runtime import modes as modes_
 from grasping_sym.viz.plots3d import contact_traces
+from tests.scenes import BALL_R, pressed_ball
 
 TURNED = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
 SURFACES = {
@@ -482,27 +484,166 @@ def test_a_run_goes_on_from_a_row_in_its_own_charts(pivot_grasps, lap_model):
 
 
 def test_a_plane_under_a_grasped_object_with_an_atlas_starts_in_the_chart_that_holds_it():
-    """paper3d's grasp over a table with modes (mu 0.08: it slips, lets go and lands), its
-    ellipsoid written twice: on one chart, and on an atlas turned so that chart 0's pole is
-    where the table's support point starts (the same shape: its semi-axes permuted). The
-    support point is solved in chart 1 (``chart_w1`` = 1 at the start); the two runs switch
-    modes at the same events and agree to the tolerance's level (rtol 1e-9: 1e-7), the support
-    point, read in its chart, to 1e-10 m."""
-    a, b, c = 0.020, 0.025, 0.030
-    turn = Rotation.from_euler("x", 90, degrees=True).as_matrix()   # the shape's z onto -y
-    # the one-chart scene is test_grasp_modes.py's: one build for both (the session's cache)
-    shapes = (sl.ellipsoid(a, b, c, lon=(-2.5, 4.0), name="object ellipsoid"),
-              sl.ellipsoid(*np.abs(turn.T @ [a, b, c]), rotation=turn, atlas=True, name="held ellipsoid atlas"))
-    table = gs.scenes.world_plane((0, -0.01, 0), (0, 1, 0), support=(-1.5708, 0.0))
-    kw = dict(mu=gs.contact.coulomb((0.08, 0.08, 0.5)), rtol=1e-9, atol=1e-11, t_eval=np.linspace(0.0, 0.15, 151))
-    models = [gs.build(gs.scenes.with_modes(gs.scenes.paper3d(object_surface=s), planes=[table])) for s in shapes]
+    """test_grasp_modes.py's ball pressed onto a table by one finger (mu 0.8), the finger's
+    contact 0.2 rad from the ball's top: it falls 0.5 mm and lands. Its ball written twice: on
+    one chart, and as a sphere with an atlas turned so that the table's support point lies
+    0.2 rad from chart 0's pole (outside chart 0's latitudes: 0.15 as turned, 0.05 more as the
+    start turns the ball) and the finger's contact 0.35 rad from the other pole (inside them).
+    The support point is solved in chart 1 (``chart_w1`` = 1 at the start); the two runs
+    switch modes at the same events and agree to the tolerance's level (rtol 1e-9: 1e-7), the
+    contact points, read in their charts, to 1e-10 m."""
+    turn = (Rotation.from_euler("z", -0.15) * Rotation.from_euler("x", 90, degrees=True)).as_matrix()
+    side = turn.T @ [math.cos(math.pi / 2 + 0.2), math.sin(math.pi / 2 + 0.2), 0.0]
+    down = turn.T @ [0.0, -1.0, 0.0]
+    ball = sl.sphere(BALL_R, rotation=turn, atlas=True, name="ball atlas")
+    scenes = (pressed_ball("press_side", 0.0, object_contact=(math.pi / 2 + 0.2, 0.0))[1],
+              pressed_ball("press_side_atlas", 0.0, surface=ball,
+                           object_contact=(math.atan2(side[1], side[0]), math.asin(side[2])))[1])
+    supports = ((-np.pi / 2, 0.0), (math.atan2(down[1], down[0]), math.asin(down[2])))  # on each chart 0
+    models = [gs.build(gs.scenes.with_modes(s, planes=[gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0),
+                                                                             support=w)]))
+              for s, w in zip(scenes, supports)]
     assert models[1].default_params[models[1].p_names.index("chart_w1")] == 1.0
-    plain, atlas = (m.simulate(0.15, **kw) for m in models)
+    assert models[1].default_params[models[1].p_names.index("chart_o1")] == 0.0
+    plain, atlas = (m.simulate(0.3, mu=0.8, t_eval=np.linspace(0.0, 0.3, 31), rtol=1e-9, atol=1e-11)
+                    for m in models)
     assert [(e["contact"], e["to"]) for e in plain.events] == [(e["contact"], e["to"]) for e in atlas.events]
+    assert (2, "rolling") in [(e["contact"], e["to"]) for e in atlas.events]      # it landed
     assert max(abs(e["t"] - f["t"]) for e, f in zip(plain.events, atlas.events)) < 1e-8
-    assert any(e["contact"] == 3 and e["to"] == "rolling" for e in atlas.events)      # it landed
     body = [k for k, n in enumerate(models[0].state_names) if not n.startswith(("u_", "v_", "psi"))]
     assert np.abs(plain.x[:, body] - atlas.x[:, body]).max() < 1e-7
-    here = shapes[0].evaluate(plain["u_w1"], plain["v_w1"])["point"]
-    there = shapes[1].evaluate(atlas["u_w1"], atlas["v_w1"], chart=atlas.charts["chart_w1"])["point"]
-    assert np.abs(here - there).max() < 1e-10
+    surfaces = (scenes[0].object_surface, ball)
+    for side in ("w1", "o1"):
+        here = surfaces[0].evaluate(plain[f"u_{side}"], plain[f"v_{side}"])["point"]
+        there = ball.evaluate(atlas[f"u_{side}"], atlas[f"v_{side}"], chart=atlas.charts[f"chart_{side}"])["point"]
+        assert np.abs(here - there).max() < 1e-10
+
+
+# ------------------------------------------- a repeating chart: the torus, surfaces of revolution
+def _tube():
+    """An elliptic tube's contour (semi-axes 12 and 20 mm, 45 mm off the axis), two traversals."""
+    return gs.curves.ellipse(0.012, 0.02, (0.045, 0.0), span=2 * math.pi, name="tube")
+
+
+REPEATING = {
+    "torus": lambda: sl.torus(0.05, 0.015, center=(0.0, 0.01, 0.0), rotation=TURNED, atlas=True),
+    "barrel": lambda: sl.surface_of_revolution(_tube(), atlas=True, name="barrel"),
+    "vase": lambda: sl.surface_of_revolution(gs.curves.ellipse(0.012, 0.02, (0.045, 0.0), span=1.2), axis="x",
+                                             atlas=True, name="vase"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REPEATING))
+def test_a_repeating_chart_carries_a_point_at_its_edge_a_period_back(name):
+    """A torus, a revolved closed contour (both coordinates repeat) and a revolved open one (the
+    angle only): near either edge of a repeating coordinate, the run time's map gives a point
+    inside the domain, a whole period away, at the same point, normal and frame of the chart
+    (SymPy's surface evaluated at both ends, 1e-15 m), nothing turned; a coordinate that does
+    not repeat is left alone."""
+    surface = REPEATING[name]()
+    entry = manifest_entry(surface, "chart", "u", "v", "psi")
+    assert entry["param"] is None and surface.atlas is None
+    (u0, u1), (v0, v1) = surface.domain
+    pu, pv = surface.periods
+    assert pu == pytest.approx(2 * math.pi) and (pv is None) == (name == "vase")
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        u = rng.choice([u0, u1]) + rng.uniform(-0.05, 0.05)
+        v = rng.choice([v0, v1]) + rng.uniform(-0.05, 0.05) if pv is not None else rng.uniform(v0, v1)
+        new, u2, v2, delta = atlas_.transition(entry, 0, u, v)
+        assert new == 0 and delta == 0.0 and u0 < u2 < u1 and v0 < v2 < v1
+        assert abs(math.remainder(u2 - u, pu)) < 1e-12 and abs(u2 - 0.5 * (u0 + u1)) <= pu / 2 + 1e-12
+        assert (v2 == v) if pv is None else abs(math.remainder(v2 - v, pv)) < 1e-12
+        a, b = surface.evaluate(u, v), surface.evaluate(u2, v2)
+        for key in ("point", "normal", "x", "y"):
+            assert np.abs(a[key] - b[key]).max() < 1e-15 * (1.0 if key != "point" else 0.1)
+
+
+def test_a_repeating_chart_takes_no_domain_of_its_own():
+    with pytest.raises(InvalidSurfaceError, match="u and v are the atlas's own"):
+        sl.torus(0.05, 0.01, u=(-1.0, 1.0), atlas=True)
+    with pytest.raises(InvalidSurfaceError, match="angle is the atlas's own"):
+        sl.surface_of_revolution(_tube(), angle=(-1.0, 1.0), atlas=True)
+    with pytest.raises(InvalidSurfaceError, match=r"less than two traversals.*span=2 \* pi"):
+        sl.surface_of_revolution(gs.curves.ellipse(0.012, 0.02, (0.045, 0.0), span=math.pi), atlas=True)
+    with pytest.raises(InvalidSurfaceError, match="atlas = 1 must be True or False"):
+        sl.torus(0.05, 0.01, atlas=1)
+    # the same surface with and without its atlas: two definitions (two models), not one
+    assert sl.torus(0.05, 0.01, atlas=True).key() != sl.torus(0.05, 0.01, u=(-3 * math.pi, 3 * math.pi),
+                                                              v=(-3 * math.pi, 3 * math.pi)).key()
+
+
+def _wheel(surface, radius: float, lean: float, omega, velocity=None, support_v: float = 0.0, name: str = "wheel"):
+    """``surface`` (its axis z) standing on a table on its rim, leaning by ``lean`` (rad) about
+    the world's x, turning at ``omega`` (world, rad/s); ``velocity`` None: its centre's speed
+    of rolling, found from the start's contact point (m/s)."""
+    turn = Rotation.from_euler("x", math.pi / 2 + lean).as_matrix()      # its axis onto -y
+    d = turn.T @ [0.0, 0.0, -1.0]
+    omega = np.asarray(omega, dtype=float)
+    kw = dict(mass=0.1, inertia=(1e-4, 1e-4, 1.6e-4), position=(0.0, 0.0, radius), rotation=turn,
+              omega=tuple(turn.T @ omega), support=(math.atan2(d[1], d[0]), support_v), name=name)
+    model = gs.build(gs.scenes.body_on_plane(surface, velocity=(0.0, 0.0, 0.0), **kw))
+    if velocity is None:
+        x0 = model.initial_state()
+        r = turn @ surface.evaluate(x0[-2], x0[-1])["point"]
+        velocity = np.cross(r, omega)
+    return gs.build(gs.scenes.body_on_plane(surface, velocity=tuple(velocity), **kw))
+
+
+@pytest.fixture(scope="module")
+def barrel():
+    return REPEATING["barrel"]()
+
+
+@pytest.mark.parametrize("name", ["torus", "barrel"])
+def test_a_wheel_rolls_on_across_its_seam(name, barrel):
+    """A torus and a barrel (``_tube`` revolved) rolling upright on a table, 2.5 turns: the
+    exact motion is a wheel's of radius ``a`` (the rim's), its centre on a straight line at
+    ``V = omega a`` and its contact the rim's lowest point, ``u`` growing by 2 pi a turn. The
+    rim's angle repeats: the contact crosses the edge (3 pi) once and goes on a turn back.
+    The centre keeps its line to 1e-12 m and each row's contact point is the lowest point to
+    1e-10 m (the tolerance's level: its coordinates are integrated, rtol 1e-10)."""
+    surface = sl.torus(0.05, 0.015, atlas=True) if name == "torus" else barrel
+    a, V = (0.065, 1.0) if name == "torus" else (0.057, 1.0)
+    model = _wheel(surface, a, 0.0, (0.0, V / a, 0.0), velocity=(V, 0.0, 0.0), name=f"{name}_wheel")
+    x0 = model.initial_state()
+    t_end = 2.5 * 2 * math.pi * a / V
+    res = model.simulate(t_end, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, t_end, 201))
+    assert not res.events and not res.charts and len(res.chart_switches) == 1
+    rec = res.chart_switches[0]
+    assert rec["chart"] is None and rec["coordinates"] == ("u", "v") and rec["delta"] == 0.0
+    assert rec["u"][0] == pytest.approx(3 * math.pi, abs=0.05)
+    assert rec["u"][1] == pytest.approx(rec["u"][0] - 2 * math.pi)
+    assert np.abs(res.x[:, 0] - (x0[0] + V * res.t)).max() < 1e-12
+    assert np.abs(res.x[:, 1:3] - x0[1:3]).max() < 1e-12
+    q = res.x[:, 3:7]
+    turn = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, :1]])).as_matrix()
+    point = surface.evaluate(res["u"], res["v"])["point"]
+    world = res.x[:, :3] + np.einsum("nij,nj->ni", turn, point)
+    assert np.abs(world - res.x[:, :3] + [0.0, 0.0, a]).max() < 1e-10
+    unwrapped = np.unwrap(res["u"])
+    assert unwrapped[-1] - unwrapped[0] == pytest.approx(2.5 * 2 * math.pi, rel=1e-9)
+
+
+def test_a_leaning_barrel_rolls_over_its_tubes_seam(barrel):
+    """The barrel leaning 0.05 rad, its contact 0.08 rad short of the contour's edge (2 pi),
+    swung upright and over by a spin about the lean's axis: the contact crosses that edge
+    once (the contour's parameter a traversal back), and the run agrees with the same start
+    written a traversal back, which reaches no edge: every state to 1e-9 (the tolerance's
+    level, rtol 1e-10: their steps differ after the switch), v a whole period apart."""
+    model = _wheel(barrel, 0.06, -0.05, (3.0, 0.2 / 0.057, 0.0), support_v=2 * math.pi - 0.01, name="barrel_wheel")
+    x0 = model.initial_state()
+    assert 2 * math.pi - 0.1 < x0[-1] < 2 * math.pi
+    kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.1, 51))
+    res = model.simulate(0.1, **kw)
+    back = x0.copy()
+    back[-1] -= 2 * math.pi
+    twin = model.simulate(0.1, x0=back, **kw)
+    assert len(res.chart_switches) == 1 and not twin.chart_switches and not res.events and not twin.events
+    rec = res.chart_switches[0]
+    assert rec["v"][0] == pytest.approx(2 * math.pi, abs=0.02) and abs(rec["v"][1]) < 0.02
+    assert rec["u"][0] == rec["u"][1]
+    assert np.abs(res.x[:, :-1] - twin.x[:, :-1]).max() < 1e-9
+    gap = res.x[:, -1] - twin.x[:, -1]
+    assert np.abs(np.remainder(gap + math.pi, 2 * math.pi) - math.pi).max() < 1e-9
+    assert res.x[-1, -1] - twin.x[-1, -1] == pytest.approx(0.0, abs=1e-9)    # past the switch: one chart

@@ -14,11 +14,10 @@ import grasping_sym as gs
 from grasping_sym.assemble import kinds
 from grasping_sym.errors import FrictionConeError, InvalidSceneError
 from grasping_sym.geometry import surface_library
-from grasping_sym.model import chains
-from grasping_sym.model.grasp3d import Finger3D
 from grasping_sym.model.grasp3d_modes import MODES_GAIN
 from grasping_sym.runtime import modes
 from grasping_sym.runtime.modes import rotation
+from tests.scenes import BALL_M, BALL_R, pressed_ball
 
 TOL = {"rtol": 1e-9, "atol": 1e-11}
 SEMI_AXES = (0.020, 0.025, 0.030)
@@ -192,30 +191,6 @@ def test_a_sweep_over_mu_measures_slip_and_hold(model, slide, tmp_path):
     assert np.isinf(ds["first_slip_1"].sel(mu=0.5)) and np.isinf(ds["first_slip_2"].sel(mu=0.5))
 
 
-BALL_R, BALL_M = 0.02, 0.04
-
-
-def _pressed_ball(name: str, offset: float, axes=None):
-    """``(a, scene)``: a free ball (radius 0.02 m, 0.04 kg, given centre ``a`` 0.5 mm above a
-    table at y = 0) pressed from above by ``chains.finger1`` (fingertip sphere 0.010 m), its
-    fingertip centre ``offset`` m beside the ball's top; ``axes``: an ellipsoid's semi-axes
-    instead (its centre as high, its inertia a solid ellipsoid's)."""
-    R, r, link = BALL_R, 0.010, 0.065
-    centre = np.array([-0.05, R + 0.0005, 0.0])
-    d = centre + (offset, R + r, 0.0) - np.array([-0.1275, 0.0, 0.0])
-    q2 = np.arccos((d @ d - 2 * link**2) / (2 * link**2))
-    q1 = np.arctan2(d[0], d[1]) - q2 / 2
-    finger = Finger3D(chain=chains.finger1(), tip=surface_library.sphere(r, name="fingertip"),
-                      q0=(q1, q2), tip_contact=(q1 + q2 - np.pi, 0.0), object_contact=(np.pi / 2, 0.0))
-    semi = (R, R, R) if axes is None else tuple(axes)
-    inertia = np.eye(3) * 0.4 * BALL_M * R * R if axes is None else \
-        np.array(gs.scenes.solid_ellipsoid_inertia(BALL_M, *semi))
-    return centre, gs.scenes.paper3d(name=name, fingers=(finger,), mass=BALL_M,
-                                     inertia=inertia, rotation=np.eye(3),
-                                     object_surface=surface_library.ellipsoid(*semi, lon=(-2.5, 4.0), name="ball"),
-                                     position=tuple(centre), k_center=0.0, dq0=None, outputs=())
-
-
 def test_one_finger_presses_a_free_ball_onto_a_table():
     """One finger and a table hold a free ball (issue 27 part 5). The finger, 4 mm beside the
     ball's top, presses it toward the ball's given centre ``a`` (controllers.paper3d with one
@@ -228,7 +203,7 @@ def test_one_finger_presses_a_free_ball_onto_a_table():
     round-off, and equal to the model's multipliers. The landing is found wherever the outputs
     are asked (a sparse t_eval once let the ball fall through the table)."""
     R, r, link, m, g, fd, r_ctrl = BALL_R, 0.010, 0.065, BALL_M, 9.81, 0.5, 0.010
-    a, scene = _pressed_ball("press", 0.004)
+    a, scene = pressed_ball("press", 0.004)
     with pytest.raises(InvalidSceneError, match="needs a surface of the world"):
         gs.build(scene)
     table = gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0))
@@ -265,14 +240,14 @@ def test_one_finger_presses_a_free_ball_onto_a_table():
 def test_a_rising_table_meets_the_pressed_ellipsoid():
     """A driven plane (``world_plane(..., motion=(0, "0.1*t", 0))``): the table starts 0.5 mm
     under an ellipsoid (semi-axes 22, 20, 16 mm) that one finger presses from above, 4 mm off
-    its top (``_pressed_ball``), and rises at 0.1 m/s; its gap is the exact distance of the
+    its top (``tests.scenes.pressed_ball``), and rises at 0.1 m/s; its gap is the exact distance of the
     turning ellipsoid to the moving plane, ``n . (c - w0 - d(t)) - |D R^T n|`` (the turn's
     share, measured 7e-7 m, far above the 1e-12 checked); the impact is located where that
     reaches 0, and afterwards the contact moves with the table (relative normal speed 0) as
     it lifts the ellipsoid and the finger."""
     R = BALL_R
     axes = (1.1 * R, R, 0.8 * R)
-    _, scene = _pressed_ball("press_rise", 0.004, axes)
+    _, scene = pressed_ball("press_rise", 0.004, axes)
     table = gs.scenes.world_plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0),
                                   motion=(0, "0.1*t", 0))
     model = gs.build(gs.scenes.with_modes(scene, planes=[table]))
@@ -296,7 +271,7 @@ def test_a_rising_table_meets_the_pressed_ellipsoid():
     assert r["y"][-1] > R + 0.001                                   # lifted past its start
 
 
-def test_a_turntable_spinning_up_drags_the_pressed_ball():
+def test_a_turntable_spinning_up_drags_thepressed_ball():
     """The finger presses the ball onto a turntable whose rate grows as ``w(t) = 2 t`` rad/s
     about the vertical through ``w0``, 2 cm beside the ball (``world_plane(spin=...)``). The
     ball lands (the impact stops its slip on the table's moving material) and rolls on: its
@@ -305,7 +280,7 @@ def test_a_turntable_spinning_up_drags_the_pressed_ball():
     formula (to 1e-12 m/s, at speeds up to 2 cm/s; an error in the rate of the table's velocity
     along the moving contact would show as an offset of about 1e-4 m/s)."""
     R = BALL_R
-    _, scene = _pressed_ball("press_turn", 0.0)
+    _, scene = pressed_ball("press_turn", 0.0)
     w0 = np.array([-0.03, 0.0, 0.0])
     turntable = gs.scenes.world_plane(tuple(w0), (0.0, 1.0, 0.0), support=(-np.pi / 2, 0.0), spin="2*t")
     for bad in ("2*s", "1/t", "t**0.5", "log(t)", [1.0, 2.0], float("nan")):

@@ -25,6 +25,8 @@ stop).
 """
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 import numpy as np
 import sympy as sp
@@ -184,7 +186,8 @@ def _support_in(surface, R: np.ndarray, n: np.ndarray, guess):
     s = surface_sx(surface, uv[0], uv[1], extra=True)
     resid = s["Tm"].T @ (s["n"] + ca.DM(R.T @ n))
     solver = ca.rootfinder("support", "newton", ca.Function("r", [uv], [resid]),
-                           {"abstol": 1e-15, "max_iter": 100, "error_on_fail": False})
+                           {"abstol": 1e-15, "max_iter": 100, "error_on_fail": False,
+                            "show_eval_warnings": False})  # a chart's pole: NaN, refused below
     uv0 = np.ravel(solver(ca.DM(guess)).full())
     if not np.isfinite(uv0).all():
         return None
@@ -204,9 +207,14 @@ def support_in_a_chart(surface, R: np.ndarray, n: np.ndarray, guess) -> tuple[np
     (``geometry.atlas``) in chart 0 where it lies inside it (``guess`` in chart 0, then from
     its equator), else in chart 1 (from its equator): a start at chart 0's pole (a ball with
     ``atlas=True`` on a table below it) starts in chart 1. A surface without one: chart 0
-    (``support_point``)."""
+    (``support_point``), on a repeating chart (``ParametricSurface.periods``) a coordinate
+    taken whole periods toward the domain's middle where Newton's method ended beyond it."""
     if getattr(surface, "atlas", None) is None:
-        return (*support_point(surface, R, n, guess), 0)
+        uv, S = support_point(surface, R, n, guess)
+        if surface.periods is not None:  # a repeating chart: beyond its domain, a period back
+            uv = np.array([a if p is None or lo < a < hi else 0.5 * (lo + hi) + math.remainder(a - 0.5 * (lo + hi), p)
+                           for a, p, (lo, hi) in zip(uv, surface.periods, surface.domain)])
+        return uv, S, 0
     for chart, shape in ((0, surface), (1, surface.atlas.second)):
         for start in ((tuple(guess),) if chart == 0 else ()) + tuple((u, 0.0) for u in _LONGITUDES):
             found = _support_in(shape, R, n, start)

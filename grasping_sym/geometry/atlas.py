@@ -21,6 +21,13 @@ charts and a switch costs no build: where ``F(P d) = P F(d)`` (equal semi-axes) 
 values turned by ``c`` (:attr:`Atlas.turned`), else ``F(P_c e(u, v))`` with ``P_c = (1 - c) I
 + c P`` (:attr:`Atlas.blended`). ``docs/conventions.md`` section 15 has the state's map across
 a switch.
+
+A torus, or a surface of revolution whose contour stays off its axis, has no pole: its one
+chart covers it whole where its angles repeat (``ParametricSurface.periods``). Its atlas is
+that chart over three turns of each repeating angle (``LON``; a closed contour: two
+traversals or more), and a contact that reaches the domain's edge is carried a whole
+period back toward the domain's middle: the same point, the same frame (``runtime.atlas``). It
+has no chart parameter and costs the compiled model nothing.
 """
 from __future__ import annotations
 
@@ -103,3 +110,23 @@ def make_atlas(name: str, axes, kind: str, n: int, place, center, rotation) -> A
 
 #: The cyclic permutation from chart 0's direction to chart 1's: ``d = P e``.
 P = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def periodic_manifest(surface) -> dict | None:
+    """What the run time reads to carry a contact across the seam of a surface whose chart
+    repeats (``surface.periods``; None where none does): each coordinate's period (None: it
+    does not repeat) and the middle of its domain, toward which a wrapped coordinate goes."""
+    if surface.periods is None:
+        return None
+    return {"kind": "periodic", "periods": [None if p is None else float(p) for p in surface.periods],
+            "centers": [0.5 * (float(a) + float(b)) for a, b in surface.domain]}
+
+
+def manifest_entry(surface, param: str, u: str, v: str, psi: str | None) -> dict | None:
+    """The run time's entry (``runtime.atlas``) for a contact's coordinates on ``surface``
+    (``u``, ``v``: their state names; ``psi``: its frame angle's, or None): its atlas's, with
+    the chart parameter ``param``; a repeating chart's, with no parameter; or None."""
+    if surface.atlas is not None:
+        return {"param": param, "u": u, "v": v, "psi": psi, **surface.atlas.manifest()}
+    periodic = periodic_manifest(surface)
+    return None if periodic is None else {"param": None, "u": u, "v": v, "psi": psi, **periodic}

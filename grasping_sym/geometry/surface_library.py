@@ -89,9 +89,11 @@ def _placement(center, rotation) -> tuple[list[str], np.ndarray, np.ndarray]:
     return problems, c, R
 
 
-def _make(name: str, xyz, center, rotation, domain, problems: list[str], atlas=None) -> ParametricSurface:
+def _make(name: str, xyz, center, rotation, domain, problems: list[str], atlas=None,
+          periods=None) -> ParametricSurface:
     """The surface ``center + rotation @ xyz``; with ``atlas = (axes, kind, n)`` the first
-    chart of an atlas of two (``geometry.atlas``), placed alike."""
+    chart of an atlas of two (``geometry.atlas``), placed alike; ``periods``: its coordinates'
+    periods where one chart covers it by repeating (``ParametricSurface.periods``)."""
     more, c, R = _placement(center, rotation)
     problems = problems + more
     if problems:
@@ -107,7 +109,10 @@ def _make(name: str, xyz, center, rotation, domain, problems: list[str], atlas=N
         return ParametricSurface(out, (U, V), dom, label, charted=chart)
 
     if atlas is None:
-        return place(xyz, name)
+        out = place(xyz, name)
+        if periods is not None:
+            object.__setattr__(out, "periods", tuple(None if q is None else float(q) for q in periods))
+        return out
     axes, kind, n = atlas  # ``xyz`` is chart 0's F(e(u, v))
     first = place(xyz, name)
     object.__setattr__(first, "atlas", make_atlas(name, axes, kind, n, place, c, R))
@@ -206,25 +211,38 @@ def plane(size_x: float, size_y: float, center: Vec3 = (0.0, 0.0, 0.0), rotation
 
 def torus(R: float, r: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
           u: tuple[float, float] = (-_PI, _PI), v: tuple[float, float] = (-_PI, _PI),
-          name: str = "torus") -> ParametricSurface:
+          name: str = "torus", atlas: bool = False) -> ParametricSurface:
     """Torus patch ``((R + r cos v) cos u, (R + r cos v) sin u, r sin v)``, ``R > r > 0`` (m).
 
     ``u`` turns about the shape's z axis, ``v`` around the tube; outward normal
     ``(cos v cos u, cos v sin u, sin v)``; Gaussian curvature ``cos v / (r (R + r cos v))``.
+    ``atlas=True``: the whole torus, its one chart over three turns of each angle (``u`` and
+    ``v`` in ``(-3 pi, 3 pi)``), both repeating (``geometry.atlas``): a contact that reaches
+    the edge goes on a turn back, the same point, at the step where it happens.
     """
     problems = _finite_positive(R=R, r=r) + _interval("u", u) + _interval("v", v)
+    periods = None
+    if atlas is True:
+        if (tuple(u), tuple(v)) != ((-_PI, _PI), (-_PI, _PI)):
+            problems.append("u and v are the atlas's own with atlas=True (three turns each, (-3 pi, 3 pi), "
+                            "both repeating): leave them out")
+        u, v, periods = ATLAS_LON, ATLAS_LON, (2 * _PI, 2 * _PI)
+    elif atlas is not False:
+        problems.append(f"atlas = {atlas!r} must be True or False")
     if not problems and not as_real(R) > as_real(r):
         problems.append(f"R = {R!r} must exceed r = {r!r}: a spindle torus is not regular")
     kR, kr = (sp.Float(as_real(R)), sp.Float(as_real(r))) if not problems else (2, 1)
     w = kR + kr * sp.cos(V)
-    return _make(name, (w * sp.cos(U), w * sp.sin(U), kr * sp.sin(V)), center, rotation, (u, v), problems)
+    return _make(name, (w * sp.cos(U), w * sp.sin(U), kr * sp.sin(V)), center, rotation, (u, v), problems,
+                 periods=periods)
 
 
 _AXES = {"x": (1, 2, 0), "y": (2, 0, 1), "z": (0, 1, 2)}  # (e1, e2, axis), right-handed
 
 
 def surface_of_revolution(curve: PlanarCurve, axis: str = "z", center: Vec3 = (0.0, 0.0, 0.0), rotation=None,
-                          *, angle: tuple[float, float] = (-_PI, _PI), name: str | None = None) -> ParametricSurface:
+                          *, angle: tuple[float, float] = (-_PI, _PI), name: str | None = None,
+                          atlas: bool = False) -> ParametricSurface:
     """Revolve a contour ``(x(t), y(t))`` about ``axis``: ``x`` is the radius, ``y`` the height.
 
     ``S(u, v) = x(v) (cos u e1 + sin u e2) + y(v) e_axis`` with ``(e1, e2, e_axis)`` right-handed
@@ -235,11 +253,32 @@ def surface_of_revolution(curve: PlanarCurve, axis: str = "z", center: Vec3 = (0
     ``library.circle(r, by='angle')`` about 'z' gives exactly :func:`sphere`'s chart, and
     ``library.circle(r, (R, 0), by='angle', span=pi)`` :func:`torus`'s.
     The radius ``x(t)`` must stay positive: where the contour meets the axis the chart has a pole.
+
+    ``atlas=True``: the whole surface (``geometry.atlas``), the angle over three turns
+    (``(-3 pi, 3 pi)``) and repeating, and a closed contour's parameter repeating too (its
+    period, ``curve.period``; its domain must then hold two traversals or more, e.g.
+    ``library.circle(r, (R, 0), by='angle', span=2 * pi)``): a contact that reaches the edge
+    goes on a turn (or a traversal) back, the same point, at the step where it happens.
     """
     name = name or f"revolved {getattr(curve, 'name', 'curve')}"
     if not isinstance(curve, PlanarCurve):
         raise InvalidSurfaceError(name, [f"curve = {curve!r} must be a PlanarCurve"])
     problems = _interval("angle", angle)
+    periods = None
+    if atlas is True:
+        if tuple(angle) != (-_PI, _PI):
+            problems.append("angle is the atlas's own with atlas=True (three turns, (-3 pi, 3 pi), "
+                            "repeating): leave it out")
+        angle, period = ATLAS_LON, curve.period
+        t0, t1 = curve.domain
+        if period is not None and not (t1 - t0) >= 2 * period * (1 - 1e-12):
+            problems.append(f"the closed contour's domain {tuple(curve.domain)} holds less than two traversals "
+                            f"(period {period:.6g}): with atlas=True give it two or more (e.g. "
+                            "library.circle(..., span=2 * pi) for a circle by angle), so that a contact "
+                            "carried a traversal back lands inside it")
+        periods = (2 * _PI, period)
+    elif atlas is not False:
+        problems.append(f"atlas = {atlas!r} must be True or False")
     if axis not in _AXES:
         problems.append(f"axis = {axis!r}: use 'x', 'y' or 'z'")
         axis = "z"
@@ -254,4 +293,4 @@ def surface_of_revolution(curve: PlanarCurve, axis: str = "z", center: Vec3 = (0
     i1, i2, ia = _AXES[axis]
     xyz = [sp.Integer(0)] * 3
     xyz[i1], xyz[i2], xyz[ia] = x * sp.cos(U), x * sp.sin(U), y
-    return _make(name, tuple(xyz), center, rotation, (angle, curve.domain), problems)
+    return _make(name, tuple(xyz), center, rotation, (angle, curve.domain), problems, periods=periods)

@@ -83,6 +83,10 @@ class ParametricSurface:
     atlas: object = field(default=None, repr=False)
     #: True for an atlas's blended surface, whose expressions hold ``CHART`` too
     charted: bool = field(default=False, repr=False)
+    #: ``(P_u, P_v)``: the periods of the coordinates that repeat (None for one that does
+    #: not) on a surface that one chart covers by repeating (``geometry.atlas``: the torus
+    #: and the surfaces of revolution with ``atlas=True``); None where none repeats
+    periods: tuple | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         names = {str(self.params[0]): self.params[0], str(self.params[1]): self.params[1],
@@ -272,7 +276,8 @@ class ParametricSurface:
         """A canonical text of the definition, for content hashing."""
         (u0, u1), (v0, v1) = self.domain
         return "|".join([*(sp.srepr(c) for c in self.S), repr(u0), repr(u1), repr(v0), repr(v1),
-                         *([] if self.atlas is None else [self.atlas.key()])])
+                         *([] if self.atlas is None else [self.atlas.key()]),
+                         *([] if self.periods is None else [f"periods:{self.periods!r}"])])
 
     # ----------------------------------------------------------------- numeric
     @cached_property

@@ -25,6 +25,7 @@ import sympy as sp
 
 from grasping_sym.contact import Coulomb, friction_problems
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.atlas import manifest_entry
 from grasping_sym.geometry.expressions import ExpressionError, to_expression
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.names import name_problems, names_tuple, output_problems
@@ -193,8 +194,14 @@ class BodyScene:
                 "body": {"mass": float(self.mass), "inertia": [list(r) for r in self.inertia],
                          "plane_normal": list(self.plane_normal), "gain": float(self.gain)},
                 "param_rules": {"mu": "nonnegative"},
-                **({} if not self.chart_names else {"chart_param_names": ["chart"], "atlas": [
-                    {"param": "chart", "u": "u", "v": "v", "psi": None, **self.surface.atlas.manifest()}]})}
+                **self._atlas_manifest()}
+
+    def _atlas_manifest(self) -> dict:
+        """The surface's atlas (``geometry.atlas``) as the run time reads it, if it has one."""
+        entry = manifest_entry(self.surface, "chart", "u", "v", None)
+        if entry is None:
+            return {}
+        return {**({"chart_param_names": list(self.chart_names)} if self.chart_names else {}), "atlas": [entry]}
 
     def bounds(self) -> tuple[list, list]:
         lower: list = [None] * 15

@@ -36,6 +36,7 @@ import numpy as np
 
 from grasping_sym.contact import Coulomb, friction_problems
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.atlas import manifest_entry
 from grasping_sym.geometry.surfaces import ParametricSurface
 from grasping_sym.model.chains import FingerChain, without_limits
 from grasping_sym.model.control import PAPER, coefficient_names, control_problems
@@ -340,16 +341,16 @@ class GraspScene3D:
 
     def atlas_manifest(self) -> dict:
         """The manifest's charts: their parameters' names, and what the run time reads to map
-        a contact across them (``runtime.atlas``)."""
-        if not self.chart_names:
-            return {}
+        a contact across them (``runtime.atlas``), a repeating chart's entries (no parameter)
+        among them in the same order (contact by contact, fingertip then object)."""
         entries = []
-        for slot, name, side in self.chart_slots():
-            i = slot // 2 + 1
-            surface = self.fingers[i - 1].tip if side == "f" else self.object_surface
-            entries.append({"param": name, "u": f"u_{side}{i}", "v": f"v_{side}{i}", "psi": f"psi{i}",
-                            **surface.atlas.manifest()})
-        return {"chart_param_names": list(self.chart_names), "atlas": entries}
+        for i, f in enumerate(self.fingers, 1):
+            for side, surface in (("f", f.tip), ("o", self.object_surface)):
+                entry = manifest_entry(surface, f"chart_{side}{i}", f"u_{side}{i}", f"v_{side}{i}", f"psi{i}")
+                entries += [] if entry is None else [entry]
+        if not entries:
+            return {}
+        return {**({"chart_param_names": list(self.chart_names)} if self.chart_names else {}), "atlas": entries}
 
     def structure_key(self) -> str:
         """What the code depends on besides the scene's name and its surfaces: the text of

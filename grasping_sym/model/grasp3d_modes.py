@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.atlas import manifest_entry
 from grasping_sym.model.body import rate_of_time, translation_of_time
 from grasping_sym.model.grasp3d import GraspScene3D
 from grasping_sym.model.with_modes import WithModes
@@ -164,12 +165,15 @@ class GraspModesScene(WithModes):
         """The base grasp's (``GraspScene3D.atlas_manifest``), a fingertip's entry naming the
         contact whose slip is in its frame (``slip_frame``: turned with it at a switch), and
         the planes' support points'."""
-        entries = [{**e, "slip_frame": int(e["param"][len("chart_f"):])} if e["param"].startswith("chart_f") else e
+        entries = [{**e, "slip_frame": int(e["param"][len("chart_f"):])}
+                   if (e["param"] or "").startswith("chart_f") else e
                    for e in self.base.atlas_manifest().get("atlas", [])]
-        entries += [{"param": name, "u": f"u_w{m}", "v": f"v_w{m}", "psi": None,
-                     **self.base.object_surface.atlas.manifest()}
-                    for m, name in enumerate(self.plane_charts(), start=1)]
-        return {"chart_param_names": list(self.chart_names), "atlas": entries} if entries else {}
+        for m in range(1, len(self.planes) + 1):
+            entry = manifest_entry(self.base.object_surface, f"chart_w{m}", f"u_w{m}", f"v_w{m}", None)
+            entries += [] if entry is None else [entry]
+        if not entries:
+            return {}
+        return {**({"chart_param_names": list(self.chart_names)} if self.chart_names else {}), "atlas": entries}
 
     @property
     def n_speeds(self) -> int:

@@ -12,7 +12,9 @@ the chart that covers the point best, and the run goes on in it:
   ``delta`` from the old chart's frame axis ``x = S_u / |S_u|`` to the new one's, about the
   surface's own normal: ``psi' = psi + delta`` for either surface of the contact.
 
-A longitude past +-3 pi is the same point 2 pi round: the chart stays and ``u`` wraps.
+A longitude past +-3 pi is the same point 2 pi round: the chart stays and ``u`` wraps. A
+surface whose one chart repeats (a torus, a surface of revolution: ``kind`` ``periodic``, no
+chart parameter) wraps each repeating coordinate so, a whole period toward its domain's middle.
 Nothing is located: any point of the charts' overlap serves, and the step's end is one.
 """
 from __future__ import annotations
@@ -75,10 +77,21 @@ def coordinates(d, chart: int) -> tuple[float, float]:
     return math.atan2(e[1], e[0]), math.asin(max(-1.0, min(1.0, float(e[2]))))
 
 
+def _wrapped(value: float, period, center: float) -> float:
+    """``value`` moved by whole ``period``s into ``[center - period/2, center + period/2]``
+    (unchanged where ``period`` is None: a coordinate that does not repeat)."""
+    return value if period is None else center + math.remainder(value - center, period)
+
+
 def transition(entry: dict, chart: int, u: float, v: float) -> tuple[int, float, float, float]:
     """``(chart', u', v', delta)``: the point ``(u, v)`` of ``chart`` in the chart where its
     latitude is smaller (the same chart, ``u`` wrapped into ``(-pi, pi]``, if that is this
-    one), and the angle ``delta`` from the old frame's ``x`` to the new one's about the normal."""
+    one), and the angle ``delta`` from the old frame's ``x`` to the new one's about the normal.
+    A repeating chart (``periodic``): the same chart, each repeating coordinate wrapped toward
+    its domain's middle, nothing turned."""
+    if entry["kind"] == "periodic":
+        (pu, pv), (cu, cv) = entry["periods"], entry["centers"]
+        return chart, _wrapped(u, pu, cu), _wrapped(v, pv, cv), 0.0
     d, x_old, n = _frame(entry, chart, u, v)
     other = 1 - chart
     u1, v1 = coordinates(d, other)
@@ -90,17 +103,17 @@ def transition(entry: dict, chart: int, u: float, v: float) -> tuple[int, float,
 
 
 def repeated(switches: list[dict], record: dict) -> bool:
-    """Whether ``record`` switches the same chart at the same time as the last of
+    """Whether ``record`` carries the same coordinates at the same time as the last of
     ``switches``: a state carried across and straight back out, which no chart's edge makes
     (the run stops by name rather than going round)."""
     last = switches[-1] if switches else None
-    return last is not None and last["chart"] == record["chart"] and \
+    return last is not None and last["coordinates"] == record["coordinates"] and \
         abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"]))
 
 
 class Atlases:
-    """A model's atlases (its manifest's ``atlas``): each slot's chart parameter, state
-    columns and map; ``switch`` carries a state across."""
+    """A model's atlases (its manifest's ``atlas``): each slot's chart parameter (None: a
+    repeating chart), state columns and map; ``switch`` carries a state across."""
 
     def __init__(self, model):
         names, p_names = model.state_names, model.p_names
@@ -109,7 +122,7 @@ class Atlases:
         for entry in model.manifest.get("atlas", ()):
             cols = (names.index(entry["u"]), names.index(entry["v"]),
                     None if entry["psi"] is None else names.index(entry["psi"]))
-            self.slots.append((entry, p_names.index(entry["param"]), cols))
+            self.slots.append((entry, None if entry["param"] is None else p_names.index(entry["param"]), cols))
         self.columns = {c: k for k, (_, _, cols) in enumerate(self.slots) for c in cols[:2]}
 
     def slot_of(self, err) -> int | None:
@@ -129,13 +142,14 @@ class Atlases:
         """``(x', p', record)``: the state ``x`` and parameters ``p`` at ``t`` with slot ``k``
         carried to the chart that covers its point best (``transition``)."""
         entry, i_chart, (iu, iv, ipsi) = self.slots[k]
-        chart = int(round(float(p[i_chart])))
+        chart = 0 if i_chart is None else int(round(float(p[i_chart])))
         new, u1, v1, delta = transition(entry, chart, float(x[iu]), float(x[iv]))
         x2, p2 = np.array(x, dtype=float), np.array(p, dtype=float)
         x2[iu], x2[iv] = u1, v1
         if ipsi is not None:
             x2[ipsi] = x2[ipsi] + delta
-        p2[i_chart] = float(new)
-        record = {"t": float(t), "chart": entry["param"], "from": chart, "to": new,
-                  "u": (float(x[iu]), u1), "v": (float(x[iv]), v1), "delta": delta}
+        if i_chart is not None:
+            p2[i_chart] = float(new)
+        record = {"t": float(t), "chart": entry["param"], "coordinates": (entry["u"], entry["v"]),
+                  "from": chart, "to": new, "u": (float(x[iu]), u1), "v": (float(x[iv]), v1), "delta": delta}
         return x2, p2, record

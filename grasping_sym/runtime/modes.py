@@ -1393,8 +1393,9 @@ def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) ->
         raise ContactLeftContourError(record["t"], x_at, f"{record['chart']}: the contact left both charts of "
                                       f"its atlas at the same time (u, v = {record['u'][0]:.6g}, "
                                       f"{record['v'][0]:.6g}): report this scene", r.model.state_names)
-    i = r.model.p_names.index(record["chart"])
-    r.p[i] = p_new[i]
+    if record["chart"] is not None:  # None: a repeating chart's coordinates wrapped
+        i = r.model.p_names.index(record["chart"])
+        r.p[i] = p_new[i]
     r.chart_switches.append(record)
 
 
@@ -1448,6 +1449,8 @@ def _finish(r: _Run, s, start: float, rows_t, rows_x, rows_mode, rows_p) -> Simu
         outs = {k: v[1:] for k, v in outs.items()}
     charts = {}
     for entry, i, _ in (() if r.atlases is None else r.atlases.slots):
+        if i is None:
+            continue
         rows = [np.full(len(tt), int(pp[i])) for tt, pp in zip(rows_t, rows_p)]
         charts[entry["param"]] = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
     if first:

@@ -187,7 +187,8 @@ class _Charted:
         for rec in self.switches:
             b = int(np.searchsorted(t, rec["t"], side="right"))
             out.append((a, b, pk.copy()))
-            pk[self.model.p_names.index(rec["chart"])] = rec["to"]
+            if rec["chart"] is not None:  # None: a repeating chart's coordinates wrapped
+                pk[self.model.p_names.index(rec["chart"])] = rec["to"]
             a = b
         out.append((a, len(t), pk))
         return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), p)]
@@ -199,6 +200,8 @@ class _Charted:
         pieces = self.pieces(t, p)
         out = {}
         for entry, i, _ in self.atlases.slots:
+            if i is None:
+                continue
             col = np.empty(len(t), dtype=int)
             for a, b, pk in pieces:
                 col[a:b] = int(pk[i])
@@ -255,7 +258,8 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start, charted):
         if charted.switches and p is not None:  # the next segment goes on in the last charts
             p = np.array(p, dtype=float)
             for _entry, i, _ in charted.atlases.slots:
-                p[i] = p_end[i]
+                if i is not None:
+                    p[i] = p_end[i]
         if len(segments) == 1:  # one segment: its rows and counters as they are
             return t, X, st
         rows_t.append(t if k == 0 else t[1:])
