@@ -647,3 +647,35 @@ def test_a_leaning_barrel_rolls_over_its_tubes_seam(barrel):
     gap = res.x[:, -1] - twin.x[:, -1]
     assert np.abs(np.remainder(gap + math.pi, 2 * math.pi) - math.pi).max() < 1e-9
     assert res.x[-1, -1] - twin.x[-1, -1] == pytest.approx(0.0, abs=1e-9)    # past the switch: one chart
+
+
+def test_a_grasp_runs_on_across_its_revolved_fingertips_seam(pivot_grasps):
+    """pivot3d's fingertip written as a revolved arc (the sphere's own chart) with
+    ``atlas=True``, turned about its axis so that the contact starts 0.3 rad from the angle's
+    edge (-3 pi), toward which it rolls: the grasp (run by ``simulate``'s plain run, and by
+    ``simulate_many``) crosses the seam once, a turn back, and agrees with the one-chart grasp
+    (``pivot_grasps``' reference): every other state to 1e-9 over 1.5 s, each row's contact
+    point to 1e-12 m. The model has no chart parameter."""
+    g = pivot_grasps
+    ref, x0, tip, box = g["ref"], g["x0"], g["tip"], g["box"]
+    names = ref.state_names
+    iu = names.index("u_f1")
+    start = -3 * math.pi + 0.3
+    turn = Rotation.from_euler("z", x0[iu] - start).as_matrix()
+    arc = sl.surface_of_revolution(gs.curves.circle(0.01, by="angle", span=1.3, name="arc"), rotation=turn,
+                                   atlas=True, name="fingertip")
+    xs = x0.copy()
+    xs[iu] = start
+    model = gs.build(_pivot("pivot_revolved", arc, box, (xs, names)))
+    assert model.p_names == () and [e["param"] for e in model.manifest["atlas"]] == [None]
+    kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
+    ra, rr = model.simulate(1.5, x0=xs, **kw), ref.simulate(1.5, x0=x0, **kw)
+    assert len(ra.chart_switches) == 1 and not ra.charts
+    rec = ra.chart_switches[0]
+    assert rec["coordinates"] == ("u_f1", "v_f1") and rec["u"][1] == pytest.approx(rec["u"][0] + 2 * math.pi)
+    other = [k for k in range(len(names)) if k != iu]
+    assert np.abs(ra.x[:, other] - rr.x[:, other]).max() < 1e-9
+    want = tip.evaluate(rr["u_f1"], rr["v_f1"])["point"]
+    assert np.abs(arc.evaluate(ra["u_f1"], ra["v_f1"])["point"] - want).max() < 1e-12
+    many = model.simulate_many(1.5, x0=np.stack([xs, xs]), **kw)
+    assert (many.status == 0).all() and all(np.array_equal(x, ra.x) for x in many.x)

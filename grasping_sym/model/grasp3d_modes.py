@@ -219,9 +219,9 @@ class GraspModesScene(WithModes):
 
     def rolling_map(self) -> dict | None:
         """``WithModes.rolling_map``: None with planes of the world (the rolling model has no
-        gap to them to watch), or with atlases (a chart switch is the model with modes' to
-        make, in its own ``p``)."""
-        return None if self.planes or self.chart_names else super().rolling_map()
+        gap to them to watch), or with atlases, repeating charts too (a chart switch is the
+        model with modes' to make, in its own ``p``)."""
+        return None if self.planes or self.base.atlas_manifest() else super().rolling_map()
 
     def manifest_extra(self) -> dict:
         """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are,

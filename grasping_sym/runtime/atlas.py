@@ -140,11 +140,12 @@ class Atlases:
 
     def switch(self, k: int, t: float, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
         """``(x', p', record)``: the state ``x`` and parameters ``p`` at ``t`` with slot ``k``
-        carried to the chart that covers its point best (``transition``)."""
+        carried to the chart that covers its point best (``transition``); ``p`` None (a model
+        with no parameters: its atlases' charts all repeat) stays None."""
         entry, i_chart, (iu, iv, ipsi) = self.slots[k]
         chart = 0 if i_chart is None else int(round(float(p[i_chart])))
         new, u1, v1, delta = transition(entry, chart, float(x[iu]), float(x[iv]))
-        x2, p2 = np.array(x, dtype=float), np.array(p, dtype=float)
+        x2, p2 = np.array(x, dtype=float), None if p is None else np.array(p, dtype=float)
         x2[iu], x2[iv] = u1, v1
         if ipsi is not None:
             x2[ipsi] = x2[ipsi] + delta
