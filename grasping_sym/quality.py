@@ -244,7 +244,7 @@ def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
                          "(2, 3) arrays, or (..., 2, 3) for many rows")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n))):
         raise ValueError("points and normals must be finite")
-    if np.any(np.abs(np.linalg.norm(n, axis=-1) - 1.0) > 1e-9):
+    if np.any(np.abs(np.sqrt(np.einsum("...i,...i->...", n, n)) - 1.0) > 1e-9):
         raise ValueError("normals must be unit vectors")
     m = np.asarray(mu, dtype=float)
     if m.shape not in ((), (1,), (2,)) or np.any(~np.isfinite(m)) or np.any(m < 0):
@@ -252,20 +252,28 @@ def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
     return _squeeze(p, n, np.broadcast_to(m, (2,)))
 
 
+def squeezes(p: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``two_contacts_squeeze`` of arrays the caller made as it requires (finite, the normals
+    unit; ``m``: one coefficient per contact): grasp quality along a run, whose contacts come
+    from the surface's own frames."""
+    return _squeeze(p, n, m)
+
+
 def _squeeze(p: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
     """``two_contacts_squeeze`` of checked arrays (``m``: one coefficient per contact)."""
     d = p[..., 1, :] - p[..., 0, :]
-    apart = np.linalg.norm(d, axis=-1) > 0
+    dd = np.einsum("...i,...i->...", d, d)
     # whether d, and -d, lies in each contact's cone (``v.n >= 0`` and ``|v - (v.n) n| <= mu
-    # v.n``) at once: -d has the negated normal part and the very same tangential norm
-    # (negation is exact)
+    # v.n``): for a unit n, ``|v - (v.n) n|^2 = |v|^2 - (v.n)^2``, so the cone holds the line
+    # iff ``|d|^2 <= (1 + mu^2) (d.n)^2`` (no difference taken), d itself where ``d.n >= 0``
+    # and -d where ``d.n <= 0``
     forward, backward = [], []
     for i in range(2):
         vn = np.einsum("...i,...i->...", d, n[..., i, :])
-        tangential = np.linalg.norm(d - vn[..., None] * n[..., i, :], axis=-1)
-        forward.append((vn >= 0) & (tangential <= m[i] * vn))
-        backward.append((-vn >= 0) & (tangential <= m[i] * -vn))
-    return apart & ((forward[0] & backward[1]) | (backward[0] & forward[1]))
+        inside = dd <= (1.0 + m[i] * m[i]) * (vn * vn)
+        forward.append(inside & (vn >= 0))
+        backward.append(inside & (vn <= 0))
+    return (dd > 0) & ((forward[0] & backward[1]) | (backward[0] & forward[1]))
 
 
 def epsilon(points, normals, mu, centre=None, length: float | None = None,

@@ -32,13 +32,20 @@ def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
                          "not one")
     c = X[:, [names.index(k) for k in pose[:3]]]
     rot = rotations(X[:, [names.index(k) for k in pose[3:]]])
+    k, n = len(scene.fingers), len(X)
+    charts = [getattr(result, "charts", {}).get(f"chart_o{i}") for i in range(1, k + 1)]
+    # every contact's point on the object in one evaluation (its rows one after the other)
+    geo = scene.object_surface.evaluate_frame(
+        np.concatenate([X[:, names.index(f"u_o{i}")] for i in range(1, k + 1)]),
+        np.concatenate([X[:, names.index(f"v_o{i}")] for i in range(1, k + 1)]),
+        chart=None if all(ch is None for ch in charts) else
+        np.concatenate([np.zeros(n, dtype=int) if ch is None else ch for ch in charts]))
+    local = np.stack([geo[key] for key in ("point", "normal", "x", "y")], axis=-1)   # (k n, 3, 4)
     frames = []
-    for i in range(1, len(scene.fingers) + 1):
-        geo = scene.object_surface.evaluate_frame(X[:, names.index(f"u_o{i}")], X[:, names.index(f"v_o{i}")],
-                                                  chart=getattr(result, "charts", {}).get(f"chart_o{i}"))
-        world = {key: np.einsum("nij,nj->ni", rot, geo[key]) for key in ("point", "normal", "x", "y")}
-        world["point"] = c + world["point"]
-        frames.append(world)
+    for i in range(k):
+        world = rot @ local[i * n:(i + 1) * n]   # the four vectors of every row turned at once
+        frames.append({"point": c + world[..., 0], "normal": world[..., 1], "x": world[..., 2],
+                       "y": world[..., 3]})
     return c, frames
 
 
@@ -73,8 +80,9 @@ def contacts_along(model, result, frames=None) -> tuple[np.ndarray, np.ndarray, 
     ``(n, k, 3)`` (the surface's outward normal, turned around), world frame, m. ``frames``:
     ``_frames``' (made here when not given)."""
     c, frames = _frames(model, result) if frames is None else frames
-    normals = [-f["normal"] / np.linalg.norm(f["normal"], axis=1, keepdims=True) for f in frames]
-    return c, np.stack([f["point"] for f in frames], axis=1), np.stack(normals, axis=1)
+    normals = np.stack([f["normal"] for f in frames], axis=1)
+    normals = normals / -np.sqrt(np.einsum("nki,nki->nk", normals, normals))[..., None]
+    return c, np.stack([f["point"] for f in frames], axis=1), normals
 
 
 def grasp_quality(model, result, mu=None, *, length: float | None = None,
@@ -105,7 +113,7 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
     # every row at once; the other rows by the hulls
     lower, upper = np.zeros(len(points)), np.zeros(len(points))
     closed = np.zeros(len(points))
-    squeeze = quality.two_contacts_squeeze(points, normals, mus) if points.shape[1:] == (2, 3) \
+    squeeze = quality.squeezes(points, normals, mus) if points.shape[1:] == (2, 3) \
         else np.zeros(len(points), dtype=bool)
     for row in np.flatnonzero(~squeeze):
         q = quality.epsilon(points[row], normals[row], mus, centre=centres[row], length=length, edges=edges)
@@ -114,12 +122,14 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
         closed[row] = np.nan if fc is None else float(fc)
     out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": lower,
            "epsilon_upper": upper, "force_closure": closed}
-    forces = contact_forces(model, result, frames)
-    if forces is not None:
-        f_n = np.einsum("nki,nki->nk", forces, normals)
-        f_t = np.linalg.norm(forces - f_n[..., None] * normals, axis=-1)
+    cols = _force_columns(model, result)
+    if cols is not None:
+        # |F_t| of the tangential components in the contact's orthonormal frame: exact
+        f_n = np.column_stack([result[c[0]] for c in cols])
+        f_t = np.column_stack([np.abs(result[c[1]]) if len(c) == 2 else np.hypot(result[c[1]], result[c[2]])
+                               for c in cols])
         out["cone_margin_min"] = np.min(mus[None] * f_n - f_t, axis=1)
-        out["internal_force"] = _internal_norms(centres, points, forces)
+        out["internal_force"] = _internal_norms(centres, points, contact_forces(model, result, frames))
     return out
 
 
@@ -140,6 +150,24 @@ def _internal_norms(centres, points, forces) -> np.ndarray:
     return out
 
 
+def _force_columns(model, result) -> list[tuple[str, ...]] | None:
+    """Per contact, the run's outputs of its force: ``(f{i}, lam{i}, eta{i})`` in 3D (the
+    normal force and the tangential ones along the fingertip's ``x_f``, ``y_f``), ``(f, lam)``
+    in 2D (with several fingers ``f{i}``, ``lam{i}``; with contact modes ``normal_force{i}``,
+    ``lam{i}``); None when the run has no such outputs."""
+    if getattr(model.scene, "kind", None) in ("planar", "planar_modes"):
+        n = model.scene.n_fingers
+        for f_name in ("f", "normal_force"):
+            numbered = n > 1 or f"{f_name}1" in result.outputs
+            cols = [(f"{f_name}{i}", f"lam{i}") for i in range(1, n + 1)] if numbered else [(f_name, "lam")]
+            if all(all(c in result.outputs for c in row) for row in cols):
+                return cols
+        return None
+    k = len(model.scene.fingers) if model.scene is not None else 0
+    cols = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
+    return cols if all(all(n in result.outputs for n in row) for row in cols) else None
+
+
 def contact_forces(model, result, frames=None) -> np.ndarray | None:
     """The contact forces on the object ``(n, k, 3)``, world frame, N, from the run's outputs:
     ``f{i} n + lam{i} x_f + eta{i} y_f`` (docs/conventions.md sections 6 and 10: ``n`` the
@@ -148,38 +176,20 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
     ``x_o, y_o`` and the frame angle ``psi{i}``); in 2D ``(n, k, 2)``, ``f{i} n1 + lam{i} b1``
     (section 13). None when the run has no such outputs. ``frames``: ``_frames``' (made here
     when not given)."""
-    if getattr(model.scene, "kind", None) in ("planar", "planar_modes"):
-        return _planar_forces(model, result, frames)
-    k = len(model.scene.fingers) if model.scene is not None else 0
-    cols = [(f"f{i}", f"lam{i}", f"eta{i}") for i in range(1, k + 1)]
-    if not all(all(n in result.outputs for n in row) for row in cols):
+    cols = _force_columns(model, result)
+    if cols is None:
         return None
     _, frames = _frames(model, result) if frames is None else frames
+    if len(cols[0]) == 2:
+        return np.stack([-result[f][:, None] * fr["normal"] + result[lam][:, None] * fr["x"]
+                         for (f, lam), fr in zip(cols, frames)], axis=1)
     names = list(result.state_names)
     X = np.asarray(result.x, dtype=float)
     out = []
     for i, ((f, lam, eta), fr) in enumerate(zip(cols, frames), start=1):
-        psi = X[:, names.index(f"psi{i}")][:, None]
+        psi = X[:, names.index(f"psi{i}")]
         cos, sin = np.cos(psi), np.sin(psi)
-        x_f = cos * fr["x"] - sin * fr["y"]
-        y_f = -sin * fr["x"] - cos * fr["y"]
-        out.append(-result[f][:, None] * fr["normal"] + result[lam][:, None] * x_f + result[eta][:, None] * y_f)
-    return np.stack(out, axis=1)
-
-
-def _planar_forces(model, result, frames) -> np.ndarray | None:
-    """``contact_forces`` of a free 2D object: ``f n1 + lam b1`` per finger contact (its
-    outputs ``f``, ``lam``; with several fingers ``f{i}``, ``lam{i}``; with contact modes
-    ``normal_force{i}``, ``lam{i}``)."""
-    n = model.scene.n_fingers
-    for f_name in ("f", "normal_force"):
-        numbered = n > 1 or f"{f_name}1" in result.outputs
-        cols = [(f"{f_name}{i}", f"lam{i}") for i in range(1, n + 1)] if numbered else [(f_name, "lam")]
-        if all(all(c in result.outputs for c in row) for row in cols):
-            break
-    else:
-        return None
-    _, frames = _frames(model, result) if frames is None else frames
-    out = [-result[f][:, None] * fr["normal"] + result[lam][:, None] * fr["x"]
-           for (f, lam), fr in zip(cols, frames)]
+        a, b = result[lam], result[eta]   # lam x_f + eta y_f on the object's x_o, y_o
+        out.append(-result[f][:, None] * fr["normal"] + (a * cos - b * sin)[:, None] * fr["x"]
+                   - (a * sin + b * cos)[:, None] * fr["y"])
     return np.stack(out, axis=1)
