@@ -392,7 +392,10 @@ def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_gra
 def test_the_casadi_functions_of_a_grasp_on_atlases_take_its_charts(pivot_grasps):
     """``casadi_function`` of a grasp on atlases: ``p`` ends with its charts (it failed on an
     internal assertion): the ode at a row of a switching run, in that row's charts, is the
-    compiled rhs there. ``squeeze`` of an object with an atlas takes the object's chart at
+    compiled rhs there, to the two evaluations' rounding (CasADi's virtual machine against the
+    generated C, through the closed loop's solve: measured over 51 rows a median of 2e-13 and
+    at most 1.7e-12 of the largest component, as for the one-chart grasp, 1.4e-12; the wrong
+    chart differs by ~600). ``squeeze`` of an object with an atlas takes the object's chart at
     each contact: two contacts at opposite points of an ellipsoid's equator, written in
     either chart, give the closed form of the plain one's test (``test_quality``)."""
     model = pivot_grasps["model"]
@@ -403,7 +406,8 @@ def test_the_casadi_functions_of_a_grasp_on_atlases_take_its_charts(pivot_grasps
     for x, c in zip(res.x, charts):
         p = c.astype(float)
         want = model.rhs(x, p)
-        assert np.abs(np.asarray(fn(x, [], p)).ravel() - want).max() <= 1e-12 * np.abs(want).max()
+        assert np.abs(np.asarray(fn(x, [], p)).ravel() - want).max() <= 1e-11 * np.abs(want).max()
+    assert np.abs(np.asarray(fn(res.x[-1], [], 1.0 - charts[-1])).ravel() - want).max() > 1.0   # the other
 
     a, b, c = 0.020, 0.025, 0.030
     scene = gs.scenes.paper3d(object_surface=sl.ellipsoid(a, b, c, atlas=True, name="atlas ellipsoid"))
