@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from grasping_sym import rotations
 from grasping_sym.derive.finger_templates import finger_template
 from grasping_sym.derive.spatial import (
     finger_dynamics,
@@ -139,15 +140,12 @@ def surface_sx(surface: ParametricSurface, u, v, extra: bool = False, chart=None
 
 def quaternion_of(R: np.ndarray) -> np.ndarray:
     """The unit quaternion ``(w, x, y, z)``, ``w >= 0``, of the rotation matrix ``R``."""
-    x, y, z, w = rotation_class().from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
-    return q if q[0] >= 0 else -q
+    return rotations.quaternion(R)
 
 
 def rotation_of(quat: np.ndarray) -> np.ndarray:
     """The rotation matrix of the quaternion ``(w, x, y, z)`` (normalised)."""
-    w, x, y, z = np.asarray(quat, dtype=float)
-    return rotation_class().from_quat([x, y, z, w]).as_matrix()
+    return rotations.matrices(quat)[0]
 
 
 def object_rotation(quat: ca.SX, om: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -243,12 +241,3 @@ def bodies(scene: GraspScene3D, x: ca.SX, n_eta: int, mass_properties=None) -> B
     return Bodies(x=x, fingers=fingers, quat=quat, om=om, pos=pos, vel=vel, R=R, etas=etas,
                   gravity=g, zb=zb, zb_dot=zb_dot, zb_dot_lin=zb_dot_lin, Vs=Vs, mass=mass,
                   inertia=inertia)
-
-
-def rotation_class():
-    """``scipy.spatial.transform.Rotation``, imported when used: SciPy's spatial takes 0.15 s
-    to import, on the way of every build (``assemble.controller`` imports this module); also
-    ``derive.start3d``'s."""
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415 - lazy: SciPy (0.15 s)
-
-    return Rotation

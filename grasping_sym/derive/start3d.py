@@ -25,7 +25,8 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from grasping_sym.derive.bodies3d import finger_sx, quaternion_of, rotation_class, surface_sx
+from grasping_sym import rotations
+from grasping_sym.derive.bodies3d import finger_sx, quaternion_of, surface_sx
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import U, V
@@ -104,7 +105,7 @@ def solve_configuration(scene: GraspScene3D) -> dict:
         y, *_ = np.linalg.lstsq(J * sw, -F, rcond=None)
         step = sw * y
         w = w + step
-        R = R @ rotation_class().from_rotvec(w[kr:kr + 3]).as_matrix()
+        R = R @ rotations.from_rotvec(w[kr:kr + 3])
         w[kr:kr + 3] = 0.0
         if not np.all(np.isfinite(w)):
             break
