@@ -90,7 +90,8 @@ def main() -> None:
         "",
         f"The figure is {'met' if out['ratio'] <= 1.2 else 'missed'} for two contacts: their "
         "line lies in both friction cones at every row (`quality.two_contacts_squeeze`, all rows "
-        "at once), where epsilon is exactly 0 (the spin about that line is free), so no hull is "
+        "at once, read in the object's frame: no row turned to the world), where epsilon is "
+        "exactly 0 (the spin about that line is free), so no hull is "
         f"built: {quality_s / out['rows'] * 1e6:.2f} µs a row here, against "
         f"{run_s / out['rows'] * 1e6:.1f} µs a row of the run (0.48 ms a row by the hulls before). "
         "A grasp of three contacts or more, or two that do not squeeze, still takes the hulls at "

@@ -67,9 +67,7 @@ def _checked(points, normals, mu, centre):
     norms = np.linalg.norm(n, axis=1)
     if np.any(np.abs(norms - 1.0) > 1e-9):
         raise ValueError(f"normals must be unit vectors (norms {norms.tolist()})")
-    m = np.broadcast_to(np.asarray(mu, dtype=float), (len(p),)).copy()
-    if np.any(~np.isfinite(m)) or np.any(m < 0):
-        raise ValueError(f"mu = {mu!r}: give finite coefficients >= 0, one or one per contact")
+    m = coefficients(mu, len(p))
     c = p.mean(axis=0) if centre is None else np.asarray(centre, dtype=float)
     if c.shape != (p.shape[1],) or not np.all(np.isfinite(c)):
         raise ValueError(f"centre = {centre!r}: give a finite point of the contacts' dimension")
@@ -126,6 +124,18 @@ def internal_forces(points, forces, centre=None) -> np.ndarray:
     stacked = f.reshape(-1)
     internal = stacked - np.linalg.pinv(G, rcond=1e-12) @ (G @ stacked)
     return internal.reshape(p.shape)
+
+
+def coefficients(mu, k: int) -> np.ndarray:
+    """``mu`` as ``k`` friction coefficients (one for all, or one per contact), refused by name
+    unless finite and >= 0."""
+    try:
+        m = np.broadcast_to(np.asarray(mu, dtype=float), (k,)).copy()
+    except (TypeError, ValueError):
+        raise ValueError(f"mu = {mu!r}: give finite coefficients >= 0, one or one per contact ({k})") from None
+    if np.any(~np.isfinite(m)) or np.any(m < 0):
+        raise ValueError(f"mu = {mu!r}: give finite coefficients >= 0, one or one per contact")
+    return m
 
 
 def check_scales(length: float | None, edges: int) -> None:

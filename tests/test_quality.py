@@ -205,6 +205,27 @@ def test_along_a_paper3d_run_the_contacts_lie_on_the_turning_ellipsoid(paper3d_m
         model.grasp_quality(res)
 
 
+def test_two_contacts_read_in_the_objects_frame_give_the_worlds_internal_force(paper3d_model):
+    """Along a run of two 3D contacts the internal force is taken in the object's frame from
+    each force's components along its contact's frame (``quality_along._squeezing``): at every
+    row it is the general computation's in the world (``_internal_norms`` of the world
+    forces, ``quality.internal_forces`` where the points coincide) to 1e-12 N, a row whose
+    two points were made to coincide included."""
+    from grasping_sym.pipeline import quality_along as qa
+
+    model = paper3d_model
+    res = model.simulate(0.3, t_eval=np.linspace(0.0, 0.3, 31))
+    local = qa._local_frames(model, res)
+    local["point"][1][7] = local["point"][0][7]                    # one row: the points coincide
+    cols = qa._force_columns(model, res)
+    got = qa._squeezing(model, res, local, cols)
+    c, frames = qa._frames(model, res, local)
+    points = np.stack([f["point"] for f in frames], axis=1)
+    want = qa._internal_norms(c, points, qa.contact_forces(model, res, (c, frames)))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert got[7] != got[6] and want[7] > 0
+
+
 def test_the_contact_forces_move_the_object_as_newton_says_and_squeeze_it(paper3d_model):
     """The world contact forces read from the run's outputs (``contact_forces``: ``f`` along
     the normal into the object, ``(lam, eta)`` along the fingertip's tangents from the frame

@@ -15,35 +15,61 @@ from grasping_sym.runtime.result import rotations
 __all__ = ["contact_forces", "contacts_along", "grasp_quality"]
 
 
-def _frames(model, result) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
-    """``(centres, frames)``: the object's centre ``(n, 3)`` at every row of ``result`` and,
-    per contact, its surface point and its frame ``normal`` (outward), ``x``, ``y`` carried to
-    the world (``(n, 3)`` each), the surface evaluated once for every use."""
+_POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+def _grasp3d(model, result) -> bool:
+    """Whether ``result`` is a run of a 3D grasp of a free object (else a free 2D object's, or
+    refused by name)."""
     scene = model.scene
-    names = list(result.state_names)
-    pose = ("x", "y", "z", "qw", "qx", "qy", "qz")
-    X = np.asarray(result.x, dtype=float)
     if getattr(scene, "kind", None) in ("planar", "planar_modes") and scene.free:
-        return _frames_planar(scene, names, X)
-    if scene is None or getattr(scene, "kind", None) != "grasp3d" or not set(pose) <= set(names):
+        return False
+    if scene is None or getattr(scene, "kind", None) != "grasp3d" or not set(_POSE) <= set(result.state_names):
         raise ValueError("grasp_quality reads a grasp of a free object (a model of "
                          "gs.scenes.paper3d, a GraspScene3D whose state has x, y, z, qw, qx, qy, "
                          "qz, or a 2D scene with support='free') made by gs.build; this model is "
                          "not one")
-    c = X[:, [names.index(k) for k in pose[:3]]]
-    rot = rotations(X[:, [names.index(k) for k in pose[3:]]])
+    return True
+
+
+def _local_frames(model, result) -> dict[str, np.ndarray]:
+    """Per contact and row of a 3D grasp's ``result``, its ``point`` on the object and the
+    frame ``normal`` (outward), ``x``, ``y`` there, in the object's frame (``(k, n, 3)``
+    each): every contact's rows in one evaluation of the surface."""
+    scene, names = model.scene, list(result.state_names)
+    X = np.asarray(result.x, dtype=float)
     k, n = len(scene.fingers), len(X)
     charts = [getattr(result, "charts", {}).get(f"chart_o{i}") for i in range(1, k + 1)]
-    # every contact's point on the object in one evaluation (its rows one after the other)
     geo = scene.object_surface.evaluate_frame(
         np.concatenate([X[:, names.index(f"u_o{i}")] for i in range(1, k + 1)]),
         np.concatenate([X[:, names.index(f"v_o{i}")] for i in range(1, k + 1)]),
         chart=None if all(ch is None for ch in charts) else
         np.concatenate([np.zeros(n, dtype=int) if ch is None else ch for ch in charts]))
-    local = np.stack([geo[key] for key in ("point", "normal", "x", "y")], axis=-1)   # (k n, 3, 4)
+    return {key: geo[key].reshape(k, n, 3) for key in _FRAME}
+
+
+#: A contact's point and frame, in this order.
+_FRAME = ("point", "normal", "x", "y")
+
+
+def _frames(model, result, local=None, rows=None) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
+    """``(centres, frames)``: the object's centre ``(n, 3)`` at every row of ``result`` (or at
+    ``rows``) and, per contact, its surface point and its frame ``normal`` (outward), ``x``,
+    ``y`` carried to the world (``(n, 3)`` each); ``local``: ``_local_frames``' (made here
+    when not given)."""
+    names = list(result.state_names)
+    X = np.asarray(result.x, dtype=float)
+    if not _grasp3d(model, result):
+        return _frames_planar(model.scene, names, X if rows is None else X[rows])
+    local = _local_frames(model, result) if local is None else local
+    if rows is not None:
+        X, local = X[rows], {key: v[:, rows] for key, v in local.items()}
+    c = X[:, [names.index(k) for k in _POSE[:3]]]
+    rot = rotations(X[:, [names.index(k) for k in _POSE[3:]]])
     frames = []
-    for i in range(k):
-        world = rot @ local[i * n:(i + 1) * n]   # the four vectors of every row turned at once
+    for i in range(len(local["point"])):
+        # the four vectors of every row turned at once: (n, 3, 3) @ (n, 3, 4)
+        world = rot @ np.stack([local[key][i] for key in _FRAME], axis=-1)
         frames.append({"point": c + world[..., 0], "normal": world[..., 1], "x": world[..., 2],
                        "y": world[..., 3]})
     return c, frames
@@ -101,35 +127,110 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
             raise ValueError("grasp_quality needs a friction coefficient: give mu (one, or one "
                              "per contact), or build the scene with friction=gs.contact.coulomb(mu)")
         mu = law.mu
+    if _grasp3d(model, result) and len(model.scene.fingers) == 2:
+        return _two_contacts(model, result, mu, length, edges)
     frames = _frames(model, result)
     centres, points, normals = contacts_along(model, result, frames)
-    k = points.shape[1]
-    mus = np.broadcast_to(np.asarray(mu, dtype=float), (k,))
+    mus = quality.coefficients(mu, points.shape[1])
     if length is None:
         length = float(np.max(np.linalg.norm(points[0] - centres[0], axis=1)))
-    # checked here for every row: the rows whose contacts squeeze never reach epsilon
     quality.check_scales(length, edges)
-    # two 3D contacts that squeeze: epsilon exactly 0, not closed (quality.two_contacts_squeeze),
-    # every row at once; the other rows by the hulls
-    lower, upper = np.zeros(len(points)), np.zeros(len(points))
-    closed = np.zeros(len(points))
-    squeeze = quality.squeezes(points, normals, mus) if points.shape[1:] == (2, 3) \
-        else np.zeros(len(points), dtype=bool)
-    for row in np.flatnonzero(~squeeze):
-        q = quality.epsilon(points[row], normals[row], mus, centre=centres[row], length=length, edges=edges)
+    lower, upper, closed = _by_hulls(points, normals, mus, centres, length, edges,
+                                     np.arange(len(points)), len(points))
+    return _with_forces(model, result, mus, lower, upper, closed, centres, points, frames)
+
+
+def _by_hulls(points, normals, mus, centres, length: float, edges: int, rows, n: int):
+    """``(lower, upper, closed)`` over ``n`` rows: epsilon's bounds and force closure by the
+    hulls (``quality.epsilon``) at ``rows`` (``points``, ``normals``, ``centres``: theirs, in
+    that order), exactly 0 and not closed at the others."""
+    lower, upper, closed = np.zeros(n), np.zeros(n), np.zeros(n)
+    for j, row in enumerate(rows):
+        q = quality.epsilon(points[j], normals[j], mus, centre=centres[j], length=length, edges=edges)
         lower[row], upper[row] = q.lower, q.upper
         fc = q.force_closure
         closed[row] = np.nan if fc is None else float(fc)
+    return lower, upper, closed
+
+
+def _with_forces(model, result, mus, lower, upper, closed, centres, points, frames) -> dict:
+    """``grasp_quality``'s result: epsilon's bounds and force closure, and from the run's force
+    outputs the smallest cone margin and the internal force (of the contacts at ``points``
+    about ``centres`` in any one frame, ``frames`` in it: both are the same in every frame)."""
     out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": lower,
            "epsilon_upper": upper, "force_closure": closed}
     cols = _force_columns(model, result)
     if cols is not None:
-        # |F_t| of the tangential components in the contact's orthonormal frame: exact
-        f_n = np.column_stack([result[c[0]] for c in cols])
-        f_t = np.column_stack([np.abs(result[c[1]]) if len(c) == 2 else np.hypot(result[c[1]], result[c[2]])
-                               for c in cols])
-        out["cone_margin_min"] = np.min(mus[None] * f_n - f_t, axis=1)
+        out["cone_margin_min"] = _margins(result, cols, mus)
         out["internal_force"] = _internal_norms(centres, points, contact_forces(model, result, frames))
+    return out
+
+
+def _two_contacts(model, result, mu, length: float | None, edges: int) -> dict:
+    """``grasp_quality`` of a 3D grasp of two contacts. Whether they squeeze (epsilon exactly
+    0: ``quality.two_contacts_squeeze``) and their internal force depend on the points and
+    normals relative to each other alone, so every row is read in the object's own frame, no
+    row turned to the world; the rows that do not squeeze are turned and take the hulls
+    (whose polyhedral cones depend on the world's axes), as every row of another grasp, with
+    the default torque scale from the first row in the world."""
+    local = _local_frames(model, result)
+    n = local["point"].shape[1]
+    mus = quality.coefficients(mu, 2)
+    quality.check_scales(length, edges)
+    points = np.swapaxes(local["point"], 0, 1)                 # (n, 2, 3), from the centre
+    normals = np.swapaxes(local["normal"], 0, 1)
+    normals = normals / -np.sqrt(np.einsum("nki,nki->nk", normals, normals))[..., None]
+    rows = np.flatnonzero(~quality.squeezes(points, normals, mus))
+    lower, upper, closed = np.zeros(n), np.zeros(n), np.zeros(n)
+    if len(rows):
+        if length is None:
+            c0, points0, _ = contacts_along(model, result, _frames(model, result, local, rows=[0]))
+            length = float(np.max(np.linalg.norm(points0[0] - c0[0], axis=1)))
+        c, p, nn = contacts_along(model, result, _frames(model, result, local, rows=rows))
+        lower, upper, closed = _by_hulls(p, nn, mus, c, length, edges, rows, n)
+    out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": lower,
+           "epsilon_upper": upper, "force_closure": closed}
+    cols = _force_columns(model, result)
+    if cols is not None:
+        out["cone_margin_min"] = _margins(result, cols, mus)
+        out["internal_force"] = _squeezing(model, result, local, cols)
+    return out
+
+
+def _margins(result, cols, mus) -> np.ndarray:
+    """The smallest cone margin ``mu f - |F_t|`` over the contacts at every row, ``|F_t|`` of
+    the tangential components in the contact's orthonormal frame (exact)."""
+    f_n = np.column_stack([result[c[0]] for c in cols])
+    f_t = np.column_stack([np.abs(result[c[1]]) if len(c) == 2 else np.hypot(result[c[1]], result[c[2]])
+                           for c in cols])
+    return np.min(mus[None] * f_n - f_t, axis=1)
+
+
+def _squeezing(model, result, local, cols) -> np.ndarray:
+    """``_internal_norms`` of two 3D contacts, in the object's frame: ``|(F1 - F2) . e| /
+    sqrt(2)`` with each ``F . e`` from its force's components along the contact's frame
+    (``contact_forces``) dotted with ``e``, no force vector formed; coincident points (no
+    ``e``) as ``_internal_norms`` takes them."""
+    names = list(result.state_names)
+    X = np.asarray(result.x, dtype=float)
+    d = local["point"][1] - local["point"][0]
+    dist = np.sqrt(np.einsum("ni,ni->n", d, d))
+    apart = dist > 0
+    e = d / np.where(apart, dist, 1.0)[:, None]
+    along = []
+    for i, (f, lam, eta) in enumerate(cols):
+        psi = X[:, names.index(f"psi{i + 1}")]
+        cos, sin = np.cos(psi), np.sin(psi)
+        a, b = result[lam], result[eta]
+        along.append(-result[f] * np.einsum("ni,ni->n", local["normal"][i], e)
+                     + (a * cos - b * sin) * np.einsum("ni,ni->n", local["x"][i], e)
+                     - (a * sin + b * cos) * np.einsum("ni,ni->n", local["y"][i], e))
+    out = np.abs(along[0] - along[1]) / np.sqrt(2.0)
+    if not apart.all():
+        frames = [{key: local[key][i] for key in _FRAME} for i in range(2)]
+        rest = _internal_norms(np.zeros((len(X), 3)), np.swapaxes(local["point"], 0, 1),
+                               contact_forces(model, result, (None, frames)))
+        out[~apart] = rest[~apart]
     return out
 
 
