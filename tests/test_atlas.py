@@ -683,3 +683,44 @@ def test_a_grasp_runs_on_across_its_revolved_fingertips_seam(pivot_grasps):
     assert np.abs(arc.evaluate(ra["u_f1"], ra["v_f1"])["point"] - want).max() < 1e-12
     many = model.simulate_many(1.5, x0=np.stack([xs, xs]), **kw)
     assert (many.status == 0).all() and all(np.array_equal(x, ra.x) for x in many.x)
+
+
+def test_a_grasps_contact_near_chart_0s_pole_starts_in_chart_1(pivot_grasps):
+    """pivot3d's fingertip on a sphere's atlas turned so that chart 0's pole lies 0.1 rad from
+    where the contact starts (latitude pi/2 - 0.1, beyond chart 0's 1.3): the start is solved
+    in chart 0 and written in chart 1 (``chart_f1`` = 1 in the model's parameters), at the
+    same point (1e-15 m) with psi turned by the frames' angle; from there the grasp runs as
+    the one-chart grasp from the same physical state (every other state to 1e-9 over 0.5 s,
+    the contact points to 1e-12 m). A guess at chart 0's pole has no coordinates: refused."""
+    from grasping_sym.derive import start3d
+
+    g = pivot_grasps
+    ref, x0, tip = g["ref"], g["x0"], g["tip"]
+    names = ref.state_names
+    start = tip.evaluate(x0[names.index("u_f1")], x0[names.index("v_f1")])["point"] / 0.01
+    turn = _pole_ahead(start, [0.0, -1.0, 0.0], -0.1)
+    atip = sl.sphere(0.01, rotation=turn, atlas=True, name="fingertip")
+    e = turn.T @ start
+    finger = dataclasses.replace(gs.scenes.pivot3d().fingers[0], tip=atip,
+                                 tip_contact=(math.atan2(e[1], e[0]), math.asin(e[2])),
+                                 object_contact=tuple(x0[names.index(f"{c}_o1")] for c in "uv"))
+    scene = gs.scenes.pivot3d(name="pivot_tip_at_pole", fingers=(finger,), object_surface=g["box"])
+    with pytest.raises(InvalidSceneError, match=r"tip_contact \(0.0, 1.5707963.*off its poles"):
+        gs.scenes.pivot3d(fingers=(dataclasses.replace(finger, tip_contact=(0.0, math.pi / 2)),),
+                          object_surface=g["box"])
+    in_chart_0, _ = start3d.initial_state(scene)
+    assert abs(in_chart_0[names.index("v_f1")]) > 1.3
+    model = gs.build(scene)
+    assert model.p_names == ("chart_f1",) and model.default_params[0] == 1.0
+    xs = model.initial_state()
+    iu, iv = names.index("u_f1"), names.index("v_f1")
+    here = atip.evaluate(in_chart_0[iu], in_chart_0[iv])["point"]
+    assert np.abs(atip.evaluate(xs[iu], xs[iv], chart=1)["point"] - here).max() < 1e-15
+    kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.5, 51))
+    ra = model.simulate(0.5, **kw)
+    rr = ref.simulate(0.5, x0=_in_chart(in_chart_0, names, "f", atip, tip, np.eye(3)), **kw)
+    assert ra.charts["chart_f1"][0] == 1
+    body = [k for k, n in enumerate(names) if not n.startswith(("u_f", "v_f", "psi"))]
+    assert np.abs(ra.x[:, body] - rr.x[:, body]).max() < 1e-9
+    want = tip.evaluate(rr["u_f1"], rr["v_f1"])["point"]
+    assert np.abs(atip.evaluate(ra["u_f1"], ra["v_f1"], chart=ra.charts["chart_f1"])["point"] - want).max() < 1e-12

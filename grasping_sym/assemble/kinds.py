@@ -27,7 +27,9 @@ from grasping_sym.derive.bodies3d import rotation_of
 from grasping_sym.derive.grasp3d import finger_function, template_of
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.errors import InvalidSceneError
+from grasping_sym.geometry.atlas import LAT as ATLAS_LAT
 from grasping_sym.model import kinds
+from grasping_sym.runtime.atlas import transition
 
 
 @dataclass(frozen=True)
@@ -72,7 +74,28 @@ def _grasp3d_functions(scene, progress=None, layers: bool = True):
 def _grasp3d_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     x0, info = start3d.initial_state(scene)
     values = dict(zip(scene.start_param_names, map(float, info["r_bar0"])))
-    return x0, values, {"residual": float(info["residual"]), "iterations": int(info["iterations"])}
+    x0, charts = _in_charts(scene, x0)
+    return x0, values, {"residual": float(info["residual"]), "iterations": int(info["iterations"]),
+                        **({"charts": charts} if charts else {})}
+
+
+def _in_charts(scene, x0: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
+    """``x0`` (solved in chart 0 of every surface with an atlas) with each contact that lies
+    beyond chart 0's latitudes (``|v| >= 1.3``, near its pole) carried into chart 1 as a run
+    carries it at a chart's edge (``runtime.atlas.transition``: the same point, ``psi`` turned
+    by the frames' angle), and the charts the start is then written in."""
+    x0 = np.array(x0, dtype=float)
+    names = scene.state_names
+    charts = {}
+    for entry in scene.atlas_manifest().get("atlas", ()):
+        iu, iv = names.index(entry["u"]), names.index(entry["v"])
+        if entry["param"] is None or abs(x0[iv]) < ATLAS_LAT[1]:
+            continue
+        new, x0[iu], x0[iv], delta = transition(entry, 0, float(x0[iu]), float(x0[iv]))
+        if entry["psi"] is not None:
+            x0[names.index(entry["psi"])] += delta
+        charts[entry["param"]] = new
+    return x0, charts
 
 
 def _grasp3d_rolling_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
@@ -136,6 +159,7 @@ def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
         extra += list(uv)
         if f"chart_w{m}" in scene.chart_names:
             charts[f"chart_w{m}"] = chart
+    charts = {**info.get("charts", {}), **charts}   # the base grasp's contacts', then the planes'
     return np.concatenate([x0, extra]), values, {**info, **({"charts": charts} if charts else {})}
 
 

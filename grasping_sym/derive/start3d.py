@@ -30,7 +30,7 @@ from grasping_sym.derive.bodies3d import finger_sx, quaternion_of, surface_sx
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import U, V
-from grasping_sym.model.grasp3d import GraspScene3D
+from grasping_sym.model.grasp3d import GraspScene3D, start_inside
 
 #: m, largest contact residual accepted at the start.
 TOL = 1e-12
@@ -119,11 +119,11 @@ def solve_configuration(scene: GraspScene3D) -> dict:
     problems = []
     for i, f in enumerate(scene.fingers):
         uv = w[kr + 3 + 4 * i:kr + 7 + 4 * i]
-        if not f.tip.in_domain(uv[0], uv[1]):
-            problems.append(f"finger {i + 1}: the fingertip contact solved to (u, v) = {tuple(uv[:2])}, "
+        if not start_inside(f.tip, uv[:2]):
+            problems.append(f"finger {i + 1}: the fingertip contact solved to (u, v) = {tuple(map(float, uv[:2]))}, "
                             f"outside the fingertip's domain {f.tip.domain}; move tip_contact or q0")
-        if not scene.object_surface.in_domain(uv[2], uv[3]):
-            problems.append(f"finger {i + 1}: the object contact solved to (u, v) = {tuple(uv[2:])}, "
+        if not start_inside(scene.object_surface, uv[2:]):
+            problems.append(f"finger {i + 1}: the object contact solved to (u, v) = {tuple(map(float, uv[2:]))}, "
                             f"outside the object's domain {scene.object_surface.domain}")
     if problems:
         raise InvalidSceneError(problems)

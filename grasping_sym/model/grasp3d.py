@@ -74,6 +74,24 @@ OUTPUTS: dict[str, str] = {
 }
 
 
+#: What a contact's guess on a surface with an atlas may be (``start_inside``).
+_ATLAS_GUESS = (" (on a surface with an atlas: chart 0's longitude, and a latitude strictly "
+                "inside +-pi/2, off its poles, where chart 0 still has coordinates: the start moves "
+                "a contact beyond +-1.3 into chart 1)")
+
+
+def start_inside(surface, uv) -> bool:
+    """Whether a contact's start (its guess, or the solved point) ``uv`` lies where the start
+    can take it: the surface's
+    domain; on a surface with an atlas (``geometry.atlas``) chart 0 anywhere off its poles
+    (``|v| < pi/2``; the start carries a contact beyond its latitudes into chart 1)."""
+    if surface.atlas is None:
+        return surface.in_domain(*uv)
+    (u0, u1), _ = surface.domain
+    u, v = (float(a) for a in uv)
+    return u0 <= u <= u1 and abs(v) < 0.5 * math.pi
+
+
 @dataclass(frozen=True)
 class Finger3D:
     """A finger chain and its fingertip surface (in the chain's fingertip frame)."""
@@ -181,12 +199,13 @@ class GraspScene3D:
         for i, f in enumerate(self.fingers, start=1):
             if len(f.q0) != f.chain.n:
                 p.append(f"finger {i}: q0 has {len(f.q0)} angles, the chain has {f.chain.n} joints")
-            if not f.tip.in_domain(*f.tip_contact):
+            if not start_inside(f.tip, f.tip_contact):
                 p.append(f"finger {i}: tip_contact {f.tip_contact} is outside the fingertip's domain "
-                         f"{f.tip.domain}")
-            if not self.object_surface.in_domain(*f.object_contact):
+                         f"{f.tip.domain}{_ATLAS_GUESS if f.tip.atlas is not None else ''}")
+            if not start_inside(self.object_surface, f.object_contact):
                 p.append(f"finger {i}: object_contact {f.object_contact} is outside the object's "
-                         f"domain {self.object_surface.domain}")
+                         f"domain {self.object_surface.domain}"
+                         f"{_ATLAS_GUESS if self.object_surface.atlas is not None else ''}")
         for label, values in (("position", self.position), ("dq0", self.dq0 or ()),
                               *[(f"finger {i}: q0", f.q0) for i, f in enumerate(self.fingers, 1)],
                               *[(f"finger {i}: tip_contact", f.tip_contact)
