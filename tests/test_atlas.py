@@ -724,3 +724,35 @@ def test_a_grasps_contact_near_chart_0s_pole_starts_in_chart_1(pivot_grasps):
     assert np.abs(ra.x[:, body] - rr.x[:, body]).max() < 1e-9
     want = tip.evaluate(rr["u_f1"], rr["v_f1"])["point"]
     assert np.abs(atip.evaluate(ra["u_f1"], ra["v_f1"], chart=ra.charts["chart_f1"])["point"] - want).max() < 1e-12
+
+
+def test_a_plane_under_a_grasped_object_switches_its_support_points_chart_in_motion():
+    """test_grasp_modes.py's ball pressed onto a turntable spinning up (``w(t) = 2 t``): it
+    lands and is carried, rolling by ~0.3 rad. Written as a sphere's atlas whose chart-0
+    poles lie 0.3 rad from the bottom and the top, the support point on the turntable
+    (``chart_w1``) and then the finger's contact (``chart_o1``) reach chart 0's edge and
+    switch chart in motion; against the one-chart ball (that file's build): the same event,
+    every other state within 1e-9 (rtol 1e-9), both contact points, read in their charts, to
+    1e-12 m."""
+    w0 = np.array([-0.03, 0.0, 0.0])
+    turn = (Rotation.from_euler("x", 0.3) * Rotation.from_euler("x", 90, degrees=True)).as_matrix()
+    ball = sl.sphere(BALL_R, rotation=turn, atlas=True, name="ball atlas")
+    top, down = turn.T @ [0.0, 1.0, 0.0], turn.T @ [0.0, -1.0, 0.0]
+    scenes = (pressed_ball("press_turn", 0.0)[1],            # test_grasp_modes.py's: one build for both
+              pressed_ball("press_turn_atlas", 0.0, surface=ball,
+                           object_contact=(math.atan2(top[1], top[0]), math.asin(top[2])))[1])
+    supports = ((-np.pi / 2, 0.0), (math.atan2(down[1], down[0]), math.asin(down[2])))
+    models = [gs.build(gs.scenes.with_modes(s, planes=[gs.scenes.world_plane(tuple(w0), (0.0, 1.0, 0.0), support=w,
+                                                                             spin="2*t")]))
+              for s, w in zip(scenes, supports)]
+    kw = dict(mu=(0.5, 1.0), t_eval=np.linspace(0.0, 0.5, 11), rtol=1e-9, atol=1e-11)
+    plain, atlas = (m.simulate(0.5, **kw) for m in models)
+    assert [(r["chart"], r["from"], r["to"]) for r in atlas.chart_switches] == [("chart_w1", 0, 1), ("chart_o1", 0, 1)]
+    assert [(e["contact"], e["to"]) for e in plain.events] == [(e["contact"], e["to"]) for e in atlas.events]
+    assert abs(plain.events[0]["t"] - atlas.events[0]["t"]) < 1e-12
+    body = [k for k, n in enumerate(models[0].state_names) if not n.startswith(("u_", "v_", "psi"))]
+    assert np.abs(plain.x[:, body] - atlas.x[:, body]).max() < 1e-9
+    for side in ("w1", "o1"):
+        here = scenes[0].object_surface.evaluate(plain[f"u_{side}"], plain[f"v_{side}"])["point"]
+        there = ball.evaluate(atlas[f"u_{side}"], atlas[f"v_{side}"], chart=atlas.charts[f"chart_{side}"])["point"]
+        assert np.abs(here - there).max() < 1e-12

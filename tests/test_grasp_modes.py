@@ -271,7 +271,7 @@ def test_a_rising_table_meets_the_pressed_ellipsoid():
     assert r["y"][-1] > R + 0.001                                   # lifted past its start
 
 
-def test_a_turntable_spinning_up_drags_thepressed_ball():
+def test_a_turntable_spinning_up_drags_the_pressed_ball():
     """The finger presses the ball onto a turntable whose rate grows as ``w(t) = 2 t`` rad/s
     about the vertical through ``w0``, 2 cm beside the ball (``world_plane(spin=...)``). The
     ball lands (the impact stops its slip on the table's moving material) and rolls on: its
