@@ -12,13 +12,15 @@ from grasping_sym.model.grasp3d import Finger3D
 BALL_R, BALL_M = 0.02, 0.04
 
 
-def pressed_ball(name: str, offset: float, axes=None, surface=None, object_contact=(np.pi / 2, 0.0)):
+def pressed_ball(name: str, offset: float, axes=None, surface=None, object_contact=(np.pi / 2, 0.0),
+                 rotation=None):
     """``(a, scene)``: a free ball (radius 0.02 m, 0.04 kg, given centre ``a`` 0.5 mm above a
     table at y = 0) pressed from above by ``chains.finger1`` (fingertip sphere 0.010 m), its
     fingertip centre ``offset`` m beside the ball's top; ``axes``: an ellipsoid's semi-axes
     instead (its centre as high, its inertia a solid ellipsoid's). ``surface``: the ball's
     surface written otherwise (radius 0.02 m), ``object_contact`` the guess of the finger's
-    contact on it (the top, ``(pi/2, 0)`` on the default chart)."""
+    contact on it (the top, ``(pi/2, 0)`` on the default chart); ``rotation``: the ball's at
+    the start (a start value: the same compiled model)."""
     R, r, link = BALL_R, 0.010, 0.065
     centre = np.array([-0.05, R + 0.0005, 0.0])
     d = centre + (offset, R + r, 0.0) - np.array([-0.1275, 0.0, 0.0])
@@ -32,5 +34,6 @@ def pressed_ball(name: str, offset: float, axes=None, surface=None, object_conta
     if surface is None:
         surface = surface_library.ellipsoid(*semi, lon=(-2.5, 4.0), name="ball")
     return centre, gs.scenes.paper3d(name=name, fingers=(finger,), mass=BALL_M,
-                                     inertia=inertia, rotation=np.eye(3), object_surface=surface,
+                                     inertia=inertia, rotation=np.eye(3) if rotation is None else rotation,
+                                     object_surface=surface,
                                      position=tuple(centre), k_center=0.0, dq0=None, outputs=())

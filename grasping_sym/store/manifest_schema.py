@@ -55,6 +55,7 @@ def manifest_problems(m: object) -> list[str]:
     params = _strings(m, "param_names", out, ident=True)
     starts = _strings(m, "start_param_names", out, ident=True)
     inputs = _strings(m, "input_names", out, ident=True)
+    charts = _strings(m, "chart_param_names", out, ident=True) if "chart_param_names" in m else []
     _strings(m, "start_conditions", out)
     _strings(m, "c_symbols", out, ident=True)
     values = m.get("param_values")
@@ -90,11 +91,12 @@ def manifest_problems(m: object) -> list[str]:
                            "or integers")
         if d.get("GS_NX") != len(states):
             out.append(f"driver_defines GS_NX = {d.get('GS_NX')!r}, but there are {len(states)} states")
-        # p: the run-time parameters, the start's, then each input's a and b (u = a + b t)
-        n_p = len(params) + len(starts) + 2 * len(inputs)
+        # p: the run-time parameters, the start's, each input's a and b (u = a + b t), then the
+        # charts of the surfaces with atlases (geometry.atlas)
+        n_p = len(params) + len(starts) + 2 * len(inputs) + len(charts)
         if d.get("GS_NP") != n_p:
-            out.append(f"driver_defines GS_NP = {d.get('GS_NP')!r}, but the parameters, the start's "
-                       f"and two per input make {n_p}")
+            out.append(f"driver_defines GS_NP = {d.get('GS_NP')!r}, but the parameters, the start's, "
+                       f"two per input and the charts make {n_p}")
         for k in ("GS_RHS", "GS_SZ_ARG", "GS_SZ_RES", "GS_SZ_IW", "GS_SZ_W"):
             if k not in d:
                 out.append(f"driver_defines lacks {k}")
