@@ -62,10 +62,11 @@ def paper2d_result(paper2d_model):
 #: finish together instead of one worker running a long file alone at the end. A file not
 #: named keeps its place after these; the order within a file is kept.
 HEAVY_FIRST = (
-    "test_planar_free.py", "test_atlas.py", "test_planar_multifinger.py", "test_docs.py",
-    "test_examples_control.py", "test_layers.py", "test_runtime_guards.py", "test_cache_security.py",
-    "test_sweep.py", "test_compiled_vs_symbolic.py", "test_generated_golden.py", "test_modes.py",
-    "test_viewer.py", "test_hard_cases.py", "test_compiled_runtime.py", "test_grasp_modes.py",
+    "test_planar_free.py", "test_examples_control.py", "test_docs.py", "test_atlas.py",
+    "test_planar_multifinger.py", "test_layers.py", "test_grasp_modes.py", "test_runtime_guards.py",
+    "test_viewer.py", "test_sweep.py", "test_cache_security.py", "test_hands_urdf.py",
+    "test_generated_golden.py", "test_modes.py", "test_paper3d.py", "test_compiled_vs_symbolic.py",
+    "test_compiled_runtime.py",
 )
 
 
