@@ -81,15 +81,19 @@ def _grasp3d_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
 
 def _in_charts(scene, x0: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
     """``x0`` (solved in chart 0 of every surface with an atlas) with each contact that lies
-    beyond chart 0's latitudes (``|v| >= 1.3``, near its pole) carried into chart 1 as a run
-    carries it at a chart's edge (``runtime.atlas.transition``: the same point, ``psi`` turned
-    by the frames' angle), and the charts the start is then written in."""
+    beyond chart 0's latitudes (``|v| >= 1.3``, near its pole) carried into chart 1, and each
+    contact on a repeating chart taken whole periods toward its domain's middle, as a run
+    carries them at a chart's edge (``runtime.atlas.transition``: the same point, ``psi``
+    turned by the frames' angle); and the charts the start is then written in."""
     x0 = np.array(x0, dtype=float)
     names = scene.state_names
     charts = {}
     for entry in scene.atlas_manifest().get("atlas", ()):
         iu, iv = names.index(entry["u"]), names.index(entry["v"])
-        if entry["param"] is None or abs(x0[iv]) < ATLAS_LAT[1]:
+        if entry["param"] is None:
+            _, x0[iu], x0[iv], _ = transition(entry, 0, float(x0[iu]), float(x0[iv]))
+            continue
+        if abs(x0[iv]) < ATLAS_LAT[1]:
             continue
         new, x0[iu], x0[iv], delta = transition(entry, 0, float(x0[iu]), float(x0[iv]))
         if entry["psi"] is not None:
@@ -159,12 +163,14 @@ def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
         extra += list(uv)
         if f"chart_w{m}" in scene.chart_names:
             charts[f"chart_w{m}"] = chart
+    x0, _ = _in_charts(scene, np.concatenate([x0, extra]))     # the planes' on a repeating chart
     charts = {**info.get("charts", {}), **charts}   # the base grasp's contacts', then the planes'
-    return np.concatenate([x0, extra]), values, {**info, **({"charts": charts} if charts else {})}
+    return x0, values, {**info, **({"charts": charts} if charts else {})}
 
 
 def _body_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     x0, info = body_plane.start_state(scene)
+    x0, _ = _in_charts(scene, x0)   # its support point on a repeating chart (an atlas's: solved in its chart)
     return x0, {}, info
 
 

@@ -25,8 +25,6 @@ stop).
 """
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 import sympy as sp
@@ -207,14 +205,9 @@ def support_in_a_chart(surface, R: np.ndarray, n: np.ndarray, guess) -> tuple[np
     (``geometry.atlas``) in chart 0 where it lies inside it (``guess`` in chart 0, then from
     its equator), else in chart 1 (from its equator): a start at chart 0's pole (a ball with
     ``atlas=True`` on a table below it) starts in chart 1. A surface without one: chart 0
-    (``support_point``), on a repeating chart (``ParametricSurface.periods``) a coordinate
-    taken whole periods toward the domain's middle where Newton's method ended beyond it."""
+    (``support_point``)."""
     if getattr(surface, "atlas", None) is None:
-        uv, S = support_point(surface, R, n, guess)
-        if surface.periods is not None:  # a repeating chart: beyond its domain, a period back
-            uv = np.array([a if p is None or lo < a < hi else 0.5 * (lo + hi) + math.remainder(a - 0.5 * (lo + hi), p)
-                           for a, p, (lo, hi) in zip(uv, surface.periods, surface.domain)])
-        return uv, S, 0
+        return (*support_point(surface, R, n, guess), 0)
     for chart, shape in ((0, surface), (1, surface.atlas.second)):
         for start in ((tuple(guess),) if chart == 0 else ()) + tuple((u, 0.0) for u in _LONGITUDES):
             found = _support_in(shape, R, n, start)

@@ -194,9 +194,9 @@ class BodyScene:
                 "body": {"mass": float(self.mass), "inertia": [list(r) for r in self.inertia],
                          "plane_normal": list(self.plane_normal), "gain": float(self.gain)},
                 "param_rules": {"mu": "nonnegative"},
-                **self._atlas_manifest()}
+                **self.atlas_manifest()}
 
-    def _atlas_manifest(self) -> dict:
+    def atlas_manifest(self) -> dict:
         """The surface's atlas (``geometry.atlas``) as the run time reads it, if it has one."""
         entry = manifest_entry(self.surface, "chart", "u", "v", None)
         if entry is None:
