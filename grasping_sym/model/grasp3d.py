@@ -82,9 +82,9 @@ _ATLAS_GUESS = (" (on a surface with an atlas: chart 0's longitude, and a latitu
 
 def start_inside(surface, uv) -> bool:
     """Whether a contact's start (its guess, or the solved point) ``uv`` lies where the start
-    can take it: the surface's
-    domain; on a surface with an atlas (``geometry.atlas``) chart 0 anywhere off its poles
-    (``|v| < pi/2``; the start carries a contact beyond its latitudes into chart 1)."""
+    can take it: the surface's domain; on a surface with an atlas (``geometry.atlas``) chart 0
+    anywhere off its poles (``|v| < pi/2``; the start carries a contact beyond its latitudes
+    into chart 1)."""
     if surface.atlas is None:
         return surface.in_domain(*uv)
     (u0, u1), _ = surface.domain
