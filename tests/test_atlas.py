@@ -741,6 +741,10 @@ def test_a_grasps_contact_near_chart_0s_pole_starts_in_chart_1(pivot_grasps):
     assert np.abs(ra.x[:, body] - rr.x[:, body]).max() < 1e-9
     want = tip.evaluate(rr["u_f1"], rr["v_f1"])["point"]
     assert np.abs(atip.evaluate(ra["u_f1"], ra["v_f1"], chart=ra.charts["chart_f1"])["point"] - want).max() < 1e-12
+    # started elsewhere (with_start: continued from this start, in its charts), it keeps them
+    moved = model.with_start(q11=float(xs[names.index("q11")]) + 0.005)
+    assert moved.default_params[0] == 1.0
+    assert moved.simulate(0.05, t_eval=[0.0, 0.05]).charts["chart_f1"][0] == 1
 
 
 def test_a_plane_under_a_grasped_object_switches_its_support_points_chart_in_motion():
@@ -759,3 +763,38 @@ def test_a_model_with_an_atlas_is_read_back_from_the_cache(lap_model, pivot_gras
         again = gs.build(model.scene)
         assert again.build_info["source"] == "cache", again.build_info.get("rebuilt_because")
         assert again.p_names == model.p_names and "chart" in again.p_names[-1]
+
+
+def test_a_repeating_chart_carries_only_its_repeating_coordinates():
+    """What the run time carries at an edge (``runtime.atlas.Atlases``): a revolved open
+    contour's angle, not its contour parameter (whose end is the surface's: a contact there
+    leaves the surface, by name); a grasp in the paper's formulation (no frame angle) names
+    none for a wrap, which turns nothing; a run's stretches between wraps of a model with no
+    parameters keep ``p`` None."""
+    from types import SimpleNamespace
+
+    from grasping_sym.runtime.run import _Charted
+
+    vase = REPEATING["vase"]()
+    entry = manifest_entry(vase, "chart", "u", "v", None)
+    model = SimpleNamespace(manifest={"atlas": [entry]}, state_names=("a", "u", "v"), p_names=(),
+                            lower=np.array([-np.inf, *(lo for lo, _ in vase.domain)]),
+                            upper=np.array([np.inf, *(hi for _, hi in vase.domain)]))
+    atlases = atlas_.Atlases(model)
+    assert atlases.columns == {1: 0}
+    (v0, v1) = vase.domain[1]
+    at_end = ContactLeftContourError(0.1, np.array([0.0, 1.0, v1 - 1e-3]), "v left", model.state_names)
+    at_end.x_rejected = np.array([0.0, 1.0, v1 + 1e-3])
+    assert atlases.slot_of(at_end) is None                 # not a wrap: the surface ends there
+    at_seam = ContactLeftContourError(0.1, np.array([0.0, 9.4, 0.0]), "u left", model.state_names)
+    at_seam.x_rejected = np.array([0.0, 9.5, 0.0])
+    assert atlases.slot_of(at_seam) == 0
+    charted = _Charted(model)
+    _, _, record = atlases.switch(0, 0.1, at_seam.x, None)
+    charted.switches.append(record)
+    assert [q for _, _, q in charted.pieces(np.linspace(0.0, 0.2, 5), None)] == [None, None]
+    ring = sl.torus(0.03, 0.01, atlas=True, name="ring tip")
+    base = gs.scenes.paper3d()
+    fingers = (dataclasses.replace(base.fingers[0], tip=ring), base.fingers[1])
+    paper = gs.scenes.paper3d(fingers=fingers, formulation="paper")
+    assert [e["psi"] for e in paper.atlas_manifest()["atlas"]] == [None]

@@ -32,6 +32,13 @@ from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import U, V
 from grasping_sym.model.grasp3d import GraspScene3D, start_inside
 
+
+def _atlas_note(surface) -> str:
+    """What a contact's start may be on ``surface`` beyond its domain: on an atlas, chart 0 off
+    its poles (``model.grasp3d.start_inside``)."""
+    return "" if surface.atlas is None else " (on its atlas: chart 0's longitude, |v| < pi/2)"
+
+
 #: m, largest contact residual accepted at the start.
 TOL = 1e-12
 MAX_ITER = 60
@@ -121,10 +128,12 @@ def solve_configuration(scene: GraspScene3D) -> dict:
         uv = w[kr + 3 + 4 * i:kr + 7 + 4 * i]
         if not start_inside(f.tip, uv[:2]):
             problems.append(f"finger {i + 1}: the fingertip contact solved to (u, v) = {tuple(map(float, uv[:2]))}, "
-                            f"outside the fingertip's domain {f.tip.domain}; move tip_contact or q0")
+                            f"outside the fingertip's domain {f.tip.domain}{_atlas_note(f.tip)}; "
+                            "move tip_contact or q0")
         if not start_inside(scene.object_surface, uv[2:]):
             problems.append(f"finger {i + 1}: the object contact solved to (u, v) = {tuple(map(float, uv[2:]))}, "
-                            f"outside the object's domain {scene.object_surface.domain}")
+                            f"outside the object's domain {scene.object_surface.domain}"
+                            f"{_atlas_note(scene.object_surface)}")
     if problems:
         raise InvalidSceneError(problems)
     frames = [np.asarray(a, float) for a in fun(w, R)[2:]]

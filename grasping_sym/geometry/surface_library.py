@@ -223,7 +223,7 @@ def torus(R: float, r: float, center: Vec3 = (0.0, 0.0, 0.0), rotation=None, *,
     problems = _finite_positive(R=R, r=r) + _interval("u", u) + _interval("v", v)
     periods = None
     if atlas is True:
-        if (tuple(u), tuple(v)) != ((-_PI, _PI), (-_PI, _PI)):
+        if (u, v) != ((-_PI, _PI), (-_PI, _PI)) and not problems:
             problems.append("u and v are the atlas's own with atlas=True (three turns each, (-3 pi, 3 pi), "
                             "both repeating): leave them out")
         u, v, periods = ATLAS_LON, ATLAS_LON, (2 * _PI, 2 * _PI)
@@ -266,7 +266,7 @@ def surface_of_revolution(curve: PlanarCurve, axis: str = "z", center: Vec3 = (0
     problems = _interval("angle", angle)
     periods = None
     if atlas is True:
-        if tuple(angle) != (-_PI, _PI):
+        if angle != (-_PI, _PI) and not problems:
             problems.append("angle is the atlas's own with atlas=True (three turns, (-3 pi, 3 pi), "
                             "repeating): leave it out")
         angle, period = ATLAS_LON, curve.period

@@ -346,7 +346,8 @@ class GraspScene3D:
         """``(slot, parameter, side)`` of each contact surface with an atlas
         (``geometry.atlas``): contact ``i``'s fingertip (slot ``2 (i - 1)``, parameter
         ``chart_f{i}``, side ``f``), the object there (``2 i - 1``, ``chart_o{i}``, ``o``). The
-        chart is a parameter the run sets (``runtime.atlas``), 0 at the start."""
+        chart is a parameter the run sets (``runtime.atlas``), 0 at the start unless the contact
+        lies beyond chart 0's latitudes (``assemble.kinds``)."""
         out = []
         for i, f in enumerate(self.fingers, 1):
             for slot, side, surface in ((2 * i - 2, "f", f.tip), (2 * i - 1, "o", self.object_surface)):
@@ -365,7 +366,8 @@ class GraspScene3D:
         entries = []
         for i, f in enumerate(self.fingers, 1):
             for side, surface in (("f", f.tip), ("o", self.object_surface)):
-                entry = manifest_entry(surface, f"chart_{side}{i}", f"u_{side}{i}", f"v_{side}{i}", f"psi{i}")
+                psi = f"psi{i}" if f"psi{i}" in self.state_names else None   # the paper's: none
+                entry = manifest_entry(surface, f"chart_{side}{i}", f"u_{side}{i}", f"v_{side}{i}", psi)
                 entries += [] if entry is None else [entry]
         if not entries:
             return {}

@@ -123,7 +123,10 @@ class Atlases:
             cols = (names.index(entry["u"]), names.index(entry["v"]),
                     None if entry["psi"] is None else names.index(entry["psi"]))
             self.slots.append((entry, None if entry["param"] is None else p_names.index(entry["param"]), cols))
-        self.columns = {c: k for k, (_, _, cols) in enumerate(self.slots) for c in cols[:2]}
+        # the columns whose edge is a switch: an atlas's u and v; a repeating chart's
+        # repeating coordinates only (a revolved open contour's end is its surface's end)
+        self.columns = {c: k for k, (entry, _, cols) in enumerate(self.slots) for j, c in enumerate(cols[:2])
+                        if entry["kind"] != "periodic" or entry["periods"][j] is not None}
 
     def slot_of(self, err) -> int | None:
         """The atlas slot whose coordinates left their chart in ``err`` (a

@@ -155,7 +155,7 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         return None  # a force leaves its cone: the full way locates it and names it
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     charts = {}
-    if "chart_param_names" in model.manifest:  # an atlas's run that reached no chart's edge: its start's
+    if model.manifest.get("atlas"):  # an atlas's run that reached no chart's edge: its start's charts
         charts = {k: np.full(m, int(model.default_params[model.p_names.index(k)]))
                   for k in parameters.charts_of(model)}
         info["chart_switches"] = 0

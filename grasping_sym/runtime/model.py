@@ -88,11 +88,11 @@ class Model:
         #: every entry of the compiled functions' ``p``: ``param_names``, the start's values,
         #: the inputs' coefficients (``u(t) = a + b t``: every ``a``, then every ``b``),
         #: then the charts of the surfaces with atlases (``runtime.atlas``: the start's, 0 unless
-        #: a support point was solved in chart 1)
+        #: a contact or a support point lies beyond chart 0's latitudes at the start)
         charts = tuple(manifest.get("chart_param_names", ()))
         self.p_names: tuple[str, ...] = self.param_names + start_names + coefficients + charts
-        #: each chart at the start (``runtime.atlas``): 0, or the start's own where it was
-        #: solved in chart 1 (a body's support point at chart 0's pole)
+        #: each chart at the start (``runtime.atlas``): 0, or the start's own where it is
+        #: written in chart 1 (a body's support point at chart 0's pole, a grasp's contact near it)
         at_start = ((start.get("info") or {}).get("charts") or {})
         self.default_params = np.array([*manifest["param_values"], *self.start_params.values(),
                                         *[0.0] * len(coefficients),

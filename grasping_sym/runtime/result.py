@@ -66,9 +66,10 @@ class SimulationResult:
         A model whose surfaces have atlases (``geometry.atlas``): per chart parameter (e.g.
         ``"chart"``), the chart (0 or 1) each row's contact coordinates are in; else empty.
     chart_switches
-        Every switch of chart, in time order, a dict with ``t``, ``chart`` (the parameter),
-        ``from``, ``to``, ``u`` and ``v`` (before, after) and ``delta`` (the frame's turn,
-        rad; ``runtime.atlas``).
+        Every switch of chart, in time order, a dict with ``t``, ``chart`` (the parameter; None
+        for a repeating chart's coordinates carried a period back), ``coordinates`` (the
+        contact's state names), ``from``, ``to``, ``u`` and ``v`` (before, after) and ``delta``
+        (the frame's turn, rad; ``runtime.atlas``).
     """
 
     t: np.ndarray

@@ -183,10 +183,10 @@ class _Charted:
         stretch's charts)."""
         if not self.switches:
             return [(0, len(t), p)]
-        out, a, pk = [], 0, np.array(p, dtype=float)
+        out, a, pk = [], 0, None if p is None else np.array(p, dtype=float)
         for rec in self.switches:
             b = int(np.searchsorted(t, rec["t"], side="right"))
-            out.append((a, b, pk.copy()))
+            out.append((a, b, None if pk is None else pk.copy()))
             if rec["chart"] is not None:  # None: a repeating chart's coordinates wrapped
                 pk[self.model.p_names.index(rec["chart"])] = rec["to"]
             a = b

@@ -142,8 +142,10 @@ def start_record(model, values: dict[str, float], branch: str = "start") -> dict
     solution, start = _solution_and_params(model, values, branch)
     tag = "" if branch == "start" else f"+branch={branch}"
     key = hashlib.sha256(f"{model.start['key']}+{sorted(values.items())!r}{tag}".encode()).hexdigest()
+    charts = (model.start.get("info") or {}).get("charts")   # the state is in the model's charts
     return stored.start_record(solution.x, start, key, {"given": dict(values), "from": model.start["key"],
-                                                       "branch": solution.info()})
+                                                       "branch": solution.info(),
+                                                       **({"charts": dict(charts)} if charts else {})})
 
 
 def start_point(model, values: dict[str, float], branch: str = "start") -> tuple[np.ndarray, dict[str, float]]:
