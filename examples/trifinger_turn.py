@@ -19,7 +19,7 @@ import numpy as np
 
 import grasping_sym as gs
 from grasping_sym.pipeline import solve_start
-from grasping_sym.runtime.result import rotations
+from grasping_sym.rotations import matrices as rotations
 
 ANGLE = 0.3                        # rad, about the vertical
 AXIS = (0.0, 0.0, 1.0)             # TriFinger's world: z up

@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 import grasping_sym as gs
-from grasping_sym.runtime.result import rotations
+from grasping_sym.rotations import matrices as rotations
 
 ANGLE = 0.2                       # rad
 AXIS = (0.0, 0.0, 1.0)            # across the grasp (the grasp line runs along x)

@@ -259,18 +259,13 @@ def two_contacts_squeeze(points, normals, mu) -> np.ndarray:
     m = np.asarray(mu, dtype=float)
     if m.shape not in ((), (1,), (2,)) or np.any(~np.isfinite(m)) or np.any(m < 0):
         raise ValueError(f"mu = {mu!r}: give a finite coefficient >= 0, or one per contact")
-    return _squeeze(p, n, np.broadcast_to(m, (2,)))
+    return squeezes(p, n, np.broadcast_to(m, (2,)))
 
 
 def squeezes(p: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """``two_contacts_squeeze`` of arrays the caller made as it requires (finite, the normals
-    unit; ``m``: one coefficient per contact): grasp quality along a run, whose contacts come
-    from the surface's own frames."""
-    return _squeeze(p, n, m)
-
-
-def _squeeze(p: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """``two_contacts_squeeze`` of checked arrays (``m``: one coefficient per contact)."""
+    """``two_contacts_squeeze`` of arrays made as it requires (finite, the normals unit; ``m``:
+    one coefficient per contact): its own checked arrays, and grasp quality along a run, whose
+    contacts come from the surface's own frames."""
     d = p[..., 1, :] - p[..., 0, :]
     dd = np.einsum("...i,...i->...", d, d)
     # whether d, and -d, lies in each contact's cone (``v.n >= 0`` and ``|v - (v.n) n| <= mu
@@ -295,7 +290,7 @@ def epsilon(points, normals, mu, centre=None, length: float | None = None,
     squeeze (``two_contacts_squeeze``)."""
     check_scales(length, edges)
     p, n, m, c = _checked(points, normals, mu, centre)
-    if p.shape == (2, 3) and bool(_squeeze(p, n, m)):
+    if p.shape == (2, 3) and bool(squeezes(p, n, m)):
         return Quality(0.0, 0.0)
     inner = _inradius(primitive_wrenches(p, n, m, c, length, edges))
     if p.shape[1] == 2:

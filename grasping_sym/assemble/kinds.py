@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from grasping_sym import rotations
 from grasping_sym.assemble import scene_functions
 from grasping_sym.assemble.functions import sympy_op_counts
 from grasping_sym.derive import body_line, body_plane, finger_templates, start3d
-from grasping_sym.derive.bodies3d import rotation_of
 from grasping_sym.derive.grasp3d import finger_function, template_of
 from grasping_sym.derive.planar import derive_planar
 from grasping_sym.errors import InvalidSceneError
@@ -151,7 +151,7 @@ def _grasp3d_modes_start(scene) -> tuple[np.ndarray, dict[str, float], dict]:
     base = scene.base
     names = base.state_names
     quat = x0[[names.index(k) for k in ("qw", "qx", "qy", "qz")]]
-    R = rotation_of(quat)
+    R = rotations.matrices(quat)[0]
     pos = np.array(base.position, float) if not base.free else x0[[names.index(k) for k in "xyz"]]
     extra, charts = [], {}
     for m, w in enumerate(scene.planes, start=1):

@@ -16,7 +16,6 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from grasping_sym import rotations
 from grasping_sym.derive.finger_templates import finger_template
 from grasping_sym.derive.spatial import (
     finger_dynamics,
@@ -136,16 +135,6 @@ def surface_sx(surface: ParametricSurface, u, v, extra: bool = False, chart=None
         out["Tm"] = ca.horzcat(tr(surface.S_u), tr(surface.S_v))
         out["II"] = tr(surface.second_fundamental_form)
     return out
-
-
-def quaternion_of(R: np.ndarray) -> np.ndarray:
-    """The unit quaternion ``(w, x, y, z)``, ``w >= 0``, of the rotation matrix ``R``."""
-    return rotations.quaternion(R)
-
-
-def rotation_of(quat: np.ndarray) -> np.ndarray:
-    """The rotation matrix of the quaternion ``(w, x, y, z)`` (normalised)."""
-    return rotations.matrices(quat)[0]
 
 
 def object_rotation(quat: ca.SX, om: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:

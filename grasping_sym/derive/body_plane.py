@@ -29,7 +29,8 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from grasping_sym.derive.bodies3d import object_rotation, quaternion_of, surface_sx
+from grasping_sym import rotations
+from grasping_sym.derive.bodies3d import object_rotation, surface_sx
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry.atlas import LAT as ATLAS_LAT
 from grasping_sym.model.body import TIME
@@ -161,7 +162,7 @@ def start_state(scene) -> tuple[np.ndarray, dict]:
             [float(sp.diff(e, TIME).subs(TIME, 0)) for e in scene.plane_motion])
         pos = pos - np.dot(n, pos + R0 @ S0 - np.asarray(scene.plane_point)) * n
         vel = vel - np.dot(n, vel + R0 @ np.cross(om, S0) - v_plane) * n
-    x0 = np.concatenate([pos, quaternion_of(R0), vel, om, uv0])
+    x0 = np.concatenate([pos, rotations.quaternion(R0), vel, om, uv0])
     charts = {"charts": {"chart": chart}} if getattr(scene.surface, "atlas", None) is not None else {}
     return x0, {"support": [float(v) for v in uv0], **charts}
 

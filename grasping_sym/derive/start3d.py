@@ -26,18 +26,11 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym import rotations
-from grasping_sym.derive.bodies3d import finger_sx, quaternion_of, surface_sx
+from grasping_sym.derive.bodies3d import finger_sx, surface_sx
 from grasping_sym.derive.grasp3d import derive_grasp3d
 from grasping_sym.errors import InvalidSceneError, MovingFrameSingularityError
 from grasping_sym.geometry.surfaces import U, V
-from grasping_sym.model.grasp3d import GraspScene3D, start_inside
-
-
-def _atlas_note(surface) -> str:
-    """What a contact's start may be on ``surface`` beyond its domain: on an atlas, chart 0 off
-    its poles (``model.grasp3d.start_inside``)."""
-    return "" if surface.atlas is None else " (on its atlas: chart 0's longitude, |v| < pi/2)"
-
+from grasping_sym.model.grasp3d import GraspScene3D, start_inside, start_note
 
 #: m, largest contact residual accepted at the start.
 TOL = 1e-12
@@ -128,12 +121,12 @@ def solve_configuration(scene: GraspScene3D) -> dict:
         uv = w[kr + 3 + 4 * i:kr + 7 + 4 * i]
         if not start_inside(f.tip, uv[:2]):
             problems.append(f"finger {i + 1}: the fingertip contact solved to (u, v) = {tuple(map(float, uv[:2]))}, "
-                            f"outside the fingertip's domain {f.tip.domain}{_atlas_note(f.tip)}; "
+                            f"outside the fingertip's domain {f.tip.domain}{start_note(f.tip)}; "
                             "move tip_contact or q0")
         if not start_inside(scene.object_surface, uv[2:]):
             problems.append(f"finger {i + 1}: the object contact solved to (u, v) = {tuple(map(float, uv[2:]))}, "
                             f"outside the object's domain {scene.object_surface.domain}"
-                            f"{_atlas_note(scene.object_surface)}")
+                            f"{start_note(scene.object_surface)}")
     if problems:
         raise InvalidSceneError(problems)
     frames = [np.asarray(a, float) for a in fun(w, R)[2:]]
@@ -149,7 +142,7 @@ def solve_configuration(scene: GraspScene3D) -> dict:
 def regular_state(scene: GraspScene3D, conf: dict) -> np.ndarray:
     """The regular formulation's state at rest from a solved configuration."""
     nQ = len(conf["q"])
-    parts = [conf["q"], conf["pos"] if scene.free else [], quaternion_of(conf["R"]),
+    parts = [conf["q"], conf["pos"] if scene.free else [], rotations.quaternion(conf["R"]),
              np.zeros(nQ + (6 if scene.free else 3)), conf["eta"].ravel()]
     return np.concatenate([np.asarray(p, float) for p in parts])
 

@@ -74,10 +74,13 @@ OUTPUTS: dict[str, str] = {
 }
 
 
-#: What a contact's guess on a surface with an atlas may be (``start_inside``).
-_ATLAS_GUESS = (" (on a surface with an atlas: chart 0's longitude, and a latitude strictly "
-                "inside +-pi/2, off its poles, where chart 0 still has coordinates: the start moves "
-                "a contact beyond +-1.3 into chart 1)")
+def start_note(surface) -> str:
+    """What a contact's start may be on ``surface`` beyond its domain (``start_inside``), for
+    the messages that refuse one: on an atlas, chart 0 off its poles; else nothing."""
+    return "" if surface.atlas is None else (
+        " (on a surface with an atlas: chart 0's longitude, and a latitude strictly inside "
+        "+-pi/2, off its poles, where chart 0 still has coordinates: the start moves a contact "
+        "beyond +-1.3 into chart 1)")
 
 
 def start_inside(surface, uv) -> bool:
@@ -201,11 +204,10 @@ class GraspScene3D:
                 p.append(f"finger {i}: q0 has {len(f.q0)} angles, the chain has {f.chain.n} joints")
             if not start_inside(f.tip, f.tip_contact):
                 p.append(f"finger {i}: tip_contact {f.tip_contact} is outside the fingertip's domain "
-                         f"{f.tip.domain}{_ATLAS_GUESS if f.tip.atlas is not None else ''}")
+                         f"{f.tip.domain}{start_note(f.tip)}")
             if not start_inside(self.object_surface, f.object_contact):
                 p.append(f"finger {i}: object_contact {f.object_contact} is outside the object's "
-                         f"domain {self.object_surface.domain}"
-                         f"{_ATLAS_GUESS if self.object_surface.atlas is not None else ''}")
+                         f"domain {self.object_surface.domain}{start_note(self.object_surface)}")
         for label, values in (("position", self.position), ("dq0", self.dq0 or ()),
                               *[(f"finger {i}: q0", f.q0) for i, f in enumerate(self.fingers, 1)],
                               *[(f"finger {i}: tip_contact", f.tip_contact)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from grasping_sym import quality
-from grasping_sym.runtime.result import rotations
+from grasping_sym.rotations import matrices
 
 __all__ = ["contact_forces", "contacts_along", "grasp_quality"]
 
@@ -65,7 +65,7 @@ def _frames(model, result, local=None, rows=None) -> tuple[np.ndarray, list[dict
     if rows is not None:
         X, local = X[rows], {key: v[:, rows] for key, v in local.items()}
     c = X[:, [names.index(k) for k in _POSE[:3]]]
-    rot = rotations(X[:, [names.index(k) for k in _POSE[3:]]])
+    rot = matrices(X[:, [names.index(k) for k in _POSE[3:]]])
     frames = []
     for i in range(len(local["point"])):
         # the four vectors of every row turned at once: (n, 3, 3) @ (n, 3, 4)
@@ -106,9 +106,12 @@ def contacts_along(model, result, frames=None) -> tuple[np.ndarray, np.ndarray, 
     ``(n, k, 3)`` (the surface's outward normal, turned around), world frame, m. ``frames``:
     ``_frames``' (made here when not given)."""
     c, frames = _frames(model, result) if frames is None else frames
-    normals = np.stack([f["normal"] for f in frames], axis=1)
-    normals = normals / -np.sqrt(np.einsum("nki,nki->nk", normals, normals))[..., None]
-    return c, np.stack([f["point"] for f in frames], axis=1), normals
+    return c, np.stack([f["point"] for f in frames], axis=1), _inward(np.stack([f["normal"] for f in frames], axis=1))
+
+
+def _inward(normals: np.ndarray) -> np.ndarray:
+    """Outward normals ``(n, k, 3)`` as unit normals into the object."""
+    return normals / -np.sqrt(np.einsum("nki,nki->nk", normals, normals))[..., None]
 
 
 def grasp_quality(model, result, mu=None, *, length: float | None = None,
@@ -137,7 +140,8 @@ def grasp_quality(model, result, mu=None, *, length: float | None = None,
     quality.check_scales(length, edges)
     lower, upper, closed = _by_hulls(points, normals, mus, centres, length, edges,
                                      np.arange(len(points)), len(points))
-    return _with_forces(model, result, mus, lower, upper, closed, centres, points, frames)
+    return _with_forces(model, result, mus, lower, upper, closed,
+                        lambda cols: _internal_norms(centres, points, contact_forces(model, result, frames)))
 
 
 def _by_hulls(points, normals, mus, centres, length: float, edges: int, rows, n: int):
@@ -153,16 +157,16 @@ def _by_hulls(points, normals, mus, centres, length: float, edges: int, rows, n:
     return lower, upper, closed
 
 
-def _with_forces(model, result, mus, lower, upper, closed, centres, points, frames) -> dict:
+def _with_forces(model, result, mus, lower, upper, closed, internal) -> dict:
     """``grasp_quality``'s result: epsilon's bounds and force closure, and from the run's force
-    outputs the smallest cone margin and the internal force (of the contacts at ``points``
-    about ``centres`` in any one frame, ``frames`` in it: both are the same in every frame)."""
+    outputs (where it has them: ``_force_columns``) the smallest cone margin and the internal
+    force (``internal(columns)``)."""
     out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": lower,
            "epsilon_upper": upper, "force_closure": closed}
     cols = _force_columns(model, result)
     if cols is not None:
         out["cone_margin_min"] = _margins(result, cols, mus)
-        out["internal_force"] = _internal_norms(centres, points, contact_forces(model, result, frames))
+        out["internal_force"] = internal(cols)
     return out
 
 
@@ -178,8 +182,7 @@ def _two_contacts(model, result, mu, length: float | None, edges: int) -> dict:
     mus = quality.coefficients(mu, 2)
     quality.check_scales(length, edges)
     points = np.swapaxes(local["point"], 0, 1)                 # (n, 2, 3), from the centre
-    normals = np.swapaxes(local["normal"], 0, 1)
-    normals = normals / -np.sqrt(np.einsum("nki,nki->nk", normals, normals))[..., None]
+    normals = _inward(np.swapaxes(local["normal"], 0, 1))
     rows = np.flatnonzero(~quality.squeezes(points, normals, mus))
     lower, upper, closed = np.zeros(n), np.zeros(n), np.zeros(n)
     if len(rows):
@@ -188,13 +191,8 @@ def _two_contacts(model, result, mu, length: float | None, edges: int) -> dict:
             length = float(np.max(np.linalg.norm(points0[0] - c0[0], axis=1)))
         c, p, nn = contacts_along(model, result, _frames(model, result, local, rows=rows))
         lower, upper, closed = _by_hulls(p, nn, mus, c, length, edges, rows, n)
-    out = {"t": np.asarray(result.t, dtype=float).copy(), "epsilon_lower": lower,
-           "epsilon_upper": upper, "force_closure": closed}
-    cols = _force_columns(model, result)
-    if cols is not None:
-        out["cone_margin_min"] = _margins(result, cols, mus)
-        out["internal_force"] = _squeezing(model, result, local, cols)
-    return out
+    return _with_forces(model, result, mus, lower, upper, closed,
+                        lambda cols: _squeezing(model, result, local, cols))
 
 
 def _margins(result, cols, mus) -> np.ndarray:
@@ -219,12 +217,10 @@ def _squeezing(model, result, local, cols) -> np.ndarray:
     e = d / np.where(apart, dist, 1.0)[:, None]
     along = []
     for i, (f, lam, eta) in enumerate(cols):
-        psi = X[:, names.index(f"psi{i + 1}")]
-        cos, sin = np.cos(psi), np.sin(psi)
-        a, b = result[lam], result[eta]
+        on_x, on_y = _on_object_axes(result, X[:, names.index(f"psi{i + 1}")], lam, eta)
         along.append(-result[f] * np.einsum("ni,ni->n", local["normal"][i], e)
-                     + (a * cos - b * sin) * np.einsum("ni,ni->n", local["x"][i], e)
-                     - (a * sin + b * cos) * np.einsum("ni,ni->n", local["y"][i], e))
+                     + on_x * np.einsum("ni,ni->n", local["x"][i], e)
+                     + on_y * np.einsum("ni,ni->n", local["y"][i], e))
     out = np.abs(along[0] - along[1]) / np.sqrt(2.0)
     if not apart.all():
         frames = [{key: local[key][i] for key in _FRAME} for i in range(2)]
@@ -288,9 +284,15 @@ def contact_forces(model, result, frames=None) -> np.ndarray | None:
     X = np.asarray(result.x, dtype=float)
     out = []
     for i, ((f, lam, eta), fr) in enumerate(zip(cols, frames), start=1):
-        psi = X[:, names.index(f"psi{i}")]
-        cos, sin = np.cos(psi), np.sin(psi)
-        a, b = result[lam], result[eta]   # lam x_f + eta y_f on the object's x_o, y_o
-        out.append(-result[f][:, None] * fr["normal"] + (a * cos - b * sin)[:, None] * fr["x"]
-                   - (a * sin + b * cos)[:, None] * fr["y"])
+        on_x, on_y = _on_object_axes(result, X[:, names.index(f"psi{i}")], lam, eta)
+        out.append(-result[f][:, None] * fr["normal"] + on_x[:, None] * fr["x"] + on_y[:, None] * fr["y"])
     return np.stack(out, axis=1)
+
+
+def _on_object_axes(result, psi: np.ndarray, lam: str, eta: str) -> tuple[np.ndarray, np.ndarray]:
+    """``lam x_f + eta y_f`` (the outputs ``lam``, ``eta`` along the fingertip's tangents) on
+    the object's ``x_o, y_o``: ``x_f = cos(psi) x_o - sin(psi) y_o``, ``y_f = -sin(psi) x_o -
+    cos(psi) y_o`` give ``(lam cos - eta sin, -(lam sin + eta cos))``."""
+    cos, sin = np.cos(psi), np.sin(psi)
+    a, b = result[lam], result[eta]
+    return a * cos - b * sin, -(a * sin + b * cos)

@@ -24,13 +24,6 @@ _NAMES_OK: set[tuple[str, ...]] = set()
 QUATERNION = ("qw", "qx", "qy", "qz")
 
 
-def rotations(quaternions) -> np.ndarray:
-    """``(n, 3, 3)`` body-to-world rotation matrices of the quaternions ``(w, x, y, z)``
-    (rows; normalised first): ``SimulationResult.object_rotations``, or of a state's
-    quaternion, e.g. ``rotations(x0[None, k:k + 4])`` (``grasping_sym.rotations.matrices``)."""
-    return matrices(quaternions)
-
-
 @dataclass
 class SimulationResult:
     """A trajectory and its outputs.
@@ -113,7 +106,7 @@ class SimulationResult:
         if missing:
             raise KeyError(f"this run has no object quaternion (states {list(QUATERNION)}; missing "
                            f"{missing}): object_rotations() is for a 3D object's run")
-        return rotations(self.x[:, [self.state_names.index(k) for k in QUATERNION]])
+        return matrices(self.x[:, [self.state_names.index(k) for k in QUATERNION]])
 
     def write_csv(self, path: Path | str) -> Path:
         """Write ``t``, the states and the outputs as columns (header row first)."""
