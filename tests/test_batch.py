@@ -76,8 +76,9 @@ def driven():
 
 def test_events_and_failures_are_found_as_simulate_finds_them(driven):
     # torques that pull the finger off (the contact opens: f <= 0) or roll the contact off its
-    # contour (state s leaves its domain in the C loop)
-    U = np.array([[0.0, 0.0], [-0.12, 0.0], [0.0, -0.2], [-0.2, 0.0]])
+    # contour (state s leaves its domain in the C loop; with u2 = -0.2 the contact opens first,
+    # at 0.0106 s, between the output rows: the C loops watch f at every step)
+    U = np.array([[0.0, 0.0], [-0.12, 0.0], [0.0, -0.12], [-0.2, 0.0]])
     t_eval = np.linspace(0, 0.5, 51)
     kw = dict(method="radau", rtol=1e-6, atol=1e-8)
     batch = driven.simulate_many(0.5, u=U, t_eval=t_eval, outputs=True, **kw)

@@ -22,7 +22,7 @@ def test_the_short_way_gives_the_full_paths_numbers(paper2d_model, method):
     m = paper2d_model
     kw = {**KW, "method": method, "rtol": 1e-8, "atol": 1e-10}
     first = m.simulate(1.0, **kw)  # the full path; its settings become a plan
-    assert m.short_way.plans and m.short_way.checked
+    assert m.short_way.plans and all(plan.checked for plan in m.short_way.plans.values())
     calls = []
     from grasping_sym.runtime import fastpath
 

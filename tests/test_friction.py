@@ -173,15 +173,21 @@ def test_the_cone_figure_shades_where_the_rolling_run_would_slip(paper2d, tmp_pa
         gs.viz.cone(paper2d.simulate(0.01), tmp_path / "none.png")
 
 
-def test_a_tuple_is_one_mu_per_contact_for_every_run_and_a_batch_needs_output_times(paper3d):
+def test_a_tuple_is_one_mu_per_contact_for_every_run_and_a_batch_watches_the_cone_at_every_step(paper3d):
+    """A batch's cone is watched by its C loops at every step (``runtime.watch``): with output
+    times or without (the start and the end only), it names the exit simulate names, at the
+    same located time; rk4, which reads its rows, still needs output times."""
     grid = np.linspace(0.0, 0.06, 61)
     batch = paper3d.simulate_many(0.06, x0=np.tile(paper3d.initial_state(), (2, 1)), mu=(0.5, 0.08),
                                   t_eval=grid)
     with pytest.raises(FrictionConeError) as info:
         paper3d.simulate(0.06, mu=(0.5, 0.08), t_eval=grid)
     assert batch.errors.tolist() == [f"FrictionConeError: {info.value}"] * 2
+    assert "located at the step" in str(info.value)
+    sparse = paper3d.simulate_many(0.06, x0=np.tile(paper3d.initial_state(), (2, 1)), mu=(0.5, 0.08))
+    assert sparse.errors.tolist() == batch.errors.tolist()
     with pytest.raises(RunArgumentError, match="no t_eval"):
-        paper3d.simulate_many(0.06, mu=0.3)
+        paper3d.simulate_many(0.06, mu=0.3, method="rk4")
 
 
 def test_a_model_started_elsewhere_keeps_its_friction_law():

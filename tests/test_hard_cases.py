@@ -144,7 +144,7 @@ def test_c_inflection_point_drives_relative_curvature_to_zero(inflected, method)
 def test_d_normal_force_changes_sign(runtime_model):
     """The object rolled fast (60 rad/s along the rolling direction, consistent with the
     constraints) under a weak grip fd = 0.3 N: the finger cannot follow, f crosses 0 at
-    t = 0.0281 s. Both methods report it at the same time."""
+    t = 0.0281 s. Both methods report it at the same time (to 1e-6 s), located."""
     x0 = runtime_model.initial_state()
     x0[3:6] = -60.0 * rolling_velocity(runtime_model, x0)
     times = []
@@ -153,7 +153,10 @@ def test_d_normal_force_changes_sign(runtime_model):
             runtime_model.simulate(0.5, x0=x0, method=method, rtol=1e-8, atol=1e-12,
                                    params={"fd": 0.3})
         err = info.value
-        assert err.force <= 0 < err.force_before
+        # radau's C loop watches f at every step (runtime.watch); cvodes's f is read at the
+        # output rows: both located where f = 0 by integrating again
+        assert abs(err.force) <= 1e-9 < err.force_before
+        assert ("located at the step" if method == "radau" else "located between the outputs") in str(err)
         assert "normal force f crosses 0" in str(err)
         times.append(err.t)
     assert times[0] == pytest.approx(0.02811, abs=1e-4)
@@ -286,7 +289,8 @@ def test_j_3d_contact_at_rest_in_both_formulations():
         paper.simulate(5.0, method="radau", rtol=1e-7, atol=1e-10)
     err = info.value
     assert 0.5 < err.t < 5.0
-    assert abs(err.denominator) <= err.threshold
+    # located at the step where |D| reaches its threshold (runtime.watch)
+    assert abs(abs(err.denominator) - err.threshold) <= 1e-6 * err.threshold
     assert np.all(np.isfinite(err.x))
     assert "regular formulation" in str(err)
 

@@ -32,7 +32,8 @@
  *               (keep) or n_runs x ny, NaN where X is
  *   Y0, CD0     NULL, or the outputs at X0[i] (n_runs x ny) and max |Cdot| at X0[i] (n_runs,
  *               needs constraints): what simulate's initial checks read
- *   status      n_runs: the single loop's return value (n_out on success, a GS_ERR_* code);
+ *   status      n_runs: the single loop's return value (n_out on success, a GS_ERR_* code,
+ *               GS_EVENT at a watched witness's event: gs_watch_batch, watch.c);
  *               GS_ERR_INTERRUPT also for runs never started because the batch stopped (their
  *               stats row is 0 but for GS_ST_ROWS = -1, their X, Y, Y0, CD0 NaN)
  *   t_fail      n_runs: the single loop's *t_fail (NaN on success)
@@ -59,6 +60,7 @@ typedef struct {
   long next;   /* the next run to hand out (atomic) */
   int stopped; /* set once a run was stopped (atomic) */
   long ok;     /* runs that succeeded (atomic) */
+  const void* watch; /* gs_watch_batch's witnesses, or NULL (watch.c) */
 } gs_batch_job;
 
 static void gs_fill_nan(double* v, long n) {
@@ -78,7 +80,9 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
     double cd[gs_nc];
     job->CD0[i] = gs_constraints(x0, p, NULL, NULL, cd, NULL) ? NAN : gs_max_abs(cd, gs_nc);
   }
-  if (job->method == 0)
+  if (job->watch && job->method != 2 && gs_watch_batch_run(job->watch, i)) {
+    rc = GS_ERR_ARGS; /* (refused before the batch: gs_watch_batch) */
+  } else if (job->method == 0)
     rc = gs_radau5(job->t_out[0], m, job->t_out, x0, p, job->rtol, job->atol, job->h0,
                    job->max_steps, job->lo, job->hi, job->mask, job->proj_tol, scratch, st, &tf);
   else if (job->method == 1)
@@ -124,6 +128,7 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
     for (long r = 0; r < rows; ++r)
       if (r >= good || gs_outputs(X + r * nx, p, Y + r * gs_ny)) gs_fill_nan(Y + r * gs_ny, gs_ny);
   }
+  if (job->watch) gs_watch_restore(0); /* the next run sets its own */
   if (ok) __atomic_fetch_add(&job->ok, 1, __ATOMIC_RELAXED);
   if (rc == GS_ERR_INTERRUPT) __atomic_store_n(&job->stopped, 1, __ATOMIC_RELAXED);
 }
@@ -131,6 +136,7 @@ static void gs_batch_run(gs_batch_job* job, long i, double* scratch) {
 static void* gs_batch_worker(void* arg) {
   gs_batch_job* job = (gs_batch_job*)arg;
   double* scratch = malloc((size_t)((job->rows + 2) * gs_nx) * sizeof(double));
+  if (job->watch) gs_watch_batch_enter();
   gs_stop_batch_thread(1, job->deadline);
   for (;;) {
     const long i = __atomic_fetch_add(&job->next, 1, __ATOMIC_RELAXED);
@@ -157,6 +163,7 @@ static void* gs_batch_worker(void* arg) {
     gs_batch_run(job, i, scratch);
   }
   gs_stop_batch_thread(0, 0.0);
+  if (job->watch) gs_watch_batch_leave();
   free(scratch);
   return NULL;
 }
@@ -179,7 +186,7 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
       .mask = proj_mask, .h = h, .rtol = rtol, .atol = atol, .h0 = h0, .proj_tol = proj_tol,
       .deadline = time_limit > 0.0 ? gs_stop_now() + time_limit : 0.0, .X = X, .Y = Y,
       .Y0 = Y0, .CD0 = CD0, .t_fail = t_fail, .stats = stats, .status = status, .next = 0,
-      .stopped = 0, .ok = 0};
+      .stopped = 0, .ok = 0, .watch = gs_watch_batch_take()};
   gs_stop_batch_reset();
   if (n_threads > n_runs) n_threads = n_runs > 0 ? n_runs : 1;
   pthread_t* threads = n_threads > 1 ? malloc((size_t)(n_threads - 1) * sizeof(pthread_t)) : NULL;
@@ -187,9 +194,10 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
   if (threads)
     for (; started < n_threads - 1; ++started)
       if (pthread_create(&threads[started], NULL, gs_batch_worker, &job)) break;
-  const int watching = gs_watch_suspend(); /* a batch's runs never watch (watch.c) */
+  /* without gs_watch_batch's witnesses, a batch's runs never watch (watch.c) */
+  const int watching = job.watch ? 0 : gs_watch_suspend();
   gs_batch_worker(&job); /* the calling thread works too */
-  gs_watch_restore(watching);
+  if (!job.watch) gs_watch_restore(watching);
   for (long k = 0; k < started; ++k) pthread_join(threads[k], NULL);
   free(threads);
   if (gs_stop_sigint()) {

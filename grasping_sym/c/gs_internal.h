@@ -366,6 +366,11 @@ GS_HIDDEN void gs_watch_offer_jac(const double* J);
 /* gs_batch: the watch off during the batch (returns whether it was on), then restored. */
 GS_HIDDEN int gs_watch_suspend(void);
 GS_HIDDEN void gs_watch_restore(int on);
+/* gs_batch's watch (gs_watch_batch, watch.c): taken by gs_batch, set per run by its threads */
+GS_HIDDEN const void* gs_watch_batch_take(void);
+GS_HIDDEN void gs_watch_batch_enter(void);
+GS_HIDDEN void gs_watch_batch_leave(void);
+GS_HIDDEN int gs_watch_batch_run(const void* spec, long i);
 
 /* ---- Defined in jac.c (used by gs_radau5): J = d f / d x (nx x nx, row-major), compiled
  * (gs_eval_jac, when gs_has_jac) or by forward differences ---- */

@@ -4,8 +4,9 @@
  *
  * A witness is a linear combination of the model's outputs less the length of a vector of
  * them, g = sum_k c_k y[i_k] - sqrt(sum_m (c_m y[i_m])^2) (the terms flagged as the norm's;
- * none: a linear combination): a cone's margin mu f - |F_t|, a normal force, a slip
- * velocity along a direction, a gap. With a
+ * none: a linear combination; a term of index -1 is the constant c_k): a cone's margin
+ * mu f - |F_t|, a normal force, a slip velocity along a direction, a gap, a relative
+ * curvature above its threshold (runtime/watch.py's checks). With a
  * watch set on this thread, gs_radau5, gs_dopri5 and gs_dop853 evaluate every witness at
  * the run's start, then after each accepted step at its end and at points of its dense
  * output no farther apart than dt. A witness is armed once it was seen > tol (>= 0, its
@@ -47,6 +48,7 @@
  * inputs restarts the loop at its knots), its witnesses keep what they were armed by.
  */
 #include <stdlib.h>
+#include <string.h>
 
 #include "gs_internal.h"
 
@@ -103,7 +105,7 @@ static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p
   for (int k = 0; k < gs_w.n; ++k) {
     double s = 0.0, q = 0.0;
     for (int j = gs_w.ptr[k]; j < gs_w.ptr[k + 1]; ++j) {
-      const double v = gs_w.coef[j] * y[gs_w.idx[j]];
+      const double v = gs_w.idx[j] < 0 ? gs_w.coef[j] : gs_w.coef[j] * y[gs_w.idx[j]];
       if (gs_w.norm[j])
         q += v * v;
       else
@@ -604,9 +606,9 @@ done:
  * those with norm[j] 1; tol[k] and probe[k] (0 or 1) as above; the inputs (a, b) at p[in_k .. in_k + 2
  * in_m) (in_m = 0: none); watched points at most dt apart (0: the steps' ends only); safety >
  * 0 the factor by which steps' ends are left unwatched (above), 0 every step's end watched.
- * Returns 0, or GS_ERR_ARGS (nothing set) for a model without outputs, more than
- * GS_WATCH_MAX witnesses or GS_WATCH_TERMS terms, an index out of range or a non-finite
- * number. */
+ * idx[j] = -1: the constant term coef[j] (not a norm's). Returns 0, or GS_ERR_ARGS (nothing
+ * set) for a model without outputs, more than GS_WATCH_MAX witnesses or GS_WATCH_TERMS terms,
+ * an index out of range or a non-finite number. */
 GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const double* coef,
                            const long* norm, const double* tol, const long* probe, long in_k,
                            long in_m, double dt, double safety) {
@@ -616,7 +618,8 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   for (long k = 0; k < n; ++k) {
     if (ptr[k + 1] < ptr[k] || !(tol[k] >= 0.0) || !isfinite(tol[k])) return GS_ERR_ARGS;
     for (long j = ptr[k]; j < ptr[k + 1]; ++j)
-      if (idx[j] < 0 || idx[j] >= gs_ny || !isfinite(coef[j]) || (norm[j] != 0 && norm[j] != 1))
+      if (idx[j] < -1 || idx[j] >= gs_ny || !isfinite(coef[j]) || (norm[j] != 0 && norm[j] != 1) ||
+          (idx[j] == -1 && norm[j] != 0))
         return GS_ERR_ARGS;
   }
   gs_w.n = (int)n;
@@ -658,8 +661,71 @@ GS_EXPORT void gs_watch_resume(void) {
   gs_w.resume = 1;
 }
 
-/* gs_batch: its runs never watch, the calling thread's too (the watch is off during the
- * batch and restored after it). */
+/* gs_batch's watch (gs_watch_batch): the witnesses each run of the calling thread's next
+ * gs_batch watches, as gs_watch_witnesses takes them, run i with its own coefficients
+ * coef + i coef_stride; the arrays stay the caller's, alive until gs_batch returns. */
+typedef struct {
+  int set;
+  long n, in_k, in_m, coef_stride;
+  double dt, safety;
+  const long *ptr, *idx, *norm, *probe;
+  const double *coef, *tol;
+} gs_watch_spec;
+
+static _Thread_local gs_watch_spec gs_spec;
+/* a batch thread's own watch replaces the thread's (the calling thread's): kept meanwhile */
+static _Thread_local gs_watch_state gs_w_saved;
+
+/* The witnesses every run of this thread's next gs_batch watches (the runs of a batch
+ * without one never watch): n witnesses as gs_watch_witnesses, run i's coefficients at
+ * coef + i coef_stride (every run's checked finite by the caller). Returns 0, or GS_ERR_ARGS
+ * (nothing set) where gs_watch_witnesses would refuse run 0's. */
+GS_EXPORT int gs_watch_batch(long n, const long* ptr, const long* idx, const double* coef,
+                             long coef_stride, const long* norm, const double* tol,
+                             const long* probe, long in_k, long in_m, double dt, double safety) {
+  gs_watch_state keep = gs_w;
+  gs_w.kept = NULL;
+  const int rc = coef_stride < 0 ? GS_ERR_ARGS
+                                 : gs_watch_witnesses(n, ptr, idx, coef, norm, tol, probe, in_k,
+                                                      in_m, dt, safety);
+  free(gs_w.kept);
+  gs_w = keep;
+  if (rc) return rc;
+  gs_spec = (gs_watch_spec){.set = 1, .n = n, .in_k = in_k, .in_m = in_m, .coef_stride = coef_stride,
+                            .dt = dt, .safety = safety, .ptr = ptr, .idx = idx, .norm = norm,
+                            .probe = probe, .coef = coef, .tol = tol};
+  return 0;
+}
+
+/* gs_batch: the watch gs_watch_batch set for it (NULL: none; taken once). */
+GS_HIDDEN const void* gs_watch_batch_take(void) {
+  if (!gs_spec.set) return NULL;
+  gs_spec.set = 0;
+  return &gs_spec;
+}
+
+/* A batch thread's start and end with a watch: the thread's own watch kept aside, then
+ * restored (the batch's freed). */
+GS_HIDDEN void gs_watch_batch_enter(void) {
+  gs_w_saved = gs_w;
+  memset(&gs_w, 0, sizeof gs_w);
+}
+
+GS_HIDDEN void gs_watch_batch_leave(void) {
+  free(gs_w.kept);
+  free(gs_w.jac);
+  gs_w = gs_w_saved;
+}
+
+/* Run i of a batch with a watch (spec: gs_watch_batch_take's): its witnesses set. */
+GS_HIDDEN int gs_watch_batch_run(const void* spec, long i) {
+  const gs_watch_spec* s = (const gs_watch_spec*)spec;
+  return gs_watch_witnesses(s->n, s->ptr, s->idx, s->coef + i * s->coef_stride, s->norm, s->tol,
+                            s->probe, s->in_k, s->in_m, s->dt, s->safety);
+}
+
+/* gs_batch without a watch: its runs never watch, the calling thread's too (the watch is off
+ * during the batch and restored after it). */
 GS_HIDDEN int gs_watch_suspend(void) {
   const int on = gs_w.on;
   gs_w.on = 0;

@@ -21,7 +21,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError, RunInterruptedError
-from grasping_sym.runtime import c_loops, failures, friction, modes, parameters
+from grasping_sym.runtime import c_loops, failures, friction, modes, parameters, watch
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -247,7 +247,6 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
 
     n_runs = _count(model, x0, params, u, None if isinstance(mu, tuple) else mu)
     MU = friction.per_run(model, mu, n_runs)
-    _refuse_mu_without_t_eval(MU, checks, dense)
     s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n_runs)
     P, pdict = _parameters(model, params, n_runs)
@@ -255,17 +254,53 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
     if U is not None:
         k = model.p_names.index(model.input_names[0])
         P[:, k:k + len(model.input_names)] = U
+    watched = _watched(model, s, X0, P, sched, MU if s.slip == "stop" else None)
+    if watched is None:
+        _refuse_mu_without_t_eval(MU, checks, dense)
 
-    # the checks read the compiled outputs whether or not the result shows them
-    evaluate = (outputs or checks) and bool(model.columns)
-    res = _integrate(model, s, X0, P, sched, dense, evaluate, threads)
+    # the checks read the compiled outputs whether or not the result shows them: watched by
+    # the C loops at every step, else read at the output rows
+    evaluate = (outputs or checks and watched is None) and bool(model.columns)
+    res = _integrate(model, s, X0, P, sched, dense, evaluate, threads, watched)
     status = np.where(res["status"] == res["ok_code"], 0, res["status"]).astype(np.int64)
+    status[status == c_loops.ERR_EVENT] = EVENT  # a watched check's event (c/watch.c)
     if checks and n_runs:
         _check(model, s, res, status, dense, own_start=x0 is None,
-               mu=MU if s.slip == "stop" else None)
+               mu=MU if s.slip == "stop" else None, watched=watched)
     errors = _errors(model, s, status, X0, x0 is None, P, U, sched, MU)
     return _result(model, s, res, status, errors, dense, X0=X0, pdict=pdict,
                    wall=perf_counter() - start, mu=MU)
+
+
+def _watched(model, s: RunSettings, X0, P, sched, MU) -> tuple | None:
+    """What the C loops of the batch watch (``runtime.watch``): ``(terms, coef, inputs, dt,
+    safety)`` as ``CompiledLibrary.batch`` takes them, every run's checks from its own start
+    (and ``MU``, its friction coefficients, or None); None where the checks are not watched
+    (no checks, rk4, a library without the batch's watch): they read the output rows."""
+    lib = model.library
+    if not s.checks or s.method == "rk4" or not model.columns or not getattr(lib, "can_watch_batch", False):
+        return None
+    names = [*checks_.curvature_outputs(model.columns), *checks_.denominator_thresholds(model)]
+    start = {}
+    if names and len(X0):
+        Y = _start_outputs(model, s, X0, P, sched)
+        start = {k: Y[:, model.columns.index(k)] for k in names if k in model.columns}
+    terms, coef = watch.witnesses(model, start, MU, len(X0))
+    if not terms:
+        return None
+    return [t for _, _, t, _ in terms], coef, watch.input_slots(model), watch.WATCH_DT, watch.WATCH_SAFETY
+
+
+def _start_outputs(model, s: RunSettings, X0, P, sched) -> np.ndarray:
+    """The compiled outputs at every run's start (``(N, n_columns)``), as ``simulate``'s initial
+    checks read them: the inputs' first segment, and ``t = 0`` for a law that reads it."""
+    if sched is not None:  # the inputs at t = 0
+        P = np.array([model.with_inputs(row, sched.segments(0.0, float(s.t_eval[-1]))[0][2]) for row in P])
+    if model.manifest.get("outputs_time"):
+        return np.array([outputs_.row(model, x, p, 0.0) for x, p in zip(X0, P)])
+    if P is None or not len(P) or np.all(P == P[0]):
+        return model.library.outputs_batch(X0, None if P is None or not P.shape[1] else P[0])
+    return np.array([model.library.outputs(x, p) for x, p in zip(X0, P)])
 
 
 def _refuse_mu_without_t_eval(MU, checks: bool, dense: bool) -> None:
@@ -384,12 +419,17 @@ def _threads(threads) -> int:
 
 
 def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, own_start: bool,
-           mu: np.ndarray | None = None) -> None:
+           mu: np.ndarray | None = None, watched: tuple | None = None) -> None:
     """Mark in ``status`` the runs whose initial state the checks refuse (``REFUSED``) and those
     with an event along their output samples (``EVENT``: with ``mu`` (``(N, n_contacts)``)
-    a force outside its friction cone among them), as ``simulate`` checks them."""
+    a force outside its friction cone among them), as ``simulate`` checks them; with
+    ``watched`` (``_watched``: the C loops watched the checks), those with one past its event
+    at the start (the loops never arm it), the samples not read."""
     refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own_start)
     started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
+    Y0 = res.get("Y0")
+    if watched is not None and Y0 is not None:
+        status[~np.all(_start_values(watched[0], watched[1], Y0) > 0, axis=1) & (status == 0)] = EVENT
     status[refused & started] = REFUSED  # simulate refuses before it integrates
     Y = res.get("Y")
     if Y is not None:
@@ -399,6 +439,23 @@ def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, ow
         if mu is not None:
             hit |= ~friction.clean(model, ys, mu)
         status[hit & (status == 0)] = EVENT
+
+
+def _start_values(terms, coef: np.ndarray, Y0: np.ndarray) -> np.ndarray:
+    """Every run's witnesses (``terms``, run i's coefficients ``coef[i]``: ``_watched``) at its
+    start's compiled outputs ``Y0`` (``(N, n_columns)``): ``(N, n_witnesses)``."""
+    G, j = np.empty((len(Y0), len(terms))), 0
+    for k, t in enumerate(terms):
+        lin, sq = np.zeros(len(Y0)), np.zeros(len(Y0))
+        for term in t:
+            v = coef[:, j] * (1.0 if term[0] < 0 else Y0[:, term[0]])
+            j += 1
+            if len(term) > 2 and term[2]:
+                sq += v * v
+            else:
+                lin += v
+        G[:, k] = lin - np.sqrt(sq)
+    return G
 
 
 def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched, mu=None) -> np.ndarray:
@@ -546,8 +603,9 @@ def _inputs(model, u, n: int, method: str, grid: np.ndarray):
     return None, U
 
 
-def _integrate(model, s: RunSettings, X0, P, sched, dense, outputs, threads) -> dict:
-    """The C batch over the output grid ``s.t_eval`` (segment by segment for a table of inputs)."""
+def _integrate(model, s: RunSettings, X0, P, sched, dense, outputs, threads, watched=None) -> dict:
+    """The C batch over the output grid ``s.t_eval`` (segment by segment for a table of inputs),
+    its runs watching ``watched`` (``_watched``), or nothing."""
     lib = model.library
     grid, method, checks = s.t_eval, s.method, s.checks
     timed = bool(model.manifest.get("outputs_time"))
@@ -558,9 +616,9 @@ def _integrate(model, s: RunSettings, X0, P, sched, dense, outputs, threads) -> 
               rk4=_rk4_grid(grid, s.h) if method == "rk4" else None)
     if sched is None:
         res = lib.batch(method, grid, X0, P, keep=dense, outputs=outputs and in_c,
-                        initial=checks, initial_outputs=not timed, **kw)
+                        initial=checks, initial_outputs=not timed, watch=watched, **kw)
     else:
-        res = _segments(model, method, grid, X0, P, sched, dense, checks, not timed, kw)
+        res = _segments(model, method, grid, X0, P, sched, dense, checks, not timed, kw, watched)
     res["ok_code"] = len(grid)
     if checks and timed and model.columns:  # a law that reads the time: at t = 0
         first = P if sched is None else np.array(
@@ -577,7 +635,7 @@ def _integrate(model, s: RunSettings, X0, P, sched, dense, outputs, threads) -> 
     return res
 
 
-def _segments(model, method, grid, X0, P, sched, dense, initial, initial_outputs, kw) -> dict:
+def _segments(model, method, grid, X0, P, sched, dense, initial, initial_outputs, kw, watched=None) -> dict:
     """A table of inputs: every run restarts at its knots, as ``simulate``'s runs do, each
     segment one C batch over the runs still going (on the single run's grid: the same
     numbers)."""
@@ -594,8 +652,9 @@ def _segments(model, method, grid, X0, P, sched, dense, initial, initial_outputs
         Xk = np.full((n, len(g), nx), np.nan)
         if len(go):
             Pk = np.array([model.with_inputs(row, a, b) for row in P[go]])
+            wk = None if watched is None else (watched[0], watched[1][go], *watched[2:])
             res = lib.batch(method, g, np.ascontiguousarray(x_now[go]), Pk, keep=True,
-                            initial=initial and k == 0, initial_outputs=initial_outputs, **kw)
+                            initial=initial and k == 0, initial_outputs=initial_outputs, watch=wk, **kw)
             if k == 0 and initial:
                 out = {"Y0": res.get("Y0"), "CD0": res.get("CD0")}
             ok = res["status"] == len(g)

@@ -134,7 +134,8 @@ def _check_initial_rates(model, x0: np.ndarray, p) -> None:
 def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[str, float]:
     """Refuse an ``x0`` off the constraints, at a vanishing relative curvature or, in the paper
     formulation, with a (nearly) stopped contact. Returns the initial value of every
-    curvature output (the reference of their thresholds along the run)."""
+    curvature output (the reference of their thresholds along the run) and of every frame
+    denominator."""
     names = set(model.columns)
     watched = {"Q", "R", "constraint_residual"} | set(curvature_outputs(names)) | set(denominator_outputs(names))
     if not names & watched:
@@ -193,6 +194,8 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
             raise _frame_error(model, name, 0.0, x0, y[name], thr,
                                "; the paper formulation cannot start at rest: give the scene "
                                "initial speeds (dq0) that move every contact")
+        if name in y:
+            start[name] = y[name]  # its sign: the watch's witness (runtime.watch)
     return start
 
 
@@ -264,9 +267,51 @@ def clean(model, t: np.ndarray, X: np.ndarray, p) -> bool:
     return bool((V > lows).all())
 
 
+def curvature_error(model, name: str, t: float, x, value: float, threshold: float, k_ref: float,
+                    where: str, note: str = "") -> RelativeCurvatureError:
+    """The named error of curvature output ``name`` falling to ``threshold`` (1/m;
+    ``KAPPA_SUM_RELATIVE`` of its initial ``k_ref``) at ``t`` (state ``x``), where it is
+    ``value``; ``where`` says how ``t`` was found."""
+    if name.startswith("kappa_sum"):
+        what = (f"relative curvature kappa0 + kappa1{_finger(name)}", "the contours nearly osculate or cross "
+                "(curvatures of opposite convexity), the update law (29) divides by it",
+                "choose a fingertip more curved than the object's hollows along the path")
+    else:
+        what = (f"relative curvature K_f + K~_o (smaller eigenvalue) at contact {name[8:]}",
+                "the surfaces nearly osculate, Montana's contact rates divide by it",
+                "choose a fingertip more curved than the object's hollows along the path")
+    err = RelativeCurvatureError(
+        t, x,
+        f"{what[0]} fell to {threshold:.6g} 1/m ({KAPPA_SUM_RELATIVE:g} of its initial {k_ref:.6g} 1/m) "
+        f"at {where}: {what[1]} and the state would blow up; {what[2]}" + note,
+        model.state_names,
+    )
+    err.kappa_sum, err.threshold = float(value), threshold
+    return err
+
+
+def force_error(model, name: str, t: float, x, value: float, before: float, where: str,
+                note: str = "") -> ContactOpenedError:
+    """The named error of normal force output ``name`` reaching 0 at ``t`` (state ``x``),
+    where it is ``value`` (N; ``before`` the last positive value seen); ``where`` says how
+    ``t`` was found (``crosses 0 ...``)."""
+    err = ContactOpenedError(
+        t, x,
+        f"normal force {name}{' of contact ' + name[1:] if name[1:] else ''} {where}: "
+        "a unilateral contact cannot pull, the contact would open and the model "
+        "(rolling contact kept by a constraint) no longer holds; raise fd or lower "
+        "the speeds that pull the finger away" + note,
+        model.state_names,
+    )
+    err.force, err.force_before = float(value), float(before)
+    return err
+
+
 def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dict,
                      *, force: bool = True, note: str = "") -> IntegratorError | None:
-    """The first event along the samples (module docstring); ``note`` is appended to it."""
+    """The first event along the samples (module docstring); ``note`` is appended to it. Each
+    error carries the sample where it was seen (``t_sample``) and ``check``: ``(kind, output,
+    level)``, what falls to ``level`` (a frame denominator in magnitude)."""
     events = []
     if not len(t):
         return None
@@ -278,24 +323,10 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
         if hit is None:
             continue
         i, tc = hit
-        xs = X[i - 1] if i else X[0]
-        if name.startswith("kappa_sum"):
-            what = (f"relative curvature kappa0 + kappa1{_finger(name)}", "the contours nearly osculate or cross "
-                    "(curvatures of opposite convexity), the update law (29) divides by it",
-                    "choose a fingertip more curved than the object's hollows along the path")
-        else:
-            what = (f"relative curvature K_f + K~_o (smaller eigenvalue) at contact {name[8:]}",
-                    "the surfaces nearly osculate, Montana's contact rates divide by it",
-                    "choose a fingertip more curved than the object's hollows along the path")
-        err = RelativeCurvatureError(
-            tc, xs,
-            f"{what[0]} fell to {threshold:.6g} 1/m "
-            f"({KAPPA_SUM_RELATIVE:g} of its initial {k_ref:.6g} 1/m) at about "
-            f"t = {tc:.6g} s (sample t = {t[i]:.6g} s: {k[i]:.6g} 1/m): {what[1]} and the state "
-            f"would blow up; {what[2]} (state at the last sample before)" + note,
-            model.state_names,
-        )
-        err.kappa_sum, err.threshold, err.t_sample = float(k[i]), threshold, float(t[i])
+        err = curvature_error(model, name, tc, X[i - 1] if i else X[0], float(k[i]), threshold, k_ref,
+                              f"about t = {tc:.6g} s (sample t = {t[i]:.6g} s: {k[i]:.6g} 1/m)",
+                              " (state at the last sample before)" + note)
+        err.t_sample, err.check = float(t[i]), ("curvature", name, threshold)
         events.append((tc, 0, err))
     for name, thr in denominator_thresholds(model).items():
         if name not in outs:
@@ -305,6 +336,7 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
             i, tc = hit
             err = _frame_error(model, name, tc, X[i - 1] if i else X[0], outs[name][i], thr,
                                " (state at the last sample before)" + note)
+            err.t_sample, err.check = float(t[i]), ("denominator", name, thr)
             events.append((tc, 0, err))
     for name in force_outputs(outs) if force else ():
         f = outs[name]
@@ -312,20 +344,13 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
         if hit is None:
             continue
         i, tc = hit
-        xs = X[i - 1] if i else X[0]
         before = float(f[i - 1]) if i else float("nan")
         where = (f"crosses 0 at about t = {tc:.6g} s ({name} = {before:.6g} N at "
                  f"t = {t[i - 1]:.6g} s, {f[i]:.6g} N at t = {t[i]:.6g} s)" if i else
                  f"is {f[0]:.6g} N <= 0 at t = {t[0]:.6g} s, the start")
-        err = ContactOpenedError(
-            tc, xs,
-            f"normal force {name}{' of contact ' + name[1:] if name[1:] else ''} {where}: "
-            "a unilateral contact cannot pull, the contact would open and the model "
-            "(rolling contact kept by a constraint) no longer holds; raise fd or lower "
-            "the speeds that pull the finger away (state at the last sample before)" + note,
-            model.state_names,
-        )
-        err.force, err.force_before, err.t_sample = float(f[i]), before, float(t[i])
+        err = force_error(model, name, tc, X[i - 1] if i else X[0], float(f[i]), before, where,
+                          " (state at the last sample before)" + note)
+        err.t_sample, err.check = float(t[i]), ("force", name, 0.0)
         events.append((tc, 1, err))
     if not events:
         return None

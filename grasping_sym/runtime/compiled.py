@@ -177,6 +177,11 @@ class CompiledLibrary:
             lib.gs_watch_refine.argtypes = [ctypes.c_int, _dp, _dp, _double, _double, _long, _dp, _dp,
                                             _double, _long, _dp, _dp, _dp]
             lib.gs_watch_refine.restype = ctypes.c_int
+        self.can_watch_batch = hasattr(lib, "gs_watch_batch")  # (libraries of older versions lack it)
+        if self.can_watch_batch:
+            lib.gs_watch_batch.argtypes = [_long, _dp, _dp, _dp, _long, _dp, _dp, _dp, _long, _long, _double,
+                                           _double]
+            lib.gs_watch_batch.restype = ctypes.c_int
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
         lib.gs_con_info.restype = ctypes.c_int
         nc = _long()
@@ -653,6 +658,25 @@ class CompiledLibrary:
         return (len(terms), *(a.ctypes.data for a in arrays), int(inputs[0]), int(inputs[1]), float(dt),
                 float(safety)), arrays
 
+    def _watch_batch(self, n: int, terms, coef: np.ndarray, inputs: tuple[int, int], dt: float,
+                     safety: float) -> tuple:
+        """``gs_watch_batch``: every run of this thread's next ``gs_batch`` watches the witnesses
+        ``terms`` (as :meth:`watch` takes them, the coefficients of run i ``coef[i]``, ``(n,
+        n_terms)``; ``tol`` 0); the arrays the C code reads, to keep until the batch returns."""
+        if not self.can_watch_batch:
+            raise RuntimeError(f"{self.path} has no gs_watch_batch: rebuild the model")
+        coef = np.ascontiguousarray(coef, dtype=float)
+        args, arrays = self._watch_args(terms, [0.0] * len(terms), inputs, dt, (), safety)
+        if coef.shape != (n, len(arrays[2])) or not np.all(np.isfinite(coef)):
+            raise ValueError(f"watched coefficients of shape {coef.shape}: expected ({n}, {len(arrays[2])}), finite")
+        ptr, idx, _, norm, tols, probes = arrays
+        rc = self._lib.gs_watch_batch(len(terms), ptr.ctypes.data, idx.ctypes.data, coef.ctypes.data,
+                                      coef.shape[1], norm.ctypes.data, tols.ctypes.data, probes.ctypes.data,
+                                      int(inputs[0]), int(inputs[1]), float(dt), float(safety))
+        if rc:
+            raise ValueError(f"gs_watch_batch refused {len(terms)} witnesses (terms {list(terms)!r:.200})")
+        return args, arrays, coef
+
     def watch_resume(self) -> None:
         """The next run continues the last watched one (a piece of a table of inputs): its
         witnesses keep what they were armed by."""
@@ -702,7 +726,7 @@ class CompiledLibrary:
               lo: np.ndarray | None = None, hi: np.ndarray | None = None,
               proj_mask: np.ndarray | None = None, proj_tol: float = 0.0,
               time_limit: float | None = None, keep: bool = False, outputs: bool = False,
-              initial: bool = False, initial_outputs: bool = True) -> dict:
+              initial: bool = False, initial_outputs: bool = True, watch: tuple | None = None) -> dict:
         """``gs_batch`` (``c/batch.c``): one run per row of ``X0`` (shape ``(N, nx)``) with the
         parameters ``P`` (``(N, np)``, one row per run), over the common
         output times ``t_out``, on ``threads`` threads with the GIL released: each run is the
@@ -731,6 +755,7 @@ class CompiledLibrary:
             res["CD0"] = np.empty(n) if self.has_constraints else None
         h, nsteps, stride = rk4 or (0.0, 0, 0)
         code = {"radau": 0, "dopri5": 1, "rk4": 2, "dop853": 3}[method]
+        held = None if watch is None or not n else self._watch_batch(n, *watch)  # alive until it returns
         with c_loops.stoppable(self, None):
             rc = self._c_batch(
                 code, int(threads), n, m, t_out.ctypes.data, float(h), int(nsteps), int(stride),
@@ -740,6 +765,7 @@ class CompiledLibrary:
                 res["X"].ctypes.data, self._ptr(res.get("Y")), self._ptr(res.get("Y0")), self._ptr(res.get("CD0")),
                 res["status"].ctypes.data, res["t_fail"].ctypes.data, res["stats"].ctypes.data)
         res["rc"] = int(rc)
+        del held
         if rc == c_loops.ERR_INTERRUPT and self._lib.gs_stop_cause() == 1:
             err = interrupt.interrupted(f"simulate_many stopped by Ctrl-C ({int(np.sum(res['status'] == m))} "
                                         f"of {n} runs had finished)")

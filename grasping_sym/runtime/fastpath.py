@@ -5,8 +5,10 @@ limit, whose settings (method, tolerances, ``max_steps``, ``project``, ``checks`
 call of the full path accepted, goes straight to the C loop (``gs_radau5`` / ``gs_dopri5`` / ``gs_dop853``
 through the library's CPython extension): the settings were validated then and are kept here as
 a *plan*; the initial checks of an ``x0`` (a pure function of ``x0`` and ``p``) are
-remembered for the last few states; the events along the run are checked on the output
-samples as the full way checks them (a run with an event goes the full way, which names it).
+remembered for the last few states, with the checks the C loop watches from it
+(``runtime.watch``); the events along the run are watched at every step as the full way
+watches them, or checked on the output samples where the full way checks those (a run with
+an event goes the full way, which names it).
 The C loop validates the output times and ``x0`` itself; a run that fails, or arguments this
 path does not take, go the full way, which names the problem. The numbers are the full
 path's, bit for bit (the same call with the same arrays).
@@ -19,8 +21,15 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.runtime import checks as checks_
-from grasping_sym.runtime import friction, interrupt, parameters
-from grasping_sym.runtime.c_loops import ADAPTIVE_CODES, ERR_INTERRUPT, NSTATS, NSTIFF, STIFF_BOUND, adaptive_stats
+from grasping_sym.runtime import friction, interrupt, parameters, watch
+from grasping_sym.runtime.c_loops import (
+    ADAPTIVE_CODES,
+    ERR_INTERRUPT,
+    NSTATS,
+    NSTIFF,
+    STIFF_BOUND,
+    adaptive_stats,
+)
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings
 
@@ -29,25 +38,26 @@ CHECKED_STATES = 64
 
 
 class Memory:
-    """A model's short way: the plans its full path accepted (by ``key``), the initial states
-    whose checks passed (``checked``, the most recent ``CHECKED_STATES``), and what a run on
+    """A model's short way: the plans its full path accepted (by ``key``), and what a run on
     the short way reads of the model (its stored start ``x_start`` and run-time parameters by
     name ``pdict``). ``Model.short_way`` holds one."""
 
-    __slots__ = ("plans", "checked", "x_start", "pdict")
+    __slots__ = ("plans", "x_start", "pdict")
 
     def __init__(self, x_start: np.ndarray, pdict: dict[str, float]):
         self.plans: dict = {}
-        self.checked: dict = {}
         self.x_start = x_start
         self.pdict = pdict
 
 
 class Plan:
-    """What the full path decided for one set of settings (a ``runtime.settings.RunSettings``)."""
+    """What the full path decided for one set of settings (a ``runtime.settings.RunSettings``),
+    and the initial states whose checks passed with them (``checked``, the most recent
+    ``CHECKED_STATES``, each with the checks the C loop watches from it:
+    ``RunSettings.watched``)."""
 
     __slots__ = ("method", "code", "rtol", "atol", "max_steps", "nstiff", "mask", "proj_tol",
-                 "checks", "projected", "mu")
+                 "checks", "projected", "mu", "checked")
 
     def __init__(self, s: RunSettings):
         self.method, self.code = s.method, ADAPTIVE_CODES[s.method]
@@ -57,6 +67,7 @@ class Plan:
         self.projected = self.mask is not None
         self.checks = bool(s.checks)
         self.mu = s.mu  # each contact's friction coefficient, checked on the samples (or None)
+        self.checked: dict = {}
 
 
 def typed(value):
@@ -100,7 +111,8 @@ def remember(model, k, s: RunSettings) -> None:
     (C-loop methods with the fast extension only)."""
     if k is None or s.method not in ADAPTIVE_CODES or not model.library.fast:
         return
-    model.short_way.plans[k] = Plan(s)
+    if k not in model.short_way.plans:  # (the same key: the same settings, and its states kept)
+        model.short_way.plans[k] = Plan(s)
 
 
 def forget(model) -> None:
@@ -108,11 +120,15 @@ def forget(model) -> None:
     model.short_way.plans.clear()
 
 
-def checked(model, x0: np.ndarray | None) -> None:
+def checked(model, k, x0: np.ndarray | None, watched: tuple) -> None:
     """Remember that ``x0`` (None: the model's start) passed the initial checks with the
-    model's own ``p``."""
-    memo = model.short_way.checked
-    memo[b"" if x0 is None else x0.tobytes()] = True
+    model's own ``p`` and the plan of key ``k``, and the checks the C loop watched from it
+    (``RunSettings.watched``)."""
+    plan = model.short_way.plans.get(k)
+    if plan is None:
+        return
+    memo = plan.checked
+    memo[b"" if x0 is None else x0.tobytes()] = watched
     if len(memo) > CHECKED_STATES:
         del memo[next(iter(memo))]
 
@@ -126,32 +142,41 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     memory = model.short_way
     if x0 is None:
         x = memory.x_start
-        if plan.checks and b"" not in memory.checked:
-            return None
+        watched = plan.checked.get(b"")
     else:
         x = np.asarray(x0)
         if x.dtype.kind not in "fiu":  # the full way names what else it is
             return None
         x = np.ascontiguousarray(x, dtype=float)
-        if x.shape != memory.x_start.shape or (plan.checks and x.tobytes() not in memory.checked):
+        if x.shape != memory.x_start.shape:
             return None
+        watched = plan.checked.get(x.tobytes())
+    if plan.checks and watched is None:
+        return None
+    watched = watched if plan.checks else ()
     m = t.size
     lib = model.library
     out = np.empty((m + 1, lib.nx))
     stats = np.zeros(NSTATS)
+    if watched:
+        watch.start(lib, watched, watch.input_slots(model))
     start = perf_counter()
-    rc, _ = lib._ext.adaptive(plan.code, t, x, model.default_params if model.p_names else None,
-                              plan.rtol, plan.atol, 0.0, plan.max_steps, plan.nstiff, model.lower,
-                              model.upper, plan.mask, plan.proj_tol, out, stats)
+    try:
+        rc, _ = lib._ext.adaptive(plan.code, t, x, model.default_params if model.p_names else None,
+                                  plan.rtol, plan.atol, 0.0, plan.max_steps, plan.nstiff, model.lower,
+                                  model.upper, plan.mask, plan.proj_tol, out, stats)
+    finally:
+        if watched:
+            lib.unwatch()
     wall = perf_counter() - start
     if rc != m:
         if rc == ERR_INTERRUPT and lib._lib.gs_stop_cause() == 1:  # Ctrl-C: stop, not run again
             raise interrupt.interrupted(f"{plan.method} stopped by Ctrl-C")
-        return None
-    if plan.checks and model.columns and not checks_.clean(
+        return None  # a failure, or a watched check's event (ERR_EVENT): the full way names it
+    if plan.checks and not watched and model.columns and not checks_.clean(
             model, t, out[:m], model.default_params if model.p_names else None):
         return None  # an event along the run: the full way raises it, named
-    if plan.checks and plan.mu is not None and not friction.inside(model, out[:m], plan.mu):
+    if plan.checks and not watched and plan.mu is not None and not friction.inside(model, out[:m], plan.mu):
         return None  # a force leaves its cone: the full way locates it and names it
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     charts = {}

@@ -477,7 +477,7 @@ class Model:
         if short and not res.chart_switches:  # the settings and x0 passed: later calls may take the short way
             fastpath.remember(self, plan_key, s)
             if checks:
-                fastpath.checked(self, None if own_start else x0)
+                fastpath.checked(self, plan_key, None if own_start else x0, s.watched)
         return res
 
     def simulate_many(self, t_final: float, *, x0=None, params=None, u=None, method: str | None = None,

@@ -59,6 +59,7 @@ from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.atlas import Atlases, repeated
 from grasping_sym.runtime.parameters import complete
 from grasping_sym.runtime.result import SimulationResult
+from grasping_sym.runtime.watch import WATCH_DT, WATCH_SAFETY
 
 ROLLING, SLIDING, SEPARATED = 0, 1, 2
 #: The methods a run with modes takes: the adaptive loops in C (implicit and explicit).
@@ -88,18 +89,6 @@ MOREAU_ITERATIONS = 100
 #: An impact slower than this (m/s, normal approach) is plastic whatever ``e``: the bounces
 #: of a body coming to rest would otherwise accumulate (Zeno).
 REST_SPEED = 1e-3
-#: s, the longest interval between two points of one step's dense output at which the C loop
-#: watches the witnesses (with the steps' ends), whatever ``t_eval``: a sign change and its
-#: return within it can be missed, one that lasts longer cannot.
-WATCH_DT = 1e-3
-#: A point (a step's end, a point of its dense output) is left unwatched while every witness
-#: would still be above 0 there by this many times what its rate and the change of its rate
-#: (from its last three watched points) take off it: never the run's end, never more than 16
-#: ``WATCH_DT`` after the last watched point, at most 16 steps' ends in a row, which are kept
-#: (``c/watch.c``). A sign change and its return within them can be missed, as within
-#: ``WATCH_DT``; one that lasts is found at the next watched point (or at a failure) and
-#: located in its step from the ends kept. 0: every point is watched.
-WATCH_SAFETY = 8.0
 #: m: a separated contact's gap is watched for its return once it was seen above this; one
 #: that closes again first (within the watched interval that opened it) hits once its gap
 #: falls below ``-GAP_RETURN``: the round-off of a gap at its opening does not count.

@@ -22,6 +22,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime import watch as watch_
 from grasping_sym.runtime.atlas import Atlases, repeated
 from grasping_sym.runtime.inputs import as_schedule
 from grasping_sym.runtime.result import SimulationResult
@@ -67,18 +68,28 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
         sched.segments(0.0, float(t_eval[-1]))
     p0 = p if sched is None else model.with_inputs(p, segments[0][2], segments[0][3])
     start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
+    s.watched = watched_checks(model, s, start)
+    if s.watched:  # a check past its event at the start: the C loop would never arm it
+        y0 = outputs_.along(model, t_eval[:1], x0[None, :], p0, sched)
+        err = watch_.start_error(model, s, x0, {k: float(v[0]) for k, v in y0.items()})
+        if err is not None:
+            raise err
     charted = _Charted(model)
     t, X, stats = _segments(model, s, segments, sched, x0, p, start, charted)
     pieces = charted.pieces(t, p)  # the rows between switches, each with its p
-    # the checks read the compiled outputs whether or not the result shows them; a run
-    # that returns none and has no event (checks.clean, on the watched columns) needs no more
-    quiet = s.checks and not s.outputs and sched is None and s.mu is None and not charted.switches \
+    # the checks read the compiled outputs whether or not the result shows them: the C loop
+    # watched them at every step (runtime.watch), else they are read at the rows; a run that
+    # returns none and has no event there (checks.clean, on the watched columns) needs no more
+    rows_checked = s.checks and not s.watched
+    quiet = not rows_checked or not s.outputs and sched is None and s.mu is None and not charted.switches \
         and checks_.clean(model, t, X, p)  # (clean reads its rows against the first: one chart)
     outs = _outputs_along(model, t, X, sched, pieces) if (s.outputs or s.checks and not quiet) \
         and model.columns else {}
     cone = friction.quantities(model, outs, s.mu) if outs and s.mu is not None else {}
     if s.checks and outs:
         event = checks_.trajectory_event(model, t, X, outs, start)
+        if event is not None:
+            event = located(model, s, sched, pieces, t, X, event)
         if cone and s.slip == "stop":
             event = cone_event(model, s, sched, pieces, t, X, outs, cone, event)
         if event is not None:
@@ -132,16 +143,16 @@ class _Charted:
         #: every switch's record (``Atlases.switch``), in time order
         self.switches: list[dict] = []
 
-    def integrate(self, s: RunSettings, x0, t_eval, p, start):
+    def integrate(self, s: RunSettings, x0, t_eval, p, start, sched=None):
         """``integrate`` across the chart switches: ``(t, X, stats, p)``, ``p`` the last
         chart's. ``max_steps`` and ``time_limit`` bound the whole, whatever its restarts."""
         if self.atlases is None:
-            return (*integrate(self.model, s, x0, t_eval, p, start), p)
+            return (*integrate(self.model, s, x0, t_eval, p, start, sched=sched), p)
         rows_t, rows_x, stats, x, grid, h0 = [], [], {}, x0, t_eval, 0.0
         began, now = perf_counter(), s
         while True:
             try:
-                t, X, st = integrate(self.model, now, x, grid, p, start, h0)
+                t, X, st = integrate(self.model, now, x, grid, p, start, h0, sched)
             except ContactLeftContourError as err:
                 k = self.atlases.slot_of(err)
                 if k is None:
@@ -209,6 +220,36 @@ class _Charted:
         return out
 
 
+def located(model, s: RunSettings, sched, pieces, t, X, event):
+    """``event`` (``checks.trajectory_event``'s, seen at an output sample after the start) at
+    the time located between the samples around it by integrating again (``runtime.events``),
+    as the friction cone's; as it was when integrating again does not reproduce it."""
+    check, t_sample = getattr(event, "check", None), getattr(event, "t_sample", None)
+    i = -1 if t_sample is None else int(np.searchsorted(t, t_sample))
+    if check is None or not 0 < i < len(t) or t[i] != t_sample:
+        return event
+    kind, name, level = check
+    p = next(pk for a, b, pk in pieces if a <= i - 1 < b)
+
+    def w(y: dict) -> float:
+        return (abs(y[name]) if kind == "denominator" else y[name]) - level
+
+    found = events.locate(model, s, sched, p, float(t[i - 1]), X[i - 1], float(t[i]), w)
+    if found is None:
+        return event
+    tc, xc = float(found[0]), np.asarray(found[1], dtype=float)
+    value = outputs_.along(model, np.array([tc]), xc[None, :], p, sched)[name][0]
+    where = f"t = {tc:.10g} s (located between the outputs at {t[i - 1]:.6g} and {t[i]:.6g} s)"
+    if kind == "force":
+        new = checks_.force_error(model, name, tc, xc, value, event.force_before, f"crosses 0 at {where}")
+    elif kind == "curvature":
+        new = checks_.curvature_error(model, name, tc, xc, value, level, level / checks_.KAPPA_SUM_RELATIVE, where)
+    else:
+        new = checks_._frame_error(model, name, tc, xc, value, level, " (located between the outputs)")
+    new.t_sample, new.check = t_sample, check
+    return new
+
+
 def cone_event(model, s: RunSettings, sched, pieces, t, X, outs, cone, event):
     """The earlier of ``event`` (another check's, or None) and the first exit of a contact's
     force from its friction cone along the samples (``runtime.friction``), that one located
@@ -254,7 +295,7 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start, charted):
         pk = p if sched is None else model.with_inputs(p, a, b)
         grid = t_eval if len(segments) == 1 else np.array(
             [s0, *t_eval[(t_eval > s0) & (t_eval < s1)], s1])
-        t, X, st, p_end = charted.integrate(s, x_now, grid, pk, start)
+        t, X, st, p_end = charted.integrate(s, x_now, grid, pk, start, sched)
         if charted.switches and p is not None:  # the next segment goes on in the last charts
             p = np.array(p, dtype=float)
             for _entry, i, _ in charted.atlases.slots:
@@ -275,20 +316,31 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start, charted):
     return t, X, stats
 
 
-def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0):
-    """One integration over ``t_eval`` (one segment of the inputs) with the settings ``s`` and
-    named errors: ``(t, X, stats)``; ``h0``: a C loop's first step (0: chosen)."""
+def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sched=None):
+    """One integration over ``t_eval`` (one segment of the inputs, ``p`` with its inputs;
+    ``sched`` the table, or None) with the settings ``s`` and named errors: ``(t, X, stats)``;
+    ``h0``: a C loop's first step (0: chosen). With ``s.checks``, the adaptive C loops watch
+    the checks at every step (``runtime.watch``) and raise the first event, located there."""
     method, checks, rtol, atol, h = s.method, s.checks, s.rtol, s.atol, s.h
     if method in integrators.C_LOOPS:
+        watched = s.watched
+        if watched:
+            watch_.start(model.library, watched, watch_.input_slots(model))
         try:
-            return integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
-                                      max_steps=s.max_steps, h=h, projection=s.proj,
-                                      time_limit=s.time_limit, h0=h0)
+            t, X, st = integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
+                                          max_steps=s.max_steps, h=h, projection=s.proj,
+                                          time_limit=s.time_limit, h0=h0)
         except IntegratorError as exc:
             err = failures.blow_up(model, failures.classify(model, exc), method, h)
             if checks:
                 checks_.raise_earlier_event(model, err, p, start)
             raise err from None
+        finally:
+            if watched:
+                model.library.unwatch()
+        if "event" in st:
+            raise watch_.event_error(model, s, sched, p, watched, st.pop("event"), t, X)
+        return t, X, st
     pp = np.zeros(0) if p is None else p
     try:
         t, X, stats = integrators.sundials(model, method, x0, t_eval, pp, rtol, atol, s.max_steps,
@@ -301,6 +353,15 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0):
         raise exc from None
     _sundials_exits(model, t, X, stats.pop("excursions", ()), p, start, checks, rtol, atol)
     return t, X, stats
+
+
+def watched_checks(model, s: RunSettings, start: dict) -> tuple:
+    """The checks the C loop watches in a run with the settings ``s`` (``runtime.watch``):
+    none without ``s.checks``, for a loop that cannot watch (rk4: one uniform grid), or for a
+    library without the watch; the cone's with ``mu`` and ``slip='stop'``."""
+    if not s.checks or s.method not in SWITCHING or not model.library.can_watch:
+        return ()
+    return watch_.checks(model, start, s.mu if s.slip == "stop" else None)
 
 
 def _sundials_exits(model, t, X, excursions, p, start, checks, rtol, atol) -> None:

@@ -67,6 +67,9 @@ class RunSettings:
     slip
         What a force outside its cone does: ``"stop"`` the run (``FrictionConeError``) or
         ``"record"`` it (the run goes on rolling; the outputs show the cone).
+    watched
+        The checks the C loop watches at every step (``runtime.watch.checks``), set by the
+        run once its start is checked; empty: the checks read the rows.
     """
 
     method: str
@@ -83,6 +86,7 @@ class RunSettings:
     checks: bool
     mu: np.ndarray | None = None
     slip: str = "stop"
+    watched: tuple = ()
 
     @classmethod
     def check(cls, model, t_final, *, method: str, rtol, atol, t_eval, h, max_steps: int,
