@@ -17,8 +17,10 @@ and every constraint is checked whatever outputs a model shows:
   ``checks.frame_denominators``): ``MovingFrameSingularityError`` (its (31)-(32) are 0/0 at
   rest).
 
-Events are found on the output samples; the first in time is raised, its time interpolated
-linearly between the samples around it.
+The adaptive C loops watch these at every step (``runtime.watch``), which locates an event
+there. Here they are read at the output samples (the methods that do not watch, a failed
+run's rows): the first event in time is raised, its time interpolated linearly between the
+samples around it (``runtime.run.located`` then locates it by integrating again).
 """
 from __future__ import annotations
 

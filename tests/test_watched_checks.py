@@ -1,0 +1,110 @@
+"""The run-time checks watched at every step (``runtime.watch``), whatever the output times.
+
+The case: paper2d's object rolled fast (60 rad/s along the rolling direction) under a weak grip
+(fd = 0.3 N). The finger cannot follow: its normal force ``f`` falls below 0 at t = 0.0281 s and
+is positive again from 0.038 s on. Rows at t = 0 and t = 0.2 s alone show ``f > 0`` both times, so
+a check read at the output rows returns such a run as a success; the watched check names it, at
+the root of ``f``, which the test finds independently on a dense run with the checks off.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import grasping_sym as gs
+from grasping_sym.errors import ContactOpenedError, FrictionConeError
+from tests.test_hard_cases import rolling_velocity
+
+TIGHT = dict(rtol=1e-10, atol=1e-13)
+
+
+@pytest.fixture(scope="module")
+def weak():
+    return gs.build(gs.scenes.paper2d(runtime=("fd", "m11", "gf"), fd=0.3))
+
+
+@pytest.fixture(scope="module")
+def fast_start(weak):
+    x0 = weak.initial_state()
+    x0[3:6] = -60.0 * rolling_velocity(weak, x0)
+    return x0
+
+
+@pytest.fixture(scope="module")
+def root_of_f(weak, fast_start):
+    """The first zero of ``f`` on a dense run with the checks off: linear between rows 1e-6 s
+    apart (the interpolation's error ~f'' dt^2 / (8 f') is far below 1e-9 s), and ``f`` at
+    the rows 0 and 0.2 s."""
+    t = np.linspace(0.0, 0.2, 200_001)
+    r = weak.simulate(0.2, x0=fast_start, t_eval=t, checks=False, method="radau", **TIGHT)
+    f = r["f"]
+    i = int(np.flatnonzero(f <= 0)[0])
+    root = t[i - 1] + f[i - 1] / (f[i - 1] - f[i]) * (t[i] - t[i - 1])
+    assert np.any(f[i:] > 0) and f[-1] > 0 and f[0] > 0  # it closes again: the rows see none
+    return root
+
+
+@pytest.mark.parametrize("method", ["radau", "dop853", "dopri5"])
+def test_a_contact_that_opens_between_two_output_rows_is_named_at_its_root(weak, fast_start, root_of_f, method):
+    with pytest.raises(ContactOpenedError, match="normal force f crosses 0") as info:
+        weak.simulate(0.2, x0=fast_start, t_eval=[0.0, 0.2], outputs=False, method=method, **TIGHT)
+    err = info.value
+    assert "located at the step" in str(err)
+    assert abs(err.t - root_of_f) <= 1e-8, (err.t, root_of_f)
+    assert abs(err.force) <= 1e-9 < err.force_before
+    assert abs(weak.outputs(err.x)["f"]) <= 1e-9  # the state it names is the one at the root
+    t_rows, _ = err.trajectory
+    assert t_rows.tolist() == [0.0]  # the rows before it
+
+
+def test_the_short_way_watches_as_the_full_way(weak, fast_start):
+    """A start and settings the full way accepted (a run that ends before the contact opens)
+    send later calls the short way (``runtime.fastpath``): a longer run from it is watched
+    there too, and goes the full way, which names the event."""
+    kw = dict(outputs=False, method="radau", **TIGHT)
+    weak.simulate(0.02, x0=fast_start, t_eval=[0.0, 0.02], **kw)
+    plan = next(p for p in weak.short_way.plans.values() if fast_start.tobytes() in p.checked)
+    assert plan.checked[fast_start.tobytes()]  # the checks it watches from that start
+    with pytest.raises(ContactOpenedError, match="located at the step"):
+        weak.simulate(0.2, x0=fast_start, t_eval=[0.0, 0.2], **kw)
+    assert weak.simulate(0.02, x0=fast_start, t_eval=[0.0, 0.02], **kw).stats["n_steps"] > 0
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_batch_watches_each_run_as_simulate_does(weak, fast_start, threads):
+    """``simulate_many`` without output times (the start and the end only): each run watched
+    in its thread, the opening one named as ``simulate`` names it, the others untouched."""
+    X0 = np.array([weak.initial_state(), fast_start, weak.initial_state(), fast_start])
+    batch = weak.simulate_many(0.2, x0=X0, method="radau", threads=threads, **TIGHT)
+    assert batch.status.tolist()[::2] == [0, 0] and all(s != 0 for s in batch.status[1::2])
+    with pytest.raises(ContactOpenedError) as info:
+        weak.simulate(0.2, x0=fast_start, t_eval=[0.0, 0.2], method="radau", **TIGHT)
+    assert batch.errors[1] == batch.errors[3] == f"ContactOpenedError: {info.value}"
+    alone = weak.simulate(0.2, t_eval=[0.0, 0.2], outputs=False, method="radau", **TIGHT)
+    np.testing.assert_array_equal(batch.x_final[0], alone.x[-1])  # bit for bit, watched or not
+
+
+def test_a_batch_watches_each_runs_own_cone(weak):
+    """Per-run ``mu`` without output times: each run's cone watched with its own coefficient
+    (a start outside its cone at t = 0; one left at its located time; one held; ``inf``
+    never leaves), as ``simulate`` finds them."""
+    mus = np.array([0.05, 0.2, 0.5, math.inf])
+    model = gs.build(gs.scenes.paper2d())
+    batch = model.simulate_many(3.0, x0=np.tile(model.initial_state(), (4, 1)), mu=mus)
+    assert batch.status.tolist()[2:] == [0, 0]
+    for i in (0, 1):
+        with pytest.raises(FrictionConeError) as info:
+            model.simulate(3.0, mu=mus[i], t_eval=[0.0, 3.0], outputs=False)
+        assert batch.errors[i] == f"FrictionConeError: {info.value}"
+    assert "at t = 0 s" in batch.errors[0]
+    assert "located at the step" in batch.errors[1]
+
+
+def test_a_start_past_a_check_stops_at_once_whatever_the_outputs(weak, fast_start):
+    """A witness at or below 0 at the start is never armed by the C loop: the run names it at
+    t = 0 (a finger pulled off by its torque), with outputs or without."""
+    pulled = gs.build(gs.scenes.paper2d(inputs="torques"))
+    for outputs in (True, False):
+        with pytest.raises(ContactOpenedError, match=r"<= 0 at t = 0 s, the start") as info:
+            pulled.simulate(0.1, u=[0.0, 0.2], t_eval=[0.0, 0.1], outputs=outputs)
+        assert info.value.t == 0.0
