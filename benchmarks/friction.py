@@ -9,8 +9,9 @@
   bounces, then rolling) against the same sphere resting on the table for as long, per switch;
 - a drop and settle in 3D: wall time per simulated second, with every default;
 - ensembles over ``mu``: paper2d, ``simulate_many`` on one thread at rtol 1e-8 with the cone
-  checked at 301 output times, runs per second, and the final-state error of every run that
-  held against a reference at rtol 1e-12;
+  and the other checks watched by the C loops at every step (``runtime.watch``, whatever the
+  output times), runs per second, and the final-state error of every run that held against a
+  reference at rtol 1e-12;
 - the fingers' modes: paper2d's finger slipping (mu = 0.2) and paper3d's grasp slipping and
   dropped onto a table, each against its rolling model's run of the same length and
   tolerance (no friction limit), and the seconds each build takes;
