@@ -108,3 +108,20 @@ def test_a_start_past_a_check_stops_at_once_whatever_the_outputs(weak, fast_star
         with pytest.raises(ContactOpenedError, match=r"<= 0 at t = 0 s, the start") as info:
             pulled.simulate(0.1, u=[0.0, 0.2], t_eval=[0.0, 0.1], outputs=outputs)
         assert info.value.t == 0.0
+
+
+def test_a_torque_step_that_pulls_the_finger_off_stops_at_its_knot():
+    """An input table's knot restarts the loop, which arms only the witnesses above 0 there: a
+    torque stepped at 0.05 s to one that pulls the finger off (f < 0 at once) stops the run at
+    the knot by name, in simulate (outputs or none) and in simulate_many (one segment per
+    batch), rather than returning it as a success."""
+    pulled = gs.build(gs.scenes.paper2d(inputs="torques"))
+    table = gs.inputs.zero_order_hold([0.0, 0.05], [[0.0, 0.0], [0.0, 0.2]])
+    for outputs in (True, False):
+        with pytest.raises(ContactOpenedError, match="where the integration restarts") as info:
+            pulled.simulate(0.1, u=table, t_eval=[0.0, 0.1], outputs=outputs)
+        assert info.value.t == 0.05
+    batch = pulled.simulate_many(0.1, x0=np.tile(pulled.initial_state(), (2, 1)), u=table)
+    assert batch.errors.tolist() == [f"ContactOpenedError: {info.value}"] * 2
+    held = gs.inputs.zero_order_hold([0.0, 0.05], [[0.0, 0.0], [0.0, 0.001]])  # a small step: it holds
+    assert pulled.simulate_many(0.1, x0=np.tile(pulled.initial_state(), (2, 1)), u=held).status.tolist() == [0, 0]

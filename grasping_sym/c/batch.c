@@ -174,6 +174,7 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
                         long nstiff, const double* lo, const double* hi, const int* proj_mask,
                         double proj_tol, double time_limit, int keep, double* X, double* Y,
                         double* Y0, double* CD0, long* status, double* t_fail, double* stats) {
+  const void* watch = gs_watch_batch_take(); /* first: never left pending for a later batch */
   if (method < 0 || method > 3 || n_threads < 1 || n_runs < 0 || n_out < 2 || !t_out || !X0 ||
       !X || !status || !t_fail || p_stride < 0 || (gs_np > 0 && !P) || !(time_limit >= 0.0) ||
       (method == 2 && (nsteps < 1 || stride < 1 || nsteps % stride || nsteps / stride + 1 != n_out)))
@@ -186,7 +187,7 @@ GS_EXPORT long gs_batch(int method, long n_threads, long n_runs, long n_out, con
       .mask = proj_mask, .h = h, .rtol = rtol, .atol = atol, .h0 = h0, .proj_tol = proj_tol,
       .deadline = time_limit > 0.0 ? gs_stop_now() + time_limit : 0.0, .X = X, .Y = Y,
       .Y0 = Y0, .CD0 = CD0, .t_fail = t_fail, .stats = stats, .status = status, .next = 0,
-      .stopped = 0, .ok = 0, .watch = gs_watch_batch_take()};
+      .stopped = 0, .ok = 0, .watch = watch};
   gs_stop_batch_reset();
   if (n_threads > n_runs) n_threads = n_runs > 0 ? n_runs : 1;
   pthread_t* threads = n_threads > 1 ? malloc((size_t)(n_threads - 1) * sizeof(pthread_t)) : NULL;

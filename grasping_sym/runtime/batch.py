@@ -288,19 +288,29 @@ def _watched(model, s: RunSettings, X0, P, sched, MU) -> tuple | None:
     terms, coef = watch.witnesses(model, start, MU, len(X0))
     if not terms:
         return None
+    coef[~np.isfinite(coef)] = 0.0  # a start whose outputs are not finite: refused (_check)
     return [t for _, _, t, _ in terms], coef, watch.input_slots(model), watch.WATCH_DT, watch.WATCH_SAFETY
 
 
-def _start_outputs(model, s: RunSettings, X0, P, sched) -> np.ndarray:
-    """The compiled outputs at every run's start (``(N, n_columns)``), as ``simulate``'s initial
-    checks read them: the inputs' first segment, and ``t = 0`` for a law that reads it."""
+def _start_outputs(model, s: RunSettings | None, X0, P, sched, t0: float = 0.0) -> np.ndarray:
+    """The compiled outputs at every run's start (``(N, n_columns)``; NaN where they cannot be
+    had), as ``simulate``'s initial checks read them: the inputs' first segment (``sched``, or
+    None: ``P`` as it is), and the time ``t0`` for a law that reads it."""
     if sched is not None:  # the inputs at t = 0
         P = np.array([model.with_inputs(row, sched.segments(0.0, float(s.t_eval[-1]))[0][2]) for row in P])
-    if model.manifest.get("outputs_time"):
-        return np.array([outputs_.row(model, x, p, 0.0) for x, p in zip(X0, P)])
-    if P is None or not len(P) or np.all(P == P[0]):
-        return model.library.outputs_batch(X0, None if P is None or not P.shape[1] else P[0])
-    return np.array([model.library.outputs(x, p) for x, p in zip(X0, P)])
+    timed = bool(model.manifest.get("outputs_time"))
+    if not timed and (P is None or not len(P) or np.all(P == P[0])):
+        try:
+            return model.library.outputs_batch(X0, None if P is None or not P.shape[1] else P[0])
+        except (RuntimeError, FloatingPointError, ValueError):
+            pass  # a start the outputs cannot be had at: run by run, NaN there (refused)
+    Y = np.full((len(X0), len(model.columns)), np.nan)
+    for i, (x, p) in enumerate(zip(X0, P if P is not None else [None] * len(X0))):
+        try:
+            Y[i] = outputs_.row(model, x, p, t0 if timed else None)
+        except (RuntimeError, FloatingPointError, ValueError):
+            pass
+    return Y
 
 
 def _refuse_mu_without_t_eval(MU, checks: bool, dense: bool) -> None:
@@ -346,7 +356,8 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
     ``stats``."""
     n = _count(model, x0, params, u, None if isinstance(mu, tuple) else mu)
     MU = friction.per_run(model, mu, n)
-    _refuse_mu_without_t_eval(MU, s.checks, dense)
+    if s.method == "rk4" or not getattr(model.library, "can_watch_batch", False):  # (run.watched_checks)
+        _refuse_mu_without_t_eval(MU, s.checks, dense)
     s.slip = slip_mode(slip)
     X0 = _initial_states(model, x0, n)
     P, pdict = _parameters(model, params, n)
@@ -428,8 +439,8 @@ def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, ow
     refused = ~checks_.initial_ok(model, res.get("Y0"), res.get("CD0"), rates=not own_start)
     started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
     Y0 = res.get("Y0")
-    if watched is not None and Y0 is not None:
-        status[~np.all(_start_values(watched[0], watched[1], Y0) > 0, axis=1) & (status == 0)] = EVENT
+    if watched is not None and Y0 is not None:  # whatever the loop did after: simulate stops there
+        status[~np.all(_start_values(watched[0], watched[1], Y0) > 0, axis=1) & started] = EVENT
     status[refused & started] = REFUSED  # simulate refuses before it integrates
     Y = res.get("Y")
     if Y is not None:
@@ -650,6 +661,13 @@ def _segments(model, method, grid, X0, P, sched, dense, initial, initial_outputs
         go = np.flatnonzero(status == len(grid))
         g = np.array([s0, *grid[(grid > s0) & (grid < s1)], s1])
         Xk = np.full((n, len(g), nx), np.nan)
+        if len(go) and k and watched is not None:  # a check past its event at the knot (its
+            # loop would never arm it): the run stops there, as simulate's does
+            Y = _start_outputs(model, None, x_now[go], np.array([model.with_inputs(row, a + b * s0) for row in P[go]]),
+                               None, s0)
+            past = ~np.all(_start_values(watched[0], watched[1][go], Y) > 0, axis=1)
+            status[go[past]], t_fail[go[past]] = c_loops.ERR_EVENT, s0
+            go = go[~past]
         if len(go):
             Pk = np.array([model.with_inputs(row, a, b) for row in P[go]])
             wk = None if watched is None else (watched[0], watched[1][go], *watched[2:])

@@ -69,11 +69,6 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
     p0 = p if sched is None else model.with_inputs(p, segments[0][2], segments[0][3])
     start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
     s.watched = watched_checks(model, s, start)
-    if s.watched:  # a check past its event at the start: the C loop would never arm it
-        y0 = outputs_.along(model, t_eval[:1], x0[None, :], p0, sched)
-        err = watch_.start_error(model, s, x0, {k: float(v[0]) for k, v in y0.items()})
-        if err is not None:
-            raise err
     charted = _Charted(model)
     t, X, stats = _segments(model, s, segments, sched, x0, p, start, charted)
     pieces = charted.pieces(t, p)  # the rows between switches, each with its p
@@ -324,7 +319,12 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
     method, checks, rtol, atol, h = s.method, s.checks, s.rtol, s.atol, s.h
     if method in integrators.C_LOOPS:
         watched = s.watched
-        if watched:
+        if watched:  # a check past its event where the loop starts: it would never arm it
+            t0 = float(t_eval[0])
+            y0 = outputs_.along(model, t_eval[:1], np.asarray(x0, dtype=float)[None, :], p, sched)
+            err = watch_.start_error(model, s, t0, x0, {k: float(v[0]) for k, v in y0.items()})
+            if err is not None:
+                raise err
             watch_.start(model.library, watched, watch_.input_slots(model))
         try:
             t, X, st = integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
@@ -358,8 +358,9 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
 def watched_checks(model, s: RunSettings, start: dict) -> tuple:
     """The checks the C loop watches in a run with the settings ``s`` (``runtime.watch``):
     none without ``s.checks``, for a loop that cannot watch (rk4: one uniform grid), or for a
-    library without the watch; the cone's with ``mu`` and ``slip='stop'``."""
-    if not s.checks or s.method not in SWITCHING or not model.library.can_watch:
+    library built before the checks were watched (no ``gs_watch_batch``, whose watch has no
+    constant terms: its rows are read); the cone's with ``mu`` and ``slip='stop'``."""
+    if not s.checks or s.method not in SWITCHING or not getattr(model.library, "can_watch_batch", False):
         return ()
     return watch_.checks(model, start, s.mu if s.slip == "stop" else None)
 

@@ -125,23 +125,25 @@ def values(watched, Y: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=-1) if out else np.zeros((*Y.shape[:-1], 0))
 
 
-def start_error(model, s, x0: np.ndarray, y: dict) -> IntegratorError | None:
-    """The named error of a check already at or past its event at the run's start (its
-    compiled outputs ``y``, name -> value): a witness the C loop would never arm (it arms one
-    once it is seen above 0); None when every one is above 0."""
+def start_error(model, s, t0: float, x0: np.ndarray, y: dict) -> IntegratorError | None:
+    """The named error of a check already at or past its event where a C loop starts (``t0``:
+    the run's start, an input table's knot, a chart switch; its compiled outputs ``y``, name ->
+    value): a witness the loop would never arm (it arms one once it is seen above 0); None
+    when every one is above 0."""
     row = np.array([y[k] for k in model.columns])
+    where = "the start" if t0 == 0.0 else "where the integration restarts (an input's knot or a chart switch)"
     for (kind, name, _, level), g in zip(s.watched, values(s.watched, row)):
         if g > 0:
             continue
         if kind == "force":
-            return checks_.force_error(model, name, 0.0, x0, y[name], math.nan,
-                                       f"is {y[name]:.6g} N <= 0 at t = 0 s, the start")
+            return checks_.force_error(model, name, t0, x0, y[name], math.nan,
+                                       f"is {y[name]:.6g} N <= 0 at t = {t0:.10g} s, {where}")
         if kind == "curvature":
-            return checks_.curvature_error(model, name, 0.0, x0, y[name], level,
-                                           level / checks_.KAPPA_SUM_RELATIVE, "t = 0 s, the start")
+            return checks_.curvature_error(model, name, t0, x0, y[name], level,
+                                           level / checks_.KAPPA_SUM_RELATIVE, f"t = {t0:.10g} s, {where}")
         if kind == "denominator":
-            return checks_._frame_error(model, name, 0.0, x0, y[name], level, " (at the start)")
-        return friction.cone_error(model, 0.0, x0, y, s.mu, name, "at the start")
+            return checks_._frame_error(model, name, t0, x0, y[name], level, f" (at {where})")
+        return friction.cone_error(model, t0, x0, y, s.mu, name, "at the start" if t0 == 0.0 else f"at {where}")
     return None
 
 
