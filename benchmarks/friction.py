@@ -74,9 +74,10 @@ def switches() -> dict:
 
 def ensembles(n: int = 2000) -> dict:
     """paper2d's fastest setting at final-state error <= 1e-8 (README: radau with projection,
-    no Baumgarte; rtol 1e-5 here) over ``n`` values of mu that hold, without mu and with the cone
-    checked at 31 and 301 output times (a batch checks the cone at its output times: it needs
-    them); and the default scene at rtol 1e-8 with a range of mu
+    no Baumgarte; rtol 1e-5 here) over ``n`` values of mu that hold, without mu and with the cone,
+    at 31 and 301 output times (the checks and the cone are watched by the C loops at every
+    step whatever the output times, ``runtime.watch``); and the default scene at rtol 1e-8 with
+    a range of mu
     where most runs slip (each slipping run is run again alone for its located message)."""
     out = {}
     fast = gs.build(gs.scenes.paper2d(gf=0.0, gl=0.0, wf=0.0, wl=0.0))

@@ -336,8 +336,19 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
   for (int j = 1; j <= (m > 1 ? m : 1); ++j) {
     const double tj = j == m || m <= 1 ? t : told + (t - told) * ((double)j / m);
     if (gs_watch_may_leave(tj)) {
-      if (tj != t) { /* a point of the dense output: its step is at hand if one fires later */
-        gs_w.n_left += 1;
+      if (tj != t) { /* a point of the dense output: its step is at hand if one fires later.
+                      * gs_watch_may_leave is monotone in t (what it compares grows with t):
+                      * every point up to the last it leaves is left, found by bisection */
+        int lo = j, hi = m - 1;
+        while (lo < hi) {
+          const int mid = lo + (hi - lo + 1) / 2;
+          if (gs_watch_may_leave(told + (t - told) * ((double)mid / m)))
+            lo = mid;
+          else
+            hi = mid - 1;
+        }
+        gs_w.n_left += lo - j + 1;
+        j = lo;
         continue;
       }
       if (gs_w.kept && gs_w.n_kept < GS_WATCH_SKIPS) { /* the step's end, kept */
