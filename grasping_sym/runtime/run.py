@@ -320,11 +320,9 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
     if method in integrators.C_LOOPS:
         watched = s.watched
         if watched:  # a check past its event where the loop starts: it would never arm it
-            t0 = float(t_eval[0])
-            y0 = outputs_.along(model, t_eval[:1], np.asarray(x0, dtype=float)[None, :], p, sched)
-            err = watch_.start_error(model, s, t0, x0, {k: float(v[0]) for k, v in y0.items()})
-            if err is not None:
-                raise err
+            row = outputs_.along_rows(model, t_eval[:1], np.asarray(x0, dtype=float)[None, :], p, sched)[0]
+            if watch_.first_past(watched, row.tolist()) is not None:
+                raise watch_.start_error(model, s, float(t_eval[0]), x0, dict(zip(model.columns, map(float, row))))
             watch_.start(model.library, watched, watch_.input_slots(model))
         try:
             t, X, st = integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
@@ -362,7 +360,16 @@ def watched_checks(model, s: RunSettings, start: dict) -> tuple:
     constant terms: its rows are read); the cone's with ``mu`` and ``slip='stop'``."""
     if not s.checks or s.method not in SWITCHING or not getattr(model.library, "can_watch_batch", False):
         return ()
-    return watch_.checks(model, start, s.mu if s.slip == "stop" else None)
+    mu = s.mu if s.slip == "stop" else None
+    key = ("watched", tuple(start.items()), None if mu is None else tuple(mu.tolist()))
+    cache = model.run_cache  # (a run from the same start and mu: its witnesses again, 10-30 us)
+    found = cache.get(key)
+    if found is None:
+        if sum(1 for k in cache if k[0] == "watched") >= 64:
+            for k in [k for k in cache if k[0] == "watched"]:
+                del cache[k]
+        found = cache[key] = watch_.checks(model, start, mu)
+    return found
 
 
 def _sundials_exits(model, t, X, excursions, p, start, checks, rtol, atol) -> None:

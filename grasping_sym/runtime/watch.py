@@ -125,6 +125,22 @@ def values(watched, Y: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=-1) if out else np.zeros((*Y.shape[:-1], 0))
 
 
+def first_past(watched, row) -> int | None:
+    """The first witness of ``watched`` at or below 0 (NaN too) at one state's compiled outputs
+    ``row`` (a list by column), None when every one is above 0."""
+    for k, (_, _, terms, _) in enumerate(watched):
+        lin = sq = 0.0
+        for term in terms:
+            v = term[1] if term[0] < 0 else term[1] * row[term[0]]
+            if len(term) > 2 and term[2]:
+                sq += v * v
+            else:
+                lin += v
+        if not lin - math.sqrt(sq) > 0:
+            return k
+    return None
+
+
 def start_error(model, s, t0: float, x0: np.ndarray, y: dict) -> IntegratorError | None:
     """The named error of a check already at or past its event where a C loop starts (``t0``:
     the run's start, an input table's knot, a chart switch; its compiled outputs ``y``, name ->
