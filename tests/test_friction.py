@@ -181,9 +181,12 @@ def test_a_tuple_is_one_mu_per_contact_for_every_run_and_a_batch_watches_the_con
     batch = paper3d.simulate_many(0.06, x0=np.tile(paper3d.initial_state(), (2, 1)), mu=(0.5, 0.08),
                                   t_eval=grid)
     with pytest.raises(FrictionConeError) as info:
-        paper3d.simulate(0.06, mu=(0.5, 0.08), t_eval=grid)
+        paper3d.simulate(0.06, mu=(0.5, 0.08), t_eval=grid, outputs=False)  # as the batch's runs
     assert batch.errors.tolist() == [f"FrictionConeError: {info.value}"] * 2
     assert "located at the step" in str(info.value)
+    with pytest.raises(FrictionConeError) as rows:  # its outputs at rows 1 ms apart: read there
+        paper3d.simulate(0.06, mu=(0.5, 0.08), t_eval=grid)
+    assert "located between the outputs" in str(rows.value) and abs(rows.value.t - info.value.t) <= 1e-9
     sparse = paper3d.simulate_many(0.06, x0=np.tile(paper3d.initial_state(), (2, 1)), mu=(0.5, 0.08))
     assert sparse.errors.tolist() == batch.errors.tolist()
     with pytest.raises(RunArgumentError, match="no t_eval"):

@@ -276,9 +276,12 @@ def _watched(model, s: RunSettings, X0, P, sched, MU) -> tuple | None:
     """What the C loops of the batch watch (``runtime.watch``): ``(terms, coef, inputs, dt,
     safety)`` as ``CompiledLibrary.batch`` takes them, every run's checks from its own start
     (and ``MU``, its friction coefficients, or None); None where the checks are not watched
-    (no checks, rk4, a library without the batch's watch): they read the output rows."""
+    (no checks, rk4, a library without the batch's watch, outputs at rows at most
+    ``WATCH_DT`` apart): they read the output rows."""
     lib = model.library
     if not s.checks or s.method == "rk4" or not model.columns or not getattr(lib, "can_watch_batch", False):
+        return None
+    if s.outputs and run_.rows_dense(s.t_eval):  # computed at rows as close as the watch's points
         return None
     names = [*checks_.curvature_outputs(model.columns), *checks_.denominator_thresholds(model)]
     start = {}

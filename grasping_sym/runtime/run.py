@@ -355,11 +355,14 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
 
 def watched_checks(model, s: RunSettings, start: dict) -> tuple:
     """The checks the C loop watches in a run with the settings ``s`` (``runtime.watch``):
-    none without ``s.checks``, for a loop that cannot watch (rk4: one uniform grid), or for a
+    none without ``s.checks``, when the run computes its outputs at rows at most ``WATCH_DT``
+    apart (they are read there), for a loop that cannot watch (rk4: one uniform grid), or for a
     library built before the checks were watched (no ``gs_watch_batch``, whose watch has no
     constant terms: its rows are read); the cone's with ``mu`` and ``slip='stop'``."""
     if not s.checks or s.method not in SWITCHING or not getattr(model.library, "can_watch_batch", False):
         return ()
+    if s.outputs and rows_dense(s.t_eval):  # the outputs are computed at rows as close as the
+        return ()  # watch's points: read there, an event located between two of them (located)
     mu = s.mu if s.slip == "stop" else None
     key = ("watched", tuple(start.items()), None if mu is None else tuple(mu.tolist()))
     cache = model.run_cache  # (a run from the same start and mu: its witnesses again, 10-30 us)
@@ -370,6 +373,12 @@ def watched_checks(model, s: RunSettings, start: dict) -> tuple:
                 del cache[k]
         found = cache[key] = watch_.checks(model, start, mu)
     return found
+
+
+def rows_dense(t_eval: np.ndarray) -> bool:
+    """Whether the output times are at most ``watch.WATCH_DT`` apart (the default grid's are):
+    the checks read at them see what the watch would."""
+    return len(t_eval) > 1 and float(np.max(np.diff(t_eval))) <= watch_.WATCH_DT * (1.0 + 1e-9)
 
 
 def _sundials_exits(model, t, X, excursions, p, start, checks, rtol, atol) -> None:
