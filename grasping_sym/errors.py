@@ -54,6 +54,19 @@ class IntegratorError(GraspingSymError, RuntimeError):
             state = repr(x)
         super().__init__(f"integration failed at t = {self.t:.6g} s: {reason}; state: {state}")
 
+    def __reduce__(self):
+        # pickled whole (a Dask worker's error back to its client): the message as made, then
+        # every attribute the raiser set (the subclasses' own __init__ arguments among them)
+        return _restore, (type(self), self.args, self.__dict__)
+
+
+def _restore(cls, args, state):
+    """An ``IntegratorError`` (any subclass) from its pickle: ``args`` and attributes as they were."""
+    err = cls.__new__(cls)
+    Exception.__init__(err, *args)
+    err.__dict__.update(state)
+    return err
+
 
 class StateLeftDomainError(IntegratorError):
     """A state component left its declared bounds, at the step where it happened: a contact
@@ -97,8 +110,12 @@ class InvalidBodyError(ProblemsError):
 class ContactOpenedError(IntegratorError):
     """The normal multiplier ``f`` reached zero or below: a unilateral contact would open.
 
-    ``t`` is the interpolated time (s) where ``f`` crosses zero, ``force`` the value of ``f``
-    (N) at the first output sample with ``f <= 0`` and ``force_before`` the last positive one.
+    ``t`` is the time (s) where ``f`` crosses zero, located there (``runtime.watch``: by the
+    C loop at its step, or between the two output rows around it) or interpolated between two
+    rows when integrating again does not reproduce it; ``force`` the value of ``f`` (N) at
+    ``t`` (0 to its noise where located; the first row's with ``f <= 0`` where interpolated)
+    and ``force_before`` a positive value before it (the step's start, or the row before;
+    NaN where ``f <= 0`` already where the integration starts).
     """
 
 

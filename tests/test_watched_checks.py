@@ -125,3 +125,21 @@ def test_a_torque_step_that_pulls_the_finger_off_stops_at_its_knot():
     assert batch.errors.tolist() == [f"ContactOpenedError: {info.value}"] * 2
     held = gs.inputs.zero_order_hold([0.0, 0.05], [[0.0, 0.0], [0.0, 0.001]])  # a small step: it holds
     assert pulled.simulate_many(0.1, x0=np.tile(pulled.initial_state(), (2, 1)), u=held).status.tolist() == [0, 0]
+
+
+def test_a_named_error_survives_a_pickle(weak, fast_start):
+    """A run's named error crosses a process boundary whole (a Dask worker's, back to its
+    client): its type, message, time, state and the attributes the check set."""
+    import pickle
+
+    with pytest.raises(ContactOpenedError) as info:
+        weak.simulate(0.2, x0=fast_start, t_eval=[0.0, 0.2], outputs=False, method="radau", **TIGHT)
+    err = info.value
+    back = pickle.loads(pickle.dumps(err))
+    assert type(back) is ContactOpenedError and str(back) == str(err)
+    assert (back.t, back.force, back.force_before) == (err.t, err.force, err.force_before)
+    np.testing.assert_array_equal(back.x, err.x)
+    cone = FrictionConeError(0.5, None, "a cone", contact=2, mu=0.3, normal=1.0, tangential=0.4)
+    again = pickle.loads(pickle.dumps(cone))
+    assert (again.contact, again.mu, again.normal, again.tangential, str(again)) == \
+        (2, 0.3, 1.0, 0.4, str(cone))

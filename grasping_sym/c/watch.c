@@ -708,6 +708,11 @@ GS_EXPORT int gs_watch_batch(long n, const long* ptr, const long* idx, const dou
   return 0;
 }
 
+/* Forget the watch gs_watch_batch set when its batch is not run (its arrays go). */
+GS_EXPORT void gs_watch_batch_cancel(void) {
+  gs_spec.set = 0;
+}
+
 /* gs_batch: the watch gs_watch_batch set for it (NULL: none; taken once). */
 GS_HIDDEN const void* gs_watch_batch_take(void) {
   if (!gs_spec.set) return NULL;

@@ -182,6 +182,7 @@ class CompiledLibrary:
             lib.gs_watch_batch.argtypes = [_long, _dp, _dp, _dp, _long, _dp, _dp, _dp, _long, _long, _double,
                                            _double]
             lib.gs_watch_batch.restype = ctypes.c_int
+            lib.gs_watch_batch_cancel.restype = None
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
         lib.gs_con_info.restype = ctypes.c_int
         nc = _long()
@@ -756,14 +757,18 @@ class CompiledLibrary:
         h, nsteps, stride = rk4 or (0.0, 0, 0)
         code = {"radau": 0, "dopri5": 1, "rk4": 2, "dop853": 3}[method]
         held = None if watch is None or not n else self._watch_batch(n, *watch)  # alive until it returns
-        with c_loops.stoppable(self, None):
-            rc = self._c_batch(
-                code, int(threads), n, m, t_out.ctypes.data, float(h), int(nsteps), int(stride),
-                X0.ctypes.data, self._ptr(P), 0 if P is None else self.np, float(rtol),
-                float(atol), float(h0), int(max_steps), int(nstiff), self._ptr(lo), self._ptr(hi),
-                self._ptr(proj_mask), float(proj_tol), float(time_limit or 0.0), int(keep),
-                res["X"].ctypes.data, self._ptr(res.get("Y")), self._ptr(res.get("Y0")), self._ptr(res.get("CD0")),
-                res["status"].ctypes.data, res["t_fail"].ctypes.data, res["stats"].ctypes.data)
+        try:
+            with c_loops.stoppable(self, None):
+                rc = self._c_batch(
+                    code, int(threads), n, m, t_out.ctypes.data, float(h), int(nsteps), int(stride),
+                    X0.ctypes.data, self._ptr(P), 0 if P is None else self.np, float(rtol),
+                    float(atol), float(h0), int(max_steps), int(nstiff), self._ptr(lo), self._ptr(hi),
+                    self._ptr(proj_mask), float(proj_tol), float(time_limit or 0.0), int(keep),
+                    res["X"].ctypes.data, self._ptr(res.get("Y")), self._ptr(res.get("Y0")), self._ptr(res.get("CD0")),
+                    res["status"].ctypes.data, res["t_fail"].ctypes.data, res["stats"].ctypes.data)
+        finally:
+            if held is not None:
+                self._lib.gs_watch_batch_cancel()  # (taken by gs_batch when it ran)
         res["rc"] = int(rc)
         del held
         if rc == c_loops.ERR_INTERRUPT and self._lib.gs_stop_cause() == 1:

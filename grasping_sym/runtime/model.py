@@ -489,7 +489,9 @@ class Model:
         (``runtime.batch``); returns a ``BatchResult``.
 
         Each run is bit for bit ``simulate(t_final, x0=x0[i], params={k: params[k][i]}, u=u[i],
-        ...)`` with the same settings (the same C loop, the same arguments); a run that fails
+        ...)`` with the same settings (the same C loop, the same arguments, the same
+        ``outputs``: a run that computes its outputs at rows at most 1 ms apart reads its checks
+        there, else its loop watches them at every step, ``runtime.watch``); a run that fails
         is recorded (``status``, and ``errors`` with the message ``simulate`` would raise) and
         loses nothing of the others.
 
@@ -513,8 +515,10 @@ class Model:
             Output times common to every run: ``x`` (``(N, m, n_states)``) and the outputs are
             kept there; without, only the final states are.
         outputs
-            Return the outputs (at the final states, or at ``t_eval``). With ``checks`` they are
-            evaluated and the events along them checked as ``simulate`` does either way.
+            Return the outputs (at the final states, or at ``t_eval``). With ``checks`` the
+            events along every run are found as ``simulate`` with the same ``outputs`` finds
+            them (read at rows at most 1 ms apart when the outputs are computed there, else
+            watched at every step).
         threads
             Threads to run on (default: every core this process may use).
         mu

@@ -364,14 +364,15 @@ def watched_checks(model, s: RunSettings, start: dict) -> tuple:
     if s.outputs and rows_dense(s.t_eval):  # the outputs are computed at rows as close as the
         return ()  # watch's points: read there, an event located between two of them (located)
     mu = s.mu if s.slip == "stop" else None
-    key = ("watched", tuple(start.items()), None if mu is None else tuple(mu.tolist()))
-    cache = model.run_cache  # (a run from the same start and mu: its witnesses again, 10-30 us)
-    found = cache.get(key)
+    key = (tuple(start.items()), None if mu is None else tuple(mu.tolist()))
+    # a run from the same start and mu: its witnesses again (10-30 us); a dict of its own,
+    # replaced whole when full (threads of one process share the model)
+    kept = model.run_cache.get("watched")
+    if kept is None or len(kept) >= 64:
+        kept = model.run_cache["watched"] = {}
+    found = kept.get(key)
     if found is None:
-        if sum(1 for k in cache if k[0] == "watched") >= 64:
-            for k in [k for k in cache if k[0] == "watched"]:
-                del cache[k]
-        found = cache[key] = watch_.checks(model, start, mu)
+        found = kept[key] = watch_.checks(model, start, mu)
     return found
 
 
