@@ -185,6 +185,12 @@ def write_structure(sf: StructureFunctions, key: str, directory: Path, digest: s
         apart = {id(f) for f in with_jac + with_jac2}
         groups = [[f for f in sf.functions() if id(f) not in apart], with_jac, with_jac2]
         quick = [f"{name}_{k}.c" for k in (2, 3)]
+    elif sf.jac is None and sf.outputs is not None and sf.constraints is not None and sf.start is not None:
+        # no Jacobian (a 3D grasp's): the rhs and the outputs, called at every step and every
+        # output time, each in a file of its own; the constraints (a projected step's, a
+        # start's) and the start (once per start) in a third, compiled quick
+        groups = [[sf.rhs], [sf.outputs], [sf.constraints, sf.start]]
+        quick = [f"{name}_3.c"]
     files, grouped = cwriter.write_c(sf, name, directory, digest, __version__, extra_c=lane_c,
                                      groups=groups)
     record = StructureRecord(
