@@ -97,7 +97,9 @@ def denominator_thresholds(model) -> dict[str, float]:
     return cached
 
 
-def _frame_error(model, name: str, t: float, x, value: float, threshold: float, extra: str = ""):
+def frame_error(model, name: str, t: float, x, value: float, threshold: float, extra: str = ""):
+    """The named error of frame denominator ``name`` at ``value`` (rad/s), fallen to
+    ``threshold`` at ``t`` (state ``x``); ``extra`` is appended to its message."""
     err = MovingFrameSingularityError(
         t, x,
         f"moving-frame formulation singular: |{name}| = |omega0.e0 + omega1.e1| = {abs(value):.3e} "
@@ -193,7 +195,7 @@ def check_initial_state(model, x0: np.ndarray, p, rates: bool = True) -> dict[st
         start[name] = k0
     for name, thr in denominator_thresholds(model).items():
         if name in y and not abs(y[name]) > thr:
-            raise _frame_error(model, name, 0.0, x0, y[name], thr,
+            raise frame_error(model, name, 0.0, x0, y[name], thr,
                                "; the paper formulation cannot start at rest: give the scene "
                                "initial speeds (dq0) that move every contact")
         if name in y:
@@ -336,7 +338,7 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
         hit = first_crossing(t, np.abs(outs[name]), thr)
         if hit is not None:
             i, tc = hit
-            err = _frame_error(model, name, tc, X[i - 1] if i else X[0], outs[name][i], thr,
+            err = frame_error(model, name, tc, X[i - 1] if i else X[0], outs[name][i], thr,
                                " (state at the last sample before)" + note)
             err.t_sample, err.check = float(t[i]), ("denominator", name, thr)
             events.append((tc, 0, err))

@@ -240,7 +240,7 @@ def located(model, s: RunSettings, sched, pieces, t, X, event):
     elif kind == "curvature":
         new = checks_.curvature_error(model, name, tc, xc, value, level, level / checks_.KAPPA_SUM_RELATIVE, where)
     else:
-        new = checks_._frame_error(model, name, tc, xc, value, level, " (located between the outputs)")
+        new = checks_.frame_error(model, name, tc, xc, value, level, " (located between the outputs)")
     new.t_sample, new.check = t_sample, check
     return new
 

@@ -158,7 +158,7 @@ def start_error(model, s, t0: float, x0: np.ndarray, y: dict) -> IntegratorError
             return checks_.curvature_error(model, name, t0, x0, y[name], level,
                                            level / checks_.KAPPA_SUM_RELATIVE, f"t = {t0:.10g} s, {where}")
         if kind == "denominator":
-            return checks_._frame_error(model, name, t0, x0, y[name], level, f" (at {where})")
+            return checks_.frame_error(model, name, t0, x0, y[name], level, f" (at {where})")
         return friction.cone_error(model, t0, x0, y, s.mu, name, "at the start" if t0 == 0.0 else f"at {where}")
     return None
 
@@ -196,7 +196,7 @@ def event_error(model, s, sched, p, watched, event: dict, t_rows, X_rows) -> Int
         err = checks_.curvature_error(model, name, tc, xc, y[name], level,
                                       level / checks_.KAPPA_SUM_RELATIVE, where)
     elif kind == "denominator":
-        err = checks_._frame_error(model, name, tc, xc, y[name], level, " (located at the step)")
+        err = checks_.frame_error(model, name, tc, xc, y[name], level, " (located at the step)")
     else:
         err = friction.cone_error(model, tc, xc, y, s.mu, name, "located at the step")
     err.trajectory = (np.asarray(t_rows, dtype=float).copy(), np.asarray(X_rows, dtype=float).copy())
