@@ -143,3 +143,14 @@ def test_a_named_error_survives_a_pickle(weak, fast_start):
     again = pickle.loads(pickle.dumps(cone))
     assert (again.contact, again.mu, again.normal, again.tangential, str(again)) == \
         (2, 0.3, 1.0, 0.4, str(cone))
+
+
+@pytest.mark.parametrize("method, rtol", [("radau", 1e-4), ("dop853", 1e-5), ("dopri5", 1e-4)])
+def test_long_steps_do_not_hide_the_opening(weak, fast_start, root_of_f, method, rtol):
+    """At loose tolerances the steps are long and the watch looks only where a check's margin
+    could run out at 8 times its rate (``runtime.watch.CHECK_SPAN``): the 9 ms opening is still
+    named, at its root to the run's own accuracy."""
+    with pytest.raises(ContactOpenedError) as info:
+        weak.simulate(0.2, x0=fast_start, t_eval=[0.0, 0.2], outputs=False, method=method, rtol=rtol,
+                      atol=rtol / 100)
+    assert abs(info.value.t - root_of_f) <= 1e-4

@@ -30,7 +30,8 @@
  * every witness is armed and would still be above 0 there by `safety` (gs_watch_witnesses; 8
  * in runtime/modes.py) times what its rate and the change of its rate (from its last three
  * watched points) take off it: a margin far from its event costs no evaluation at every step. Never the run's end, never
- * more than GS_WATCH_SKIPS dt after the last watched point, and at most GS_WATCH_SKIPS steps'
+ * more than GS_WATCH_SKIPS dt after the last watched point (another bound, or none, by
+ * gs_watch_span: the run-time checks'), and at most GS_WATCH_SKIPS steps'
  * ends in a row, which are kept (with the start of the step of the last watched point). A
  * witness that fires at the next watched point is first looked for at them, in order; an
  * event found between two of them is bracketed by that step (the root's first guess the
@@ -71,6 +72,9 @@ typedef struct {
    * points watched and left */
   int have_rate, have_curve, n_kept, n_fired;
   double safety, t_end, rate[GS_WATCH_MAX], curve[GS_WATCH_MAX], t_rate, t_kept[GS_WATCH_SKIPS + 1];
+  /* the longest time a point may be left unwatched after the last watched one (0: no such
+   * bound, the prediction and the steps' ends alone): GS_WATCH_SKIPS dt unless gs_watch_span */
+  double span;
   double n_eval, n_left;
   /* GS_WATCH_SKIPS + 2 states (malloc'd by gs_watch_witnesses, freed by gs_watch_clear):
    * the ends kept (x_kept(i), i = 0 .. n_kept) and the event's step start (x_step) */
@@ -223,7 +227,7 @@ static int gs_watch_probe(gs_work* wk, int k, double* a, double* ga, double* b, 
 static int gs_watch_may_leave(double t) {
   const double span = t - gs_w.t_prev, lever = t - gs_w.t_rate;
   if (!(gs_w.safety > 0.0) || !gs_w.kept || !gs_w.have_curve || !(t < gs_w.t_end) ||
-      (gs_w.dt > 0.0 && span > GS_WATCH_SKIPS * gs_w.dt))
+      (gs_w.span > 0.0 && span > gs_w.span))
     return 0;
   for (int k = 0; k < gs_w.n; ++k)
     if (!gs_w.armed[k] ||
@@ -638,6 +642,7 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   gs_w.in_m = (int)in_m;
   gs_w.dt = dt;
   gs_w.safety = safety;
+  gs_w.span = GS_WATCH_SKIPS * dt;
   gs_w.n_kept = 0;
   if (safety > 0.0 && !gs_w.kept) /* none (no memory): every point is watched */
     gs_w.kept = malloc((size_t)(GS_WATCH_SKIPS + 2) * gs_nx * sizeof(double));
@@ -660,6 +665,16 @@ GS_EXPORT int gs_watch_witnesses(long n, const long* ptr, const long* idx, const
   return 0;
 }
 
+/* The watch's bound on the time a point may be left unwatched (after gs_watch_witnesses,
+ * which sets GS_WATCH_SKIPS dt): span > 0 that many seconds, 0 none (a point is left while
+ * the prediction says every witness stays above 0, at most GS_WATCH_SKIPS steps' ends in a
+ * row). Returns 0, or GS_ERR_ARGS for a negative or non-finite span. */
+GS_EXPORT int gs_watch_span(double span) {
+  if (!(span >= 0.0) || !isfinite(span)) return GS_ERR_ARGS;
+  gs_w.span = span;
+  return 0;
+}
+
 GS_EXPORT void gs_watch_clear(void) {
   gs_w.on = 0;
   free(gs_w.kept);
@@ -678,7 +693,7 @@ GS_EXPORT void gs_watch_resume(void) {
 typedef struct {
   int set;
   long n, in_k, in_m, coef_stride;
-  double dt, safety;
+  double dt, safety, span;
   const long *ptr, *idx, *norm, *probe;
   const double *coef, *tol;
 } gs_watch_spec;
@@ -689,21 +704,22 @@ static _Thread_local gs_watch_state gs_w_saved;
 
 /* The witnesses every run of this thread's next gs_batch watches (the runs of a batch
  * without one never watch): n witnesses as gs_watch_witnesses, run i's coefficients at
- * coef + i coef_stride (every run's checked finite by the caller). Returns 0, or GS_ERR_ARGS
+ * coef + i coef_stride (every run's checked finite by the caller), span as gs_watch_span. Returns 0, or GS_ERR_ARGS
  * (nothing set) where gs_watch_witnesses would refuse run 0's. */
 GS_EXPORT int gs_watch_batch(long n, const long* ptr, const long* idx, const double* coef,
                              long coef_stride, const long* norm, const double* tol,
-                             const long* probe, long in_k, long in_m, double dt, double safety) {
+                             const long* probe, long in_k, long in_m, double dt, double safety,
+                             double span) {
   gs_watch_state keep = gs_w;
   gs_w.kept = NULL;
-  const int rc = coef_stride < 0 ? GS_ERR_ARGS
+  const int rc = coef_stride < 0 || !(span >= 0.0) || !isfinite(span) ? GS_ERR_ARGS
                                  : gs_watch_witnesses(n, ptr, idx, coef, norm, tol, probe, in_k,
                                                       in_m, dt, safety);
   free(gs_w.kept);
   gs_w = keep;
   if (rc) return rc;
   gs_spec = (gs_watch_spec){.set = 1, .n = n, .in_k = in_k, .in_m = in_m, .coef_stride = coef_stride,
-                            .dt = dt, .safety = safety, .ptr = ptr, .idx = idx, .norm = norm,
+                            .dt = dt, .safety = safety, .span = span, .ptr = ptr, .idx = idx, .norm = norm,
                             .probe = probe, .coef = coef, .tol = tol};
   return 0;
 }
@@ -736,8 +752,10 @@ GS_HIDDEN void gs_watch_batch_leave(void) {
 /* Run i of a batch with a watch (spec: gs_watch_batch_take's): its witnesses set. */
 GS_HIDDEN int gs_watch_batch_run(const void* spec, long i) {
   const gs_watch_spec* s = (const gs_watch_spec*)spec;
-  return gs_watch_witnesses(s->n, s->ptr, s->idx, s->coef + i * s->coef_stride, s->norm, s->tol,
-                            s->probe, s->in_k, s->in_m, s->dt, s->safety);
+  const int rc = gs_watch_witnesses(s->n, s->ptr, s->idx, s->coef + i * s->coef_stride, s->norm,
+                                    s->tol, s->probe, s->in_k, s->in_m, s->dt, s->safety);
+  if (!rc) gs_w.span = s->span;
+  return rc;
 }
 
 /* gs_batch without a watch: its runs never watch, the calling thread's too (the watch is off

@@ -274,7 +274,7 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
 
 def _watched(model, s: RunSettings, X0, P, sched, MU) -> tuple | None:
     """What the C loops of the batch watch (``runtime.watch``): ``(terms, coef, inputs, dt,
-    safety)`` as ``CompiledLibrary.batch`` takes them, every run's checks from its own start
+    safety, span)`` as ``CompiledLibrary.batch`` takes them, every run's checks from its own start
     (and ``MU``, its friction coefficients, or None); None where the checks are not watched
     (no checks, rk4, a library without the batch's watch, outputs at rows at most
     ``WATCH_DT`` apart): they read the output rows."""
@@ -292,7 +292,8 @@ def _watched(model, s: RunSettings, X0, P, sched, MU) -> tuple | None:
     if not terms:
         return None
     coef[~np.isfinite(coef)] = 0.0  # a start whose outputs are not finite: refused (_check)
-    return [t for _, _, t, _ in terms], coef, watch.input_slots(model), watch.WATCH_DT, watch.WATCH_SAFETY
+    return ([t for _, _, t, _ in terms], coef, watch.input_slots(model), watch.WATCH_DT, watch.WATCH_SAFETY,
+            watch.CHECK_SPAN)
 
 
 def _start_outputs(model, s: RunSettings | None, X0, P, sched, t0: float = 0.0) -> np.ndarray:

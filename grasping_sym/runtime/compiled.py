@@ -177,10 +177,13 @@ class CompiledLibrary:
             lib.gs_watch_refine.argtypes = [ctypes.c_int, _dp, _dp, _double, _double, _long, _dp, _dp,
                                             _double, _long, _dp, _dp, _dp]
             lib.gs_watch_refine.restype = ctypes.c_int
-        self.can_watch_batch = hasattr(lib, "gs_watch_batch")  # (libraries of older versions lack it)
+        # the run-time checks' watch (runtime.watch): libraries of older versions lack it
+        self.can_watch_batch = hasattr(lib, "gs_watch_batch") and hasattr(lib, "gs_watch_span")
         if self.can_watch_batch:
             lib.gs_watch_batch.argtypes = [_long, _dp, _dp, _dp, _long, _dp, _dp, _dp, _long, _long, _double,
-                                           _double]
+                                           _double, _double]
+            lib.gs_watch_span.argtypes = [_double]
+            lib.gs_watch_span.restype = ctypes.c_int
             lib.gs_watch_batch.restype = ctypes.c_int
             lib.gs_watch_batch_cancel.restype = None
         lib.gs_con_info.argtypes = [ctypes.POINTER(_long)]
@@ -615,7 +618,7 @@ class CompiledLibrary:
     # -- witnesses watched along a run (c/watch.c) ---------------------------------------
     def watch(self, terms: Sequence[Sequence[tuple]], tol: Sequence[float],
               inputs: tuple[int, int] = (0, 0), dt: float = 0.0, probe: Sequence[bool] = (),
-              safety: float = 0.0) -> None:
+              safety: float = 0.0, span: float | None = None) -> None:
         """Watch witnesses in this thread's next radau5 / dopri5 / dop853 runs until
         :meth:`unwatch`: witness k is ``sum(c * y[i] for i, c in terms[k])`` over the compiled
         outputs ``y``, less ``sqrt(sum((c * y[i])**2))`` over its terms given as
@@ -628,7 +631,9 @@ class CompiledLibrary:
         interval is probed on the dense output for a time it was above ``tol[k]`` (default
         none). ``safety`` > 0:
         a step's end is left unwatched while every witness, at ``safety`` times its last
-        rate, would still be above 0 there (``c/watch.c``); 0: every step's end is watched."""
+        rate, would still be above 0 there (``c/watch.c``); 0: every step's end is watched.
+        ``span``: the longest time a point may be left after the last watched one (None: 16
+        ``dt``; 0: no bound but the prediction's, ``gs_watch_span``)."""
         if not self.can_watch:
             raise RuntimeError(f"{self.path} has no gs_watch_witnesses: rebuild the model")
         key = (tuple(tuple(t) for t in terms), tuple(tol), tuple(inputs), dt, tuple(probe), safety)
@@ -638,6 +643,8 @@ class CompiledLibrary:
                 self._watched.clear()
             args = self._watched[key] = self._watch_args(terms, tol, inputs, dt, probe, safety)
         rc = self._lib.gs_watch_witnesses(*args[0])
+        if not rc and span is not None:
+            rc = self._lib.gs_watch_span(float(span)) if self.can_watch_batch else 1
         if rc:
             raise ValueError(f"gs_watch_witnesses refused {len(terms)} witnesses (terms {list(terms)!r:.200}, "
                              f"tol {list(tol)}, inputs {inputs}, dt {dt}, safety {safety}): at "
@@ -660,10 +667,11 @@ class CompiledLibrary:
                 float(safety)), arrays
 
     def _watch_batch(self, n: int, terms, coef: np.ndarray, inputs: tuple[int, int], dt: float,
-                     safety: float) -> tuple:
+                     safety: float, span: float) -> tuple:
         """``gs_watch_batch``: every run of this thread's next ``gs_batch`` watches the witnesses
         ``terms`` (as :meth:`watch` takes them, the coefficients of run i ``coef[i]``, ``(n,
-        n_terms)``; ``tol`` 0); the arrays the C code reads, to keep until the batch returns."""
+        n_terms)``; ``tol`` 0; ``span`` as :meth:`watch`'s); the arrays the C code reads, to keep
+        until the batch returns."""
         if not self.can_watch_batch:
             raise RuntimeError(f"{self.path} has no gs_watch_batch: rebuild the model")
         coef = np.ascontiguousarray(coef, dtype=float)
@@ -673,7 +681,7 @@ class CompiledLibrary:
         ptr, idx, _, norm, tols, probes = arrays
         rc = self._lib.gs_watch_batch(len(terms), ptr.ctypes.data, idx.ctypes.data, coef.ctypes.data,
                                       coef.shape[1], norm.ctypes.data, tols.ctypes.data, probes.ctypes.data,
-                                      int(inputs[0]), int(inputs[1]), float(dt), float(safety))
+                                      int(inputs[0]), int(inputs[1]), float(dt), float(safety), float(span))
         if rc:
             raise ValueError(f"gs_watch_batch refused {len(terms)} witnesses (terms {list(terms)!r:.200})")
         return args, arrays, coef

@@ -45,6 +45,13 @@ WATCH_DT = 1e-3
 #: ``WATCH_DT``; one that lasts is found at the next watched point (or at a failure) and
 #: located in its step from the ends kept. 0: every point is watched.
 WATCH_SAFETY = 8.0
+#: s, the checks' bound on the time a point may be left unwatched after the last watched one:
+#: none (0). A check's point is left while the prediction says it stays above 0 by
+#: ``WATCH_SAFETY`` times what its rate and the change of its rate take off it (at most 16
+#: steps' ends in a row); the contact modes' witnesses are also looked at every 16
+#: ``WATCH_DT`` (``runtime.modes``). That bound cost a cheap run of paper2d half its speed
+#: (about 190 looks in 3 s, where the prediction asks for about 20).
+CHECK_SPAN = 0.0
 
 
 def input_slots(model) -> tuple[int, int]:
@@ -105,7 +112,7 @@ def checks(model, start: dict, mu) -> tuple:
 def start(lib, watched, inputs: tuple[int, int]) -> None:
     """Watch ``watched`` (``checks``) in this thread's next C loops (until ``lib.unwatch()``)."""
     lib.watch([terms for _, _, terms, _ in watched], [0.0] * len(watched), inputs=inputs, dt=WATCH_DT,
-              safety=WATCH_SAFETY)
+              safety=WATCH_SAFETY, span=CHECK_SPAN)
 
 
 def values(watched, Y: np.ndarray) -> np.ndarray:
