@@ -95,16 +95,71 @@ static inline void gs_d8_stage(int s, double h, const double* y, const int n, do
  * continuous extension of order 7; stats [13] the last estimate of h |lambda|, [14] the
  * number of stiffness tests above 6.1).
  */
-/* The continuous extension of the step just accepted: its start y0 and d (7 rows of n). */
+/* The continuous extension's coefficients (7 rows of n, into d) of the step of size h from
+ * (t, y) to y1 (unprojected), its stages k[0 .. 12] (k[12] at the unprojected y1): three more
+ * stages (into k[13 .. 15], scratch ys). Returns 0 or an evaluation's error code. */
+static int gs_dop853_dense_make(gs_work* wk, double t, double h, const double* y, const double* y1,
+                                const double* p, double (*k)[gs_nx], double* ys, double* d) {
+  const int n = gs_nx;
+  int rc;
+  for (int s = 13; s < 16; ++s) {
+    const double ts = t + gs_d8_c[s] * h;
+    gs_d8_stage(s, h, y, n, k, ys);
+    if ((rc = gs_eval_rhs(wk, &ts, ys, p, k[s]))) return rc;
+  }
+  for (int i = 0; i < n; ++i) {
+    const double dy = y1[i] - y[i], bspl = h * k[0][i] - dy;
+    d[i] = dy;
+    d[n + i] = bspl;
+    d[2 * n + i] = dy - h * k[12][i] - bspl;
+    for (int r = 0; r < 4; ++r) {
+      double acc = 0.0;
+      for (int j = 0; j < 16; ++j) acc += gs_d8_d[r][j] * k[j][i];
+      d[(3 + r) * n + i] = h * acc;
+    }
+  }
+  return 0;
+}
+
+/* The continuous extension of the step just accepted: its start y0 and d (7 rows of n).
+ * For the watch alone (no output row inside the step) d is made at the first point asked
+ * for (lazy: the unprojected end y1u and its stage k12u kept, the step's stages in k), its
+ * error code in rc; a point at the step's start is y0 itself. */
 typedef struct {
-  const double *y0, *d;
+  const double* y0;
+  double* d;
   double told, hsol;
+  int ready, rc;
+  gs_work* wk;
+  const double *p, *y1u, *k12u;
+  double *k, *ys, *st; /* k: the step's 16 stages, row by row (double[16][n]) */
 } gs_dop853_dense;
 
 static void gs_dop853_interp(const void* ctx, double t, double* x) {
-  const gs_dop853_dense* c = (const gs_dop853_dense*)ctx;
+  gs_dop853_dense* c = (gs_dop853_dense*)ctx;
   const int n = gs_nx;
-  const double *d = c->d, *y = c->y0;
+  const double* y = c->y0;
+  if (t == c->told) {
+    for (int i = 0; i < n; ++i) x[i] = y[i];
+    return;
+  }
+  if (!c->ready) { /* the stages at the unprojected end: k[12] as the step left it */
+    double(*k)[n] = (double(*)[n])c->k;
+    double k12[n];
+    for (int i = 0; i < n; ++i) {
+      k12[i] = k[12][i];
+      k[12][i] = c->k12u[i];
+    }
+    c->rc = gs_dop853_dense_make(c->wk, c->told, c->hsol, y, c->y1u, c->p, k, c->ys, c->d);
+    for (int i = 0; i < n; ++i) k[12][i] = k12[i];
+    c->st[GS_ST_RHS] += 3;
+    c->ready = 1;
+  }
+  if (c->rc) { /* an evaluation failed: a NaN state, which every witness takes as past it */
+    for (int i = 0; i < n; ++i) x[i] = NAN;
+    return;
+  }
+  const double* d = c->d;
   const double s = (t - c->told) / c->hsol, s1 = 1.0 - s;
   for (int i = 0; i < n; ++i)
     x[i] = y[i] + s * (d[i] + s1 * (d[n + i] + s * (d[2 * n + i] + s1 * (d[3 * n + i] + s * (
@@ -117,7 +172,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
                          double proj_tol, double* out, double* stats, double* t_fail) {
   const int n = gs_nx;
   GS_DECLARE_WORK(wk);
-  double y[n], y1[n], ys[n], ystiff[n], scale[n], dense[7][n];
+  double y[n], y1[n], ys[n], ystiff[n], scale[n], dense[7][n], y1u[n], k12u[n], ylazy[n];
   double k[16][n];
   double st[GS_NSTATS] = {0};
   long row = 0;
@@ -236,27 +291,18 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
         iasti = 0;
       }
     }
-    /* Continuous extension of the unprojected step, only when an output lies inside it:
+    /* Continuous extension of the unprojected step, made now when an output lies inside it:
      * three more stages, then y(t + s h) = y + s (d0 + (1-s) (d1 + s (d2 + (1-s) (d3 +
-     * s (d4 + (1-s) (d5 + s d6)))))). */
-    const int inside = (row < n_out && t_out[row] < tph) || gs_watching();
+     * s (d4 + (1-s) (d5 + s d6)))))). For the watch alone, made at its first point inside
+     * the step (gs_dop853_interp): the unprojected end and its stage kept for it. */
+    const int inside = row < n_out && t_out[row] < tph;
     if (inside) {
-      for (int s = 13; s < 16; ++s) {
-        const double ts = t + gs_d8_c[s] * h;
-        gs_d8_stage(s, h, y, n, k, ys);
-        if ((rc = gs_eval_rhs(wk, &ts, ys, p, k[s]))) goto fail;
-      }
+      if ((rc = gs_dop853_dense_make(wk, t, h, y, y1, p, k, ys, &dense[0][0]))) goto fail;
       st[GS_ST_RHS] += 3;
+    } else if (gs_watching()) {
       for (int i = 0; i < n; ++i) {
-        const double dy = y1[i] - y[i], bspl = h * k[0][i] - dy;
-        dense[0][i] = dy;
-        dense[1][i] = bspl;
-        dense[2][i] = dy - h * k[12][i] - bspl;
-        for (int r = 0; r < 4; ++r) {
-          double acc = 0.0;
-          for (int j = 0; j < 16; ++j) acc += gs_d8_d[r][j] * k[j][i];
-          dense[3 + r][i] = h * acc;
-        }
+        y1u[i] = y1[i];
+        k12u[i] = k[12][i];
       }
     }
     if ((rc = gs_check(y1, lo, hi))) goto fail;
@@ -279,8 +325,9 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     int event = 0;
     double t_ev = t;
     if (gs_watching()) {
-      const gs_dop853_dense dn = {y, &dense[0][0], told, hsol};
+      gs_dop853_dense dn = {y, &dense[0][0], told, hsol, inside, 0, wk, p, y1u, k12u, &k[0][0], ylazy, st};
       event = gs_watch_step(wk, told, t, y1, p, gs_dop853_interp, &dn, &t_ev, ys);
+      if (event >= 0 && dn.rc) event = dn.rc; /* the lazy extension's evaluation failed */
       if (event < 0) {
         rc = event;
         goto fail;
