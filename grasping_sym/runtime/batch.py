@@ -444,7 +444,7 @@ def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, ow
     started = res["stats"][:, 6] >= 0  # (c/batch.c marks runs a stopped batch never began)
     Y0 = res.get("Y0")
     if watched is not None and Y0 is not None:  # whatever the loop did after: simulate stops there
-        status[~np.all(_start_values(watched[0], watched[1], Y0) > 0, axis=1) & started] = EVENT
+        status[~np.all(watch.values(watched[0], Y0, watched[1]) > 0, axis=1) & started] = EVENT
     status[refused & started] = REFUSED  # simulate refuses before it integrates
     Y = res.get("Y")
     if Y is not None:
@@ -454,23 +454,6 @@ def _check(model, s: RunSettings, res: dict, status: np.ndarray, dense: bool, ow
         if mu is not None:
             hit |= ~friction.clean(model, ys, mu)
         status[hit & (status == 0)] = EVENT
-
-
-def _start_values(terms, coef: np.ndarray, Y0: np.ndarray) -> np.ndarray:
-    """Every run's witnesses (``terms``, run i's coefficients ``coef[i]``: ``_watched``) at its
-    start's compiled outputs ``Y0`` (``(N, n_columns)``): ``(N, n_witnesses)``."""
-    G, j = np.empty((len(Y0), len(terms))), 0
-    for k, t in enumerate(terms):
-        lin, sq = np.zeros(len(Y0)), np.zeros(len(Y0))
-        for term in t:
-            v = coef[:, j] * (1.0 if term[0] < 0 else Y0[:, term[0]])
-            j += 1
-            if len(term) > 2 and term[2]:
-                sq += v * v
-            else:
-                lin += v
-        G[:, k] = lin - np.sqrt(sq)
-    return G
 
 
 def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched, mu=None) -> np.ndarray:
@@ -669,7 +652,7 @@ def _segments(model, method, grid, X0, P, sched, dense, initial, initial_outputs
             # loop would never arm it): the run stops there, as simulate's does
             Y = _start_outputs(model, None, x_now[go], np.array([model.with_inputs(row, a + b * s0) for row in P[go]]),
                                None, s0)
-            past = ~np.all(_start_values(watched[0], watched[1][go], Y) > 0, axis=1)
+            past = ~np.all(watch.values(watched[0], Y, watched[1][go]) > 0, axis=1)
             status[go[past]], t_fail[go[past]] = c_loops.ERR_EVENT, s0
             go = go[~past]
         if len(go):

@@ -115,20 +115,23 @@ def start(lib, watched, inputs: tuple[int, int]) -> None:
               safety=WATCH_SAFETY, span=CHECK_SPAN)
 
 
-def values(watched, Y: np.ndarray) -> np.ndarray:
-    """Every witness of ``watched`` at the compiled outputs ``Y`` (``(..., n_columns)``), on the
-    last axis; NaN stays NaN (past its event)."""
-    out = []
-    for _, _, terms, _ in watched:
-        s = np.zeros(Y.shape[:-1])
-        q = np.zeros(Y.shape[:-1])
-        for term in terms:
-            v = term[1] if term[0] < 0 else term[1] * Y[..., term[0]]
+def values(terms, Y: np.ndarray, coef: np.ndarray | None = None) -> np.ndarray:
+    """Every witness (``terms``: each one's, as ``CompiledLibrary.watch`` takes them) at the
+    compiled outputs ``Y`` (``(..., n_columns)``), on the last axis; ``coef``: the terms'
+    coefficients in order (``(..., n_terms)``, e.g. one row per run of a batch; None: the
+    terms' own). NaN stays NaN (past its event)."""
+    out, j = [], 0
+    for t in terms:
+        lin = sq = np.zeros(Y.shape[:-1])
+        for term in t:
+            c = term[1] if coef is None else coef[..., j]
+            v = c if term[0] < 0 else c * Y[..., term[0]]
+            j += 1
             if len(term) > 2 and term[2]:
-                q = q + v * v
+                sq = sq + v * v
             else:
-                s = s + v
-        out.append(s - np.sqrt(q))
+                lin = lin + v
+        out.append(lin - np.sqrt(sq))
     return np.stack(out, axis=-1) if out else np.zeros((*Y.shape[:-1], 0))
 
 
@@ -155,7 +158,7 @@ def start_error(model, s, t0: float, x0: np.ndarray, y: dict) -> IntegratorError
     when every one is above 0."""
     row = np.array([y[k] for k in model.columns])
     where = "the start" if t0 == 0.0 else "where the integration restarts (an input's knot or a chart switch)"
-    for (kind, name, _, level), g in zip(s.watched, values(s.watched, row)):
+    for (kind, name, _, level), g in zip(s.watched, values([t for _, _, t, _ in s.watched], row)):
         if g > 0:
             continue
         if kind == "force":
@@ -184,7 +187,7 @@ def event_error(model, s, sched, p, watched, event: dict, t_rows, X_rows) -> Int
         cols = model.columns
 
         def w(y: dict) -> float:
-            return float(values(((kind, name, terms, level),), np.array([y[k] for k in cols]))[0])
+            return float(values([terms], np.array([y[k] for k in cols]))[0])
 
         found = events.refine(model, s, sched, p, hit["t_step"], x_step, hit["t_lo"], hit["t_hi"], event["t"],
                               hit["slope"], w, projection=s.proj)
