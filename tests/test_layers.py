@@ -203,6 +203,21 @@ def test_3d_layered_functions_equal_the_single_piece_derivation():
                                            err_msg=name)
 
 
+def test_the_3d_rhs_reads_the_outputs_jets_and_the_scene_writes_them_once():
+    """paper3d's rhs needs 264 jet entries and its outputs 4 more: the structure's rhs reads
+    the outputs' 268 (``structure3d._widen``), so the scene's C holds one jets function for
+    both (the previous test checks their numbers); a wider difference keeps them apart."""
+    from grasping_sym.assemble import structure3d
+
+    model = gs.build(replace(gs.scenes.paper3d(), name="layers_paper3d"))
+    source = "".join(f.read_text() for f in sorted(model.library_path.parent.glob("layers_paper3d_*.c")))
+    assert "layers_paper3d_jets_rhs:(x[33])->(J[268x1" in source
+    assert "layers_paper3d_jets_outputs" not in source
+    assert structure3d._widen(list(range(264)), list(range(268)))
+    assert not structure3d._widen(list(range(200)), list(range(268)))  # 68 more: kept apart
+    assert not structure3d._widen([*range(263), 300], list(range(268)))  # not a subset
+
+
 def test_a_new_3d_surface_pair_reuses_the_structure():
     """Other surfaces, and another object mass and inertia (inputs of the structure, after
     the jets): the same compiled structure, and the rhs of the single piece derived with

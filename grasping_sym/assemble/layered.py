@@ -97,7 +97,7 @@ def _by_kind(x: ca.SX, values: dict, reads: Reads, prefix: str, p: ca.SX | None 
     one function."""
     out, made = {}, {}
     ins, in_names = ([x], ["x"]) if p is None else ([x, p], ["x", "p"])
-    for kind, by_input in reads.items():
+    for kind, by_input in sorted(reads.items(), key=lambda item: item[0] != "rhs"):  # named after the rhs
         names = [n for n in by_input if n in values]
         key = tuple((n, tuple(by_input[n])) for n in names)
         if key not in made:

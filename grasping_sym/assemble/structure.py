@@ -57,8 +57,8 @@ from grasping_sym.assemble.functions import (
 )
 
 __all__ = ["CONTOUR_LEAVES", "LAYOUTS", "SURFACE_JETS", "Layout", "PlanarStructureSpec", "Slot",
-           "StructureFunctions", "StructureSpec", "fold_pattern", "prune_inputs", "structure_functions",
-           "structure_name"]
+           "StructureFunctions", "StructureSpec", "fold_pattern", "needed_entries", "prune_inputs",
+           "structure_functions", "structure_name"]
 
 
 # -- what every structure is: its spec, its functions, how they take the model's values -----
@@ -171,15 +171,22 @@ class StructureFunctions:
         return {k: f.name() for k, f in self.by_kind() if f is not None}
 
 
-def prune_inputs(f: ca.Function, inputs) -> tuple[ca.Function, dict[int, list[int]]]:
-    """``f`` with each of its ``inputs`` (indices) cut to the entries ``f`` depends on, and
-    those entries by input index. The shape's code then computes only what each structure
-    function reads (CasADi's structural Jacobian sparsity says which)."""
+def needed_entries(f: ca.Function, k: int) -> list[int]:
+    """The entries of ``f``'s input ``k`` that ``f`` depends on (CasADi's structural Jacobian
+    sparsity), in order."""
+    outs = [f.sparsity_jac(k, o) for o in range(f.n_out()) if f.nnz_out(o)]
+    return sorted(set(ca.vertcat(*outs).get_col())) if outs else []
+
+
+def prune_inputs(f: ca.Function, inputs, wider: dict[int, list[int]] | None = None
+                 ) -> tuple[ca.Function, dict[int, list[int]]]:
+    """``f`` with each of its ``inputs`` (indices) cut to the entries ``f`` depends on
+    (:func:`needed_entries`; ``wider[k]``, a superset of them, where given), and those entries
+    by input index. The shape's code then computes only what each structure function reads."""
     ins = [f.sx_in(i) for i in range(f.n_in())]
     args, new_ins, kept = list(ins), list(ins), {}
     for k in inputs:
-        outs = [f.sparsity_jac(k, o) for o in range(f.n_out()) if f.nnz_out(o)]
-        needed = sorted(set(ca.vertcat(*outs).get_col())) if outs else []
+        needed = sorted((wider or {}).get(k) or needed_entries(f, k))
         sym = ca.SX.sym(f.name_in(k), len(needed))
         full = ca.SX.zeros(ins[k].numel(), 1)
         for j, c in enumerate(needed):
