@@ -154,3 +154,50 @@ def test_long_steps_do_not_hide_the_opening(weak, fast_start, root_of_f, method,
         weak.simulate(0.2, x0=fast_start, t_eval=[0.0, 0.2], outputs=False, method=method, rtol=rtol,
                       atol=rtol / 100)
     assert abs(info.value.t - root_of_f) <= 1e-4
+
+
+@pytest.fixture(scope="module")
+def pulsed():
+    """paper2d at rest under its law plus a 2 ms torque pulse at the second joint
+    (``0.3 exp(-((t - 0.8) / 1 ms)^2)`` N m, a law of time): the pulse pulls the fingertip off
+    the object at once, its normal force below 0 for ~2 ms from t = 0.79883 s (a review's
+    case). The grasp's rest state, and the root of ``f`` on a run at rtol 1e-10 with rows 10 ns
+    apart around it (linear between them)."""
+    import sympy as sp
+
+    t = sp.Symbol("t")
+    law = gs.controllers.paper2d() + gs.controllers.feedforward([0, 0.3 * sp.exp(-((t - 0.8) / 0.001) ** 2)])
+    model = gs.build(gs.scenes.paper2d(controller=law, name="pulsed"))
+    rest = model.simulate(0.5, t_eval=[0.0, 0.5], outputs=False, checks=False, **TIGHT).x[-1]
+    rows = np.concatenate([[0.0], np.linspace(0.7985, 0.799, 50_001)])
+    f = model.simulate(0.799, x0=rest, t_eval=rows, checks=False, **TIGHT)["f"]
+    i = int(np.flatnonzero(f <= 0)[0])
+    return model, rest, rows[i - 1] + f[i - 1] / (f[i - 1] - f[i]) * (rows[i] - rows[i - 1])
+
+
+@pytest.mark.parametrize("method", ["radau", "dop853"])
+def test_a_pulse_of_a_law_of_time_is_watched(pulsed, method):
+    """The witnesses' rates at rest foresee nothing of a law's pulse: a model whose outputs read
+    the time leaves no point unwatched (``c/watch.c``). Before, radau stepped over the pulse in
+    one 30 ms step and dop853 left its steps' points unwatched: both returned a success."""
+    model, rest, root = pulsed
+    with pytest.raises(ContactOpenedError, match="located at the step") as info:
+        model.simulate(1.2, x0=rest, t_eval=[0.0, 1.2], outputs=False, method=method)
+    assert abs(info.value.t - root) < 1e-8, (info.value.t, root)
+    batch = model.simulate_many(1.2, x0=np.array([rest, rest]), method=method, threads=2)
+    assert all(s != 0 for s in batch.status) and batch.errors[0].startswith("ContactOpenedError")
+
+
+def test_a_check_at_the_tolerance_noise_is_named_as_the_rows_name_it(weak, fast_start):
+    """At rtol 1e-4 a faster roll's opening sits at the integration's noise: integrating again
+    from the step's start does not reproduce it. The watch names the check's own error at the
+    dense output's root, and says so, as the rows' path does (it raised EventLocationError)."""
+    x0 = weak.initial_state()
+    x0[3:6] = -59.0 * rolling_velocity(weak, x0)
+    kw = dict(method="dop853", rtol=1e-4, atol=1e-6)
+    with pytest.raises(ContactOpenedError, match="located on the integration's dense output"):
+        weak.simulate(0.2, x0=x0, t_eval=[0.0, 0.2], outputs=False, **kw)
+    for t_eval, outputs in (([0.0, 0.2], True), (None, False), (None, True)):
+        with pytest.raises(ContactOpenedError):
+            weak.simulate(0.2, x0=x0, t_eval=t_eval, outputs=outputs, **kw)
+    assert weak.simulate_many(0.2, x0=x0[None, :], **kw).errors[0].startswith("ContactOpenedError")
