@@ -543,7 +543,7 @@ def _check_settings(model, task) -> None:
     """Refuse bad settings by name before any task runs: one short run with them."""
     s = _per_run_mu(task["settings"], 1)
     model.simulate_many(min(task["t_final"], 1e-3), x0=model.initial_state()[None, :],
-                        **{**s, "checks": False})
+                        **(s if model.manifest.get("modes") else {**s, "checks": False}))  # modes: always checked
 
 
 def _per_run_mu(settings: dict, n: int) -> dict:

@@ -84,6 +84,20 @@ def test_slip_starts_where_the_rolling_model_leaves_its_cone(rolling, slide):
     assert abs(first["t"] - err.value.t) < 1e-8
 
 
+def test_the_default_tolerances_slide_as_the_tight_ones_do(model, slide):
+    """At the default rtol 1e-6 (atol 1e-9) the fingers leave their cones and slide as at
+    1e-10: the same switches, within 1e-5 s. A slide that starts at the cone's edge gains slip
+    speed as the square of the time: its direction there was followed into noise (the slip's
+    acceleration 8e-8 m/s^2 of ~50), and its slip witness armed at 1e-10 m/s, below the loose
+    run's noise; the fingers chattered between rolling and sliding (ChatteringError at
+    0.0288 s). Now it starts against the rolling force (``modes.EDGE``) and its witness arms
+    above the run's noise (``modes.SLIP_NOISE``)."""
+    loose = model.simulate(0.2, mu=LAW, t_eval=slide.t)
+    assert [(e["contact"], e["from"], e["to"], e["witness"]) for e in loose.events] == \
+        [(e["contact"], e["from"], e["to"], e["witness"]) for e in slide.events]
+    assert max(abs(a["t"] - b["t"]) for a, b in zip(loose.events, slide.events)) < 1e-5
+
+
 def test_points_left_unwatched_change_no_switch(model, slide, monkeypatch):
     """The witnesses' points left unwatched while their margins are far from 0 at their rates
     (``c/watch.c``): the same seven switches at the same times (1e-12 s) and the same samples

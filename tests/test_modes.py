@@ -335,6 +335,73 @@ def test_a_tilted_ellipsoid_dropped_on_a_table_never_gains_energy():
         assert res["gap"].min() > -1e-12, (mu, e)
 
 
+#: Two tumbling drops of a 50 x 30 x 20 mm ellipsoid (with an atlas) found by a review: the
+#: slide's start and the impact's sliding impulse were followed by a plain fixed-point
+#: iteration on 3-vectors, which circled (the slip's image turning faster than the direction)
+#: and returned a direction 145 degrees from its own image: the first run died with
+#: EventLocationError at 0.122 s, the second's impact at 0.193 s was refused as Painleve's.
+TUMBLES = {
+    "slide": ((0.0, 0.0, 0.1, 0.22630964095587783, -0.09428411458946381, 0.022439712167186952, -0.969221807154769,
+               -0.651281012443394, 0.8624447963157468, -0.6255920840343272, 13.383064815789057, 24.376872103424464,
+               7.658591654269448, 2.8505535897213696, -1.140410895034064), 0.1962968851147534),
+    "impact": ((0.0, 0.0, 0.1, -0.5906360717572919, 0.4285945654336741, 0.6432851433954003, 0.2316030084143862,
+                0.7316522837854408, -0.5014400184670523, -1.3791606182879854, -21.435748337548883, 18.289344062575623,
+                -0.40126909230960844, 3.0119143841815967, 0.08053336327056321), 0.4719097193587902),
+}
+
+
+@pytest.fixture(scope="module")
+def tumbler():
+    m, (a, b, c) = 0.1, (0.05, 0.03, 0.02)
+    inertia = (m / 5 * (b * b + c * c), m / 5 * (a * a + c * c), m / 5 * (a * a + b * b))
+    return gs.build(gs.scenes.body_on_plane(surface_library.ellipsoid(a, b, c, atlas=True), mass=m, inertia=inertia,
+                                            start="as given", position=(0.0, 0.0, 0.1), name="tumbler"))
+
+
+@pytest.mark.parametrize("case", sorted(TUMBLES))
+def test_a_tumbling_ellipsoid_slides_and_lands_along_directions_that_are_fixed_points(tumbler, case, monkeypatch):
+    """Every slip direction the run takes (a slide's start: the slip's acceleration along
+    it; an impact's sliding impulse: the slip it leaves along it, Moreau's law) is a fixed
+    point of its map to 1e-9 in angle, or, at the cone's edge (the map's image there ~0,
+    ``modes.EDGE``), the direction opposing the rolling force; the run reaches its end, and
+    its energy never grows."""
+    taken = []
+    plain = modes._direction
+
+    def spy(d, along, iterations=50, normal=None):
+        out = plain(d, along, iterations, normal)
+        v, small = along(out)
+        if np.linalg.norm(v) > max(small, modes.EDGE * np.linalg.norm(along(-out)[0])):
+            taken.append(math.atan2(np.linalg.norm(np.cross(v, out)), np.dot(v, out)))
+        else:  # at the cone's edge (a slide's start where the cone was crossed): d itself
+            assert np.array_equal(out, d)
+        return out
+
+    monkeypatch.setattr(modes, "_direction", spy)
+    x0, mu = TUMBLES[case]
+    res = tumbler.simulate(0.3, x0=np.array(x0), params={"chart": 0}, mu=mu, e=0.0,
+                           t_eval=np.linspace(0.0, 0.3, 31), **TIGHT)
+    assert res.t[-1] == 0.3 and taken and max(taken) < 1e-9, taken
+    where = {"slide": ("rolling", "sliding", 0.1218), "impact": ("separated", "sliding", 0.1933)}[case]
+    assert any((e["from"], e["to"]) == where[:2] and abs(e["t"] - where[2]) < 1e-3 for e in res.events)
+    energy = res["energy"]
+    assert np.diff(energy).max() < 1e-10 * abs(energy).max()
+
+
+def test_a_slip_direction_in_a_plane_is_found_where_the_plain_iteration_circles():
+    """``modes._direction`` of 3-vectors in a plane: the map ``d -> (d_x, -3 d_y, 0)`` has its
+    fixed points (its image along it, not against) at +-x; from 1 rad the plain iteration
+    flips between +-y for ever, and the angle's root is found."""
+    def along(d):
+        return np.array([d[0], -3.0 * d[1], 0.0]), 1e-12
+
+    d0 = np.array([math.cos(1.0), math.sin(1.0), 0.0])
+    circling = modes._direction(d0, along)
+    assert abs(circling[0]) < 1e-6                        # the plain iteration: near +-y
+    found = modes._direction(d0, along, normal=np.array([0.0, 0.0, 1.0]))
+    assert abs(abs(found[0]) - 1.0) < 1e-14 and abs(found[2]) == 0.0
+
+
 def test_a_sweep_over_mu_finds_the_incline_threshold(tmp_path):
     b = 0.3
     model = gs.build(gs.scenes.sphere_on_incline(R, M, b, name="incline3"))

@@ -236,7 +236,7 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
         return _with_atlases(model, s, x0, params, u, mu, slip, dense, start)
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
         modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names),
-                            charts=parameters.charts_of(model))
+                            charts=parameters.charts_of(model), checks=s.checks)
         return _with_modes(model, s, t_final, x0, mu, e, u, dense, start, charts=params)
     if e is not None:
         raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "

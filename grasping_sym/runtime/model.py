@@ -449,7 +449,7 @@ class Model:
                               checks=checks, time_limit=time_limit)
         if self.manifest.get("modes"):  # contact that can change: runtime.modes
             modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(self.input_names),
-                                charts=parameters.charts_of(self))
+                                charts=parameters.charts_of(self), checks=s.checks)
             x0, own_start = run_.start_state(self, x0)
             return modes.run(self, s, x0, mu, e, u, None if modes_key is None else
                              (modes_key, b"" if own_start else x0.tobytes()), charts=params)

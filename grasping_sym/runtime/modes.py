@@ -95,12 +95,21 @@ REST_SPEED = 1e-3
 GAP_RETURN = 1e-12
 
 
-def _arming(name: str) -> float:
+#: A slide's slip witness is armed above this many times the run's ``atol`` (m/s), if more than
+#: ``SLIP_SPEED``: the integration's own noise on a contact velocity (``_arming``).
+SLIP_NOISE = 10.0
+
+
+def _arming(name: str, atol: float = 0.0) -> float:
     """The witness's ``tol`` of ``c/watch.c``: it is watched for a return to 0 once it was seen
     above it, and, when > 0, for a fall below ``-tol`` before that: a gap's (``GAP_RETURN``)
-    and a slide's slip, whose start from rest is noise below ``SLIP_SPEED``; the others
-    start > 0."""
-    return GAP_RETURN if name == "gap" else SLIP_SPEED if name == "slip" else 0.0
+    and a slide's slip, whose start from rest is noise below ``SLIP_SPEED`` or the run's
+    ``SLIP_NOISE atol`` (a slide starting at the cone's edge gains speed as the square of the
+    time; at rtol 1e-6 the noise of a loose run's velocities crossed -SLIP_SPEED first, and
+    paper3d's fingers chattered between rolling and sliding); the others start > 0."""
+    if name == "slip":
+        return max(SLIP_SPEED, SLIP_NOISE * atol)
+    return GAP_RETURN if name == "gap" else 0.0
 
 
 def friction_law(model, mu, e=None) -> tuple[tuple[float, ...], float]:
@@ -460,7 +469,7 @@ class _BodyRun(_Run):
             a = K @ (np.dot(n, K @ F_roll) / np.dot(n, K @ dirn) * dirn - F_roll)
             return a - np.dot(a, n) * n, 1e-12 * max(_norm(a), 1.0)
 
-        return _direction(d, slip_acceleration)
+        return _direction(d, slip_acceleration, normal=n)
 
     def free_normal_acceleration(self, x, modes, slips, j: int, y: dict) -> float:
         """The contact's normal acceleration with no contact force (m/s^2)."""
@@ -554,7 +563,7 @@ class _BodyRun(_Run):
                 after_v = vc + K @ (np.zeros(3) if P is None else P)
                 return after_v - np.dot(after_v, n) * n, SLIP_SPEED
 
-            d = _direction(d, slip_left, MOREAU_ITERATIONS)
+            d = _direction(d, slip_left, MOREAU_ITERATIONS, normal=n)
             P = impulse(d)
             after_t = slip_left(d)[0]
             if P is None or np.dot(after_t, d) < -1e-12 * max(1.0, _norm(vt)):
@@ -1184,10 +1193,37 @@ def _solve3_floats(K, b) -> list[float]:
             (a * (e * w - v * h) - b_ * (d * w - v * g) + u * (d * h - e * g)) / det]
 
 
-def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
+def _direction(d: np.ndarray, along, iterations: int = 50, normal: np.ndarray | None = None) -> np.ndarray:
     """The fixed point of ``d -> v(d)/|v(d)|`` from ``d`` (``along(d) -> (v, small)``): where
     ``|v| <= small`` (nothing to follow: on the cone's edge) the direction is kept. A
-    direction in a plane (two entries) is found by secant steps on its angle (``_angle``)."""
+    direction in a plane (two entries, or three in the plane of the unit ``normal``) is found
+    by secant steps on its angle (``_angle``).
+
+    Three entries with no ``normal`` are followed by the plain iteration, which can circle
+    where ``v``'s direction turns faster than ``d`` (a 3D body's slip on a plane did: its
+    callers give the plane's normal).
+
+    ``d`` itself is the answer where ``|v(d)|`` is at most ``EDGE`` times ``|v(-d)|``: a slide
+    that starts where the rolling force crosses the cone's edge (located to the witness's
+    accuracy, not exactly) starts along ``d``, its slip's acceleration there ~0 whichever way
+    the rest of ``v`` points (followed, it sent a grasp's slide 90 degrees off at rtol 1e-6,
+    where ``|v(d)|`` was 8e-8 m/s^2 of ~10, and the run chattered)."""
+    v, small = along(d)
+    if not _norm(v) > max(small, EDGE * _norm(along(-d)[0])):
+        return d
+    if normal is not None:
+        e1 = np.asarray(d, dtype=float) - np.dot(d, normal) * normal
+        if not _norm(e1) > 0:
+            e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 = e1 / _norm(e1)
+        e2 = np.cross(normal, e1)
+
+        def in_plane(c):
+            v, small = along(c[0] * e1 + c[1] * e2)
+            return np.array([np.dot(v, e1), np.dot(v, e2)]), small
+
+        c = _angle(np.array([1.0, 0.0]), in_plane, iterations)
+        return c[0] * e1 + c[1] * e2
     if len(d) == 2:
         return _angle(d, along, iterations)
     for _ in range(iterations):
@@ -1201,41 +1237,98 @@ def _direction(d: np.ndarray, along, iterations: int = 50) -> np.ndarray:
     return d
 
 
+#: ``_direction`` keeps its first direction ``d`` where the map's image there is at most this
+#: share of its image at ``-d``: the fixed point is then within about this angle (rad) of ``d``.
+EDGE = 1e-6
+#: Angles sampled round the circle (``_scan``) where ``_angle``'s secant steps do not converge.
+SCAN_ANGLES = 64
+#: rad: how far a direction ``_angle`` returns may be from its image (``g``): its secant
+#: steps end at 1e-14 rad, or stall where ``g`` jumps by 2 pi (its wrap), which this tells apart.
+ANGLE_TOL = 1e-10
+
+
 def _angle(d: np.ndarray, along, iterations: int) -> np.ndarray:
     """``_direction`` of a direction in a plane: the root of ``g(a) = angle(v(d(a))) - a``
     (wrapped to ``(-pi, pi]``) by secant steps from the fixed point's first step, each taken
     only where it shrinks ``|g|`` (else the fixed point's step): the same fixed point in
-    fewer evaluations of ``along`` (an impulse solved each, at an impact)."""
+    fewer evaluations of ``along`` (an impulse solved each, at an impact). Where they end
+    farther than ``ANGLE_TOL`` from a root (not converged in ``iterations``, or stalled at
+    ``g``'s jump), the root of ``g`` nearest ``d``'s angle among those bracketed round the
+    circle (``_scan``); none there: the last direction evaluated (its callers test what it
+    gives, and refuse it by name)."""
     def g(a: float):
         v, small = along(np.array([math.cos(a), math.sin(a)]))
         if not _norm(v) > small:
             return None
         return (math.atan2(v[1], v[0]) - a + math.pi) % (2 * math.pi) - math.pi
 
-    a0 = math.atan2(d[1], d[0])
+    start = a0 = math.atan2(d[1], d[0])
     g0 = g(a0)
     if g0 is None:
         return d
     a1 = a0 + g0
     for _ in range(iterations):
-        if abs(a1 - a0) < 1e-14:
+        if abs(a1 - a0) < 1e-14:  # converged, or stalled where g jumps by 2 pi: tested below
             break
         g1 = g(a1)
-        if g1 is None:
-            break
+        if g1 is None:  # on the cone's edge: nothing to follow, the direction kept
+            return np.array([math.cos(a1), math.sin(a1)])
         step = -g1 * (a1 - a0) / (g1 - g0) if g1 != g0 else g1
         if abs(g1) >= abs(g0):  # not shrinking: the fixed point's step
             step = g1
         a0, g0, a1 = a1, g1, a1 + step
-    else:  # not converged: the last direction evaluated, not an untried step
-        a1 = a0
+    last = g(a1)
+    if last is None or abs(last) <= ANGLE_TOL:
+        return np.array([math.cos(a1), math.sin(a1)])
+    found = _scan(along, start)  # not converged: a bracketed root, else the last direction evaluated
+    a1 = a0 if found is None else found
     return np.array([math.cos(a1), math.sin(a1)])
 
 
-def refuse_unused(*, params, u, slip, inputs: bool = False, charts=()) -> None:
+def _scan(along, start: float) -> float | None:
+    """The angle ``a`` nearest ``start`` whose direction ``d(a)`` the map ``along`` sends along
+    itself (``v x d = 0`` and ``v . d >= 0``, or ``|v|`` within its ``small``): ``v x d``
+    sampled at ``SCAN_ANGLES`` angles round the circle from ``start``, each change of its sign
+    bisected to 1e-14 rad; None where there is none. ``v x d`` is continuous where ``v``'s
+    angle is not (it turns by pi across a point where ``v`` is 0, as it does near the cone's
+    edge), so no root is lost to ``_angle``'s wrapped difference."""
+    def h(a: float):
+        c, s = math.cos(a), math.sin(a)
+        v, small = along(np.array([c, s]))
+        return float(v[0] * s - v[1] * c), float(v[0] * c + v[1] * s), small
+
+    grid = [start + math.pi * (2.0 * k / SCAN_ANGLES - 1.0) for k in range(SCAN_ANGLES + 1)]
+    values = [h(a)[0] for a in grid]
+    roots = []
+    for (a, ha), (b, hb) in zip(zip(grid, values), zip(grid[1:], values[1:])):
+        if not ha * hb <= 0:
+            continue
+        while b - a > 1e-14:
+            m = 0.5 * (a + b)
+            hm = h(m)[0]
+            if hm == 0:
+                a = b = m
+            elif (hm > 0) == (ha > 0):
+                a, ha = m, hm
+            else:
+                b, hb = m, hm
+        root = 0.5 * (a + b)
+        cross, dot, small = h(root)
+        if dot >= 0 or math.hypot(cross, dot) <= small:  # along d, not against it
+            roots.append(root)
+    return min(roots, key=lambda r: abs(r - start)) if roots else None
+
+
+def refuse_unused(*, params, u, slip, inputs: bool = False, charts=(), checks: bool = True) -> None:
     """Refuse by name what a run with modes does not read (it would be ignored silently);
     ``inputs``: ``u`` is read (a model with inputs); ``charts``: the model's chart parameters,
-    which ``params`` may name (the charts ``x0`` is written in)."""
+    which ``params`` may name (the charts ``x0`` is written in); ``checks``: False is refused
+    (a model with modes switches where a check would stop another run: they are its witnesses)."""
+    if not checks:
+        raise RunArgumentError("checks=False given, but a model with contact modes switches mode where "
+                               "a check would stop a run (a contact whose force reaches 0 separates, "
+                               "one that leaves its cone slides): its checks are its witnesses and "
+                               "cannot be turned off; leave checks unset")
     other = None if params is None else sorted(set(params) - set(charts))
     given = [k for k, v in ((f"params {other}", other or None), ("u", None if inputs else u)) if v is not None]
     if slip != "stop":
@@ -1552,7 +1645,10 @@ def _chatter(model, recent: list[float], t_ev: float, x_ev: np.ndarray) -> list[
         raise ChatteringError(t_ev, x_ev, f"{len(recent)} switches of contact modes within "
                               f"{SWITCH_WINDOW:g} s up to t = {t_ev:.9g} s (a Zeno run): the "
                               "contact chatters; give a plastic impact (e = 0) or a larger "
-                              "friction coefficient", model.state_names)
+                              "friction coefficient; or, where a slide starts from the cone's edge "
+                              "at a loose tolerance (its slip then grows slower than the "
+                              "integration's noise), a tighter one (e.g. rtol=1e-8, atol=1e-10)",
+                              model.state_names)
     return recent
 
 
@@ -1577,7 +1673,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
     s, model = r.s, leg.model
     lib, cols = model.library, leg.col
     lib.watch([[(cols[term[0]], *term[1:]) for term in terms] for _, _, terms in watched],
-              [_arming(name) for name, _, _ in watched],
+              [_arming(name, s.atol) for name, _, _ in watched],
               inputs=leg.input_slots, dt=WATCH_DT, probe=[name == "gap" for name, _, _ in watched],
               safety=WATCH_SAFETY)
     try:
@@ -1689,7 +1785,7 @@ def _locate_one(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     """``_locate`` of the witness the C loop named."""
     name, j, terms = watched[hit["which"]]
     model = leg.model
-    level = 0.0 if hit["armed"] else -_arming(name)  # unarmed: it fell below -tol (c/watch.c)
+    level = 0.0 if hit["armed"] else -_arming(name, r.s.atol)  # unarmed: it fell below -tol (c/watch.c)
     w = lambda y: value(terms, y) - level  # noqa: E731 - one witness
     t_lo, t_guess, slope = hit["t_lo"], hit["t"], hit["slope"]
     t_step, x_step = hit["t_step"], hit["x_step"]
