@@ -331,8 +331,6 @@ GS_HIDDEN int gs_project_state(gs_work* wk, double* x, const double* p, const in
 #define GS_WATCH_PROBES 16  /* points of the dense output an unarmed witness's firing
                              * interval is probed at for a time it was above its tol      */
 #define GS_WATCH_SKIPS 16   /* steps' ends at most left unwatched in a row (watch.c)      */
-#define GS_WATCH_SHRINK 0.5 /* a step shorter than this share of the last watched one's is
-                             * watched whole (watch.c)                                     */
 /* The dense output of the step just accepted: x at t (between the step's start and end). */
 typedef void (*gs_interp)(const void* ctx, double t, double* x);
 /* Non-zero when this thread's runs watch witnesses (gs_watch_witnesses; never without

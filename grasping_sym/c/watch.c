@@ -33,10 +33,8 @@
  * more than GS_WATCH_SKIPS dt after the last watched point (another bound, or none, by
  * gs_watch_span: the run-time checks'), and at most GS_WATCH_SKIPS steps'
  * ends in a row, which are kept (with the start of the step of the last watched point); and
- * never inside a step shorter than GS_WATCH_SHRINK times the longest since the last watched
- * point (the loop's error control saw a change the rates, measured before it, cannot
- * foresee); and never for a model whose outputs read the time (a law of time: its forcing has
- * no rate before it acts). A
+ * never for a model whose outputs read the time (a law of time: its forcing has no rate
+ * before it acts). A
  * witness that fires at the next watched point is first looked for at them, in order; an
  * event found between two of them is bracketed by that step (the root's first guess the
  * secant between them; its step's start, kept, the state runtime/events.py integrates again
@@ -79,9 +77,6 @@ typedef struct {
   /* the longest time a point may be left unwatched after the last watched one (0: no such
    * bound, the prediction and the steps' ends alone): GS_WATCH_SKIPS dt unless gs_watch_span */
   double span;
-  /* the longest step since a point was last watched (that step's, when it was): a step
-   * shorter than GS_WATCH_SHRINK of it is watched whole (gs_watch_step) */
-  double h_ref;
   double n_eval, n_left;
   /* GS_WATCH_SKIPS + 2 states (malloc'd by gs_watch_witnesses, freed by gs_watch_clear):
    * the ends kept (x_kept(i), i = 0 .. n_kept) and the event's step start (x_step) */
@@ -133,7 +128,6 @@ GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const dou
   gs_w.t_end = t_end;
   gs_w.have_rate = 0;
   gs_w.have_curve = 0;
-  gs_w.h_ref = 0.0;
   gs_w.n_fired = 0;
   gs_w.n_kept = 0;
   gs_w.which = -1;
@@ -348,14 +342,9 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
                             double* x_ev) {
   double g[GS_WATCH_MAX], x[gs_nx];
   const int m = gs_w.dt > 0.0 ? (int)fmin(ceil((t - told) / gs_w.dt), 1e6) : 1;
-  /* the loop shortened its step since a point was last watched: something its error control
-   * saw changed (a pulse of a law of time, an impact elsewhere) that the witnesses' rates,
-   * measured before it, cannot foresee: every point of this step is watched */
-  const int shrunk = (t - told) < GS_WATCH_SHRINK * gs_w.h_ref;
-  gs_w.h_ref = fmax(gs_w.h_ref, t - told);
   for (int j = 1; j <= (m > 1 ? m : 1); ++j) {
     const double tj = j == m || m <= 1 ? t : told + (t - told) * ((double)j / m);
-    if (!shrunk && gs_watch_may_leave(tj)) {
+    if (gs_watch_may_leave(tj)) {
       if (tj != t) { /* a point of the dense output: its step is at hand if one fires later.
                       * gs_watch_may_leave is monotone in t (what it compares grows with t):
                       * every point up to the last it leaves is left, found by bisection */
@@ -390,7 +379,6 @@ GS_HIDDEN int gs_watch_step(gs_work* wk, double told, double t, const double* y_
     }
     int rc = gs_watch_eval(wk, tj, xj, p, g);
     if (rc) return rc;
-    gs_w.h_ref = t - told; /* a point watched: the steps are measured from this one's */
     if (gs_w.n_kept > 0) { /* the first point watched after ends left unwatched */
       int fired = 0;
       for (int k = 0; k < gs_w.n && !fired; ++k) fired = gs_watch_fires(k, g[k]);
