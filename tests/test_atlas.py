@@ -186,6 +186,10 @@ def test_a_batch_of_bodies_carries_each_runs_charts(lap_model):
     assert one.chart_switches and (batch.status == 0).all()
     for charts, x in zip(batch.charts, batch.x):
         assert np.array_equal(charts["chart"], one.charts["chart"]) and np.array_equal(x, one.x)
+    # the runs on two threads (runtime.pool) and on one: the same, bit for bit
+    ones = [model.simulate_many(0.5, x0=np.stack([model.initial_state()] * 2), t_eval=t_eval, threads=k,
+                                rtol=1e-10, atol=1e-12) for k in (1, 2)]
+    assert np.array_equal(ones[0].x, ones[1].x) and np.array_equal(ones[1].x[0], one.x)
 
 
 def _pivot(name: str, tip, box, guesses=None):

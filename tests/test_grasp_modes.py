@@ -6,6 +6,8 @@ pressing a free ball onto a table against the statics at rest, and onto a turnta
 the table's material velocity."""
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 from scipy.integrate import simpson
@@ -96,6 +98,29 @@ def test_the_default_tolerances_slide_as_the_tight_ones_do(model, slide):
     assert [(e["contact"], e["from"], e["to"], e["witness"]) for e in loose.events] == \
         [(e["contact"], e["from"], e["to"], e["witness"]) for e in slide.events]
     assert max(abs(a["t"] - b["t"]) for a, b in zip(loose.events, slide.events)) < 1e-5
+
+
+def test_a_batch_runs_its_runs_side_by_side_as_one_by_one(model, monkeypatch):
+    """``simulate_many`` of a model with modes runs each run by ``simulate``'s code, on its
+    ``threads`` (``runtime.pool``: the C loops release the GIL, each thread its own watch):
+    on two threads, every run's states, outputs, switches, modes and errors are those of one
+    thread, bit for bit; the one whose fingers slide (mu = 0.08) switches."""
+    mu = np.array([[0.08, 0.08, 0.5], [1.0, 1.0, 0.5], [0.3, 0.08, 0.5], [1.0, 0.5, 0.5]])
+    kw = dict(mu=mu, t_eval=np.linspace(0.0, 0.05, 51), outputs=True, **TOL)
+    one = model.simulate_many(0.05, threads=1, **kw)
+    seen, plain = set(), modes.run
+
+    def run(*args, **kwargs):
+        seen.add(threading.get_ident())
+        return plain(*args, **kwargs)
+
+    monkeypatch.setattr(modes, "run", run)
+    two = model.simulate_many(0.05, threads=2, **kw)
+    assert len(seen) == 2  # the runs went to two threads
+    assert np.array_equal(one.x, two.x) and one.events == two.events and one.events[0]
+    assert list(one.errors) == list(two.errors) and one.status.tolist() == two.status.tolist()
+    assert all(np.array_equal(one.outputs[k], two.outputs[k]) for k in one.outputs)
+    assert all(np.array_equal(a, b) for a, b in zip(one.modes, two.modes))
 
 
 def test_points_left_unwatched_change_no_switch(model, slide, monkeypatch):

@@ -33,6 +33,11 @@ _SCRIPT = textwrap.dedent("""
             library.paper_fingertip(), library.paper_object(), name="slow2d", outputs=(),
             gf=0.0, gl=0.0, wf=0.0, wl=0.0))
 
+    def modes_scene():
+        return gs.scenes.with_modes(gs.scenes.planar_finger(
+            library.paper_fingertip(), library.paper_object(), name="slow2d_modes",
+            gf=0.0, gl=0.0, wf=0.0, wl=0.0))
+
     LONG = dict(rtol=1e-12, atol=1e-14, max_steps=10**12, checks=False, outputs=False)
     T_LONG = 1e6   # s: radau takes ~18 s (1e4 s: 0.2 s since its Newton floor)
     sent = {}
@@ -56,6 +61,9 @@ _SCRIPT = textwrap.dedent("""
                             rtol=1e-12, atol=1e-14, max_steps=10**12, threads=2, time_limit=60)
         elif way == "cvodes":
             m.simulate(1e4, method="cvodes", t_eval=[0.0, 1e4], time_limit=60, **LONG)
+        elif way == "modes":           # a model with modes: its runs by Python on two threads
+            m.simulate_many(1e5, x0=np.tile(m.initial_state(), (6, 1)), t_eval=[0.0, 1e5],
+                            rtol=1e-12, atol=1e-14, max_steps=10**12, threads=2)
         else:
             raise SystemExit(way)
 
@@ -147,6 +155,12 @@ _SCRIPT = textwrap.dedent("""
             except KeyboardInterrupt:
                 main_interrupted = True
         report.append({**box["report"], "main_interrupted": main_interrupted})
+    elif scenario == "modes":
+        # six runs of the slow finger with contact modes (~4 s each), two at a time: Ctrl-C
+        # stops the two under way and drops the four not started
+        m = gs.build(modes_scene())
+        fire()
+        report.append(outcome(m, "modes"))
     elif scenario == "cvodes_threads":
         # two threads running cvodes on the same model at once (the same settings, so the
         # same cached integrator if it were shared): no crash, the numbers of a lone run
@@ -185,9 +199,12 @@ def _run(scenario: str, ignore: bool = False) -> list[dict]:
 
 @pytest.fixture(scope="module", autouse=True)
 def _built():
-    """Build the scenarios' model once, in this session's private cache (inherited)."""
+    """Build the scenarios' models once, in this session's private cache (inherited)."""
     gs.build(gs.scenes.planar_finger(library.paper_fingertip(), library.paper_object(),
                                      name="slow2d", outputs=(), gf=0.0, gl=0.0, wf=0.0, wl=0.0))
+    gs.build(gs.scenes.with_modes(gs.scenes.planar_finger(
+        library.paper_fingertip(), library.paper_object(), name="slow2d_modes", gf=0.0, gl=0.0,
+        wf=0.0, wl=0.0)))
 
 
 #: s: Ctrl-C must stop a run within this of the signal. The runs would last 18 s or more
@@ -225,6 +242,14 @@ def test_an_ignored_sigint_stops_nothing(inherited):
     assert report[1]["outcome"] == "finished" and report[1]["after_signal"], report
     assert report[1]["disposition"] == 0  # left alone
     assert report[2] == {"outcome": "no exception"}
+
+
+def test_ctrl_c_stops_a_batch_of_runs_with_contact_modes_on_threads():
+    """A batch of a model with modes runs its runs by Python on threads (``runtime.pool``):
+    Ctrl-C stops the runs under way and the batch, not only them (the runs not started are
+    dropped; else the batch would go on with them)."""
+    (r,) = _run("modes")
+    assert r["outcome"] == "KeyboardInterrupt" and r["delay"] < PROMPT, r
 
 
 def test_ctrl_c_stops_a_model_first_loaded_in_another_thread():

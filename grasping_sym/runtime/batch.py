@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from time import perf_counter
@@ -21,7 +22,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError, RunInterruptedError
-from grasping_sym.runtime import c_loops, failures, friction, modes, parameters, watch
+from grasping_sym.runtime import c_loops, failures, friction, modes, parameters, pool, watch
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -77,8 +78,9 @@ class BatchResult:
     charts
         A model whose surfaces have atlases (a body on a plane, a grasp): each run's charts at
         the output times (``SimulationResult.charts``; None for a run that failed); else None.
-        Such a model's runs run one after the other by ``simulate``'s code, which switches
-        chart at the step where a contact reaches a chart's edge (the threads' C loops do not).
+        Such a model's runs run by ``simulate``'s code, which switches chart at the step where a
+        contact reaches a chart's edge (the batch's C loop of many runs does not), side by side on
+        ``threads`` (``runtime.pool``).
     fallback
         None, or why runs ran again with radau (the model's own explicit method found them
         stiff; ``simulate_many``'s ``method`` None): those runs only, ``stats["radau"]``
@@ -233,11 +235,11 @@ def _simulate_many(model, t_final: float, *, x0, params, u, method: str, rtol, a
         if e is not None:
             raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
                                    "restitution applies to a model with modes (gs.scenes.body_on_plane)")
-        return _with_atlases(model, s, x0, params, u, mu, slip, dense, start)
+        return _with_atlases(model, s, x0, params, u, mu, slip, dense, start, threads)
     if model.manifest.get("modes"):  # contact that can change: run by run (runtime.modes)
         modes.refuse_unused(params=params, u=u, slip=slip, inputs=bool(model.input_names),
                             charts=parameters.charts_of(model), checks=s.checks)
-        return _with_modes(model, s, t_final, x0, mu, e, u, dense, start, charts=params)
+        return _with_modes(model, s, t_final, x0, mu, e, u, dense, start, charts=params, threads=threads)
     if e is not None:
         raise RunArgumentError(f"e given, but model {model.name!r} has no impacts (no contact modes): "
                                "restitution applies to a model with modes (gs.scenes.body_on_plane)")
@@ -325,7 +327,7 @@ def _refuse_mu_without_t_eval(MU, checks: bool, dense: bool) -> None:
 
 
 def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start: float,
-                charts: dict | None = None) -> BatchResult:
+                charts: dict | None = None, threads: int = 1) -> BatchResult:
     """``simulate_many`` of a model with contact modes: ``modes.run_many``; ``u`` as for a model
     without modes (constant inputs ``(n_inputs,)`` or ``(N, n_inputs)``, or one table for every
     run), each run's by ``simulate``'s own reading."""
@@ -342,7 +344,8 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
     X0 = _initial_states(model, x0, n)
     start_charts = {k: np.array([parameters.chart_value(k, c) for c in np.broadcast_to(np.asarray(v), (n,))])
                     for k, v in (charts or {}).items()}       # checked before any run
-    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n), start_charts=start_charts)
+    got = modes.run_many(model, s, X0, mu, e, _inputs_by_run(model, s, u, n), start_charts=start_charts,
+                         threads=threads)
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=got["x_final"], status=got["status"], errors=got["errors"], t=t_out,
                        state_names=model.state_names, method=s.method, x0=X0, params=got["params"],
@@ -351,10 +354,12 @@ def _with_modes(model, s: RunSettings, t_final, x0, mu, e, u, dense: bool, start
                        charts=got["charts"] if model.manifest.get("atlas") else None)
 
 
-def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, start: float) -> BatchResult:
+def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, start: float,
+                  threads: int = 1) -> BatchResult:
     """``simulate_many`` of a grasp whose surfaces have atlases: each run by ``simulate``'s own
     code (``run.run``, which switches chart at the step where a contact reaches a chart's edge;
-    the batch's C loops do not), one after the other, within the batch's ``time_limit``; a run
+    the batch's C loops do not), on ``threads`` threads (``runtime.pool``), within the batch's
+    ``time_limit``; a run
     that stops by name is recorded with ``simulate``'s message and the batch's code for it,
     the others go on. The rows' charts in ``BatchResult.charts``, each run's counters in
     ``stats``."""
@@ -375,11 +380,13 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
     errors = np.full(n, "", dtype=object)
     charts: list = [None] * n
     deadline = None if s.time_limit is None else start + s.time_limit
-    for i in range(n):
+    lock = threading.Lock()  # the outputs' and counters' arrays: made by the first run that has them
+
+    def one(i: int) -> None:
         left = None if deadline is None else deadline - perf_counter()
         if left is not None and left <= 0:
             status[i], errors[i] = c_loops.ERR_INTERRUPT, _out_of_time(s)
-            continue
+            return
         si = replace(s, mu=None if MU is None else MU[i], time_limit=left)
         try:
             res = run_.run(model, si, X0[i], x0 is None, P[i], us[i])
@@ -388,14 +395,17 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
         except (GraspingSymError, ValueError) as exc:
             status[i] = failures.status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"
-            continue
+            return
         x_final[i], X[i] = res.x[-1], res.x
-        for k, v in res.outputs.items():
-            outs.setdefault(k, np.full((n, m), np.nan))[i] = v
-        for k, v in res.stats.items():
-            if isinstance(v, numbers.Real):
-                stats.setdefault(k, np.zeros(n))[i] = v
+        with lock:
+            for k, v in res.outputs.items():
+                outs.setdefault(k, np.full((n, m), np.nan))[i] = v
+            for k, v in res.stats.items():
+                if isinstance(v, numbers.Real):
+                    stats.setdefault(k, np.zeros(n))[i] = v
         charts[i] = res.charts if dense else {k: v[-1:] for k, v in res.charts.items()}
+
+    pool.each(n, threads, one)
     t_out = (s.t_eval[1:] if s.drop_first else s.t_eval) if dense else np.array([0.0, s.t_final])
     return BatchResult(x_final=x_final, status=status, errors=errors, t=t_out, state_names=model.state_names,
                        method=s.method, x0=X0, params=pdict, x=X if dense else None,

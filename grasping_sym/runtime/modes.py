@@ -53,7 +53,7 @@ from grasping_sym.errors import (
     PainleveError,
     RunArgumentError,
 )
-from grasping_sym.runtime import events, failures, fastpath, friction, integrators, parameters
+from grasping_sym.runtime import events, failures, fastpath, friction, integrators, parameters, pool
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.atlas import Atlases, repeated
@@ -1919,7 +1919,8 @@ def _painleve(model, t, x, value, mu, j=1):
                         model.state_names)
 
 
-def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_charts: dict | None = None) -> dict:
+def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_charts: dict | None = None,
+             threads: int = 1) -> dict:
     """``simulate_many`` of a model with modes: each run by ``run`` in turn (``mu``, ``e``:
     None, one value, or one per run; ``us``: each run's inputs, None: none; ``start_charts``:
     name -> each run's chart its ``x0`` is written in, None: the start's); a run that stops
@@ -1937,14 +1938,14 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_char
     events: list = [[] for _ in range(n)]
     run_modes: list = [None] * n
     charts: list = [None] * n
-    for i in range(n):
+    def one(i: int) -> None:
         try:
             res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i],
                       charts={k: v[i] for k, v in (start_charts or {}).items()})
         except (GraspingSymError, ValueError) as exc:
             status[i] = failures.status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"
-            continue
+            return
         x_final[i] = res.x[-1]
         X[i] = res.x
         for k in outs:
@@ -1952,6 +1953,8 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_char
         events[i] = res.events
         run_modes[i] = res.modes
         charts[i] = res.charts if dense else {k: v[-1:] for k, v in res.charts.items()}
+
+    pool.each(n, threads, one)
     return {"x_final": x_final, "x": X if dense else None, "status": status, "errors": errors,
             "outputs": outs if dense else {k: v[:, -1] for k, v in outs.items()},
             "params": {"mu": np.array([_first_or_all(friction_law(model, mu_i, e_i)[0])
