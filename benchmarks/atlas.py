@@ -83,9 +83,11 @@ def lap_switches(laps: int = 5) -> dict:
     for key, run in runs.items():
         res = run()
         py = min(run().stats["switch_time"] for _ in range(ROUNDS))
+        loop = min(run().stats["loop_time"] for _ in range(ROUNDS))
         out[key] = {"switches": len(res.chart_switches),
                     "chart_changes": sum(s["from"] != s["to"] for s in res.chart_switches),
-                    "steps": int(res.stats["n_steps"]), "wall_s": wall[key], "switch_python_s": py}
+                    "steps": int(res.stats["n_steps"]), "wall_s": wall[key], "switch_python_s": py,
+                    "loop_s": loop}
     sw, st, one = out["switching"], out["steady"], out["one_chart"]
     # the steady atlas's rhs costs more than the one chart's (its chart 1 is chart 0 turned by a
     # full Q, computed at every call): that part of the difference is not the switches'
@@ -95,6 +97,11 @@ def lap_switches(laps: int = 5) -> dict:
     extra = n_rhs * (rhs["steady"] - rhs["one_chart"]) / 2000
     out["per_switch"] = {"python_us": 1e6 * sw["switch_python_s"] / sw["switches"],
                          "wrap_us": 1e6 * (st["wall_s"] - one["wall_s"] - extra) / st["switches"],
+                         # the Python around the C loops (the run's wall less its loops'), per switch,
+                         # against the one chart's; and the loops' own difference per switch
+                         "outside_loops_us": 1e6 * ((st["wall_s"] - st["loop_s"]) - (one["wall_s"] - one["loop_s"]))
+                         / st["switches"],
+                         "in_loops_us": 1e6 * (st["loop_s"] - one["loop_s"]) / st["switches"],
                          "rhs_us": {k: 1e6 * v / 2000 for k, v in rhs.items()}, "n_rhs": n_rhs}
     out["restarts"] = restarts(models["steady"], t_end, sw["switches"])
     return out
@@ -259,7 +266,12 @@ def main() -> None:
         "from the step size it had reached.",
         "",
         "In its parts:",
-        f"- Python's making of it (the C loop's stop, the map, the record; `stats['switch_time']`): "
+        f"- outside the C loops (the run's wall less its loops' `stats['loop_time']`, against the "
+        f"one chart's, per switch): **{ps['outside_loops_us']:.0f} µs**; inside them "
+        f"{ps['in_loops_us']:.0f} µs a switch, which holds the atlas's dearer steps (its rhs above, and "
+        "its generated Jacobian, evaluated at about every step) as much as the restarts: the "
+        "switch itself is the first part, Python's;",
+        f"- of which Python's making of it (the C loop's stop, the map, the record; `stats['switch_time']`): "
         f"**{ps['python_us']:.0f} µs**;",
         f"- restarting the integration there: the steady run cut into {rs['restarts'] + 1} runs takes "
         f"{rs['steps_cut']} steps against {rs['steps_whole']} in one piece, "

@@ -221,9 +221,10 @@ class _Run:
         #: the integrations they were run in (one per segment, and per piece of an inputs' table)
         #: rolling_model_segments: the segments the base scene's rolling model ran (``_Leg``)
         #: watched: the points the witnesses were evaluated at; left_unwatched: the points (steps'
-        #: ends, points of their dense output) they were not (``WATCH_SAFETY``, ``c/watch.c``)
+        #: ends, points of their dense output) they were not (``WATCH_SAFETY``, ``c/watch.c``);
+        #: loop_time: the seconds spent in the C loops (the rest of ``wall_time`` is Python's)
         self.stats = {"n_steps": 0, "n_rhs": 0, "segments": 0, "chunks": 0, "rolling_model_segments": 0,
-                      "switch_time": 0.0, "watched": 0, "left_unwatched": 0}
+                      "switch_time": 0.0, "watched": 0, "left_unwatched": 0, "loop_time": 0.0}
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
@@ -1507,6 +1508,7 @@ def _count(r: _Run, st: dict, own: bool) -> None:
     itself) to the run's."""
     r.stats["n_steps"] += int(st.get("n_steps", 0))
     r.stats["n_rhs"] += int(st.get("n_rhs", 0))
+    r.stats["loop_time"] += float(st.get("loop_time", 0.0))
     r.stats["segments"] += 1
     r.stats["rolling_model_segments"] += 0 if own else 1
 
@@ -1699,8 +1701,10 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 t, X = err.trajectory
                 rows_t.append(t if k == 0 else t[1:])
                 rows_x.append(X if k == 0 else X[1:])
+                got = getattr(err, "stats", {})
                 for key in ("n_steps", "n_rhs"):
-                    stats[key] = stats.get(key, 0) + int(getattr(err, "stats", {}).get(key, 0))
+                    stats[key] = stats.get(key, 0) + int(got.get(key, 0))
+                stats["loop_time"] = stats.get("loop_time", 0.0) + float(got.get("wall_time", 0.0))
                 _watched(r, lib)
                 hit = {"atlas": slot, "t": float(err.t), "x": np.asarray(err.x, dtype=float),
                        "h": float(getattr(err, "stats", {}).get("h_last", 0.0))}
@@ -1709,6 +1713,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
             rows_x.append(X if k == 0 else X[1:])
             for key in ("n_steps", "n_rhs"):
                 stats[key] = stats.get(key, 0) + int(st.get(key, 0))
+            stats["loop_time"] = stats.get("loop_time", 0.0) + float(st.get("wall_time", 0.0))
             if "event" in st:
                 hit = {**st["event"], **_watched(r, lib), "p": pk}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
