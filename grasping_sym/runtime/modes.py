@@ -1210,7 +1210,11 @@ def _direction(d: np.ndarray, along, iterations: int = 50, normal: np.ndarray | 
     the rest of ``v`` points (followed, it sent a grasp's slide 90 degrees off at rtol 1e-6,
     where ``|v(d)|`` was 8e-8 m/s^2 of ~10, and the run chattered)."""
     v, small = along(d)
-    if not _norm(v) > max(small, EDGE * _norm(along(-d)[0])):
+    try:  # the scale of the map's image; none where it cannot be had there (a singular solve)
+        scale = _norm(along(-d)[0])
+    except np.linalg.LinAlgError:
+        scale = 0.0
+    if not _norm(v) > max(small, EDGE * scale):
         return d
     if normal is not None:
         e1 = np.asarray(d, dtype=float) - np.dot(d, normal) * normal
@@ -1294,28 +1298,37 @@ def _scan(along, start: float) -> float | None:
     angle is not (it turns by pi across a point where ``v`` is 0, as it does near the cone's
     edge), so no root is lost to ``_angle``'s wrapped difference."""
     def h(a: float):
+        """``(v x d, v . d, small)`` at the angle ``a``; None where ``along`` has no answer
+        there (a singular solve) or a non-finite one."""
         c, s = math.cos(a), math.sin(a)
-        v, small = along(np.array([c, s]))
-        return float(v[0] * s - v[1] * c), float(v[0] * c + v[1] * s), small
+        try:
+            v, small = along(np.array([c, s]))
+        except np.linalg.LinAlgError:
+            return None
+        out = (float(v[0] * s - v[1] * c), float(v[0] * c + v[1] * s), small)
+        return out if math.isfinite(out[0]) and math.isfinite(out[1]) else None
 
     grid = [start + math.pi * (2.0 * k / SCAN_ANGLES - 1.0) for k in range(SCAN_ANGLES + 1)]
-    values = [h(a)[0] for a in grid]
+    values = [h(a) for a in grid]
     roots = []
     for (a, ha), (b, hb) in zip(zip(grid, values), zip(grid[1:], values[1:])):
-        if not ha * hb <= 0:
+        if ha is None or hb is None or not ha[0] * hb[0] <= 0:
             continue
+        ha = ha[0]
         while b - a > 1e-14:
             m = 0.5 * (a + b)
-            hm = h(m)[0]
-            if hm == 0:
+            hm = h(m)
+            if hm is None:
+                break
+            if hm[0] == 0:
                 a = b = m
-            elif (hm > 0) == (ha > 0):
-                a, ha = m, hm
+            elif (hm[0] > 0) == (ha > 0):
+                a, ha = m, hm[0]
             else:
-                b, hb = m, hm
+                b = m
         root = 0.5 * (a + b)
-        cross, dot, small = h(root)
-        if dot >= 0 or math.hypot(cross, dot) <= small:  # along d, not against it
+        at = h(root) if b - a <= 1e-12 else None  # (a bisection cut short by a failed solve: none)
+        if at is not None and (at[1] >= 0 or math.hypot(at[0], at[1]) <= at[2]):  # along d, not against it
             roots.append(root)
     return min(roots, key=lambda r: abs(r - start)) if roots else None
 
