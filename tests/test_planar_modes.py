@@ -394,6 +394,15 @@ def test_many_runs_with_inputs_are_the_single_runs():
         torqued.simulate_many(0.1, u=np.zeros((2, 3)), **kw)
     with pytest.raises(RunArgumentError, match="different numbers of runs"):
         torqued.simulate_many(0.1, u=U, **{**kw, "mu": np.array([0.2, 0.3, 0.4])})
+    # the wall-time limit: a batch's is the whole batch's (the runs it leaves get the batch's
+    # code and message, as a batch of a model without modes), and a run's bounds its table's
+    # pieces in all (each piece's loop reads the clock every 16th step only: a review's run of
+    # 60 000 pieces went on for 1.5 s past a limit of 0.3 s)
+    late = torqued.simulate_many(0.1, u=U, time_limit=1e-9, **kw)
+    assert late.status.tolist() == [-9, -9] and "the batch's wall-time limit" in late.errors[1]
+    dense = gs.inputs.zero_order_hold(np.linspace(0.0, 3.0, 30001), np.zeros((30001, 2)))
+    with pytest.raises(IntegratorError, match="wall-time limit"):
+        torqued.simulate(3.0, u=dense, t_eval=[0.0, 3.0], time_limit=0.05)
 
 
 def test_max_steps_bounds_the_whole_run_not_each_segment(model):

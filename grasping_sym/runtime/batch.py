@@ -385,7 +385,7 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
     def one(i: int) -> None:
         left = None if deadline is None else deadline - perf_counter()
         if left is not None and left <= 0:
-            status[i], errors[i] = c_loops.ERR_INTERRUPT, _out_of_time(s)
+            status[i], errors[i] = c_loops.ERR_INTERRUPT, failures.out_of_time(s.time_limit)
             return
         si = replace(s, mu=None if MU is None else MU[i], time_limit=left)
         try:
@@ -427,12 +427,6 @@ def _inputs_by_run(model, s: RunSettings, u, n: int) -> list:
     return us
 
 
-def _out_of_time(s: RunSettings) -> str:
-    """The message of a run the batch's wall-time limit stopped."""
-    return (f"stopped: the batch's wall-time limit of {s.time_limit:g} s was reached before this "
-            "run finished (raise time_limit, or run fewer at a time)")
-
-
 def _threads(threads) -> int:
     """``threads`` checked (None: every core this process may use)."""
     threads = default_threads() if threads is None else threads
@@ -471,7 +465,7 @@ def _errors(model, s: RunSettings, status, X0, own_start, P, U, sched, mu=None) 
     errors = np.full(len(status), "", dtype=object)
     for i in np.flatnonzero(status != 0):
         if status[i] == c_loops.ERR_INTERRUPT:  # the batch's time limit: not the run's doing
-            errors[i] = _out_of_time(s)
+            errors[i] = failures.out_of_time(s.time_limit)
             continue
         u = sched if sched is not None else (None if U is None else U[i])
         si = s if mu is None else replace(s, mu=mu[i])

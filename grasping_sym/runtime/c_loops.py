@@ -52,6 +52,8 @@ def stoppable(lib, time_limit: float | None):
     back in front at every loop's start) stops the loop, which returns ``GS_ERR_INTERRUPT``;
     :func:`stop_error` says why. No Python signal handler is involved, so nothing can raise
     between the loop's return and the deadline's reset."""
+    if interrupt.stopped():  # a run of a batch that Ctrl-C stopped (runtime.pool): no new loop
+        raise interrupt.interrupted("a run of a batch stopped by Ctrl-C, before its next loop")
     c = lib._lib
     c.gs_set_time_limit(float(time_limit) if time_limit else 0.0)
     try:

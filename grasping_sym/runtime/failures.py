@@ -185,3 +185,9 @@ def _carry(old: IntegratorError, new: IntegratorError) -> None:
     for key in _CARRIED:
         if hasattr(old, key):
             setattr(new, key, getattr(old, key))
+
+
+def out_of_time(time_limit: float) -> str:
+    """The message of a run a batch's wall-time limit (``time_limit``, s) stopped."""
+    return (f"stopped: the batch's wall-time limit of {time_limit:g} s was reached before this "
+            "run finished (raise time_limit, or run fewer at a time)")

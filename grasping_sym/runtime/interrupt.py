@@ -57,6 +57,41 @@ def requested() -> bool:
     return bool(_FLAG.value)
 
 
+#: The batch (``runtime.pool``) a thread runs for: its stop, set when a Ctrl-C stopped it.
+_member = threading.local()
+
+
+class batch_member:
+    """Within it, this thread runs for a batch whose ``stop`` (a ``threading.Event``) is set
+    when Ctrl-C stopped the batch: a loop this thread starts then stops before it runs
+    (:func:`stopped`). A run of a batch that Python drives starts a C loop at every segment,
+    and a loop's start clears the flag SIGINT set, so the flag alone would stop only the loops
+    under way when it came."""
+
+    def __init__(self, stop: threading.Event):
+        self.stop = stop
+
+    def __enter__(self):
+        _member.stop = self.stop
+        return self
+
+    def __exit__(self, *exc):
+        _member.stop = None
+        return False
+
+
+def stopped() -> bool:
+    """True when this thread runs for a batch that Ctrl-C stopped (:class:`batch_member`)."""
+    stop = getattr(_member, "stop", None)
+    return stop is not None and stop.is_set()
+
+
+def raise_flag() -> None:
+    """Set the flag the C loops read, as SIGINT's handler does: the loops under way stop at
+    their next step (a batch stopping its runs; a loop that started after Ctrl-C cleared it)."""
+    _FLAG.value = 1
+
+
 def interrupted(message: str) -> BaseException:
     """The exception for a run that SIGINT stopped (``message`` says which and where):
     ``KeyboardInterrupt`` while Python's default SIGINT handler is in place, else

@@ -53,7 +53,7 @@ from grasping_sym.errors import (
     PainleveError,
     RunArgumentError,
 )
-from grasping_sym.runtime import events, failures, fastpath, friction, integrators, parameters, pool
+from grasping_sym.runtime import c_loops, events, failures, fastpath, friction, integrators, parameters, pool
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
 from grasping_sym.runtime.atlas import Atlases, repeated
@@ -1695,16 +1695,25 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         pieces = [(float(grid[0]), float(grid[-1]), None, None)] if r.sched is None else \
             r.sched.segments(float(grid[0]), float(grid[-1]))
         rows_t, rows_x, stats = [], [], {}
+        deadline = None if s.time_limit is None else perf_counter() + s.time_limit  # the pieces' in all
         for k, (a0, a1, a, b) in enumerate(pieces):
             g = grid if r.sched is None else np.concatenate([[a0], grid[(grid > a0) & (grid < a1)], [a1]])
             pk = p if r.sched is None else model.with_inputs(p, a, b)
             r.stats["chunks"] += 1
+            if deadline is not None and perf_counter() > deadline:  # (a piece's loop reads the clock
+                # every 16th step only: a table's short pieces would never)
+                raise IntegratorError(a0, leg.states(np.asarray(x, dtype=float)),
+                                      f"{s.method}: the wall-time limit was reached at t = {a0:.6g} s, "
+                                      "at a knot of the inputs' table (raise time_limit, or loosen the "
+                                      "tolerances)", r.model.state_names)
             if k:  # past a knot: the witnesses stay armed as they were
                 lib.watch_resume()
             try:
-                t, X, st = integrators.c_loop(model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
-                                              max_steps=s.max_steps, h=s.h, time_limit=s.time_limit,
-                                              h0=h0 if k == 0 else 0.0)
+                t, X, st = integrators.c_loop(
+                    model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
+                    max_steps=max(s.max_steps - stats.get("n_steps", 0), 1), h=s.h,
+                    time_limit=None if deadline is None else max(deadline - perf_counter(), 1e-9),
+                    h0=h0 if k == 0 else 0.0)
             except IntegratorError as exc:
                 err = _in_own_state(r, leg, failures.classify(model, exc))
                 slot = None if r.atlases is None or leg.back is not None else r.atlases.slot_of(err)
@@ -1956,10 +1965,16 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_char
     events: list = [[] for _ in range(n)]
     run_modes: list = [None] * n
     charts: list = [None] * n
+    deadline = None if s.time_limit is None else perf_counter() + s.time_limit  # the whole batch's
+
     def one(i: int) -> None:
+        left = None if deadline is None else deadline - perf_counter()
+        if left is not None and left <= 0:
+            status[i], errors[i] = c_loops.ERR_INTERRUPT, failures.out_of_time(s.time_limit)
+            return
         try:
-            res = run(model, s, X0[i], mus[i], es[i], None if us is None else us[i],
-                      charts={k: v[i] for k, v in (start_charts or {}).items()})
+            res = run(model, s if left is None else dataclasses.replace(s, time_limit=left), X0[i], mus[i], es[i],
+                      None if us is None else us[i], charts={k: v[i] for k, v in (start_charts or {}).items()})
         except (GraspingSymError, ValueError) as exc:
             status[i] = failures.status_of(exc)
             errors[i] = f"{type(exc).__name__}: {exc}"

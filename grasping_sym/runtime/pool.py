@@ -8,28 +8,63 @@ writing its own row of the batch's arrays (``each``).
 """
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
+
+from grasping_sym.errors import RunInterruptedError
+from grasping_sym.runtime import interrupt
+
+#: s: how often the flag is set again while the runs under way stop (a loop that started just
+#: after Ctrl-C cleared it)
+RAISE_EVERY = 0.01
 
 
 def each(n: int, threads: int, run: Callable[[int], None]) -> None:
     """``run(i)`` for ``i`` in ``range(n)``, on ``threads`` threads (one: in order, here).
 
     A run's exception is the batch's (``run`` records the errors that are a run's own): the
-    runs not yet started are dropped, those under way end (Ctrl-C stops their C loops at
-    once), and the first exception in the runs' order is raised; so is a ``KeyboardInterrupt``
-    that reaches this thread while it waits. Without the drop, a Ctrl-C would stop the runs
-    under way and the batch would go on with the others."""
+    runs not yet started are dropped, those under way end, and the first exception in the
+    runs' order is raised. A Ctrl-C (a ``KeyboardInterrupt`` here, or a run's) stops the runs
+    under way too: each run's next loop stops before it starts (``interrupt.batch_member``),
+    and the flag the loops read is set again until they have all ended (a loop's start clears
+    it, and a run starts many)."""
     if threads <= 1 or n <= 1:
         for i in range(n):
             run(i)
         return
+    stop = threading.Event()
+
+    def member(i: int) -> None:
+        with interrupt.batch_member(stop):
+            run(i)
+
     pool = ThreadPoolExecutor(max_workers=min(threads, n))
-    futures = [pool.submit(run, i) for i in range(n)]
+    futures = [pool.submit(member, i) for i in range(n)]
     try:
         wait(futures, return_when=FIRST_EXCEPTION)
+        if any(_interrupt(f) for f in futures if f.done()):
+            _halt(stop, futures)
+    except BaseException:  # a KeyboardInterrupt in this thread: the batch's
+        _halt(stop, futures)
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     for future in futures:
         if not future.cancelled() and future.exception() is not None:
             raise future.exception()
+
+
+def _interrupt(future) -> bool:
+    exc = None if future.cancelled() else future.exception()
+    return isinstance(exc, (KeyboardInterrupt, RunInterruptedError))
+
+
+def _halt(stop: threading.Event, futures) -> None:
+    """Stop the runs under way: none starts another loop, and the flag is set until they end."""
+    stop.set()
+    for future in futures:
+        future.cancel()
+    while not all(f.done() for f in futures):
+        interrupt.raise_flag()
+        wait(futures, timeout=RAISE_EVERY)
