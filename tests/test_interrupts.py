@@ -159,6 +159,28 @@ _SCRIPT = textwrap.dedent("""
             except KeyboardInterrupt:
                 main_interrupted = True
         report.append({**box["report"], "main_interrupted": main_interrupted})
+    elif scenario == "user_handler_knots":
+        # a handler of the user's that returns: the runs of many loops (a loop per knot of an
+        # inputs table) spend most of their time in Python between loops, where SIGINT only sets
+        # the flag, and the next loop's start cleared it: the Ctrl-C was lost, a single run and
+        # a batch on two threads finished as if nothing happened
+        m = gs.build(modes_scene())
+        from grasping_sym.runtime import inputs as inputs_
+        knots = np.linspace(0.0, 60.0, 60001)
+        u = inputs_.zero_order_hold(knots, np.zeros((len(knots), len(m.input_names))))
+        signal.signal(signal.SIGINT, lambda s, f: None)
+        for way in ("single", "batch"):
+            fire()
+            try:
+                if way == "single":
+                    m.simulate(60.0, t_eval=[0.0, 60.0], u=u)
+                else:
+                    m.simulate_many(60.0, x0=np.tile(m.initial_state(), (4, 1)), t_eval=[0.0, 60.0], u=u,
+                                    threads=2)
+                report.append({"way": way, "outcome": "finished"})
+            except RunInterruptedError:
+                report.append({"way": way, "outcome": "RunInterruptedError",
+                               "delay": time.perf_counter() - sent["t"]})
     elif scenario == "modes":
         # six runs of the slow finger with contact modes (seconds each, a loop per knot), two at
         # a time: Ctrl-C stops the two under way (a loop's start clears the flag SIGINT set, and
@@ -256,6 +278,14 @@ def test_ctrl_c_stops_a_batch_of_runs_with_contact_modes_on_threads():
     cleared the flag SIGINT had set (only the main thread sees the KeyboardInterrupt)."""
     (r,) = _run("modes")
     assert r["outcome"] == "KeyboardInterrupt" and r["delay"] < PROMPT, r
+
+
+def test_a_users_handler_stops_runs_of_many_loops_between_their_loops():
+    """Under a handler of the user's that returns, a Ctrl-C that comes while a run of many loops
+    is in Python between two of them is read before the next (``interrupt.begin``,
+    ``c_loops.stoppable``): a single run and a threaded batch raise RunInterruptedError."""
+    for r in _run("user_handler_knots"):
+        assert r["outcome"] == "RunInterruptedError" and r["delay"] < PROMPT, r
 
 
 def test_ctrl_c_stops_a_model_first_loaded_in_another_thread():

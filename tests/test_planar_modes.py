@@ -403,6 +403,11 @@ def test_many_runs_with_inputs_are_the_single_runs():
     dense = gs.inputs.zero_order_hold(np.linspace(0.0, 3.0, 30001), np.zeros((30001, 2)))
     with pytest.raises(IntegratorError, match="wall-time limit"):
         torqued.simulate(3.0, u=dense, t_eval=[0.0, 3.0], time_limit=0.05)
+    # runs the batch's limit stops under way: the batch's code and message too (were -3, each
+    # with its own limit's message quoting the time the batch had left)
+    cut = torqued.simulate_many(3.0, u=dense, x0=np.tile(torqued.initial_state(), (3, 1)), t_eval=[0.0, 3.0],
+                                time_limit=0.05, threads=2)
+    assert cut.status.tolist() == [-9, -9, -9] and all("the batch's wall-time limit of 0.05 s" in e for e in cut.errors)
 
 
 def test_max_steps_bounds_the_whole_run_not_each_segment(model):

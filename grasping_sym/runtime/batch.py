@@ -22,7 +22,7 @@ from time import perf_counter
 import numpy as np
 
 from grasping_sym.errors import GraspingSymError, RunArgumentError, RunInterruptedError
-from grasping_sym.runtime import c_loops, failures, friction, modes, parameters, pool, watch
+from grasping_sym.runtime import c_loops, failures, friction, interrupt, modes, parameters, pool, watch
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -147,6 +147,7 @@ def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = No
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None, mu=None, slip: str = "stop", e=None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
+    interrupt.begin()
     given = dict(x0=x0, params=params, u=u, rtol=rtol, atol=atol, t_eval=t_eval, h=h, max_steps=max_steps,
                  project=project, outputs=outputs, checks=checks, threads=threads, time_limit=time_limit,
                  mu=mu, slip=slip, e=e)
@@ -393,8 +394,7 @@ def _with_atlases(model, s: RunSettings, x0, params, u, mu, slip, dense: bool, s
         except (RunArgumentError, RunInterruptedError):
             raise  # the call's, not the run's
         except (GraspingSymError, ValueError) as exc:
-            status[i] = failures.status_of(exc)
-            errors[i] = f"{type(exc).__name__}: {exc}"
+            status[i], errors[i] = failures.batch_entry(exc, s.time_limit)
             return
         x_final[i], X[i] = res.x[-1], res.x
         with lock:

@@ -52,8 +52,9 @@ def stoppable(lib, time_limit: float | None):
     back in front at every loop's start) stops the loop, which returns ``GS_ERR_INTERRUPT``;
     :func:`stop_error` says why. No Python signal handler is involved, so nothing can raise
     between the loop's return and the deadline's reset."""
-    if interrupt.stopped():  # a run of a batch that Ctrl-C stopped (runtime.pool): no new loop
-        raise interrupt.interrupted("a run of a batch stopped by Ctrl-C, before its next loop")
+    if interrupt.stopped() or interrupt.requested():  # Ctrl-C since the run began (interrupt.begin),
+        # between two of its loops, or a batch that Ctrl-C stopped (runtime.pool): no new loop
+        raise interrupt.interrupted("stopped by Ctrl-C, before the run's next loop")
     c = lib._lib
     c.gs_set_time_limit(float(time_limit) if time_limit else 0.0)
     try:
@@ -67,9 +68,11 @@ def stop_error(lib, method: str, tf: float, x, time_limit) -> IntegratorError:
     else the wall-time limit's ``IntegratorError``."""
     if lib._lib.gs_stop_cause() == 1:
         raise interrupt.interrupted(f"{method} stopped by Ctrl-C at t = {tf:.6g} s")
-    return IntegratorError(tf, x, f"{method}: the wall-time limit of {time_limit:g} s was "
-                           f"reached at t = {tf:.6g} s (raise time_limit, or loosen the "
-                           "tolerances)", lib.state_names)
+    err = IntegratorError(tf, x, f"{method}: the wall-time limit of {time_limit:g} s was "
+                          f"reached at t = {tf:.6g} s (raise time_limit, or loosen the "
+                          "tolerances)", lib.state_names)
+    err.cause = "time_limit"  # type: ignore[attr-defined]  # (a batch's runs: its own code, failures.out_of_time)
+    return err
 
 
 def as_vector(a: Any, n: int, name: str) -> np.ndarray:

@@ -46,7 +46,7 @@ def status_of(exc: Exception) -> int:
 #: Fraction of a contour's domain crossed in one rejected step that names a blow-up.
 BLOW_UP_JUMP = 0.25
 #: What a renamed error keeps of the integrator's.
-_CARRIED = ("t_rejected", "x_rejected", "trajectory", "code", "stats", "stiff")
+_CARRIED = ("t_rejected", "x_rejected", "trajectory", "code", "stats", "stiff", "cause")
 
 
 def left_domain(model, t: float, x, i: int, where: str) -> StateLeftDomainError:
@@ -191,3 +191,13 @@ def out_of_time(time_limit: float) -> str:
     """The message of a run a batch's wall-time limit (``time_limit``, s) stopped."""
     return (f"stopped: the batch's wall-time limit of {time_limit:g} s was reached before this "
             "run finished (raise time_limit, or run fewer at a time)")
+
+
+def batch_entry(exc: Exception, time_limit: float | None) -> tuple[int, str]:
+    """``(status, message)`` of a batch's run that raised ``exc``: a stop by the wall-time
+    limit (``exc.cause``; the run's limit was what the batch's had left) is the batch's
+    (``c_loops.ERR_INTERRUPT``, :func:`out_of_time`), as the batch's C loop of many runs gives
+    it; any other, its own."""
+    if getattr(exc, "cause", None) == "time_limit" and time_limit is not None:
+        return c_loops.ERR_INTERRUPT, out_of_time(time_limit)
+    return status_of(exc), f"{type(exc).__name__}: {exc}"

@@ -86,6 +86,15 @@ def stopped() -> bool:
     return stop is not None and stop.is_set()
 
 
+def begin() -> None:
+    """A run's start (``simulate``, ``simulate_many``): clear a Ctrl-C seen before it, as its
+    first loop's start would. A run of many loops (modes, charts, an inputs table's knots)
+    reads the flag before each later loop (``c_loops.stoppable``): a Ctrl-C that came between
+    two of them, while Python ran, would else be cleared by the next loop's start and lost
+    (under a handler of the user's, which raises nothing)."""
+    _FLAG.value = 0
+
+
 def raise_flag() -> None:
     """Set the flag the C loops read, as SIGINT's handler does: the loops under way stop at
     their next step (a batch stopping its runs; a loop that started after Ctrl-C cleared it)."""

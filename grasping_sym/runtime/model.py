@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from grasping_sym.errors import IntegratorError, RunArgumentError
-from grasping_sym.runtime import batch, external, fastpath, modes, parameters, portable
+from grasping_sym.runtime import batch, external, fastpath, interrupt, modes, parameters, portable
 from grasping_sym.runtime import friction as friction_
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
@@ -424,6 +424,7 @@ class Model:
         InconsistentInitialStateError
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
+        interrupt.begin()
         short = (t_eval is not None and params is None and u is None and time_limit is None
                  and (outputs is False or outputs is True and not self.columns) and slip == "stop"
                  and not self.manifest.get("modes"))

@@ -52,6 +52,7 @@ from grasping_sym.errors import (
     JointLimitError,
     PainleveError,
     RunArgumentError,
+    RunInterruptedError,
 )
 from grasping_sym.runtime import c_loops, events, failures, fastpath, friction, integrators, parameters, pool
 from grasping_sym.runtime import outputs as outputs_
@@ -1616,6 +1617,8 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
     try:
         tt, X, st, hit = _segment(r, leg, leg.state(x_now), t, p if own else leg.model.default_params,
                                   r.witnesses(modes, slips) if own else leg.watched)
+    except RunInterruptedError:
+        raise  # Ctrl-C (under a handler of the user's): the call's, not a reason to go the full way
     except GraspingSymError:
         return None
     if hit is not None or len(tt) != len(t):
@@ -1702,10 +1705,12 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
             r.stats["chunks"] += 1
             if deadline is not None and perf_counter() > deadline:  # (a piece's loop reads the clock
                 # every 16th step only: a table's short pieces would never)
-                raise IntegratorError(a0, leg.states(np.asarray(x, dtype=float)),
+                err = IntegratorError(a0, leg.states(np.asarray(x, dtype=float)),
                                       f"{s.method}: the wall-time limit was reached at t = {a0:.6g} s, "
                                       "at a knot of the inputs' table (raise time_limit, or loosen the "
                                       "tolerances)", r.model.state_names)
+                err.cause = "time_limit"  # type: ignore[attr-defined]
+                raise err
             if k:  # past a knot: the witnesses stay armed as they were
                 lib.watch_resume()
             try:
@@ -1761,7 +1766,7 @@ def _in_own_state(r: _Run, leg: _Leg, err: IntegratorError) -> IntegratorError:
     if leg.back is None or type(err) not in (IntegratorError, ContactLeftContourError, JointLimitError):
         return err
     new = type(err)(err.t, None if err.x is None else leg.states(err.x), err.reason, r.model.state_names)
-    for key in ("code", "stats", "stiff", "t_rejected"):
+    for key in ("code", "stats", "stiff", "t_rejected", "cause"):
         if hasattr(err, key):
             setattr(new, key, getattr(err, key))
     if getattr(err, "x_rejected", None) is not None:
@@ -1975,9 +1980,10 @@ def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_char
         try:
             res = run(model, s if left is None else dataclasses.replace(s, time_limit=left), X0[i], mus[i], es[i],
                       None if us is None else us[i], charts={k: v[i] for k, v in (start_charts or {}).items()})
+        except RunInterruptedError:
+            raise  # Ctrl-C: the batch's, not the run's (runtime.pool stops the others)
         except (GraspingSymError, ValueError) as exc:
-            status[i] = failures.status_of(exc)
-            errors[i] = f"{type(exc).__name__}: {exc}"
+            status[i], errors[i] = failures.batch_entry(exc, s.time_limit)
             return
         x_final[i] = res.x[-1]
         X[i] = res.x

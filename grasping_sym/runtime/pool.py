@@ -40,16 +40,17 @@ def each(n: int, threads: int, run: Callable[[int], None]) -> None:
             run(i)
 
     pool = ThreadPoolExecutor(max_workers=min(threads, n))
-    futures = [pool.submit(member, i) for i in range(n)]
+    futures: list = []
     try:
+        futures.extend(pool.submit(member, i) for i in range(n))
         wait(futures, return_when=FIRST_EXCEPTION)
         if any(_interrupt(f) for f in futures if f.done()):
             _halt(stop, futures)
-    except BaseException:  # a KeyboardInterrupt in this thread: the batch's
+        pool.shutdown(wait=True, cancel_futures=True)  # a run's error: the others under way end
+    except BaseException:  # a KeyboardInterrupt in this thread (also while the others end)
         _halt(stop, futures)
-        raise
-    finally:
         pool.shutdown(wait=True, cancel_futures=True)
+        raise
     for future in futures:
         if not future.cancelled() and future.exception() is not None:
             raise future.exception()
