@@ -402,6 +402,21 @@ def test_a_slip_direction_in_a_plane_is_found_where_the_plain_iteration_circles(
     assert abs(abs(found[0]) - 1.0) < 1e-14 and abs(found[2]) == 0.0
 
 
+def test_what_a_run_with_modes_cannot_do_is_refused_by_name(flat):
+    """A model with contact modes holds its contacts by its gain and switches where its checks
+    are: ``project=`` (it said the model was too old to project) and ``checks=False`` (it was
+    ignored) are refused by name."""
+    from grasping_sym.errors import RunArgumentError
+
+    for project in (True, "steps", 1e-10):
+        with pytest.raises(RunArgumentError, match="has contact modes"):
+            flat.simulate(0.01, project=project)
+    with pytest.raises(RunArgumentError, match="checks=False"):
+        flat.simulate(0.01, checks=False)
+    with pytest.raises(RunArgumentError, match="checks=False"):
+        flat.simulate_many(0.01, x0=flat.initial_state()[None, :], checks=False)
+
+
 def test_a_sweep_over_mu_finds_the_incline_threshold(tmp_path):
     b = 0.3
     model = gs.build(gs.scenes.sphere_on_incline(R, M, b, name="incline3"))
