@@ -15,7 +15,8 @@
  *   time     gs_set_time_limit(s) gives this thread's next loops s seconds of wall time
  *            (0: none).
  *
- * A loop calls gs_stop_reset() when it starts and gs_stop_requested() once per step, and
+ * A run clears the flag when it starts (runtime/interrupt.py's begin; gs_batch its own); a
+ * loop calls gs_stop_reset() when it starts and gs_stop_requested() once per step, and
  * returns GS_ERR_INTERRUPT when that is non-zero; gs_stop_cause() then says why (1: SIGINT,
  * 2: the time limit). A step costs microseconds, so a loop stops within a few of them; the
  * clock is read every 16th step. gs_batch (batch.c) shares one Ctrl-C and one deadline
@@ -108,7 +109,7 @@ GS_EXPORT void gs_stop_bind(int* flag, void (*ensure)(void)) {
   gs_ensure = ensure;
 }
 
-/* 1 when Ctrl-C was seen since the last loop's start (the shared flag). */
+/* 1 when Ctrl-C was seen since the run started (the shared flag). */
 GS_EXPORT int gs_stop_flag(void) { return __atomic_load_n(gs_flag, __ATOMIC_RELAXED); }
 
 static double gs_now(void) {
@@ -124,11 +125,14 @@ GS_EXPORT void gs_set_time_limit(double seconds) {
 
 GS_EXPORT int gs_stop_cause(void) { return gs_cause; }
 
+/* A loop's start: the owner's handler put back in front. The flag is not cleared here: a run
+ * clears it when it starts (runtime/interrupt.py's begin, for simulate and simulate_many; a
+ * batch here, gs_stop_batch_reset), and a run of many loops (contact modes, charts, an inputs
+ * table's knots) reads it before each. Cleared at every loop's start, a Ctrl-C that came while
+ * Python ran between two loops (under a handler of the user's that returns), or while another
+ * thread's run was between its loops, was lost. */
 GS_HIDDEN void gs_stop_reset(void) {
-  if (!gs_in_batch) {
-    if (gs_ensure) gs_ensure();
-    __atomic_store_n(gs_flag, 0, __ATOMIC_RELAXED);
-  }
+  if (!gs_in_batch && gs_ensure) gs_ensure();
   gs_cause = 0;
 }
 

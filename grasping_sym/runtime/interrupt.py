@@ -53,7 +53,7 @@ def ensure() -> int:
 
 
 def requested() -> bool:
-    """True when Ctrl-C was seen since the last C loop (or SUNDIALS run) started."""
+    """True when Ctrl-C was seen since the run started (:func:`begin`)."""
     return bool(_FLAG.value)
 
 
@@ -87,11 +87,12 @@ def stopped() -> bool:
 
 
 def begin() -> None:
-    """A run's start (``simulate``, ``simulate_many``): clear a Ctrl-C seen before it, as its
-    first loop's start would. A run of many loops (modes, charts, an inputs table's knots)
-    reads the flag before each later loop (``c_loops.stoppable``): a Ctrl-C that came between
-    two of them, while Python ran, would else be cleared by the next loop's start and lost
-    (under a handler of the user's, which raises nothing)."""
+    """A run's start (``simulate``, ``simulate_many``): clear a Ctrl-C seen before it. Only
+    here (and at a C batch's start): a loop's start leaves the flag (``c/stop.c``), and a run
+    of many loops (modes, charts, an inputs table's knots) reads it before each later loop
+    (``c_loops.stoppable``). A Ctrl-C that came between two loops, while Python ran (under a
+    handler of the user's, which raises nothing), or while another thread's run was between
+    its loops, was cleared by the next loop's start and lost."""
     _FLAG.value = 0
 
 
