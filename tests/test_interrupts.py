@@ -181,6 +181,19 @@ _SCRIPT = textwrap.dedent("""
             except RunInterruptedError:
                 report.append({"way": way, "outcome": "RunInterruptedError",
                                "delay": time.perf_counter() - sent["t"]})
+    elif scenario == "stale":
+        # a Ctrl-C outside any run (at a prompt): Python's handler raises KeyboardInterrupt, the
+        # flag stays set; a run, and a library's loop called directly, are not stopped by it
+        m = build()
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.1)
+        except KeyboardInterrupt:
+            pass
+        flag = interrupt.requested()
+        direct = m.library.radau5(m.initial_state(), np.array([0.0, 1e-3]), rtol=1e-8, atol=1e-10)[0][-1]
+        run = m.simulate(1e-3, t_eval=[0.0, 1e-3], outputs=False).t[-1]
+        report.append({"flag": flag, "direct": float(direct), "run": float(run)})
     elif scenario == "modes":
         # six runs of the slow finger with contact modes (seconds each, a loop per knot), two at
         # a time: Ctrl-C stops the two under way (a loop's start clears the flag SIGINT set, and
@@ -282,10 +295,18 @@ def test_ctrl_c_stops_a_batch_of_runs_with_contact_modes_on_threads():
 
 def test_a_users_handler_stops_runs_of_many_loops_between_their_loops():
     """Under a handler of the user's that returns, a Ctrl-C that comes while a run of many loops
-    is in Python between two of them is read before the next (``interrupt.begin``,
+    is in Python between two of them is read before the next (``interrupt.run_scope``,
     ``c_loops.stoppable``): a single run and a threaded batch raise RunInterruptedError."""
     for r in _run("user_handler_knots"):
         assert r["outcome"] == "RunInterruptedError" and r["delay"] < PROMPT, r
+
+
+def test_a_ctrl_c_outside_any_run_stops_no_later_run():
+    """The flag a Ctrl-C leaves set outside any run (a loop's start no longer clears it) stops
+    neither a run (its start clears it) nor a library's loop called directly (cleared before it,
+    ``c_loops.stoppable``)."""
+    (r,) = _run("stale")
+    assert r == {"flag": True, "direct": 1e-3, "run": 1e-3}, r
 
 
 def test_ctrl_c_stops_a_model_first_loaded_in_another_thread():

@@ -15,7 +15,7 @@
  *   time     gs_set_time_limit(s) gives this thread's next loops s seconds of wall time
  *            (0: none).
  *
- * A run clears the flag when it starts (runtime/interrupt.py's begin; gs_batch its own); a
+ * A run clears the flag when it starts (runtime/interrupt.py's run_scope; gs_batch its own); a
  * loop calls gs_stop_reset() when it starts and gs_stop_requested() once per step, and
  * returns GS_ERR_INTERRUPT when that is non-zero; gs_stop_cause() then says why (1: SIGINT,
  * 2: the time limit). A step costs microseconds, so a loop stops within a few of them; the
@@ -126,7 +126,7 @@ GS_EXPORT void gs_set_time_limit(double seconds) {
 GS_EXPORT int gs_stop_cause(void) { return gs_cause; }
 
 /* A loop's start: the owner's handler put back in front. The flag is not cleared here: a run
- * clears it when it starts (runtime/interrupt.py's begin, for simulate and simulate_many; a
+ * clears it when it starts (runtime/interrupt.py's run_scope, for simulate and simulate_many; a
  * batch here, gs_stop_batch_reset), and a run of many loops (contact modes, charts, an inputs
  * table's knots) reads it before each. Cleared at every loop's start, a Ctrl-C that came while
  * Python ran between two loops (under a handler of the user's that returns), or while another

@@ -141,13 +141,13 @@ def default_threads() -> int:
         return os.cpu_count() or 1
 
 
+@interrupt.run_scope
 def simulate_many(model, t_final: float, *, x0=None, params: Mapping | None = None, u=None,
                   method: str | None = None, rtol: float | None = None, atol: float | None = None, t_eval=None,
                   h: float = 1e-4, max_steps: int = 1_000_000, project: bool | float | str | None = None,
                   outputs: bool = False, checks: bool = True, threads: int | None = None,
                   time_limit: float | None = None, mu=None, slip: str = "stop", e=None) -> BatchResult:
     """``Model.simulate_many`` (documented there)."""
-    interrupt.begin()
     given = dict(x0=x0, params=params, u=u, rtol=rtol, atol=atol, t_eval=t_eval, h=h, max_steps=max_steps,
                  project=project, outputs=outputs, checks=checks, threads=threads, time_limit=time_limit,
                  mu=mu, slip=slip, e=e)

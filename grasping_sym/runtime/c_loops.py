@@ -52,8 +52,11 @@ def stoppable(lib, time_limit: float | None):
     back in front at every loop's start) stops the loop, which returns ``GS_ERR_INTERRUPT``;
     :func:`stop_error` says why. No Python signal handler is involved, so nothing can raise
     between the loop's return and the deadline's reset."""
-    if interrupt.stopped() or interrupt.requested():  # Ctrl-C since the run began (interrupt.begin),
-        # between two of its loops, or a batch that Ctrl-C stopped (runtime.pool): no new loop
+    if not interrupt.in_run():  # a library's loop called directly: a Ctrl-C before it is not its
+        interrupt.clear()
+    elif interrupt.stopped() or interrupt.requested():  # Ctrl-C since the run began
+        # (interrupt.run_scope), between two of its loops, or a batch that Ctrl-C stopped
+        # (runtime.pool): no new loop
         raise interrupt.interrupted("stopped by Ctrl-C, before the run's next loop")
     c = lib._lib
     c.gs_set_time_limit(float(time_limit) if time_limit else 0.0)

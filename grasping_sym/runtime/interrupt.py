@@ -18,6 +18,7 @@ and returned; the run does not pretend to have finished).
 from __future__ import annotations
 
 import ctypes
+import functools
 import signal
 import threading
 
@@ -53,30 +54,60 @@ def ensure() -> int:
 
 
 def requested() -> bool:
-    """True when Ctrl-C was seen since the run started (:func:`begin`)."""
+    """True when Ctrl-C was seen since the run started (:func:`run_scope`)."""
     return bool(_FLAG.value)
 
 
-#: The batch (``runtime.pool``) a thread runs for: its stop, set when a Ctrl-C stopped it.
+#: Per thread: how deep in runs it is (``run_scope``), and the batch (``runtime.pool``) it runs
+#: for (its stop, set when a Ctrl-C stopped the batch).
 _member = threading.local()
+
+
+def run_scope(fn):
+    """``fn`` (``simulate``, ``simulate_many``) as a run: its start clears a Ctrl-C seen before
+    it (the outermost run of the thread's), and its loops read the flag before each
+    (:func:`in_run`, ``c_loops.stoppable``). A loop's start leaves the flag (``c/stop.c``): a
+    Ctrl-C that came between two loops of a run of many (modes, charts, an inputs table's
+    knots) while Python ran, under a handler of the user's that raises nothing, or while
+    another thread's run was between its loops, was cleared by the next loop's start and lost."""
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        depth = getattr(_member, "depth", 0)
+        if not depth:
+            _FLAG.value = 0
+        _member.depth = depth + 1
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            _member.depth = depth
+    return run
+
+
+def in_run() -> bool:
+    """True inside a run of this thread (:func:`run_scope`, or a batch's, :class:`batch_member`):
+    its loops read the flag; a loop outside any (a library's loop called directly) clears it
+    first, as every loop's start did."""
+    return getattr(_member, "depth", 0) > 0
 
 
 class batch_member:
     """Within it, this thread runs for a batch whose ``stop`` (a ``threading.Event``) is set
     when Ctrl-C stopped the batch: a loop this thread starts then stops before it runs
-    (:func:`stopped`). A run of a batch that Python drives starts a C loop at every segment,
-    and a loop's start clears the flag SIGINT set, so the flag alone would stop only the loops
-    under way when it came."""
+    (:func:`stopped`); and the thread is in a run (:func:`in_run`)."""
 
     def __init__(self, stop: threading.Event):
         self.stop = stop
+        self.depth = 0
 
     def __enter__(self):
         _member.stop = self.stop
+        self.depth = getattr(_member, "depth", 0)
+        _member.depth = self.depth + 1
         return self
 
     def __exit__(self, *exc):
         _member.stop = None
+        _member.depth = self.depth
         return False
 
 
@@ -86,13 +117,8 @@ def stopped() -> bool:
     return stop is not None and stop.is_set()
 
 
-def begin() -> None:
-    """A run's start (``simulate``, ``simulate_many``): clear a Ctrl-C seen before it. Only
-    here (and at a C batch's start): a loop's start leaves the flag (``c/stop.c``), and a run
-    of many loops (modes, charts, an inputs table's knots) reads it before each later loop
-    (``c_loops.stoppable``). A Ctrl-C that came between two loops, while Python ran (under a
-    handler of the user's, which raises nothing), or while another thread's run was between
-    its loops, was cleared by the next loop's start and lost."""
+def clear() -> None:
+    """Clear the flag (a loop called outside any run, ``c_loops.stoppable``)."""
     _FLAG.value = 0
 
 

@@ -278,6 +278,7 @@ class Model:
         return self._guarded
 
     # ------------------------------------------------------------------ simulate
+    @interrupt.run_scope
     def simulate(self, t_final: float, *, x0=None, method: str | None = None,
                  rtol: float | None = None, atol: float | None = None, t_eval=None, h: float = 1e-4,
                  params: dict[str, float] | None = None, max_steps: int = 1_000_000,
@@ -424,7 +425,6 @@ class Model:
         InconsistentInitialStateError
             ``x0`` is off the contact constraints (``err.residual`` in m).
         """
-        interrupt.begin()
         short = (t_eval is not None and params is None and u is None and time_limit is None
                  and (outputs is False or outputs is True and not self.columns) and slip == "stop"
                  and not self.manifest.get("modes"))
