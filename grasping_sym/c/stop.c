@@ -15,7 +15,7 @@
  *   time     gs_set_time_limit(s) gives this thread's next loops s seconds of wall time
  *            (0: none).
  *
- * A run clears the flag when it starts (runtime/interrupt.py's run_scope; gs_batch its own); a
+ * A run clears the flag when it starts (runtime/interrupt.py's run_scope); a
  * loop calls gs_stop_reset() when it starts and gs_stop_requested() once per step, and
  * returns GS_ERR_INTERRUPT when that is non-zero; gs_stop_cause() then says why (1: SIGINT,
  * 2: the time limit). A step costs microseconds, so a loop stops within a few of them; the
@@ -45,8 +45,8 @@ static pthread_mutex_t gs_install_lock = PTHREAD_MUTEX_INITIALIZER;
 static _Thread_local double gs_deadline = 0.0;
 static _Thread_local unsigned gs_ticks = 0;
 static _Thread_local int gs_cause = 0;
-/* Inside gs_batch (batch.c): a run's start must not clear a Ctrl-C that another thread's run
- * saw, so the batch clears the flag once and each run leaves it. */
+/* Inside gs_batch (batch.c): the batch put the owner's handler in front once (gs_stop_batch_reset);
+ * its runs' starts (on its threads) leave it. */
 static _Thread_local int gs_in_batch = 0;
 
 /* Note the signal, then pass it on to the disposition it was put in front of. */
@@ -126,9 +126,9 @@ GS_EXPORT void gs_set_time_limit(double seconds) {
 GS_EXPORT int gs_stop_cause(void) { return gs_cause; }
 
 /* A loop's start: the owner's handler put back in front. The flag is not cleared here: a run
- * clears it when it starts (runtime/interrupt.py's run_scope, for simulate and simulate_many; a
- * batch here, gs_stop_batch_reset), and a run of many loops (contact modes, charts, an inputs
- * table's knots) reads it before each. Cleared at every loop's start, a Ctrl-C that came while
+ * clears it when it starts (runtime/interrupt.py's run_scope, for simulate and simulate_many;
+ * a loop called outside any run, c_loops.stoppable), and a run of many loops (contact modes,
+ * charts, an inputs table's knots, batches restarted at knots) reads it before each. Cleared at every loop's start, a Ctrl-C that came while
  * Python ran between two loops (under a handler of the user's that returns), or while another
  * thread's run was between its loops, was lost. */
 GS_HIDDEN void gs_stop_reset(void) {
@@ -136,10 +136,9 @@ GS_HIDDEN void gs_stop_reset(void) {
   gs_cause = 0;
 }
 
-/* gs_batch: clear Ctrl-C once before its runs. */
+/* gs_batch's start: the owner's handler put back in front (the flag left, as gs_stop_reset). */
 GS_HIDDEN void gs_stop_batch_reset(void) {
   if (gs_ensure) gs_ensure();
-  __atomic_store_n(gs_flag, 0, __ATOMIC_RELAXED);
 }
 
 /* gs_batch's threads: with `on`, this thread's runs belong to a batch whose wall-time limit

@@ -1734,7 +1734,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 stats["loop_time"] = stats.get("loop_time", 0.0) + float(got.get("wall_time", 0.0))
                 _watched(r, lib)
                 hit = {"atlas": slot, "t": float(err.t), "x": np.asarray(err.x, dtype=float),
-                       "h": float(getattr(err, "stats", {}).get("h_last", 0.0))}
+                       "h": float(got.get("h_last", 0.0))}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             rows_t.append(t if k == 0 else t[1:])
             rows_x.append(X if k == 0 else X[1:])
@@ -1953,10 +1953,12 @@ def _painleve(model, t, x, value, mu, j=1):
 
 def run_many(model, s, X0: np.ndarray, mu, e, us: list | None = None, start_charts: dict | None = None,
              threads: int = 1) -> dict:
-    """``simulate_many`` of a model with modes: each run by ``run`` in turn (``mu``, ``e``:
-    None, one value, or one per run; ``us``: each run's inputs, None: none; ``start_charts``:
-    name -> each run's chart its ``x0`` is written in, None: the start's); a run that stops
-    by name is recorded, the others go on. Returns the pieces of a ``runtime.batch.BatchResult``."""
+    """``simulate_many`` of a model with modes: each run by ``run``, on ``threads`` threads
+    (``runtime.pool``; ``mu``, ``e``: None, one value, or one per run; ``us``: each run's
+    inputs, None: none; ``start_charts``: name -> each run's chart its ``x0`` is written in,
+    None: the start's), within the batch's ``time_limit`` in all; a run that stops by name is
+    recorded, the others go on; Ctrl-C is the batch's. Returns the pieces of a
+    ``runtime.batch.BatchResult``."""
     n = len(X0)
     mus = _per_run("mu", mu, n)
     es = _per_run("e", e, n)
