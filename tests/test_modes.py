@@ -388,6 +388,46 @@ def test_a_tumbling_ellipsoid_slides_and_lands_along_directions_that_are_fixed_p
     assert np.diff(energy).max() < 1e-10 * abs(energy).max()
 
 
+def test_a_slide_from_the_cone_edge_follows_the_exact_coulomb_slip(tumbler):
+    """The tumbling ellipsoid of ``TUMBLES["impact"]`` with mu = 0.43578: at 0.0969 s its
+    rolling force reaches the cone's edge and a slide starts, its slip speed growing as the
+    square of the time from the integration's noise. The sliding direction ``v_t/|v_t|`` of
+    that noise jumped by up to 90 degrees from step to step, and the run stopped with
+    ``EventLocationError`` 3 ns into the slide (at rtol 1e-10). With the onset's continuous
+    direction (``derive.body_plane``, ``slip_onset``) the run goes on; 0.1 ms into the slide
+    its state is the one an independent integrator (SciPy's Radau at rtol 1e-12) gives from
+    the same start with Coulomb's own direction ``v_t/|v_t|`` (no onset), and the slip has
+    grown along the direction opposing the rolling force at the edge."""
+    from scipy.integrate import solve_ivp
+
+    x0, mu = np.array(TUMBLES["impact"][0]), 0.4357787464585925
+    run = dict(x0=x0, params={"chart": 0}, mu=mu, e=0.0, **TIGHT)
+    first = tumbler.simulate(0.12, t_eval=np.linspace(0.0, 0.12, 13), **run)
+    (t0,) = [e["t"] for e in first.events if (e["from"], e["to"]) == ("rolling", "sliding")]
+    assert 0.0968 < t0 < 0.0969 and first.t[-1] == 0.12
+    dt = 1e-4
+    res = tumbler.simulate(t0 + dt, t_eval=[0.0, t0, t0 + dt], **run)
+    assert [e["t"] for e in res.events] == [e["t"] for e in first.events if e["t"] <= t0]
+    xa, xb = res.x[1], res.x[2]
+    names = tumbler.p_names
+    p = np.array(tumbler.default_params, dtype=float)
+    p[names.index("mode")], p[names.index("mu")] = 1.0, mu
+    ft = np.array([res[f"rolling_Ft_{c}"][1] for c in "xyz"])
+    d0 = -ft / np.linalg.norm(ft)
+    p[names.index("slip_x"):names.index("slip_x") + 3] = d0
+    p[names.index("chart")] = res.charts["chart"][1]    # the chart (u, v) is read in there
+    assert p[names.index("slip_onset")] == 0.0          # Coulomb's direction, no onset
+    with np.errstate(over="ignore"):  # SciPy's difference Jacobian where v_t/|v_t| turns at v_t ~ 0
+        exact = solve_ivp(lambda t, x: tumbler.library.rhs(x, p), (0.0, dt), xa, method="Radau",
+                          rtol=1e-12, atol=1e-15).y[:, -1]
+    assert np.abs(xb - exact).max() < 10 * TIGHT["rtol"] * np.abs(exact).max()
+    vt = np.array([res[f"vt_{c}"][2] for c in "xyz"])
+    y = tumbler.library.outputs(exact, p)
+    vt_exact = np.array([y[tumbler.output_names.index(f"vt_{c}")] for c in "xyz"])
+    assert 1e-6 < np.linalg.norm(vt) < 1e-4 and vt @ d0 > 0.999 * np.linalg.norm(vt)
+    assert np.linalg.norm(vt - vt_exact) < 2e-4 * np.linalg.norm(vt_exact)
+
+
 def test_a_slip_direction_in_a_plane_is_found_where_the_plain_iteration_circles():
     """``modes._direction`` of 3-vectors in a plane: the map ``d -> (d_x, -3 d_y, 0)`` has its
     fixed points (its image along it, not against) at +-x; from 1 rad the plain iteration

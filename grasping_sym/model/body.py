@@ -35,15 +35,16 @@ TIME = sp.Symbol("t", real=True)
 #: The contact's modes, by the number the compiled model takes as its parameter ``mode``.
 MODES = ("rolling", "sliding", "separated")
 #: The run-time parameters every body model takes: the mode, the friction coefficient, the
-#: slip direction at the start of a slide (world, used while the slip speed is 0).
-RUNTIME = ("mode", "mu", "slip_x", "slip_y", "slip_z")
+#: slip direction at the start of a slide (world, used while the slip speed is 0), and the
+#: slip's scale of a slide's onset at the cone's edge (m/s; 0: none; ``derive.body_plane``).
+RUNTIME = ("mode", "mu", "slip_x", "slip_y", "slip_z", "slip_onset")
 #: Every output a body scene has.
 OUTPUTS = ("gap", "normal_speed", "normal_force", "tangential_force", "cone_ratio", "slip_speed",
            "rolling_normal_force", "rolling_tangential_force", "painleve",
            "kinetic_energy", "potential_energy", "energy",
            "vt_x", "vt_y", "vt_z", "Ft_x", "Ft_y", "Ft_z", "rolling_Ft_x", "rolling_Ft_y",
            "rolling_Ft_z", "rc_x", "rc_y", "rc_z", "vc_x", "vc_y", "vc_z",
-           *(f"K_{i}{j}" for i in range(3) for j in range(3)))
+           *(f"K_{i}{j}" for i in range(3) for j in range(3)), "onset_left")
 
 
 def _number(v) -> bool:
@@ -155,7 +156,8 @@ class BodyScene:
     @property
     def params(self) -> dict[str, float]:
         mu = self.friction.per_contact(1)[0] if self.friction is not None else math.inf
-        return {"mode": 0.0, "mu": min(mu, 1e300), "slip_x": 0.0, "slip_y": 0.0, "slip_z": 0.0}
+        return {"mode": 0.0, "mu": min(mu, 1e300), "slip_x": 0.0, "slip_y": 0.0, "slip_z": 0.0,
+                "slip_onset": 0.0}
 
     @property
     def chart_names(self) -> tuple[str, ...]:
@@ -177,7 +179,7 @@ class BodyScene:
         return (*OUTPUTS, "support_facing")
 
     def code_key(self) -> str:
-        return "\n".join(["body-v2", self.name, self.surface.key(), repr(self.mass),
+        return "\n".join(["body-v3", self.name, self.surface.key(), repr(self.mass),
                           repr(self.inertia), repr(self.plane_point), repr(self.plane_normal),
                           repr(self.gravity), repr(self.gain), ",".join(self.outputs),
                           f"spin={self.plane_spin!r}",

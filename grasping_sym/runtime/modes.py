@@ -284,6 +284,17 @@ class _Run:
         """Contact ``j``'s output or parameter ``name``."""
         return name if self.k == 1 else f"{name}{j}"
 
+    def edge_slip(self, d: np.ndarray, x: np.ndarray, y: dict) -> np.ndarray:
+        """The slip parameter of a slide that starts at the cone's edge along ``d``, at ``x``
+        (``y``: its outputs, rolling); a body on a plane adds its onset's scale
+        (``_BodyRun.edge_slip``)."""
+        return d
+
+    def arming(self, name: str) -> float:
+        """The arming level of this run's witness ``name`` (``_arming``; a body's slide at its
+        onset: ``_BodyRun.arming``), as the last ``witnesses`` gave them."""
+        return _arming(name, self.s.atol)
+
     def params(self, modes, slips=None) -> np.ndarray:
         """``p`` with each contact's mode and, where given, slip direction."""
         p = self.p.copy()
@@ -417,6 +428,8 @@ class _BodyRun(_Run):
         self.n = np.array(info["plane_normal"], dtype=float)
         self.gain = float(info["gain"])
         self._n, self._Hinv = self.n.tolist(), self.Hinv.tolist()  # Python floats: 3-vectors
+        #: the onset's scale while the run's segment is a slide's onset (``witnesses``), else None
+        self.slip_level: float | None = None
 
     #: ``support_facing = |R N + n| = 2 sin(a/2)`` above which ``x0``'s support point is
     #: refused on a surface with an atlas: its normal ``a`` > 30 degrees from facing the plane
@@ -454,6 +467,34 @@ class _BodyRun(_Run):
 
     def slip_terms(self, d: np.ndarray, j: int = 1) -> list[tuple[str, float]]:
         return [("vt_x", d[0]), ("vt_y", d[1]), ("vt_z", d[2])]
+
+    def edge_slip(self, d: np.ndarray, x: np.ndarray, y: dict) -> np.ndarray:
+        """A slide's onset at the cone's edge: its slip ``d`` and the onset's scale ``s`` (the
+        parameter ``slip_onset``): the sliding direction continuous where ``v_t`` is within a
+        few times the integration's noise on it (``derive.body_plane``), until the output
+        ``onset_left`` reaches 0 (the witness ``onset``, no switch recorded). ``s`` is
+        ``SLIP_NOISE`` times that noise, ``atol + rtol (|v| + |omega| |r_c|)`` at the event
+        (the contact velocity's error from the state's), and at least ``SLIP_SPEED``; the
+        onset's slip witness is armed above it (``arming``)."""
+        v, om = x[7:10], x[10:13]
+        rc = math.sqrt(sum(y[k] ** 2 for k in self._RC))
+        noise = self.s.atol + self.s.rtol * (_norm(v) + _norm(om) * rc)
+        return np.append(np.asarray(d, dtype=float)[:3], max(SLIP_SPEED, SLIP_NOISE * noise))
+
+    def witnesses(self, modes, slips) -> list[tuple[str, int, list[tuple[str, float]]]]:
+        """``_Run.witnesses``, and, at a slide's onset at the cone's edge (``edge_slip``), the
+        onset's end; its slip witness's arming level is the onset's scale."""
+        out = super().witnesses(modes, slips)
+        d = slips[0]
+        self.slip_level = None
+        if modes[0] == SLIDING and d is not None and len(d) > 3 and d[3] > 0:
+            out.append(("onset", 1, [("onset_left", 1.0)]))
+            self.slip_level = float(d[3])
+        return out
+
+    def arming(self, name: str) -> float:
+        base = super().arming(name)
+        return max(base, self.slip_level) if name == "slip" and self.slip_level is not None else base
 
     def apart(self, x: np.ndarray) -> np.ndarray:
         """A body apart from the plane: its support point is the model's to keep."""
@@ -1691,7 +1732,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
     s, model = r.s, leg.model
     lib, cols = model.library, leg.col
     lib.watch([[(cols[term[0]], *term[1:]) for term in terms] for _, _, terms in watched],
-              [_arming(name, s.atol) for name, _, _ in watched],
+              [r.arming(name) if leg is r.own_leg else _arming(name, s.atol) for name, _, _ in watched],
               inputs=leg.input_slots, dt=WATCH_DT, probe=[name == "gap" for name, _, _ in watched],
               safety=WATCH_SAFETY)
     try:
@@ -1817,7 +1858,8 @@ def _locate_one(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     """``_locate`` of the witness the C loop named."""
     name, j, terms = watched[hit["which"]]
     model = leg.model
-    level = 0.0 if hit["armed"] else -_arming(name, r.s.atol)  # unarmed: it fell below -tol (c/watch.c)
+    level = 0.0 if hit["armed"] else -(r.arming(name) if leg is r.own_leg else _arming(name, r.s.atol))
+    # (unarmed: it fell below -tol, c/watch.c)
     w = lambda y: value(terms, y) - level  # noqa: E731 - one witness
     t_lo, t_guess, slope = hit["t_lo"], hit["t"], hit["slope"]
     t_step, x_step = hit["t_step"], hit["x_step"]
@@ -1910,8 +1952,11 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         return modes, slips, x, 0.0
     if name == "cone":
         y = r.with_mode(x, modes, slips, j, ROLLING)
-        modes[j - 1], slips[j - 1] = SLIDING, r.slip_direction(x, y, j, modes=modes, slips=slips)
+        modes[j - 1], slips[j - 1] = SLIDING, r.edge_slip(r.slip_direction(x, y, j, modes=modes, slips=slips), x, y)
         return modes, slips, x, 0.0
+    if name == "onset":  # a slide's onset at the cone's edge is over: on along the same slip
+        slips[j - 1] = np.asarray(slips[j - 1], dtype=float)[:3]
+        return modes, slips, x, None
     y = r.with_mode(x, modes, slips, j, ROLLING)
     if name == "slip":
         vt = r.slip_velocity(y, j)
@@ -1920,7 +1965,7 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
         # event: below -SLIP_SPEED before it was ever above SLIP_SPEED) and is clearly faster
         # than that across it (2 SLIP_SPEED; in 2D it is a reversal: a stop)
-        if _norm(vt) > (STOP_SPEED if armed else 2 * SLIP_SPEED):
+        if _norm(vt) > (STOP_SPEED if armed else 2 * r.arming(name)):
             slips[j - 1] = vt / _norm(vt)
             return modes, slips, x, None
         x2, reset = r.stop_slip(x, y, modes, j)
