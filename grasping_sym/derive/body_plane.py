@@ -18,11 +18,9 @@ effective mass (``1/m I - R [S]x H^-1 [S]x R^T``, from CasADi's Jacobian of the 
   the parameter ``slip`` (a slide from rest of the slip; past its stop, the continuation whose
   ``v_t . slip`` crosses 0), ``f`` from the normal row; its coefficient
   ``n . K (n - mu d)`` (``painleve``) must stay > 0. At the onset of a slide at the cone's
-  edge (the parameter ``slip_onset = s > 0``), ``d`` is the direction of
-  ``v_t + ONSET_LEAD s^4 / (|v_t| + s)^3 slip`` instead: continuous where ``v_t`` is of the
-  order of ``s`` (a few times the integration's noise on it; ``runtime.modes``), ``slip`` at
-  ``v_t = 0``, within ``ONSET_LEAD (s/|v_t|)^4`` rad of ``v_t/|v_t|`` beyond; the run sets
-  ``s`` back to 0 where the output ``onset_left = ONSET_RELEASE s - v_t . slip`` reaches 0;
+  edge (the parameter ``slip_onset = s > 0``), ``d`` is the onset's instead
+  (``derive.slip_onset``); the run sets ``s`` back to 0 where the output ``onset_left``
+  reaches 0;
 - separated (mode 2): ``F = 0``.
 
 The rolling solution's forces are outputs in every mode (the rolling-consistency test of a
@@ -35,6 +33,7 @@ import numpy as np
 import sympy as sp
 
 from grasping_sym import rotations
+from grasping_sym.derive import slip_onset
 from grasping_sym.derive.bodies3d import object_rotation, surface_sx
 from grasping_sym.errors import InvalidSceneError
 from grasping_sym.geometry.atlas import LAT as ATLAS_LAT
@@ -44,13 +43,6 @@ from grasping_sym.symbolic.translate import SympyToCasadi
 #: Floor of ``|v_t|`` (m/s) in the slip's direction ``v_t / |v_t|`` (used only where
 #: ``v_t . slip > 0``).
 SLIP_ZERO = 1e-300
-#: The onset's lead toward ``slip`` (module docstring): with 16, the lead vanishes only where
-#: ``v_t`` points against ``slip`` at ~1.3 ``s``, beyond the slip witness's ``-s`` at which a
-#: slip that turned back ends the onset first.
-ONSET_LEAD = 16.0
-#: The onset ends where ``v_t . slip`` reaches this many times ``s``: its direction then
-#: within 1.6e-11 rad of ``v_t/|v_t|``.
-ONSET_RELEASE = 1e3
 
 
 def translation_sx(motion, t: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -122,11 +114,8 @@ def derive_body_plane(scene) -> dict:
     # parameter's: the slide's continuation along it, where the stop's witness v_t . slip
     # crosses 0 with the slope it had (what locating the stop integrates)
     d = ca.if_else(ca.dot(v_t, slip) > 0, v_t / ca.fmax(speed, SLIP_ZERO), slip)
-    # at a slide's onset at the cone's edge, a direction continuous in v_t (the rule above
-    # jumps where v_t . slip = 0: with v_t at the integration's noise, at any angle, the
-    # friction's direction jumped by up to 90 degrees from step to step)
-    lead = v_t + ONSET_LEAD * onset**4 / (speed + onset) ** 3 * slip
-    d = ca.if_else(onset > 0, lead / ca.fmax(ca.norm_2(lead), SLIP_ZERO), d)
+    # at a slide's onset at the cone's edge, a direction continuous in v_t (derive.slip_onset)
+    d = slip_onset.direction(v_t, slip, onset, d)
     dirn = n - mu * d
     painleve = ca.dot(n, K @ dirn)
     f_slide = (-2 * gain * vn - gain**2 * gap - ca.dot(n, b)) / painleve
@@ -146,7 +135,7 @@ def derive_body_plane(scene) -> dict:
     potential = -m * ca.dot(g_vec, pos)
     out = {"gap": gap, "normal_speed": vn, "normal_force": f_act, "tangential_force": ft,
            "cone_ratio": ft / ca.fmax(f_act, 1e-300),
-           "slip_speed": speed, "onset_left": ONSET_RELEASE * onset - ca.dot(v_t, slip),
+           "slip_speed": speed, "onset_left": slip_onset.left(v_t, slip, onset),
            "rolling_normal_force": f_roll, "rolling_tangential_force": ca.norm_2(Ft_roll),
            "painleve": painleve, "kinetic_energy": kinetic, "potential_energy": potential,
            "energy": kinetic + potential,

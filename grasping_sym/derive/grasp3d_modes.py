@@ -12,7 +12,8 @@ contact coordinates held: the fingertip's material point relative to the object'
 
 - rolling: the contact's three rows, ``C'' + 2 g C' + g^2 C = 0``, Montana's rolling rates;
 - sliding: the normal row only; ``(lam_x, lam_y) = mu f d``, ``d = v_t/|v_t|`` once
-  ``v_t . slip >= SLIP_FULL``, ``slip`` below ``SLIP_START``, blended between; the contact
+  ``v_t . slip >= SLIP_FULL``, ``slip`` below ``SLIP_START``, blended between; at a slide's
+  onset at the cone's edge (``slip_onset{i} > 0``), the onset's (``derive.slip_onset``); the contact
   coordinates move so that the two points stay on a common normal: ``G = (Qb, Qe, x_f . n_o, y_f . n_o) = 0`` held by
   ``G_alpha alpha' = -G_z z' - TRACK_GAIN G`` (``alpha = (u_f, v_f, u_o, v_o)``) and ``psi``
   following the frames' angle;
@@ -26,6 +27,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from grasping_sym.derive import slip_onset
 from grasping_sym.derive.bodies3d import bodies, surface_sx
 from grasping_sym.derive.grasp3d import REGULAR
 from grasping_sym.derive.loop3d import applied_forces, contacts, dynamics, split_torques
@@ -73,6 +75,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
     modes = [p[names.index(f"mode{i}")] for i in range(1, k + 1)]
     mus = [p[names.index(f"mu{i}")] for i in range(1, k + 1)]
     slips = [ca.vertcat(p[names.index(f"slip_x{i}")], p[names.index(f"slip_y{i}")]) for i in range(1, k + 1)]
+    onsets = [p[names.index(f"slip_onset{i}")] for i in range(1, k + 1)]
     u = split_torques(base, tau_joints)
     # a soft finger's twist friction acts where the contact touches (rolling or sliding)
     tau, dissipation = applied_forces(base, b, cs, u, touching=[ca.if_else(m < 1.5, 1, 0) for m in modes[:kf]])
@@ -150,7 +153,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
         ramp = ca.fmin(ca.fmax((along - SLIP_START) / (SLIP_FULL - SLIP_START), 0), 1)
         w = ramp * ramp * (3 - 2 * ramp)  # C1 from slip (v_t . slip <= SLIP_START) to v_t / |v_t|
         d = (1 - w) * slips[i] + w * vt / ca.fmax(speed, SLIP_ZERO)
-        d = d / ca.fmax(ca.norm_2(d), SLIP_ZERO)
+        d = slip_onset.direction(vt, slips[i], onsets[i], d / ca.fmax(ca.norm_2(d), SLIP_ZERO))
         vts.append(vt)
         ds.append(d)
         rolling, sliding = modes[i] < 0.5, modes[i] < 1.5
@@ -184,6 +187,7 @@ def derive_grasp3d_modes(scene, torques) -> dict:
             f"normal_force{tag}": f, f"tangential_force{tag}": ft,
             f"cone_ratio{tag}": ft / ca.fmax(f, FORCE_FLOOR),
             f"vt_x{tag}": vts[i][0], f"vt_y{tag}": vts[i][1], f"slip_speed{tag}": ca.norm_2(vts[i]),
+            f"onset_left{tag}": slip_onset.left(vts[i], slips[i], onsets[i]),
             f"painleve{tag}": Ahat[r, :] @ own,
             f"at_x{tag}": ca.jtimes(vts[i][0], x, xdot), f"at_y{tag}": ca.jtimes(vts[i][1], x, xdot),
             f"vn_fixed{tag}": A[r, :] @ V + drift_v[r],

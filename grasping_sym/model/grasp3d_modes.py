@@ -127,7 +127,7 @@ class GraspModesScene(WithModes):
     @property
     def runtime(self) -> tuple[str, ...]:
         n = range(1, self.n_contacts + 1)
-        return (*[f"mode{i}" for i in n], *[f"slip_{c}{i}" for i in n for c in "xy"],
+        return (*[f"mode{i}" for i in n], *[f"slip_{c}{i}" for i in n for c in ("x", "y", "onset")],
                 *[f"mu{i}" for i in n])
 
     @property
@@ -136,7 +136,8 @@ class GraspModesScene(WithModes):
             else (math.inf,) * self.n_contacts
         out = dict(self.base.params)
         for i, mu in enumerate(mus, start=1):
-            out.update({f"mode{i}": 0.0, f"slip_x{i}": 1.0, f"slip_y{i}": 0.0, f"mu{i}": min(mu, 1e300)})
+            out.update({f"mode{i}": 0.0, f"slip_x{i}": 1.0, f"slip_y{i}": 0.0, f"slip_onset{i}": 0.0,
+                        f"mu{i}": min(mu, 1e300)})
         return out
 
     @property
@@ -188,7 +189,7 @@ class GraspModesScene(WithModes):
         k = self.n_contacts
         n = range(1, k + 1)
         per = ("f", "lam", "eta", "gap", "normal_speed", "normal_acceleration",
-               "normal_force", "tangential_force", "cone_ratio", "vt_x", "vt_y", "slip_speed",
+               "normal_force", "tangential_force", "cone_ratio", "vt_x", "vt_y", "slip_speed", "onset_left",
                "painleve", "at_x", "at_y", "vn_fixed")
         return ("constraint_residual", *[f"{q}{i}" for i in n for q in per],
                 *[f"krel_min{i}" for i in range(1, self.n_fingers + 1)],
@@ -206,7 +207,7 @@ class GraspModesScene(WithModes):
         return tuple(k for k in self.outputs if k.startswith(("W_", "MinvAT_")))
 
     def code_key(self) -> str:
-        return "\n".join(["grasp3d-modes-v1", self.base.code_key(),
+        return "\n".join(["grasp3d-modes-v2", self.base.code_key(),
                           *[repr((w.point, w.normal, None if w.motion is None else tuple(map(sp.srepr, w.motion)),
                                   None if w.spin is None else sp.srepr(w.spin)))
                             for w in self.planes]])

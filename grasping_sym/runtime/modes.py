@@ -96,6 +96,15 @@ REST_SPEED = 1e-3
 GAP_RETURN = 1e-12
 
 
+#: The relative step of ``c/jac.c``'s forward differences (``sqrt(eps)``): a Jacobian not
+#: generated is taken with it (``_Run._slip_noise``).
+FD_STEP = math.sqrt(2.220446049250313e-16)
+#: An onset's scale is at least this many times the change of the slip velocity under those
+#: steps (``_Run.onset_slip``): an onset narrower made that Jacobian wrong (a 3D pinch's onset
+#: took 6 188 steps of radau at rtol 1e-11, against 8 without the onset; 2 with this floor);
+#: 10 times it made the rows inside a grasp's onset differ by 4e-7 rad/s between two watches
+#: of the same run at rtol 1e-9 (the onset's own scale), 1 time by 2e-9, as without an onset.
+FD_ONSET = 1.0
 #: A slide's slip witness is armed above this many times the run's ``atol`` (m/s), if more than
 #: ``SLIP_SPEED``: the integration's own noise on a contact velocity (``_arming``).
 SLIP_NOISE = 10.0
@@ -229,6 +238,8 @@ class _Run:
         #: the inputs' table (``runtime.inputs``; None: a model without inputs) and the time at
         #: which ``outputs`` reads them
         self.sched, self.t = None, 0.0
+        #: contact -> its slide's onset's scale, of the contacts at their onset (``witnesses``)
+        self.slip_levels: dict[int, float] = {}
         self.own_leg = static["own"]
         legs, rolling = static["rolling"], getattr(model, "rolling", None)
         if self.mus not in legs or legs[self.mus][0] is not rolling:  # its witnesses read mu
@@ -284,16 +295,49 @@ class _Run:
         """Contact ``j``'s output or parameter ``name``."""
         return name if self.k == 1 else f"{name}{j}"
 
-    def edge_slip(self, d: np.ndarray, x: np.ndarray, y: dict) -> np.ndarray:
-        """The slip parameter of a slide that starts at the cone's edge along ``d``, at ``x``
-        (``y``: its outputs, rolling); a body on a plane adds its onset's scale
-        (``_BodyRun.edge_slip``)."""
-        return d
+    def slip_keys(self, j: int) -> tuple[str, ...]:
+        """The outputs of contact ``j``'s slip velocity, whose slide from the cone's edge has an
+        onset (``onset_slip``); none: a contact in a plane (its slip's direction is a sign)."""
+        return ()
 
-    def arming(self, name: str) -> float:
-        """The arming level of this run's witness ``name`` (``_arming``; a body's slide at its
-        onset: ``_BodyRun.arming``), as the last ``witnesses`` gave them."""
-        return _arming(name, self.s.atol)
+    def onset_slip(self, d: np.ndarray, t: float, x: np.ndarray, p: np.ndarray, j: int) -> np.ndarray:
+        """The slip parameter of contact ``j``'s slide that starts from rest of the slip (at the
+        cone's edge, or past it: at a start, after a stop or an impact) along ``d`` at
+        ``(t, x)`` (``p``: the parameters there, rolling): ``d`` and the onset's scale ``s``
+        (the parameter ``slip_onset{j}``; ``derive.body_plane``, ``derive.grasp3d_modes``): the
+        sliding direction continuous where ``v_t`` is within a few times the integration's
+        noise on it, until the output ``onset_left{j}`` reaches 0 (the witness ``onset``: no
+        switch recorded). ``s`` is ``SLIP_NOISE`` times that noise (``_slip_noise``), at least
+        ``SLIP_SPEED`` and, for radau on a difference Jacobian, ``FD_ONSET`` times the slip's
+        change under its steps; the onset's slip witness is armed above it (``arming``)."""
+        keys = self.slip_keys(j)
+        if not keys:
+            return d
+        noise, fd = self._slip_noise(t, x, p, keys)
+        return np.append(np.asarray(d, dtype=float), max(SLIP_SPEED, SLIP_NOISE * noise, FD_ONSET * fd))
+
+    def _slip_noise(self, t: float, x: np.ndarray, p: np.ndarray, keys: tuple[str, ...]) -> tuple[float, float]:
+        """The integration's noise on the slip velocity (outputs ``keys``) at ``(t, x)``: the sum
+        over the state's components of the change of ``v_t`` when each moves by its own
+        tolerance ``atol + rtol |x_i|``; and, for radau on a model without a generated
+        Jacobian, the same sum for the forward differences' steps (``c/jac.c``), else 0 (one
+        batch of the compiled outputs)."""
+        x = np.asarray(x, dtype=float)
+        steps = [self.s.atol + self.s.rtol * np.abs(x)]
+        if self.s.method == "radau" and not self.model.manifest.get("driver_defines", {}).get("GS_HAS_JAC"):
+            steps.append(FD_STEP * np.maximum(np.abs(x), max(self.s.atol, 1e-8) * 1e3))
+        X = np.vstack([x, *(x + np.diag(h) for h in steps)])
+        Y = outputs_.along_rows(self.model, np.full(len(X), t), X, p, self.sched)
+        cols = [self.model.columns.index(k) for k in keys]
+        dv = Y[1:, cols] - Y[0, cols]
+        sums = np.sqrt((dv * dv).sum(axis=1)).reshape(len(steps), len(x)).sum(axis=1)
+        return float(sums[0]), float(sums[1]) if len(steps) > 1 else 0.0
+
+    def arming(self, name: str, j: int) -> float:
+        """The arming level of contact ``j``'s witness ``name`` (``_arming``; a slide's slip at
+        its onset: the onset's scale), as the last ``witnesses`` gave them."""
+        base = _arming(name, self.s.atol)
+        return max(base, self.slip_levels[j]) if name == "slip" and j in self.slip_levels else base
 
     def params(self, modes, slips=None) -> np.ndarray:
         """``p`` with each contact's mode and, where given, slip direction."""
@@ -344,9 +388,11 @@ class _Run:
             return self._slide_or_leave(t, x, modes, slips, j, y, vt / _norm(vt))
         if f > 0 and (ft < mu * f or mu == math.inf):
             return ROLLING, None
-        if f > 0:
-            return self._slide_or_leave(t, x, modes, slips, j, y,
-                                        self.slip_direction(x, y, j, modes=modes, slips=slips))
+        if f > 0:  # a slide from rest of the slip: its onset (onset_slip)
+            m = list(modes)
+            m[j - 1] = ROLLING
+            d = self.slip_direction(x, y, j, modes=modes, slips=slips)
+            return self._slide_or_leave(t, x, modes, slips, j, y, self.onset_slip(d, t, x, self.params(m, slips), j))
         return self._slide_or_leave(t, x, modes, slips, j, y, None)
 
     def _slide_or_leave(self, t, x, modes, slips, j, y, d):
@@ -370,6 +416,7 @@ class _Run:
         sliding contact stops where ``v_t . slip`` reaches 0, a separated one hits where its
         gap does."""
         out = []
+        self.slip_levels = {}
         for j in self.contacts:
             mode, mu = modes[j - 1], self.mus[j - 1]
             fk = self.key("normal_force", j)
@@ -378,9 +425,12 @@ class _Run:
                     out.append(("cone", j, [(fk, mu), (self.key("tangential_force", j), -1.0)]))
                 out.append(("normal_force", j, [(fk, 1.0)]))
             elif mode == SLIDING:
-                out += [("normal_force", j, [(fk, 1.0)]),
-                        ("slip", j, self.slip_terms(np.asarray(slips[j - 1], dtype=float), j)),
+                d = np.asarray(slips[j - 1], dtype=float)
+                out += [("normal_force", j, [(fk, 1.0)]), ("slip", j, self.slip_terms(d, j)),
                         ("painleve", j, [(self.key("painleve", j), 1.0)])]
+                if d.ndim == 1 and len(d) > len(self.slip_keys(j)) > 0 and d[-1] > 0:  # its onset
+                    out.append(("onset", j, [(self.key("onset_left", j), 1.0)]))
+                    self.slip_levels[j] = float(d[-1])
             else:
                 out.append(("gap", j, [(self.key("gap", j), 1.0)]))
         return out
@@ -428,8 +478,6 @@ class _BodyRun(_Run):
         self.n = np.array(info["plane_normal"], dtype=float)
         self.gain = float(info["gain"])
         self._n, self._Hinv = self.n.tolist(), self.Hinv.tolist()  # Python floats: 3-vectors
-        #: the onset's scale while the run's segment is a slide's onset (``witnesses``), else None
-        self.slip_level: float | None = None
 
     #: ``support_facing = |R N + n| = 2 sin(a/2)`` above which ``x0``'s support point is
     #: refused on a surface with an atlas: its normal ``a`` > 30 degrees from facing the plane
@@ -468,33 +516,8 @@ class _BodyRun(_Run):
     def slip_terms(self, d: np.ndarray, j: int = 1) -> list[tuple[str, float]]:
         return [("vt_x", d[0]), ("vt_y", d[1]), ("vt_z", d[2])]
 
-    def edge_slip(self, d: np.ndarray, x: np.ndarray, y: dict) -> np.ndarray:
-        """A slide's onset at the cone's edge: its slip ``d`` and the onset's scale ``s`` (the
-        parameter ``slip_onset``): the sliding direction continuous where ``v_t`` is within a
-        few times the integration's noise on it (``derive.body_plane``), until the output
-        ``onset_left`` reaches 0 (the witness ``onset``, no switch recorded). ``s`` is
-        ``SLIP_NOISE`` times that noise, ``atol + rtol (|v| + |omega| |r_c|)`` at the event
-        (the contact velocity's error from the state's), and at least ``SLIP_SPEED``; the
-        onset's slip witness is armed above it (``arming``)."""
-        v, om = x[7:10], x[10:13]
-        rc = math.sqrt(sum(y[k] ** 2 for k in self._RC))
-        noise = self.s.atol + self.s.rtol * (_norm(v) + _norm(om) * rc)
-        return np.append(np.asarray(d, dtype=float)[:3], max(SLIP_SPEED, SLIP_NOISE * noise))
-
-    def witnesses(self, modes, slips) -> list[tuple[str, int, list[tuple[str, float]]]]:
-        """``_Run.witnesses``, and, at a slide's onset at the cone's edge (``edge_slip``), the
-        onset's end; its slip witness's arming level is the onset's scale."""
-        out = super().witnesses(modes, slips)
-        d = slips[0]
-        self.slip_level = None
-        if modes[0] == SLIDING and d is not None and len(d) > 3 and d[3] > 0:
-            out.append(("onset", 1, [("onset_left", 1.0)]))
-            self.slip_level = float(d[3])
-        return out
-
-    def arming(self, name: str) -> float:
-        base = super().arming(name)
-        return max(base, self.slip_level) if name == "slip" and self.slip_level is not None else base
+    def slip_keys(self, j: int = 1) -> tuple[str, ...]:
+        return ("vt_x", "vt_y", "vt_z")
 
     def apart(self, x: np.ndarray) -> np.ndarray:
         """A body apart from the plane: its support point is the model's to keep."""
@@ -848,6 +871,9 @@ class _GraspRun(_Run):
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
         return np.array([y[f"vt_x{j}"], y[f"vt_y{j}"]])
 
+    def slip_keys(self, j: int) -> tuple[str, ...]:
+        return (f"vt_x{j}", f"vt_y{j}")
+
     def slip_terms(self, d: np.ndarray, j: int) -> list[tuple]:
         """``v_t . slip - cos(REAIM_ANGLE) |v_t|``: 0 where the slip stops, or where a slide has
         turned by ``REAIM_ANGLE`` from ``slip`` (then re-aimed, ``_switch``). The sliding
@@ -1137,6 +1163,9 @@ class _FingersRun(_GraspRun):
 
     def slip_velocity(self, y: dict, j: int) -> np.ndarray:
         return np.array([y[f"vt{j}"]])
+
+    def slip_keys(self, j: int) -> tuple[str, ...]:
+        return ()
 
     def slip_terms(self, d: np.ndarray, j: int) -> list[tuple[str, float]]:
         return [(f"vt{j}", d[0])]
@@ -1732,7 +1761,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
     s, model = r.s, leg.model
     lib, cols = model.library, leg.col
     lib.watch([[(cols[term[0]], *term[1:]) for term in terms] for _, _, terms in watched],
-              [r.arming(name) if leg is r.own_leg else _arming(name, s.atol) for name, _, _ in watched],
+              [r.arming(name, j) if leg is r.own_leg else _arming(name, s.atol) for name, j, _ in watched],
               inputs=leg.input_slots, dt=WATCH_DT, probe=[name == "gap" for name, _, _ in watched],
               safety=WATCH_SAFETY)
     try:
@@ -1858,7 +1887,7 @@ def _locate_one(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     """``_locate`` of the witness the C loop named."""
     name, j, terms = watched[hit["which"]]
     model = leg.model
-    level = 0.0 if hit["armed"] else -(r.arming(name) if leg is r.own_leg else _arming(name, r.s.atol))
+    level = 0.0 if hit["armed"] else -(r.arming(name, j) if leg is r.own_leg else _arming(name, r.s.atol))
     # (unarmed: it fell below -tol, c/watch.c)
     w = lambda y: value(terms, y) - level  # noqa: E731 - one witness
     t_lo, t_guess, slope = hit["t_lo"], hit["t"], hit["slope"]
@@ -1952,10 +1981,12 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         return modes, slips, x, 0.0
     if name == "cone":
         y = r.with_mode(x, modes, slips, j, ROLLING)
-        modes[j - 1], slips[j - 1] = SLIDING, r.edge_slip(r.slip_direction(x, y, j, modes=modes, slips=slips), x, y)
+        p = r.params(modes, slips)
+        modes[j - 1], slips[j - 1] = SLIDING, r.onset_slip(r.slip_direction(x, y, j, modes=modes, slips=slips),
+                                                          t, x, p, j)
         return modes, slips, x, 0.0
     if name == "onset":  # a slide's onset at the cone's edge is over: on along the same slip
-        slips[j - 1] = np.asarray(slips[j - 1], dtype=float)[:3]
+        slips[j - 1] = np.asarray(slips[j - 1], dtype=float)[:len(r.slip_keys(j))]
         return modes, slips, x, None
     y = r.with_mode(x, modes, slips, j, ROLLING)
     if name == "slip":
@@ -1965,7 +1996,7 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
         # event: below -SLIP_SPEED before it was ever above SLIP_SPEED) and is clearly faster
         # than that across it (2 SLIP_SPEED; in 2D it is a reversal: a stop)
-        if _norm(vt) > (STOP_SPEED if armed else 2 * r.arming(name)):
+        if _norm(vt) > (STOP_SPEED if armed else 2 * r.arming(name, j)):
             slips[j - 1] = vt / _norm(vt)
             return modes, slips, x, None
         x2, reset = r.stop_slip(x, y, modes, j)
