@@ -65,6 +65,8 @@ from grasping_sym.runtime.watch import WATCH_DT, WATCH_SAFETY
 ROLLING, SLIDING, SEPARATED = 0, 1, 2
 #: The methods a run with modes takes: the adaptive loops in C (implicit and explicit).
 METHODS = ("radau", "dopri5", "dop853")
+#: Those whose slides from rest have an onset (``_Run.onset_slip``).
+IMPLICIT = ("radau",)
 #: How another closed contact takes an impulse at an impact (``_GraspRun._impulse``): held,
 #: let go, or ``(SLIDE, d)``: sliding along the slip direction ``d``.
 HOLD, OPEN, SLIDE = "hold", "open", "slide"
@@ -308,10 +310,13 @@ class _Run:
         sliding direction continuous where ``v_t`` is within a few times the integration's
         noise on it, until the output ``onset_left{j}`` reaches 0 (the witness ``onset``: no
         switch recorded). ``s`` is ``SLIP_NOISE`` times that noise (``_slip_noise``), at least
-        ``SLIP_SPEED`` and, for radau on a difference Jacobian, ``FD_ONSET`` times the slip's
-        change under its steps; the onset's slip witness is armed above it (``arming``)."""
+        ``SLIP_SPEED`` and, on a difference Jacobian, ``FD_ONSET`` times the slip's
+        change under its steps; the onset's slip witness is armed above it (``arming``).
+        An explicit method keeps ``d`` alone (the former rules): the onset's stiffness bounds
+        its step (dop853 at rtol 1e-10 stopped as stiff at each slide of paper3d's grasp,
+        h = 1e-9 s)."""
         keys = self.slip_keys(j)
-        if not keys:
+        if not keys or self.s.method not in IMPLICIT:
             return d
         noise, fd = self._slip_noise(t, x, p, keys)
         return np.append(np.asarray(d, dtype=float), max(SLIP_SPEED, SLIP_NOISE * noise, FD_ONSET * fd))
@@ -320,11 +325,11 @@ class _Run:
         """The integration's noise on the slip velocity (outputs ``keys``) at ``(t, x)``: the sum
         over the state's components of the change of ``v_t`` when each moves by its own
         tolerance ``atol + rtol |x_i|``; and, for radau on a model without a generated
-        Jacobian, the same sum for the forward differences' steps (``c/jac.c``), else 0 (one
-        batch of the compiled outputs)."""
+        Jacobian (radau's, ``c/jac.c``), the same sum for the forward differences' steps, else
+        0 (one batch of the compiled outputs)."""
         x = np.asarray(x, dtype=float)
         steps = [self.s.atol + self.s.rtol * np.abs(x)]
-        if self.s.method == "radau" and not self.model.manifest.get("driver_defines", {}).get("GS_HAS_JAC"):
+        if not self.model.manifest.get("driver_defines", {}).get("GS_HAS_JAC"):
             steps.append(FD_STEP * np.maximum(np.abs(x), max(self.s.atol, 1e-8) * 1e3))
         X = np.vstack([x, *(x + np.diag(h) for h in steps)])
         Y = outputs_.along_rows(self.model, np.full(len(X), t), X, p, self.sched)
