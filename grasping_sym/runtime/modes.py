@@ -1582,7 +1582,7 @@ def _slip_across(entry: dict, record: dict, modes, slips) -> list:
     a, b = float(slips[j - 1][0]), float(slips[j - 1][1])
     c, s = math.cos(record["delta"]), math.sin(record["delta"])
     slips = list(slips)
-    slips[j - 1] = np.array([a * c + b * s, b * c - a * s])
+    slips[j - 1] = np.array([a * c + b * s, b * c - a * s, *slips[j - 1][2:]])  # (an onset's scale kept)
     return slips
 
 
