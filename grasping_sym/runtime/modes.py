@@ -311,7 +311,7 @@ class _Run:
         noise on it, until the output ``onset_left{j}`` reaches 0 (the witness ``onset``: no
         switch recorded). ``s`` is ``SLIP_NOISE`` times that noise (``_slip_noise``), at least
         ``SLIP_SPEED`` and, on a difference Jacobian, ``FD_ONSET`` times the slip's
-        change under its steps; the onset's slip witness is armed above it (``arming``).
+        change under its steps; the onset's slip witness is armed above that noise (``arming``).
         An explicit method keeps ``d`` alone (the former rules): the onset's stiffness bounds
         its step (dop853 at rtol 1e-10 stopped as stiff at each slide of paper3d's grasp,
         h = 1e-9 s)."""
@@ -340,9 +340,14 @@ class _Run:
 
     def arming(self, name: str, j: int) -> float:
         """The arming level of contact ``j``'s witness ``name`` (``_arming``; a slide's slip at
-        its onset: the onset's scale), as the last ``witnesses`` gave them."""
+        its onset: the slip velocity's noise there, ``s / SLIP_NOISE``), as the last
+        ``witnesses`` gave them. (Armed at ``s`` itself, a slide whose slip peaked below ``s``
+        was not seen to stop: it slid on, its slip reversed, to ``-s``; a belt's short slide at
+        the default tolerances stopped 1.1 ms late, with friction feeding the reversed slip.)"""
         base = _arming(name, self.s.atol)
-        return max(base, self.slip_levels[j]) if name == "slip" and j in self.slip_levels else base
+        if name == "slip" and j in self.slip_levels:
+            return max(base, self.slip_levels[j] / SLIP_NOISE)
+        return base
 
     def params(self, modes, slips=None) -> np.ndarray:
         """``p`` with each contact's mode and, where given, slip direction."""
@@ -1491,10 +1496,12 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
             name, j, terms = at_start
             h_next = 0.0  # a mode switch: the next segment chooses its first step
             t_ev, x_ev, value_ = t_now, x_now, value(terms, y_at)
-            recent = _chatter(model, recent, t_ev, x_ev)
+            if name != "onset":  # (an onset's end is no switch)
+                recent = _chatter(model, recent, t_ev, x_ev)
             before = list(modes)
             modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev)
-            _record(r, t_ev, j, name, value_, reset, before, modes)
+            if reset is not None:  # None: a slide re-aimed, or its onset ended: no switch
+                _record(r, t_ev, j, name, value_, reset, before, modes)
             continue
         # max_steps and time_limit bound the whole run, whatever its segments
         r.s = dataclasses.replace(s, max_steps=max(s.max_steps - r.stats["n_steps"], 1),
@@ -1543,12 +1550,13 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
             break
         t_ev, x_ev, name, j, value_ = found
         x_ev = leg.states(x_ev)
-        recent = _chatter(model, recent, t_ev, x_ev)
+        if name != "onset":
+            recent = _chatter(model, recent, t_ev, x_ev)
         before = list(modes)
         r.t = t_ev
         modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev, hit["armed"])
         r.stats["switch_time"] += perf_counter() - t_look
-        if reset is not None:  # None: a slide re-aimed, no switch
+        if reset is not None:  # None: a slide re-aimed, or its onset ended: no switch
             _record(r, t_ev, j, name, value_, reset, before, modes)
         t_now = t_ev
     res = _finish(r, s, start, rows_t, rows_x, rows_mode, rows_p)
