@@ -428,20 +428,24 @@ def test_a_slide_from_the_cone_edge_follows_the_exact_coulomb_slip(tumbler):
     assert np.linalg.norm(vt - vt_exact) < 2e-4 * np.linalg.norm(vt_exact)
 
 
-def test_a_short_slide_on_a_shaken_belt_stops_where_coulomb_says():
-    """A ball on a belt whose acceleration ``A sin(w t)`` peaks 1e-4 above the rolling limit
-    ``7/2 mu g`` (mu = 0.1): it rolls until ``sin(w t1) = 1/(1 + 1e-4)``, then slides (the
+@pytest.mark.parametrize("eps, loose", [(1e-4, 2e-6), (1e-5, 1e-5)])
+def test_a_short_slide_on_a_shaken_belt_stops_where_coulomb_says(eps, loose):
+    """A ball on a belt whose acceleration ``A sin(w t)`` peaks ``eps`` above the rolling limit
+    ``7/2 mu g`` (mu = 0.1): it rolls until ``sin(w t1) = 1/(1 + eps)``, then slides (the
     contact point accelerates at ``7/2 mu g`` against the belt's ``A sin(w t)``) and stops
-    where the slip ``A/w (cos w t1 - cos w t) - 7/2 mu g (t - t1)`` returns to 0, 4.2 ms
-    later, its slip never above 6.5e-7 m/s. At the default tolerances the slide's onset
-    (``derive.slip_onset``) is ~5e-6 m/s wide: armed there, its stop went unseen, the slip
-    reversed with friction along it (feeding it) for 2 ms; the old rule stopped the run with
-    EventLocationError. Both times are found within 2e-6 s (8e-7 measured), and within 1e-8 s
-    at rtol 1e-10 (1.8e-9 measured: the slip's slope at the stop is 1.1e-3 m/s^2, its noise
-    ~2e-11 m/s); friction never does work on the slip."""
+    where the slip ``A/w (cos w t1 - cos w t) - 7/2 mu g (t - t1)`` returns to 0: 4.2 ms
+    later, its slip never above 6.5e-7 m/s (eps 1e-4); 1.3 ms, 2e-8 m/s (1e-5). At the default
+    tolerances the slide's onset (``derive.slip_onset``) is ~5e-6 m/s wide and its slip
+    witness armed above ~5e-7: armed at the width, the first stop went unseen, the slip
+    reversed with friction along it (feeding it) for 2 ms; armed above 5e-7 the second's did
+    (1.25 ms late): such a stop is located where the witness last crossed 0
+    (``modes._last_zero``). The old rule stopped the first with EventLocationError. Both
+    times are found within ``loose`` s at the default tolerances (8e-7 and 5e-6 measured: the
+    slip's slope at the stop is 1.1e-3 and 2e-4 m/s^2) and within 1e-8 s at rtol 1e-10 (1.8e-9
+    measured); friction never does work on the slip."""
     from scipy.optimize import brentq
 
-    mu, g, w, eps = 0.1, 9.81, 10.0, 1e-4
+    mu, g, w = 0.1, 9.81, 10.0
     A = 3.5 * mu * g * (1 + eps)
     model = gs.build(gs.scenes.sphere_on_incline(R, M, 0.0, name="shaken", friction=gs.contact.coulomb(mu),
                                                  plane_motion=(0, f"{A}/{w}*t - {A}/{w**2}*sin({w}*t)", 0)))
@@ -449,7 +453,7 @@ def test_a_short_slide_on_a_shaken_belt_stops_where_coulomb_says():
     def slip(t):
         return A / w * (math.cos(w * t1) - math.cos(w * t)) - 3.5 * mu * g * (t - t1)
     t2 = brentq(slip, t1 + 1e-4, t1 + 0.1)
-    for tol, within in (({}, 2e-6), (TIGHT, 1e-8)):
+    for tol, within in (({}, loose), (TIGHT, 1e-8)):
         res = model.simulate(0.2, t_eval=np.linspace(0.0, 0.2, 2001), **tol)
         assert [(e["from"], e["to"]) for e in res.events] == [("rolling", "sliding"), ("sliding", "rolling")]
         assert abs(res.events[0]["t"] - t1) < within and abs(res.events[1]["t"] - t2) < within, (t1, t2)

@@ -343,7 +343,9 @@ class _Run:
         its onset: the slip velocity's noise there, ``s / SLIP_NOISE``), as the last
         ``witnesses`` gave them. (Armed at ``s`` itself, a slide whose slip peaked below ``s``
         was not seen to stop: it slid on, its slip reversed, to ``-s``; a belt's short slide at
-        the default tolerances stopped 1.1 ms late, with friction feeding the reversed slip.)"""
+        the default tolerances stopped 1.1-2 ms late, with friction feeding the reversed slip.
+        One that peaks below this level is stopped where its witness last crossed 0:
+        ``_last_zero``.)"""
         base = _arming(name, self.s.atol)
         if name == "slip" and j in self.slip_levels:
             return max(base, self.slip_levels[j] / SLIP_NOISE)
@@ -1517,6 +1519,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         t_look = perf_counter()
         at_edge = hit is not None and "atlas" in hit
         found = None if hit is None or at_edge else _locate(r, leg, pl, watched, hit)
+        if found is not None and found[2] == "slip" and not hit["armed"] and found[3] in r.slip_levels:
+            found = _last_zero(r, leg, pl, watched[hit["which"]], hit, found, t, X, (grid[0], leg.state(x_now)))
         keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
         if found is not None and found[0] > hit["t"]:  # output times between the dense output's
             late = t_eval[(t_eval >= hit["t"]) & (t_eval < found[0])]  # root and the event's
@@ -1834,6 +1838,36 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         lib.unwatch()
 
 
+def _last_zero(r: _Run, leg: _Leg, p: np.ndarray, witness, hit: dict, found, t, X, start):
+    """An onset's slip witness that fell below minus its level before it was armed (``found``:
+    located there): where its slip peaked above 0 but below the level, the slip stopped (or
+    turned past 90 degrees) where the witness last crossed 0, not at ``-level`` (there it came
+    late, friction feeding the reversed slip meanwhile: a slide of 1.3 ms on a shaken belt
+    stopped 1.25 ms late at the default tolerances). That crossing, located from the latest
+    state before it where the witness is > 0 (the step's start, a sample ``(t, X)`` of the
+    segment, the segment's ``start``); ``found`` where the witness was never > 0 (the slip's
+    noise went the other way first)."""
+    _, j, terms = witness
+    model = leg.model
+
+    def above(tk: float, xk) -> bool:
+        r.t = float(tk)
+        return value(terms, r.outputs(np.asarray(xk, dtype=float), p, model)) > 0
+
+    before = [(hit["t_step"], hit["x_step"])]
+    before += [(t[k], X[k]) for k in range(len(t) - 1, -1, -1) if t[k] < hit["t_step"]] + [start]
+    for tk, xk in before:
+        if tk < found[0] and above(tk, xk):
+            zero = events.locate(model, r.s, r.sched, p, float(tk), np.asarray(xk, dtype=float), found[0],
+                                 lambda y: value(terms, y))
+            if zero is None or not zero[0] < found[0]:
+                break
+            r.t = zero[0]
+            return zero[0], zero[1], "slip", j, float(value(terms, r.outputs(zero[1], p, model)))
+    r.t = found[0]
+    return found
+
+
 def _watched(r: _Run, lib) -> dict:
     """``lib.watch_result()``, its counts of the points watched and the steps' ends left
     unwatched added to ``r.stats``."""
@@ -2005,10 +2039,11 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
     if name == "slip":
         vt = r.slip_velocity(y, j)
         # the slip turned past 90 degrees (a 3D grasp's: REAIM_ANGLE) from its start's
-        # direction, it did not stop: faster
-        # than STOP_SPEED there, or it never went along that direction (c/watch.c's unarmed
-        # event: below -SLIP_SPEED before it was ever above SLIP_SPEED) and is clearly faster
-        # than that across it (2 SLIP_SPEED; in 2D it is a reversal: a stop)
+        # direction, it did not stop: faster than STOP_SPEED there, or it never went along
+        # that direction above the witness's arming level (c/watch.c's unarmed event: below
+        # minus that level first; at an onset located where it last crossed 0, _last_zero)
+        # and is clearly faster than that level across it (twice it; in 2D it is a
+        # reversal: a stop)
         if _norm(vt) > (STOP_SPEED if armed else 2 * r.arming(name, j)):
             slips[j - 1] = vt / _norm(vt)
             return modes, slips, x, None
