@@ -436,10 +436,10 @@ def test_a_short_slide_on_a_shaken_belt_stops_where_coulomb_says(eps, loose):
     where the slip ``A/w (cos w t1 - cos w t) - 7/2 mu g (t - t1)`` returns to 0: 4.2 ms
     later, its slip never above 6.5e-7 m/s (eps 1e-4); 1.3 ms, 2e-8 m/s (1e-5). At the default
     tolerances the slide's onset (``derive.slip_onset``) is ~5e-6 m/s wide and its slip
-    witness armed above ~5e-7: armed at the width, the first stop went unseen, the slip
-    reversed with friction along it (feeding it) for 2 ms; armed above 5e-7 the second's did
-    (1.25 ms late): such a stop is located where the witness last crossed 0
-    (``modes._last_zero``). The old rule stopped the first with EventLocationError. Both
+    witness armed above that: the stop went unseen, the slip reversed with friction along it
+    (feeding it) for 2 ms (1.25 ms armed at a tenth of it): such a stop is located where the
+    witness last crossed 0 (``modes._last_zero``). The old rule stopped the first with
+    EventLocationError. Both
     times are found within ``loose`` s at the default tolerances (8e-7 and 5e-6 measured: the
     slip's slope at the stop is 1.1e-3 and 2e-4 m/s^2) and within 1e-8 s at rtol 1e-10 (1.8e-9
     measured); friction never does work on the slip."""

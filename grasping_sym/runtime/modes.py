@@ -311,7 +311,7 @@ class _Run:
         noise on it, until the output ``onset_left{j}`` reaches 0 (the witness ``onset``: no
         switch recorded). ``s`` is ``SLIP_NOISE`` times that noise (``_slip_noise``), at least
         ``SLIP_SPEED`` and, on a difference Jacobian, ``FD_ONSET`` times the slip's
-        change under its steps; the onset's slip witness is armed above that noise (``arming``).
+        change under its steps; the onset's slip witness is armed above ``s`` (``arming``).
         An explicit method keeps ``d`` alone (the former rules): the onset's stiffness bounds
         its step (dop853 at rtol 1e-10 stopped as stiff at each slide of paper3d's grasp,
         h = 1e-9 s)."""
@@ -340,15 +340,15 @@ class _Run:
 
     def arming(self, name: str, j: int) -> float:
         """The arming level of contact ``j``'s witness ``name`` (``_arming``; a slide's slip at
-        its onset: the slip velocity's noise there, ``s / SLIP_NOISE``), as the last
-        ``witnesses`` gave them. (Armed at ``s`` itself, a slide whose slip peaked below ``s``
-        was not seen to stop: it slid on, its slip reversed, to ``-s``; a belt's short slide at
-        the default tolerances stopped 1.1-2 ms late, with friction feeding the reversed slip.
-        One that peaks below this level is stopped where its witness last crossed 0:
-        ``_last_zero``.)"""
+        its onset: the onset's width ``s``), as the last ``witnesses`` gave them. A slide whose
+        slip peaks below ``s`` stops where its witness last crossed 0 (``_last_zero``): armed
+        at ``s`` alone, a shaken belt's short slide stopped 1.1-2 ms late at the default
+        tolerances, friction feeding its reversed slip; armed at ``s/10`` (the noise estimate,
+        which the integration's error on the slip exceeds at an onset), paper3d's grasp took
+        eight spurious stops within 3 us of its slide's start at rtol 1e-8 (mu 0.04)."""
         base = _arming(name, self.s.atol)
         if name == "slip" and j in self.slip_levels:
-            return max(base, self.slip_levels[j] / SLIP_NOISE)
+            return max(base, self.slip_levels[j])
         return base
 
     def params(self, modes, slips=None) -> np.ndarray:
@@ -1842,25 +1842,29 @@ def _last_zero(r: _Run, leg: _Leg, p: np.ndarray, witness, hit: dict, found, t, 
     """An onset's slip witness that fell below minus its level before it was armed (``found``:
     located there): where its slip peaked above 0 but below the level, the slip stopped (or
     turned past 90 degrees) where the witness last crossed 0, not at ``-level`` (there it came
-    late, friction feeding the reversed slip meanwhile: a slide of 1.3 ms on a shaken belt
-    stopped 1.25 ms late at the default tolerances). That crossing, located from the latest
-    state before it where the witness is > 0 (the step's start, a sample ``(t, X)`` of the
-    segment, the segment's ``start``); ``found`` where the witness was never > 0 (the slip's
-    noise went the other way first)."""
+    late, friction feeding the reversed slip meanwhile: a shaken belt's slide peaking at
+    7e-7 m/s stopped 20 ms late at rtol 1e-4). That crossing, located from the latest state
+    after the segment's ``start`` (the slide's) and before it where the witness is > 0: the
+    step's start or a sample ``(t, X)`` of the segment. ``found`` where there is none: at the
+    slide's start itself ``v_t . slip`` is 0 but for its noise, and a zero found from there
+    stopped paper3d's grasp 1e-10 s into its slides, again and again (with the witness armed
+    lower than the onset's width, ``_Run.arming``)."""
     _, j, terms = witness
     model = leg.model
+    t0 = float(start[0])
 
     def above(tk: float, xk) -> bool:
         r.t = float(tk)
         return value(terms, r.outputs(np.asarray(xk, dtype=float), p, model)) > 0
 
-    before = [(hit["t_step"], hit["x_step"])]
-    before += [(t[k], X[k]) for k in range(len(t) - 1, -1, -1) if t[k] < hit["t_step"]] + [start]
-    for tk, xk in before:
-        if tk < found[0] and above(tk, xk):
-            zero = events.locate(model, r.s, r.sched, p, float(tk), np.asarray(xk, dtype=float), found[0],
+    before = [(float(tk), xk) for tk, xk in zip(t, X) if t0 < tk < found[0]]
+    if t0 < hit["t_step"] < found[0]:
+        before.append((float(hit["t_step"]), hit["x_step"]))
+    for tk, xk in sorted(before, key=lambda c: -c[0]):   # the latest first
+        if above(tk, xk):
+            zero = events.locate(model, r.s, r.sched, p, tk, np.asarray(xk, dtype=float), found[0],
                                  lambda y: value(terms, y))
-            if zero is None or not zero[0] < found[0]:
+            if zero is None or not tk < zero[0] < found[0]:
                 break
             r.t = zero[0]
             return zero[0], zero[1], "slip", j, float(value(terms, r.outputs(zero[1], p, model)))
