@@ -1838,6 +1838,12 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         lib.unwatch()
 
 
+#: Times of a slide's segment integrated again, among which ``_last_zero`` looks for the
+#: latest where the slip witness is > 0 (the run's output times may be few: with 14, a shaken
+#: belt's short slide stopped 3.5 ms late).
+LAST_ZERO_POINTS = 64
+
+
 def _last_zero(r: _Run, leg: _Leg, p: np.ndarray, witness, hit: dict, found, t, X, start):
     """An onset's slip witness that fell below minus its level before it was armed (``found``:
     located there): where its slip peaked above 0 but below the level, the slip stopped (or
@@ -1845,7 +1851,8 @@ def _last_zero(r: _Run, leg: _Leg, p: np.ndarray, witness, hit: dict, found, t, 
     late, friction feeding the reversed slip meanwhile: a shaken belt's slide peaking at
     7e-7 m/s stopped 20 ms late at rtol 1e-4). That crossing, located from the latest state
     after the segment's ``start`` (the slide's) and before it where the witness is > 0: the
-    step's start or a sample ``(t, X)`` of the segment. ``found`` where there is none: at the
+    step's start, a sample ``(t, X)`` of the segment, or one of ``LAST_ZERO_POINTS`` states of
+    the segment integrated again from its start. ``found`` where there is none: at the
     slide's start itself ``v_t . slip`` is 0 but for its noise, and a zero found from there
     stopped paper3d's grasp 1e-10 s into its slides, again and again (with the witness armed
     lower than the onset's width, ``_Run.arming``)."""
@@ -1860,6 +1867,14 @@ def _last_zero(r: _Run, leg: _Leg, p: np.ndarray, witness, hit: dict, found, t, 
     before = [(float(tk), xk) for tk, xk in zip(t, X) if t0 < tk < found[0]]
     if t0 < hit["t_step"] < found[0]:
         before.append((float(hit["t_step"]), hit["x_step"]))
+    if r.sched is None:  # the segment again, at LAST_ZERO_POINTS times: its output times may be few
+        grid = np.linspace(t0, found[0], LAST_ZERO_POINTS + 1)
+        try:
+            tg, Xg, _ = integrators.c_loop(model, r.s.method, np.asarray(start[1], dtype=float), grid, p,
+                                           rtol=r.s.rtol, atol=r.s.atol, max_steps=r.s.max_steps, h=r.s.h)
+            before += [(float(tk), xk) for tk, xk in zip(tg, Xg) if t0 < tk < found[0]]
+        except IntegratorError:
+            pass
     for tk, xk in sorted(before, key=lambda c: -c[0]):   # the latest first
         if above(tk, xk):
             zero = events.locate(model, r.s, r.sched, p, tk, np.asarray(xk, dtype=float), found[0],
