@@ -123,6 +123,12 @@ def test_a_slide_from_the_noise_of_a_loose_run_is_the_tight_runs(model, mu):
         assert [(e["contact"], e["from"], e["to"]) for e in other.events] == \
             [(e["contact"], e["from"], e["to"]) for e in tight.events] and len(tight.events) == 7
         assert max(abs(a["t"] - b["t"]) for a, b in zip(other.events, tight.events)) < dt
+    # friction takes energy from every slip (the force on the system is -A^T lam: its power
+    # on the slip -(lam vt_x + eta vt_y)), the onset's too
+    for j in (1, 2):
+        sliding = loose.modes[:, j - 1] == "sliding"
+        assert sliding.sum() > 10
+        assert (loose[f"lam{j}"] * loose[f"vt_x{j}"] + loose[f"eta{j}"] * loose[f"vt_y{j}"])[sliding].min() >= 0
 
 def test_a_batch_runs_its_runs_side_by_side_as_one_by_one(model, monkeypatch):
     """``simulate_many`` of a model with modes runs each run by ``simulate``'s code, on its

@@ -298,7 +298,7 @@ class _Run:
         return name if self.k == 1 else f"{name}{j}"
 
     def slip_keys(self, j: int) -> tuple[str, ...]:
-        """The outputs of contact ``j``'s slip velocity, whose slide from the cone's edge has an
+        """The outputs of contact ``j``'s slip velocity, whose slide from rest of the slip has an
         onset (``onset_slip``); none: a contact in a plane (its slip's direction is a sign)."""
         return ()
 
@@ -2051,7 +2051,7 @@ def _switch(r: _Run, modes, slips, name: str, j: int, t: float, x: np.ndarray, a
         modes[j - 1], slips[j - 1] = SLIDING, r.onset_slip(r.slip_direction(x, y, j, modes=modes, slips=slips),
                                                           t, x, p, j)
         return modes, slips, x, 0.0
-    if name == "onset":  # a slide's onset at the cone's edge is over: on along the same slip
+    if name == "onset":  # a slide's onset is over: on along the same slip, Coulomb's direction
         slips[j - 1] = np.asarray(slips[j - 1], dtype=float)[:len(r.slip_keys(j))]
         return modes, slips, x, None
     y = r.with_mode(x, modes, slips, j, ROLLING)
