@@ -17,8 +17,8 @@ effective mass (``1/m I - R [S]x H^-1 [S]x R^T``, from CasADi's Jacobian of the 
 - sliding (mode 1): ``F = f (n - mu d)``, ``d = v_t / |v_t|`` while ``v_t . slip > 0``, else
   the parameter ``slip`` (a slide from rest of the slip; past its stop, the continuation whose
   ``v_t . slip`` crosses 0), ``f`` from the normal row; its coefficient
-  ``n . K (n - mu d)`` (``painleve``) must stay > 0. At the onset of a slide at the cone's
-  edge (the parameter ``slip_onset = s > 0``), ``d`` is the onset's instead
+  ``n . K (n - mu d)`` (``painleve``) must stay > 0. At the onset of a slide from rest of
+  the slip in a radau run (the parameter ``slip_onset = s > 0``), ``d`` is the onset's instead
   (``derive.slip_onset``); the run sets ``s`` back to 0 where the output ``onset_left``
   reaches 0;
 - separated (mode 2): ``F = 0``.
@@ -114,7 +114,7 @@ def derive_body_plane(scene) -> dict:
     # parameter's: the slide's continuation along it, where the stop's witness v_t . slip
     # crosses 0 with the slope it had (what locating the stop integrates)
     d = ca.if_else(ca.dot(v_t, slip) > 0, v_t / ca.fmax(speed, SLIP_ZERO), slip)
-    # at a slide's onset at the cone's edge, a direction continuous in v_t (derive.slip_onset)
+    # at a slide's onset from rest of the slip, a direction continuous in v_t (derive.slip_onset)
     d = slip_onset.direction(v_t, slip, onset, d)
     dirn = n - mu * d
     painleve = ca.dot(n, K @ dirn)

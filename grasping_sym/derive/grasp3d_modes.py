@@ -13,7 +13,7 @@ contact coordinates held: the fingertip's material point relative to the object'
 - rolling: the contact's three rows, ``C'' + 2 g C' + g^2 C = 0``, Montana's rolling rates;
 - sliding: the normal row only; ``(lam_x, lam_y) = mu f d``, ``d = v_t/|v_t|`` once
   ``v_t . slip >= SLIP_FULL``, ``slip`` below ``SLIP_START``, blended between; at a slide's
-  onset at the cone's edge (``slip_onset{i} > 0``), the onset's (``derive.slip_onset``); the contact
+  onset from rest of the slip (``slip_onset{i} > 0``), the onset's (``derive.slip_onset``); the contact
   coordinates move so that the two points stay on a common normal: ``G = (Qb, Qe, x_f . n_o, y_f . n_o) = 0`` held by
   ``G_alpha alpha' = -G_z z' - TRACK_GAIN G`` (``alpha = (u_f, v_f, u_o, v_o)``) and ``psi``
   following the frames' angle;

@@ -1,9 +1,10 @@
-"""The onset of a slide at the cone's edge (``docs/conventions.md`` section 7), as CasADi SX:
-the sliding direction of a contact whose slip starts from the integration's noise.
+"""The onset of a slide from rest of the slip (``docs/conventions.md`` section 7), as CasADi
+SX: the sliding direction of a contact whose slip starts from the integration's noise.
 
-Where the rolling force reaches the cone's edge a slide starts with the slip velocity ``v_t``
-at the integration's noise, at any angle, and its speed grows as the square of the time
-(the slip's acceleration along the rolling force's direction is 0 there). Coulomb's direction
+A slide from rest (at the cone's edge, at a run's start, after a stop) starts with the slip
+velocity ``v_t`` at the integration's noise, at any angle; where the rolling force reaches
+the cone's edge its speed grows as the square of the time (the slip's acceleration along the
+rolling force's direction is 0 there). Coulomb's direction
 ``v_t/|v_t|`` of that noise jumps from step to step by up to 90 degrees, and a direction held
 at ``slip`` until the slip is faster than the noise leaves the slip to grow against ``slip``
 where the contact's inverse effective mass is anisotropic (a 3D grasp's fingers chattered).
