@@ -185,7 +185,12 @@ def rolling_only() -> dict:
                       "modes_s": best["modes"], "alone_s": best["alone"], "rolling_s": best["rolling"],
                       "ratio": best["modes"] / best["rolling"], "alone_ratio": best["alone"] / best["rolling"],
                       # the base's states (2D: u0 against the shared s)
-                      "max_state_difference": float(np.max(np.abs(still.x[:, :n] - reference.x)))}
+                      "max_state_difference": float(np.max(np.abs(still.x[:, :n] - reference.x))),
+                      "sx_instructions": {k: model.manifest["op_counts"].get(k) for k in (
+                          "rhs_sx_instructions", "rhs_folded_sx_instructions", "outputs_sx_instructions",
+                          "outputs_folded_sx_instructions")},
+                      "rolling_sx_instructions": {k: rolling.manifest["op_counts"].get(k) for k in (
+                          "rhs_sx_instructions", "rhs_jets_sx_instructions", "outputs_sx_instructions")}}
     return out
 
 
@@ -235,12 +240,13 @@ def main() -> dict:
               "8 times what its rate and the change of its rate take off it (at most 16 steps' ends in "
               "a row, kept: one that fires is looked for among them; `c/watch.c`). A scene with planes "
               "of the world has none (the rolling model "
-              "has no gap to them to watch): the model with modes runs it. The baseline is the rolling "
+              "has no gap to them to watch): the model with modes runs it, its compiled rhs taking the "
+              "branch with every finger rolling and every plane apart folded in (`{name}_rhs_folded`). "
+              "The baseline is the rolling "
               "model checking the same cone at its output times (today's run). The outputs at the output "
-              "times are the model with modes' own; where every contact rolls, with every mode rolling "
-              "folded in (`outputs_rolling`: 10 445 SX instructions in 3D against the general 18 013 and "
-              "the rolling model's 7 438; in 2D the general 2 432 against 959); the rows with no outputs "
-              "show the run without them.", "",
+              "times are the model with modes' own; in those modes, by the outputs with them "
+              "folded in (`outputs_folded`); the rows with no outputs "
+              "show the run without them. The SX instructions are below the table.", "",
               "| run | mu | switches | stretches run by the rolling model | points watched / steps | "
               "with modes (ms) | the model with modes alone (ms) | rolling model (ms) | ratio | ratio alone "
               "| max state difference |",
@@ -251,6 +257,16 @@ def main() -> dict:
                      f"{w['watched']} / {w['steps']} | {1e3 * w['modes_s']:.2f} | {1e3 * w['alone_s']:.2f} | "
                      f"{1e3 * w['rolling_s']:.2f} | "
                      f"{w['ratio']:.2f} | {w['alone_ratio']:.2f} | {diff} |")
+    lines += ["", "| scene | rhs: general / folded | outputs: general / folded | rolling model: rhs + jets / outputs |",
+              "|---|---|---|---|"]
+    for k, w in out["rolling_only"].items():
+        if "," in k:
+            continue
+        c, o = w["sx_instructions"], w["rolling_sx_instructions"]
+        lines.append(f"| {k} | {c['rhs_sx_instructions']} / {c['rhs_folded_sx_instructions'] or '-'} | "
+                     f"{c['outputs_sx_instructions']} / {c['outputs_folded_sx_instructions'] or '-'} | "
+                     f"{o['rhs_sx_instructions']} + {o['rhs_jets_sx_instructions'] or 0} / "
+                     f"{o['outputs_sx_instructions']} |")
     lines.append("")
     (RESULTS / "friction.md").write_text("\n".join(lines))
     print("\n".join(lines))

@@ -243,10 +243,10 @@ def test_a_free_pinch_with_modes_slips_and_lets_go_as_the_3d_model_does():
     assert worst <= 1e-10, worst           # measured 6e-13; the object falls 2 cm
     assert r2["y"][0] - r2["y"][-1] > 0.01
     # the rows where both contacts roll: from the 3D outputs with every mode rolling folded in
-    # (the manifest's outputs_rolling, 58 % of the general function's instructions), the
+    # (the manifest's outputs_folded, 58 % of the general function's instructions), the
     # general function's numbers bit for bit
     rolling = (r3.modes == "rolling").all(axis=1)
-    assert m3.manifest["outputs_rolling"] and rolling.sum() >= 5
+    assert m3.manifest["outputs_folded"] and m3.manifest["folded_modes"] == [0, 0] and rolling.sum() >= 5
     p = modes._RUNS["grasp3d_modes"](m3, None, (0.14, 0.14), 0.0).params([modes.ROLLING] * 2)
     general = outputs_.by_name(m3, outputs_.along_rows(m3, r3.t[rolling], r3.x[rolling], p, None), shown=True)
     assert general and all(np.array_equal(general[k], r3[k][rolling]) for k in general)

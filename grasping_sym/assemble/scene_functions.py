@@ -228,10 +228,72 @@ def modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     cm = sx_model(d["x"], d["p"], d["xdot"], {k: d["outputs"][k] for k in scene.outputs if k not in internal},
                   scene.name, jacobian=False, t=d["t"], outputs_time=d["reads_time"],
                   internal={k: d["outputs"][k] for k in scene.outputs if k in internal})
-    rolling = _rolling_outputs(cm, [i for i, k in enumerate(scene.p_names) if re.fullmatch(r"mode\d*", k)])
+    modes = [i for i, k in enumerate(scene.p_names) if re.fullmatch(r"mode\d*", k)]
+    folded = dict(zip(modes, scene.folded_modes(), strict=True))
+    rolling = _folded_outputs(cm, folded)
     if rolling is not None:
         cm.helpers = (*cm.helpers, rolling)
+    if scene.rolling_map() is None:  # no rolling model runs those stretches: the rhs's branch
+        _fold_rhs(cm, folded)
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
+
+
+#: A folded outputs function is made where it has at most this share of the general one's
+#: instructions (the 3D grasp's with every contact rolling: 58 %; paper2d's one contact: 95 %,
+#: not made).
+FOLDED_OUTPUTS_SHARE = 0.75
+
+
+def _folded_outputs(cm, values: dict[int, int]):
+    """``{name}_outputs_folded``: the outputs with the parameters ``p[i] = values[i]`` (the
+    contacts' modes of ``folded_modes``: every finger rolling, every surface of the world
+    apart) in place, the other modes' branches folded away by CasADi, the same arguments and
+    numbers; for the rows of the stretches in those modes (``runtime.modes``). None where it
+    would save little (``FOLDED_OUTPUTS_SHARE``) or there are no outputs."""
+    f = cm.outputs
+    if f is None or not values:
+        return None
+    x, p = ca.SX.sym("x", f.numel_in(0)), ca.SX.sym("p", f.numel_in(1))
+    fixed = ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(f.numel_in(1))])
+    (y,) = f.call([x, fixed])
+    folded = ca.Function(f.name() + "_folded", [x, p], [y], ["x", "p"], ["y"], FUNCTION_OPTIONS)
+    if folded.n_instructions() > FOLDED_OUTPUTS_SHARE * f.n_instructions():
+        return None
+    cm.op_counts["outputs_folded_sx_instructions"] = folded.n_instructions()
+    return folded
+
+
+#: The rhs takes a branch with the contacts' modes folded in where it has at most this share
+#: of the general rhs's instructions (the 3D grasp over a table's: 51 %).
+FOLDED_RHS_SHARE = 0.75
+
+
+def _fold_rhs(cm, values: dict[int, int]) -> None:
+    """Make ``cm``'s rhs choose, in the C, between the general rhs (``{name}_rhs_any``) and
+    one with the parameters ``p[i] = values[i]`` (the modes of ``folded_modes``) in place,
+    the other modes' branches folded away by CasADi (``{name}_rhs_folded``), by the mode
+    parameters it is called with: the same numbers, at about the cost of a model without
+    modes in the stretches a rolling model would run. Left alone where the fold saves little
+    (``FOLDED_RHS_SHARE``)."""
+    f = cm.rhs
+    name = f.name()
+    ins = f.sx_in()
+    p = ins[3]
+    fixed = ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(p.numel())])
+    general = ca.Function(f"{name}_any", ins, f.call(ins), ca.dyn_in(), ca.dyn_out(), FUNCTION_OPTIONS)
+    folded = ca.Function(f"{name}_folded", ins, f.call([*ins[:3], fixed, *ins[4:]]), ca.dyn_in(), ca.dyn_out(),
+                         FUNCTION_OPTIONS)
+    if folded.n_instructions() > FOLDED_RHS_SHARE * general.n_instructions():
+        return
+    chosen = ca.Function.conditional(f"{name}_branch", [folded], general)
+    mx = [ca.MX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
+    at_fold = ca.MX(1)
+    for i, v in values.items():
+        at_fold = ca.logic_and(at_fold, mx[3][i] == v)
+    out = chosen.call([ca.if_else(at_fold, 0, 1), *mx])
+    cm.rhs = ca.Function(name, mx, out, ca.dyn_in(), ca.dyn_out())
+    cm.helpers = (general, folded, *cm.helpers)
+    cm.op_counts["rhs_folded_sx_instructions"] = folded.n_instructions()
 
 
 #: A rolling-only outputs function is made where it has at most this share of the general

@@ -35,28 +35,34 @@ def partition(functions: list, n: int = C_FILES, extra: dict | None = None) -> l
     """``functions`` in at most ``n`` groups of about equal instruction counts (largest first
     into the lightest group; ``extra``: instructions added to a function's, by name, for code
     written beside it), each group in the functions' own order; the rhs's group first. A
-    function that calls another of them (the guarded rhs calls the rhs) goes into its group:
-    elsewhere CasADi would write the callee's whole body again beside it."""
+    function and those of them it calls (the guarded rhs calls the rhs; a folded rhs calls its
+    two branches) go into one group, weighed together: elsewhere CasADi would write a callee's
+    whole body again beside its caller, and the copy's libm calls would stay ungrouped."""
     extra = extra or {}
     names = {f.name() for f in functions}
+    unit = {f.name(): f.name() for f in functions}   # union-find over the calls among them
 
-    def weight(f):
-        return f.n_instructions() + extra.get(f.name(), 0)
+    def root(k: str) -> str:
+        while unit[k] != k:
+            k = unit[k]
+        return k
 
-    def callee(f):
-        return next((g for g in f.get_function() if g in names and g != f.name()), None)
+    def calls(f) -> set[str]:  # the listed functions f calls, directly or through others
+        return {g.name() for g in f.find_functions()} & names
 
-    groups: list[list] = [[] for _ in range(min(n, len(functions)))]
-    load = [0] * len(groups)
-    for f in sorted((f for f in functions if callee(f) is None), key=lambda f: -weight(f)):
-        k = load.index(min(load))
-        groups[k].append(f)
-        load[k] += weight(f)
     for f in functions:
-        if callee(f) is not None:
-            k = next((i for i, g in enumerate(groups) if any(h.name() == callee(f) for h in g)), 0)
-            groups[k].append(f)
-            load[k] += weight(f)
+        for g in calls(f) - {f.name()}:
+            unit[root(g)] = root(f.name())
+    units: dict[str, list] = {}
+    for f in functions:
+        units.setdefault(root(f.name()), []).append(f)
+    groups: list[list] = [[] for _ in range(min(n, len(units)))]
+    load = [0] * len(groups)
+    weight = {k: sum(f.n_instructions() + extra.get(f.name(), 0) for f in fs) for k, fs in units.items()}
+    for k in sorted(units, key=lambda k: -weight[k]):
+        i = load.index(min(load))
+        groups[i] += units[k]
+        load[i] += weight[k]
     order = {f.name(): i for i, f in enumerate(functions)}
     groups = [sorted(g, key=lambda f: order[f.name()]) for g in groups if g]
     return sorted(groups, key=lambda g: min(order[f.name()] for f in g))

@@ -228,7 +228,7 @@ class GraspModesScene(WithModes):
         """The kind, that ``simulate`` runs the modes (``runtime.modes``), where the speeds are,
         how the base's rolling model runs the stretches where every contact rolls."""
         return {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
-                "rolling_map": self.rolling_map(),
+                "rolling_map": self.rolling_map(), "folded_modes": list(self.folded_modes()),
                 "grasp_modes": {"speeds": [self.speeds_offset, self.n_speeds], "fingers": self.n_fingers,
                                 "driven": [self.n_fingers + m for m, w in enumerate(self.planes, start=1)
                                            if w.motion is not None or w.spin is not None]},

@@ -276,7 +276,7 @@ class PlanarModesScene(WithModes):
         how the base's rolling model runs the stretches where every contact rolls
         (``rolling_map``)."""
         extra = {"kind": self.kind, "modes": list(MODES), "n_contacts": self.n_contacts,
-                 "rolling_map": self.rolling_map(),
+                 "rolling_map": self.rolling_map(), "folded_modes": list(self.folded_modes()),
                  "param_rules": {m: "nonnegative" for m in self.runtime if m.startswith("mu")}}
         if self.numbered:
             extra["planar_fingers"] = {

@@ -1,6 +1,7 @@
 """What a scene with contact modes takes from the scene it wraps (``model.planar_modes``,
 ``model.grasp3d_modes``): its name, controller, friction law and gravity; and how the wrapped
-scene's rolling model runs the stretches where every contact rolls (``rolling_map``)."""
+scene's rolling model runs the stretches where every contact rolls (``rolling_map``), or,
+which modes its compiled functions have a branch of their own for (``folded_modes``)."""
 from __future__ import annotations
 
 from typing import ClassVar
@@ -39,3 +40,10 @@ class WithModes:
         if base != own:
             return None
         return {"to": list(range(len(own))), "from": list(range(len(own)))}
+
+    def folded_modes(self) -> tuple[int, ...]:
+        """The contacts' modes (the numbers of ``mode{i}``) that the compiled outputs, and
+        where no rolling model runs them (``rolling_map``) the rhs, have a branch of their own
+        for, with those modes folded in (``assemble.scene_functions.modes_functions``): every
+        finger rolling, every surface of the world apart."""
+        return (0,) * self.n_fingers + (2,) * (self.n_contacts - self.n_fingers)

@@ -161,6 +161,8 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     t0 = time.perf_counter()
     if fns.lanes is not None:
         lane_c, lanes_status = fns.lanes
+    elif not cm.rhs.is_a("SXFunction"):
+        lane_c, lanes_status = None, "not made: the rhs chooses between branches of its modes (folded_modes)"
     elif cm.rhs.n_instructions() <= LANES_MAX_INSTRUCTIONS:
         lane_c, lanes_status = lanes.rhs_lanes(cm.rhs)
     else:
@@ -203,9 +205,10 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
         "op_counts": ops,
         **({"structure": fns.structure} if fns.structure else {}),
         **({"rhs_guarded": guarded[0].name()} if guarded else {}),
-        # the outputs with every contact rolling, for the rows of rolling stretches (runtime.modes)
-        **({"outputs_rolling": f"{scene.name}_outputs_rolling"}
-           if any(f.name() == f"{scene.name}_outputs_rolling" for f in cm.helpers) else {}),
+        # a model with modes: the outputs in its folded modes (the manifest's folded_modes), for
+        # the rows of the stretches in those modes (runtime.modes)
+        **({"outputs_folded": f"{scene.name}_outputs_folded"}
+           if any(f.name() == f"{scene.name}_outputs_folded" for f in cm.helpers) else {}),
         # outputs only a switch reads, in a function of their own (``Model.internal``)
         **({"internal_outputs": {"function": f"{scene.name}_internal", "names": list(cm.internal_names)}}
            if cm.internal_names else {}),

@@ -1716,17 +1716,19 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
 
 
 def _segment_outputs(r: _Run, t, X, p, modes) -> np.ndarray:
-    """The outputs at a segment's rows (``outputs_.along_rows``); where every contact rolls, no
-    inputs vary and the outputs do not read the time, by the outputs with every mode rolling
-    folded in (the manifest's ``outputs_rolling``: the same numbers, the other modes'
-    branches left out)."""
+    """The outputs at a segment's rows (``outputs_.along_rows``; ``modes``: the contacts' modes
+    at each row, one segment's); where the contacts are in the
+    modes the outputs have a branch for (the manifest's ``folded_modes``: every finger rolling,
+    every surface of the world apart), no inputs vary and the outputs do not read the time, by
+    that branch (``outputs_folded``: the same numbers, the other modes' branches left out)."""
     model = r.model
-    symbol = model.manifest.get("outputs_rolling")
-    if symbol is None or r.sched is not None or model.manifest.get("outputs_time") or (modes != ROLLING).any():
+    symbol = model.manifest.get("outputs_folded")
+    if symbol is None or r.sched is not None or model.manifest.get("outputs_time") \
+            or (np.asarray(modes) != model.manifest["folded_modes"]).any():
         return outputs_.along_rows(model, t, X, p, r.sched)
-    fn = model.run_cache.get("outputs_rolling")
+    fn = model.run_cache.get("outputs_folded")
     if fn is None:
-        fn = model.run_cache["outputs_rolling"] = model.library.rows(symbol)
+        fn = model.run_cache["outputs_folded"] = model.library.rows(symbol)
     return fn(X, complete(model, p))
 
 

@@ -126,9 +126,14 @@ def manifest_problems(m: object) -> list[str]:
     if guard is not None and not (isinstance(guard, str) and _IDENT.match(guard)
                                   and guard in m.get("c_symbols", [])):
         out.append("rhs_guarded must name one of the model's C symbols")
-    rolling = m.get("outputs_rolling")
-    if rolling is not None and not (isinstance(rolling, str) and rolling in m.get("c_symbols", [])):
-        out.append("outputs_rolling must name one of the model's C symbols")
+    folded = m.get("outputs_folded")
+    if folded is not None and not (isinstance(folded, str) and folded in m.get("c_symbols", [])):
+        out.append("outputs_folded must name one of the model's C symbols")
+    modes = m.get("folded_modes")
+    if modes is not None and not (isinstance(modes, list) and all(v in (0, 1, 2) for v in modes)):
+        out.append("folded_modes must be a list of contact modes (0 rolling, 1 sliding, 2 separated)")
+    if folded is not None and modes is None:
+        out.append("outputs_folded needs folded_modes (the modes it folds in)")
     internal = m.get("internal_outputs")
     if internal is not None and not (
             isinstance(internal, dict) and set(internal) == {"function", "names"}
