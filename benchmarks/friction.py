@@ -186,9 +186,9 @@ def rolling_only() -> dict:
                       "ratio": best["modes"] / best["rolling"], "alone_ratio": best["alone"] / best["rolling"],
                       # the base's states (2D: u0 against the shared s)
                       "max_state_difference": float(np.max(np.abs(still.x[:, :n] - reference.x))),
-                      "sx_instructions": {k: model.manifest["op_counts"].get(k) for k in (
-                          "rhs_sx_instructions", "rhs_folded_sx_instructions", "outputs_sx_instructions",
-                          "outputs_folded_sx_instructions")},
+                      "sx_instructions": {k: v for k, v in model.manifest["op_counts"].items() if k in (
+                          "rhs_sx_instructions", "outputs_sx_instructions", "outputs_folded_sx_instructions")
+                          or k.startswith("rhs_modes_")},
                       "rolling_sx_instructions": {k: rolling.manifest["op_counts"].get(k) for k in (
                           "rhs_sx_instructions", "rhs_jets_sx_instructions", "outputs_sx_instructions")}}
     return out
@@ -241,7 +241,7 @@ def main() -> dict:
               "a row, kept: one that fires is looked for among them; `c/watch.c`). A scene with planes "
               "of the world has none (the rolling model "
               "has no gap to them to watch): the model with modes runs it, its compiled rhs taking the "
-              "branch with every finger rolling and every plane apart folded in (`{name}_rhs_folded`). "
+              "branch with every finger rolling and every plane apart folded in (`{name}_rhs_modes_002`). "
               "The baseline is the rolling "
               "model checking the same cone at its output times (today's run). The outputs at the output "
               "times are the model with modes' own; in those modes, by the outputs with them "
@@ -257,14 +257,16 @@ def main() -> dict:
                      f"{w['watched']} / {w['steps']} | {1e3 * w['modes_s']:.2f} | {1e3 * w['alone_s']:.2f} | "
                      f"{1e3 * w['rolling_s']:.2f} | "
                      f"{w['ratio']:.2f} | {w['alone_ratio']:.2f} | {diff} |")
-    lines += ["", "| scene | rhs: general / folded | outputs: general / folded | rolling model: rhs + jets / outputs |",
-              "|---|---|---|---|"]
+    lines += ["", "| scene | rhs: general / its branches by modes | outputs: general / folded | "
+              "rolling model: rhs + jets / outputs |", "|---|---|---|---|"]
     for k, w in out["rolling_only"].items():
         if "," in k:
             continue
         c, o = w["sx_instructions"], w["rolling_sx_instructions"]
-        lines.append(f"| {k} | {c['rhs_sx_instructions']} / {c['rhs_folded_sx_instructions'] or '-'} | "
-                     f"{c['outputs_sx_instructions']} / {c['outputs_folded_sx_instructions'] or '-'} | "
+        branches = ", ".join(f"{n[len('rhs_modes_'):-len('_sx_instructions')]}: {v}" for n, v in c.items()
+                             if n.startswith("rhs_modes_")) or "-"
+        lines.append(f"| {k} | {c['rhs_sx_instructions']} / {branches} | "
+                     f"{c['outputs_sx_instructions']} / {c.get('outputs_folded_sx_instructions', '-')} | "
                      f"{o['rhs_sx_instructions']} + {o['rhs_jets_sx_instructions'] or 0} / "
                      f"{o['outputs_sx_instructions']} |")
     lines.append("")

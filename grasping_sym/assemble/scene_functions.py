@@ -233,8 +233,9 @@ def modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     rolling = _folded_outputs(cm, folded)
     if rolling is not None:
         cm.helpers = (*cm.helpers, rolling)
-    if scene.rolling_map() is None:  # no rolling model runs those stretches: the rhs's branch
-        _fold_rhs(cm, folded)
+    branches = [dict(zip(modes, b, strict=True)) for b in scene.rhs_branches()]
+    if branches:
+        _fold_rhs(cm, branches)
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
 
 
@@ -263,57 +264,42 @@ def _folded_outputs(cm, values: dict[int, int]):
     return folded
 
 
-#: The rhs takes a branch with the contacts' modes folded in where it has at most this share
-#: of the general rhs's instructions (the 3D grasp over a table's: 51 %).
+#: The rhs takes a branch with some contacts' modes folded in where it has at most this share
+#: of the general rhs's instructions (the 3D grasp over a table's every finger rolling and the
+#: table apart: 51 %; paper2d's finger: rolling 57 %, sliding 64 %, apart 19 %).
 FOLDED_RHS_SHARE = 0.75
 
 
-def _fold_rhs(cm, values: dict[int, int]) -> None:
-    """Make ``cm``'s rhs choose, in the C, between the general rhs (``{name}_rhs_any``) and
-    one with the parameters ``p[i] = values[i]`` (the modes of ``folded_modes``) in place,
-    the other modes' branches folded away by CasADi (``{name}_rhs_folded``), by the mode
-    parameters it is called with: the same numbers, at about the cost of a model without
-    modes in the stretches a rolling model would run. Left alone where the fold saves little
-    (``FOLDED_RHS_SHARE``)."""
+def _fold_rhs(cm, branches: list[dict[int, int]]) -> None:
+    """Make ``cm``'s rhs choose, in the C, between the general rhs (``{name}_rhs_any``) and, for
+    each of ``branches`` (the parameters ``p[i] = b[i]``: the contacts' modes of
+    ``rhs_branches``), one with those values in place, the other modes' branches folded away
+    by CasADi (``{name}_rhs_modes_{m1}{m2}...``), by the mode parameters it is called with (a
+    CasADi ``Switch``): the same numbers, each mode's stretches at about the cost of that mode
+    alone. A branch that saves little (``FOLDED_RHS_SHARE``) is left out."""
     f = cm.rhs
     name = f.name()
     ins = f.sx_in()
     p = ins[3]
-    fixed = ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(p.numel())])
     general = ca.Function(f"{name}_any", ins, f.call(ins), ca.dyn_in(), ca.dyn_out(), FUNCTION_OPTIONS)
-    folded = ca.Function(f"{name}_folded", ins, f.call([*ins[:3], fixed, *ins[4:]]), ca.dyn_in(), ca.dyn_out(),
-                         FUNCTION_OPTIONS)
-    if folded.n_instructions() > FOLDED_RHS_SHARE * general.n_instructions():
+    made = []
+    for values in branches:
+        fixed = ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(p.numel())])
+        tag = "".join(str(values[i]) for i in sorted(values))
+        folded = ca.Function(f"{name}_modes_{tag}", ins, f.call([*ins[:3], fixed, *ins[4:]]), ca.dyn_in(),
+                             ca.dyn_out(), FUNCTION_OPTIONS)
+        if folded.n_instructions() <= FOLDED_RHS_SHARE * general.n_instructions():
+            made.append((values, folded))
+            cm.op_counts[f"rhs_modes_{tag}_sx_instructions"] = folded.n_instructions()
+    if not made:
         return
-    chosen = ca.Function.conditional(f"{name}_branch", [folded], general)
+    chosen = ca.Function.conditional(f"{name}_branch", [g for _, g in made], general)
     mx = [ca.MX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
-    at_fold = ca.MX(1)
-    for i, v in values.items():
-        at_fold = ca.logic_and(at_fold, mx[3][i] == v)
-    out = chosen.call([ca.if_else(at_fold, 0, 1), *mx])
-    cm.rhs = ca.Function(name, mx, out, ca.dyn_in(), ca.dyn_out())
-    cm.helpers = (general, folded, *cm.helpers)
-    cm.op_counts["rhs_folded_sx_instructions"] = folded.n_instructions()
-
-
-#: A rolling-only outputs function is made where it has at most this share of the general
-#: one's instructions (the 3D grasp's: 58 %; paper2d's one contact: 95 %, not made).
-ROLLING_OUTPUTS_SHARE = 0.75
-
-
-def _rolling_outputs(cm, modes: list[int]):
-    """``{name}_outputs_rolling``: the outputs with every contact's mode 0 (rolling) in place
-    of its parameter, the other modes' branches folded away by CasADi, the same arguments and
-    numbers; for the rows of stretches where every contact rolls (``runtime.modes``). None
-    where it would save little (``ROLLING_OUTPUTS_SHARE``) or there are no outputs."""
-    f = cm.outputs
-    if f is None or not modes:
-        return None
-    x, p = ca.SX.sym("x", f.numel_in(0)), ca.SX.sym("p", f.numel_in(1))
-    fixed = ca.vertcat(*[ca.SX(0) if i in modes else p[i] for i in range(f.numel_in(1))])
-    (y,) = f.call([x, fixed])
-    rolling = ca.Function(f.name() + "_rolling", [x, p], [y], ["x", "p"], ["y"], FUNCTION_OPTIONS)
-    if rolling.n_instructions() > ROLLING_OUTPUTS_SHARE * f.n_instructions():
-        return None
-    cm.op_counts["outputs_rolling_sx_instructions"] = rolling.n_instructions()
-    return rolling
+    index = ca.MX(len(made))                 # the general rhs unless a branch's modes are given
+    for k in reversed(range(len(made))):
+        at = ca.MX(1)
+        for i, v in made[k][0].items():
+            at = ca.logic_and(at, mx[3][i] == v)
+        index = ca.if_else(at, k, index)
+    cm.rhs = ca.Function(name, mx, chosen.call([index, *mx]), ca.dyn_in(), ca.dyn_out())
+    cm.helpers = (general, *(g for _, g in made), *cm.helpers)

@@ -42,8 +42,18 @@ class WithModes:
         return {"to": list(range(len(own))), "from": list(range(len(own)))}
 
     def folded_modes(self) -> tuple[int, ...]:
-        """The contacts' modes (the numbers of ``mode{i}``) that the compiled outputs, and
-        where no rolling model runs them (``rolling_map``) the rhs, have a branch of their own
-        for, with those modes folded in (``assemble.scene_functions.modes_functions``): every
-        finger rolling, every surface of the world apart."""
+        """The contacts' modes (the numbers of ``mode{i}``) that the compiled outputs have a
+        branch of their own for, with those modes folded in
+        (``assemble.scene_functions.modes_functions``): every finger rolling, every surface of
+        the world apart."""
         return (0,) * self.n_fingers + (2,) * (self.n_contacts - self.n_fingers)
+
+    def rhs_branches(self) -> tuple[tuple[int, ...], ...]:
+        """The contacts' modes that the compiled rhs has a branch of its own for, each with its
+        modes folded in (``assemble.scene_functions.modes_functions``): with one contact, each
+        of its three modes (a rolling model, where there is one, runs its rolling stretches
+        only while the state is one of its own: paper2d's after a slip is not); with more,
+        where no rolling model runs them (``rolling_map``), ``folded_modes``; else none."""
+        if self.n_contacts == 1:
+            return ((0,), (1,), (2,))
+        return (self.folded_modes(),) if self.rolling_map() is None else ()
