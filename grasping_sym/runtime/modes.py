@@ -242,6 +242,8 @@ class _Run:
         self.sched, self.t = None, 0.0
         #: contact -> its slide's onset's scale, of the contacts at their onset (``witnesses``)
         self.slip_levels: dict[int, float] = {}
+        #: the event being made was located on the dense output only (``_locate_one``)
+        self.on_dense_output = False
         self.own_leg = static["own"]
         legs, rolling = static["rolling"], getattr(model, "rolling", None)
         if self.mus not in legs or legs[self.mus][0] is not rolling:  # its witnesses read mu
@@ -1929,6 +1931,7 @@ def _locate(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     (``events.refine``); ``x`` is ``leg``'s state. Where several witnesses fired in a step
     whose end was left unwatched (``c/watch.c``: their order is the secants' guess), any that
     is already below 0 at the located event crossed first: it is located in turn."""
+    r.on_dense_output = False
     found = _locate_one(r, leg, p, watched, hit)
     for _ in range(len(watched) if hit.get("fired", 0) > 1 else 0):
         tc, xc = found[0], found[1]
@@ -1978,10 +1981,18 @@ def _locate_one(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
             return found[0], found[1], name, j, found[2] + level
         found = events.refine(model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess, slope, w)
     if found is None:
-        raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"the {name} witness of contact {j} changes "
-                                 f"sign between {t_lo:.9g} and {hit['t_hi']:.9g} s on the integration's dense "
-                                 "output, but integrating again does not find where: give tighter "
-                                 "tolerances", r.model.state_names)
+        # integrating again does not reproduce the sign change (a witness at the tolerances'
+        # noise there): the dense output's root, the run's own solution to its tolerances
+        t_d, x_d = float(hit["t"]), np.asarray(hit["x"], dtype=float)
+        if not (t_lo <= t_d <= hit["t_hi"] and np.isfinite(x_d).all()):
+            raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"the {name} witness of contact {j} "
+                                     f"changes sign between {t_lo:.9g} and {hit['t_hi']:.9g} s on the "
+                                     "integration's dense output, but integrating again does not find "
+                                     "where, nor is the dense output's root within it: give tighter "
+                                     "tolerances", r.model.state_names)
+        r.t = t_d
+        r.on_dense_output = True
+        return t_d, x_d, name, j, float(value(terms, r.outputs(x_d, p, model)))
     tc, xc = float(found[0]), found[1]
     r.t = tc
     return tc, xc, name, j, float(value(terms, r.outputs(xc, p, model)))
@@ -2030,7 +2041,9 @@ def _record(r: _Run, t: float, j: int, name: str, value_: float, reset, before, 
     the switch's impulse changed (witness ``"impulse"``: let go, or sliding or held through
     it, ``_GraspRun.impact``)."""
     r.events.append({"t": t, "contact": j, "from": NAMES[before[j - 1]], "to": NAMES[modes[j - 1]],
-                     "witness": name, "value": value_, "reset": reset})
+                     "witness": name, "value": value_, "reset": reset,
+                     **({"located": "dense output"} if r.on_dense_output else {})})
+    r.on_dense_output = False
     for c in r.contacts:
         if c != j and modes[c - 1] != before[c - 1]:
             r.events.append({"t": t, "contact": c, "from": NAMES[before[c - 1]], "to": NAMES[modes[c - 1]],
