@@ -230,7 +230,8 @@ def modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
                   internal={k: d["outputs"][k] for k in scene.outputs if k in internal})
     modes = [i for i, k in enumerate(scene.p_names) if re.fullmatch(r"mode\d*", k)]
     folded = dict(zip(modes, scene.folded_modes(), strict=True))
-    rolling = _folded_outputs(cm, folded)
+    # (outputs that read the time take no folded function: runtime.modes would not call it)
+    rolling = None if d["reads_time"] else _folded_outputs(cm, folded)
     if rolling is not None:
         cm.helpers = (*cm.helpers, rolling)
     branches = [dict(zip(modes, b, strict=True)) for b in scene.rhs_branches()]

@@ -130,8 +130,10 @@ def manifest_problems(m: object) -> list[str]:
     if folded is not None and not (isinstance(folded, str) and folded in m.get("c_symbols", [])):
         out.append("outputs_folded must name one of the model's C symbols")
     modes = m.get("folded_modes")
-    if modes is not None and not (isinstance(modes, list) and all(v in (0, 1, 2) for v in modes)):
-        out.append("folded_modes must be a list of contact modes (0 rolling, 1 sliding, 2 separated)")
+    if modes is not None and not (isinstance(modes, list) and len(modes) == m.get("n_contacts")
+                                  and all(type(v) is int and v in (0, 1, 2) for v in modes)):
+        out.append("folded_modes must list each contact's mode (n_contacts integers: 0 rolling, 1 sliding, "
+                   "2 separated)")
     if folded is not None and modes is None:
         out.append("outputs_folded needs folded_modes (the modes it folds in)")
     internal = m.get("internal_outputs")
