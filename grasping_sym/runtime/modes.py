@@ -242,8 +242,6 @@ class _Run:
         self.sched, self.t = None, 0.0
         #: contact -> its slide's onset's scale, of the contacts at their onset (``witnesses``)
         self.slip_levels: dict[int, float] = {}
-        #: the event being made was located on the dense output only (``_locate_one``)
-        self.on_dense_output = False
         self.own_leg = static["own"]
         legs, rolling = static["rolling"], getattr(model, "rolling", None)
         if self.mus not in legs or legs[self.mus][0] is not rolling:  # its witnesses read mu
@@ -1554,7 +1552,8 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
             continue
         if found is None:
             break
-        t_ev, x_ev, name, j, value_ = found
+        t_ev, x_ev, name, j, value_ = found[:5]
+        located = found[5] if len(found) > 5 else None  # (only _locate_one's own: a later pick is not)
         x_ev = leg.states(x_ev)
         if name != "onset":
             recent = _chatter(model, recent, t_ev, x_ev)
@@ -1563,7 +1562,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         modes, slips, x_now, reset = _switch(r, modes, slips, name, j, t_ev, x_ev, hit["armed"])
         r.stats["switch_time"] += perf_counter() - t_look
         if reset is not None:  # None: a slide re-aimed, or its onset ended: no switch
-            _record(r, t_ev, j, name, value_, reset, before, modes)
+            _record(r, t_ev, j, name, value_, reset, before, modes, located)
         t_now = t_ev
     res = _finish(r, s, start, rows_t, rows_x, rows_mode, rows_p)
     if short is not None and rolls is not None and r.sched is None and not r.events:
@@ -1931,7 +1930,6 @@ def _locate(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
     (``events.refine``); ``x`` is ``leg``'s state. Where several witnesses fired in a step
     whose end was left unwatched (``c/watch.c``: their order is the secants' guess), any that
     is already below 0 at the located event crossed first: it is located in turn."""
-    r.on_dense_output = False
     found = _locate_one(r, leg, p, watched, hit)
     for _ in range(len(watched) if hit.get("fired", 0) > 1 else 0):
         tc, xc = found[0], found[1]
@@ -1981,18 +1979,17 @@ def _locate_one(r: _Run, leg: _Leg, p: np.ndarray, watched, hit: dict):
             return found[0], found[1], name, j, found[2] + level
         found = events.refine(model, r.s, r.sched, p, t_step, x_step, t_lo, hit["t_hi"], t_guess, slope, w)
     if found is None:
-        # integrating again does not reproduce the sign change (a witness at the tolerances'
-        # noise there): the dense output's root, the run's own solution to its tolerances
         t_d, x_d = float(hit["t"]), np.asarray(hit["x"], dtype=float)
-        if not (t_lo <= t_d <= hit["t_hi"] and np.isfinite(x_d).all()):
-            raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"the {name} witness of contact {j} "
-                                     f"changes sign between {t_lo:.9g} and {hit['t_hi']:.9g} s on the "
-                                     "integration's dense output, but integrating again does not find "
-                                     "where, nor is the dense output's root within it: give tighter "
-                                     "tolerances", r.model.state_names)
-        r.t = t_d
-        r.on_dense_output = True
-        return t_d, x_d, name, j, float(value(terms, r.outputs(x_d, p, model)))
+        if name == "slip" and not hit.get("fired", 0) and t_lo < t_d <= hit["t_hi"] and np.isfinite(x_d).all():
+            # a slip that stops within the tolerances' noise (integrating again does not
+            # reproduce its sign change): the dense output's root (on a watched step: the
+            # loop's own solution to its tolerances), and the event says so (its sixth entry)
+            r.t = t_d
+            return t_d, x_d, name, j, float(value(terms, r.outputs(x_d, p, model))), "dense output"
+        raise EventLocationError(hit["t_hi"], leg.states(hit["x"]), f"the {name} witness of contact {j} changes "
+                                 f"sign between {t_lo:.9g} and {hit['t_hi']:.9g} s on the integration's dense "
+                                 "output, but integrating again does not find where: give tighter "
+                                 "tolerances", r.model.state_names)
     tc, xc = float(found[0]), found[1]
     r.t = tc
     return tc, xc, name, j, float(value(terms, r.outputs(xc, p, model)))
@@ -2036,14 +2033,13 @@ def _start(r: _Run, x0: np.ndarray) -> tuple[np.ndarray, list[int], list, dict |
     return x0, modes, slips, y if not hits and all(m == ROLLING for m in modes) else None
 
 
-def _record(r: _Run, t: float, j: int, name: str, value_: float, reset, before, modes) -> None:
+def _record(r: _Run, t: float, j: int, name: str, value_: float, reset, before, modes,
+            located: str | None = None) -> None:
     """The switch of contact ``j`` at ``t`` in ``r.events``, then each other contact's that
     the switch's impulse changed (witness ``"impulse"``: let go, or sliding or held through
     it, ``_GraspRun.impact``)."""
     r.events.append({"t": t, "contact": j, "from": NAMES[before[j - 1]], "to": NAMES[modes[j - 1]],
-                     "witness": name, "value": value_, "reset": reset,
-                     **({"located": "dense output"} if r.on_dense_output else {})})
-    r.on_dense_output = False
+                     "witness": name, "value": value_, "reset": reset, **({"located": located} if located else {})})
     for c in r.contacts:
         if c != j and modes[c - 1] != before[c - 1]:
             r.events.append({"t": t, "contact": c, "from": NAMES[before[c - 1]], "to": NAMES[modes[c - 1]],

@@ -51,7 +51,8 @@ class SimulationResult:
         A model with contact modes (``runtime.modes``): every switch, in time order, a dict
         with ``t``, ``contact``, ``from``, ``to``, ``witness`` (what crossed zero), ``value``
         (its value at the located time) and ``reset`` (the largest speed change the switch
-        made, m/s); empty otherwise.
+        made, m/s), and ``located`` (``"dense output"``) on a slip's stop that integrating
+        again could not locate (``docs/conventions.md`` section 7); empty otherwise.
     modes
         With contact modes: the contact's mode at each output time (``"rolling"``,
         ``"sliding"``, ``"separated"``), else None.
