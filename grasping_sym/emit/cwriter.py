@@ -35,8 +35,8 @@ def partition(functions: list, n: int = C_FILES, extra: dict | None = None) -> l
     """``functions`` in at most ``n`` groups of about equal instruction counts (largest first
     into the lightest group; ``extra``: instructions added to a function's, by name, for code
     written beside it), each group in the functions' own order; the rhs's group first. A
-    function and those of them it calls (the guarded rhs calls the rhs; a folded rhs calls its
-    two branches) go into one group, weighed together: elsewhere CasADi would write a callee's
+    function and those of them it calls (the guarded rhs calls the rhs; a rhs with branches by
+    contact modes calls them) go into one group, weighed together: elsewhere CasADi would write a callee's
     whole body again beside its caller, and the copy's libm calls would stay ungrouped."""
     extra = extra or {}
     names = {f.name() for f in functions}

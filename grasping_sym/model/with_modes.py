@@ -1,7 +1,8 @@
 """What a scene with contact modes takes from the scene it wraps (``model.planar_modes``,
 ``model.grasp3d_modes``): its name, controller, friction law and gravity; and how the wrapped
-scene's rolling model runs the stretches where every contact rolls (``rolling_map``), or,
-which modes its compiled functions have a branch of their own for (``folded_modes``)."""
+scene's rolling model runs the stretches where every contact rolls (``rolling_map``); and
+which modes its compiled functions have branches of their own for (``folded_modes``,
+``rhs_branches``)."""
 from __future__ import annotations
 
 from typing import ClassVar
