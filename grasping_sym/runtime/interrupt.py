@@ -69,12 +69,17 @@ def run_scope(fn):
     (:func:`in_run`, ``c_loops.stoppable``). A loop's start leaves the flag (``c/stop.c``): a
     Ctrl-C that came between two loops of a run of many (modes, charts, an inputs table's
     knots) while Python ran, under a handler of the user's that raises nothing, or while
-    another thread's run was between its loops, was cleared by the next loop's start and lost."""
+    another thread's run was between its loops, was cleared by the next loop's start and lost.
+    The outermost run also puts the owner's handler in front of SIGINT at its start
+    (:func:`ensure`), as every loop's start does: under a handler of the user's set before the
+    call, a Ctrl-C during the run's work before its first loop (a long inputs table's checks)
+    reached that handler alone, set no flag, and the run went on to its end."""
     @functools.wraps(fn)
     def run(*args, **kwargs):
         depth = getattr(_member, "depth", 0)
         if not depth:
             _FLAG.value = 0
+            ensure()
         _member.depth = depth + 1
         try:
             return fn(*args, **kwargs)
