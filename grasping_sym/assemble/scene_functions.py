@@ -240,6 +240,11 @@ def modes_functions(scene, progress: Progress | None = None) -> SceneFunctions:
     return SceneFunctions(cm, {"derive": t1 - t0, "casadi": time.perf_counter() - t1})
 
 
+def _set(p: ca.SX, values: dict[int, int]) -> ca.SX:
+    """The parameters ``p`` with ``p[i] = values[i]`` (numbers) in place of their symbols."""
+    return ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(p.numel())])
+
+
 #: A folded outputs function is made where it has at most this share of the general one's
 #: instructions (the 3D grasp's with every contact rolling: 58 %; paper2d's one contact: 95 %,
 #: not made).
@@ -256,8 +261,7 @@ def _folded_outputs(cm, values: dict[int, int]):
     if f is None or not values:
         return None
     x, p = ca.SX.sym("x", f.numel_in(0)), ca.SX.sym("p", f.numel_in(1))
-    fixed = ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(f.numel_in(1))])
-    (y,) = f.call([x, fixed])
+    (y,) = f.call([x, _set(p, values)])
     folded = ca.Function(f.name() + "_folded", [x, p], [y], ["x", "p"], ["y"], FUNCTION_OPTIONS)
     if folded.n_instructions() > FOLDED_OUTPUTS_SHARE * f.n_instructions():
         return None
@@ -285,10 +289,9 @@ def _fold_rhs(cm, branches: list[dict[int, int]]) -> None:
     general = ca.Function(f"{name}_any", ins, f.call(ins), ca.dyn_in(), ca.dyn_out(), FUNCTION_OPTIONS)
     made = []
     for values in branches:
-        fixed = ca.vertcat(*[ca.SX(values[i]) if i in values else p[i] for i in range(p.numel())])
         tag = "".join(str(values[i]) for i in sorted(values))
-        folded = ca.Function(f"{name}_modes_{tag}", ins, f.call([*ins[:3], fixed, *ins[4:]]), ca.dyn_in(),
-                             ca.dyn_out(), FUNCTION_OPTIONS)
+        folded = ca.Function(f"{name}_modes_{tag}", ins, f.call([*ins[:3], _set(p, values), *ins[4:]]),
+                             ca.dyn_in(), ca.dyn_out(), FUNCTION_OPTIONS)
         if folded.n_instructions() <= FOLDED_RHS_SHARE * general.n_instructions():
             made.append((values, folded))
             cm.op_counts[f"rhs_modes_{tag}_sx_instructions"] = folded.n_instructions()

@@ -162,7 +162,7 @@ def generate(scene, directory: Path, *, count_ops: bool = True,
     if fns.lanes is not None:
         lane_c, lanes_status = fns.lanes
     elif not cm.rhs.is_a("SXFunction"):
-        lane_c, lanes_status = None, "not made: the rhs chooses between branches of its modes (folded_modes)"
+        lane_c, lanes_status = None, "not made: the rhs is not one piece of SX (a choice of branches by mode)"
     elif cm.rhs.n_instructions() <= LANES_MAX_INSTRUCTIONS:
         lane_c, lanes_status = lanes.rhs_lanes(cm.rhs)
     else:
