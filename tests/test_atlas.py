@@ -97,10 +97,11 @@ def test_an_atlas_takes_no_domain_of_its_own():
 R, M, OMEGA, RC = 0.05, 0.1, 10.0, 0.1
 
 
-def _lap_scene():
+def _lap_scene(pole_on_path: bool = True, surface=None, name: str = "lap_atlas"):
     """A ball rolling without spin (relative to the table) round a circle of radius ``RC``
     about a turntable's axis (MODELS.md section 3, in the table's frame); its chart's pole on
-    the contact's path, which the contact therefore crosses every lap.
+    the contact's path, which the contact therefore crosses every lap (else on the circle's
+    axis ``a``: the contact stays at one latitude of ``surface``, by default the atlas).
 
     Closed form: the centre turns about the axis at 2 Omega / 7, ``c = Rz(2 Omega t / 7) c0``;
     the ball at ``R(t) = Rz(2 Omega t / 7) Rot(a, beta phi) R0`` with ``phi = 5 Omega t / 7``
@@ -111,18 +112,19 @@ def _lap_scene():
     s = 0.5                      # the pole w: w . a = -R / |(RC, R)| (on the contact's circle)
     wx = -R * (1 + s) / RC
     w = np.array([wx, math.sqrt(1 - wx**2 - s**2), s])
-    xb = np.cross([0.0, 1.0, 0.0], w)
+    w = w if pole_on_path else a
+    xb = np.cross([0.0, 1.0, 0.0] if abs(w[1]) < 0.9 else [1.0, 0.0, 0.0], w)
     xb /= np.linalg.norm(xb)
     R0 = np.column_stack([xb, np.cross(w, xb), w])
     c0 = np.array([RC, 0.0, R])
     v0 = 2 / 7 * OMEGA * np.cross([0.0, 0.0, 1.0], c0)
     om = np.array([5 * OMEGA * RC / (7 * R), 0.0, OMEGA])    # no spin relative to the table
     d = R0.T @ [0.0, 0.0, -1.0]
-    surface = sl.sphere(R, atlas=True)
+    surface = sl.sphere(R, atlas=True) if surface is None else surface
     scene = gs.scenes.body_on_plane(surface, mass=M, inertia=(0.4 * M * R * R,) * 3, plane_spin=OMEGA,
                                     position=tuple(c0), rotation=R0, velocity=tuple(v0),
                                     omega=tuple(R0.T @ om), support=(math.atan2(d[1], d[0]), math.asin(d[2])),
-                                    name="lap_atlas")
+                                    name=name)
     return scene, a, R0, c0
 
 
@@ -165,6 +167,34 @@ def test_a_ball_rolls_lap_after_lap_over_its_charts_poles(lap_model):
     # the contact went over the pole of chart 0: the rows in chart 1 reach it
     d = body.atlas.second.evaluate(res["u"][res.charts["chart"] == 1], res["v"][res.charts["chart"] == 1])["point"] / R
     assert np.abs(d[:, 2]).max() > math.cos(0.05)
+
+
+@pytest.mark.parametrize("method", ["radau", "dop853"])
+def test_a_longitudes_wraps_are_made_in_the_loop(method):
+    """The lap ball with its pole on the circle's axis: the contact stays at one latitude and
+    its longitude runs on, a turn every 0.39 s. Each time it reaches +-3 pi the C loop wraps it
+    a turn back at the step (``c/wrap.c``) and goes on: one loop for the whole run, the same
+    steps as on one chart whose longitude never ends (+-100 rad), and the same rows to 1e-11
+    (the longitude's modulo 2 pi). Each wrap is recorded as a switch within chart 0, at a
+    step's start, a turn back: ``remainder(u, 2 pi)``."""
+    steady = gs.build(_lap_scene(False, name="lap_steady")[0])
+    once = gs.build(_lap_scene(False, sl.sphere(R, lon=(-100.0, 100.0)), name="lap_one_chart")[0])
+    kw = dict(t_eval=np.linspace(0.0, 2.0, 101), rtol=1e-10, atol=1e-12, method=method, outputs=False)
+    res, ref = steady.simulate(2.0, **kw), once.simulate(2.0, **kw)
+    assert res.stats["segments"] == 1 and res.stats["n_steps"] == ref.stats["n_steps"]
+    iu = res.state_names.index("u")
+    gap = res.x - ref.x
+    gap[:, iu] = np.remainder(gap[:, iu] + math.pi, 2 * math.pi) - math.pi
+    assert np.abs(gap).max() < 1e-11 and np.abs(res.x[:, iu]).max() < 3 * math.pi
+    assert np.abs(ref.x[:, iu]).max() > 10 * math.pi      # (the one chart's ran on)
+    # from (-pi, pi], a wrap at 3 pi, 5 pi, ... of the one chart's longitude (it runs one way)
+    assert len(res.chart_switches) == int((np.abs(ref.x[:, iu]).max() - math.pi) // (2 * math.pi)) == 4
+    assert not res.events
+    for rec in res.chart_switches:
+        assert (rec["chart"], rec["from"], rec["to"], rec["delta"]) == ("chart", 0, 0, 0.0)
+        assert 3 * math.pi - 0.2 < abs(rec["u"][0]) < 3 * math.pi
+        assert rec["u"][1] == pytest.approx(math.remainder(rec["u"][0], 2 * math.pi), abs=1e-15)
+        assert rec["v"][0] == rec["v"][1] and 0.0 < rec["t"] < 2.0
 
 
 # --------------------------------------------------------------- a grasp across charts

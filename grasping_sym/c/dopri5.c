@@ -240,7 +240,11 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
       dense[4][i] = h * (gs_dp_d[0] * k1[i] + gs_dp_d[2] * k3[i] + gs_dp_d[3] * k4[i] +
                          gs_dp_d[4] * k5[i] + gs_dp_d[5] * k6[i] + gs_dp_d[6] * k7[i]);
     }
-    if ((rc = gs_check(y1, lo, hi))) goto fail;
+    if ((rc = gs_check(y1, lo, hi))) {
+      double* base[1] = {dense[0]};
+      if (rc != GS_ERR_BOUNDS || !gs_wrap_step(t, y, y1, p, lo, hi, base, 1)) goto fail;
+      rc = 0; /* a contact's coordinate a period round (wrap.c): dense[1..4] are differences */
+    }
     {
       int changed = 0;
       GS_PROJECT_STEP(y1, &changed);

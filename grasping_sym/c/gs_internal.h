@@ -15,6 +15,7 @@
  *   dopri5.c   adaptive Dormand-Prince 5(4): gs_dopri5
  *   dop853.c   adaptive Dormand-Prince 8(5,3): gs_dop853
  *   stop.c     Ctrl-C and the wall-time limit
+ *   wrap.c     a contact's coordinates wrapped a period round at a step (gs_wrap_*)
  *   watch.c    witnesses watched along a run, its stop at their events (gs_watch_*)
  *   batch.c    many runs over a pool of threads: gs_batch
  *
@@ -183,6 +184,12 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
     if ((lo && x[i] < lo[i]) || (hi && x[i] > hi[i])) return GS_ERR_BOUNDS;
   return 0;
 }
+
+/* wrap.c: a step's end outside [lo, hi] at a contact's coordinates that wrap a period round
+ * (gs_wrap_set): the step's start y (at t), its end y_end and also[0..n_also-1] moved by whole
+ * periods, 1 returned; else 0, nothing changed. */
+GS_HIDDEN int gs_wrap_step(double t, double* y, double* y_end, const double* p, const double* lo,
+                           const double* hi, double** also, int n_also);
 
 /* max |v[i]| over m entries; +inf when an entry is not finite. */
 static inline double gs_max_abs(const double* v, int m) {

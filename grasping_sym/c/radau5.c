@@ -462,7 +462,10 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
     st[0] += 1;
     {
       const double tnew = (h == t_end - t) ? t_end : t + h;
-      if ((rc = gs_check(ynew, lo, hi))) goto fail;
+      if ((rc = gs_check(ynew, lo, hi))) {
+        if (rc != GS_ERR_BOUNDS || !gs_wrap_step(t, y, ynew, p, lo, hi, NULL, 0)) goto fail;
+        rc = 0; /* a contact's coordinate a period round (wrap.c): Z, Q are differences */
+      }
       GS_PROJECT_STEP(ynew, NULL); /* the dense output below is the unprojected step's */
       if ((rc = gs_eval_rhs(wk, &tnew, ynew, p, fnew))) goto fail;
       st[2] += 1;

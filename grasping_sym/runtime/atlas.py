@@ -16,6 +16,8 @@ A longitude past +-3 pi is the same point 2 pi round: the chart stays and ``u`` 
 surface whose one chart repeats (a torus, a surface of revolution: ``kind`` ``periodic``, no
 chart parameter) wraps each repeating coordinate so, a whole period toward its domain's middle.
 Nothing is located: any point of the charts' overlap serves, and the step's end is one.
+Those wraps are made inside the C loops at the step (``c/wrap.c``, with ``wrap_slots``; the
+loop goes on, and ``wrapped`` makes their records); a change of chart stops the loop.
 """
 from __future__ import annotations
 
@@ -102,6 +104,16 @@ def transition(entry: dict, chart: int, u: float, v: float) -> tuple[int, float,
     return other, u1, v1, math.atan2(_dot(x_new, y_old), _dot(x_new, x_old))
 
 
+def _wrap_slot(entry: dict, i_chart: int | None, cols) -> list[float]:
+    """A slot's row of ``c/wrap.c``'s table: u's and v's columns; 0 for a repeating chart, its
+    periods (0: none) and middles; 1 for an atlas's longitude (a turn, about 0), its chart
+    parameter's index."""
+    if entry["kind"] == "periodic":
+        (pu, pv), (cu, cv) = entry["periods"], entry["centers"]
+        return [cols[0], cols[1], 0, pu or 0.0, pv or 0.0, cu, cv, -1]
+    return [cols[0], cols[1], 1, TURN, 0.0, 0.0, 0.0, i_chart]
+
+
 def repeated(switches: list[dict], record: dict) -> bool:
     """Whether ``record`` carries the same coordinates at the same time as the last of
     ``switches``: a state carried across and straight back out, which no chart's edge makes
@@ -127,6 +139,19 @@ class Atlases:
         # repeating coordinates only (a revolved open contour's end is its surface's end)
         self.columns = {c: k for k, (entry, _, cols) in enumerate(self.slots) for j, c in enumerate(cols[:2])
                         if entry["kind"] != "periodic" or entry["periods"][j] is not None}
+        #: the slots as the C loops wrap them (``c/wrap.c``: ``transition``'s wraps there, at the step)
+        self.wrap_slots = np.array([_wrap_slot(entry, i, cols) for entry, i, cols in self.slots], dtype=float)
+
+    def wrapped(self, raw, p) -> list[dict]:
+        """The records of the C loops' wraps (``raw``: ``CompiledLibrary.wrapping``'s rows), as
+        :meth:`switch`'s: a wrap keeps its chart (``p``'s) and its frame."""
+        out = []
+        for t, k, u0, v0, u1, v1 in raw:
+            entry, i_chart, _ = self.slots[int(k)]
+            chart = 0 if i_chart is None else int(round(float(p[i_chart])))
+            out.append({"t": t, "chart": entry["param"], "coordinates": (entry["u"], entry["v"]),
+                        "from": chart, "to": chart, "u": (u0, u1), "v": (v0, v1), "delta": 0.0})
+        return out
 
     def slot_of(self, err) -> int | None:
         """The atlas slot whose coordinates left their chart in ``err`` (a

@@ -23,6 +23,7 @@ the expected shape) and every call returns a fresh array owned by the caller.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import math
 import threading
@@ -37,6 +38,10 @@ import numpy as np
 from grasping_sym.errors import IntegratorError
 from grasping_sym.runtime import c_loops, interrupt
 from grasping_sym.runtime.c_loops import NSTIFF, as_vector
+
+#: The wraps one loop records (``CompiledLibrary.wrapping``): past them it stops at the bound,
+#: where ``runtime.atlas`` wraps the coordinates as it does the charts' changes.
+WRAP_CAPACITY = 256
 
 __all__ = ["NSTIFF", "CompiledLibrary"]
 
@@ -162,6 +167,11 @@ class CompiledLibrary:
         if hasattr(lib, "gs_stop_bind"):  # Ctrl-C stops the C loops: one owner (c/stop.c)
             interrupt.bind(lib)
         self.can_watch = hasattr(lib, "gs_watch_witnesses")  # (libraries of older versions lack it)
+        self.can_wrap = hasattr(lib, "gs_wrap_set")  # (c/wrap.c; libraries of older versions lack it)
+        if self.can_wrap:
+            lib.gs_wrap_set.argtypes = [_long, _dp, _dp, _long]
+            lib.gs_wrap_set.restype = ctypes.c_int
+            lib.gs_wrap_count.restype = _long
         #: ``watch``'s arguments to the C call, per its arguments (a run's segments repeat them)
         self._watched: dict = {}
         if hasattr(lib, "gs_rows"):  # a helper function at many rows (``rows``)
@@ -690,6 +700,26 @@ class CompiledLibrary:
         """The next run continues the last watched one (a piece of a table of inputs): its
         witnesses keep what they were armed by."""
         self._lib.gs_watch_resume()
+
+    @contextlib.contextmanager
+    def wrapping(self, slots: np.ndarray | None, into: list):
+        """Around this thread's radau5 / dopri5 / dop853 loops: a contact's coordinates that
+        reach their bound are wrapped a period round at the step, in the loop (``c/wrap.c``;
+        ``slots``: ``runtime.atlas.Atlases.wrap_slots``, None: nothing is wrapped); on exit,
+        whatever the loops raised, each wrap's ``(t, slot, u, v, u', v')`` is appended to
+        ``into``. A library of an older version wraps nothing (its loops stop at the bound)."""
+        if slots is None or not self.can_wrap:
+            yield
+            return
+        slots = np.ascontiguousarray(slots, dtype=float)
+        records = np.empty((WRAP_CAPACITY, 6))
+        if self._lib.gs_wrap_set(len(slots), slots.ctypes.data, records.ctypes.data, WRAP_CAPACITY):
+            raise ValueError(f"gs_wrap_set refused the slots {slots.tolist()!r:.300}")
+        try:
+            yield
+        finally:
+            into.extend(records[:int(self._lib.gs_wrap_count())].tolist())
+            self._lib.gs_wrap_set(0, None, None, 0)
 
     def unwatch(self) -> None:
         """Stop watching (:meth:`watch`)."""

@@ -1514,6 +1514,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         watched = r.witnesses(modes, slips) if own else leg.watched
         pl = p if own else leg.model.default_params
         t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched, h_next)
+        r.chart_switches += r.atlases.wrapped(st["wraps"], p) if st["wraps"] else []
         h_next = 0.0
         _count(r, st, own)
         t_look = perf_counter()
@@ -1709,7 +1710,7 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
         raise  # Ctrl-C (under a handler of the user's): the call's, not a reason to go the full way
     except GraspingSymError:
         return None
-    if hit is not None or len(tt) != len(t):
+    if hit is not None or len(tt) != len(t) or st["wraps"]:  # (a wrap: the full way records it)
         plan[3].pop(at, None)  # it switches from there: the next such call goes the full way at once
         return None
     _count(r, st, own)
@@ -1788,6 +1789,11 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         pieces = [(float(grid[0]), float(grid[-1]), None, None)] if r.sched is None else \
             r.sched.segments(float(grid[0]), float(grid[-1]))
         rows_t, rows_x, stats = [], [], {}
+        # the coordinates the C loops wrap at the step (c/wrap.c): the model with modes' own
+        wraps: list = []
+        stats["wraps"] = wraps
+        wrap_slots = None if r.atlases is None or leg.back is not None or s.method == "rk4" else \
+            r.atlases.wrap_slots
         deadline = None if s.time_limit is None else perf_counter() + s.time_limit  # the pieces' in all
         for k, (a0, a1, a, b) in enumerate(pieces):
             g = grid if r.sched is None else np.concatenate([[a0], grid[(grid > a0) & (grid < a1)], [a1]])
@@ -1804,11 +1810,12 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
             if k:  # past a knot: the witnesses stay armed as they were
                 lib.watch_resume()
             try:
-                t, X, st = integrators.c_loop(
-                    model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
-                    max_steps=max(s.max_steps - stats.get("n_steps", 0), 1), h=s.h,
-                    time_limit=None if deadline is None else max(deadline - perf_counter(), 1e-9),
-                    h0=h0 if k == 0 else 0.0)
+                with lib.wrapping(wrap_slots, wraps):
+                    t, X, st = integrators.c_loop(
+                        model, s.method, x, g, pk, rtol=s.rtol, atol=s.atol,
+                        max_steps=max(s.max_steps - stats.get("n_steps", 0), 1), h=s.h,
+                        time_limit=None if deadline is None else max(deadline - perf_counter(), 1e-9),
+                        h0=h0 if k == 0 else 0.0)
             except IntegratorError as exc:
                 err = _in_own_state(r, leg, failures.classify(model, exc))
                 slot = None if r.atlases is None or leg.back is not None else r.atlases.slot_of(err)

@@ -146,9 +146,12 @@ class _Charted:
         rows_t, rows_x, stats, x, grid, h0 = [], [], {}, x0, t_eval, 0.0
         began, now = perf_counter(), s
         while True:
+            wrapped: list = []  # the wraps the C loop made at its steps (c/wrap.c), before any stop
             try:
-                t, X, st = integrate(self.model, now, x, grid, p, start, h0, sched)
+                t, X, st = integrate(self.model, now, x, grid, p, start, h0, sched,
+                                     (self.atlases.wrap_slots, wrapped))
             except ContactLeftContourError as err:
+                self.switches += self.atlases.wrapped(wrapped, p)
                 k = self.atlases.slot_of(err)
                 if k is None:
                     raise
@@ -163,6 +166,7 @@ class _Charted:
                 self._keep(record, err)
                 grid = np.concatenate([[err.t], t_eval[t_eval > err.t]])
             else:
+                self.switches += self.atlases.wrapped(wrapped, p)
                 grid = None
             rows_t.append(t)
             rows_x.append(X)
@@ -311,11 +315,13 @@ def _segments(model, s: RunSettings, segments, sched, x0, p, start, charted):
     return t, X, stats
 
 
-def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sched=None):
+def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sched=None, wraps=None):
     """One integration over ``t_eval`` (one segment of the inputs, ``p`` with its inputs;
     ``sched`` the table, or None) with the settings ``s`` and named errors: ``(t, X, stats)``;
     ``h0``: a C loop's first step (0: chosen). With ``s.checks``, the adaptive C loops watch
-    the checks at every step (``runtime.watch``) and raise the first event, located there."""
+    the checks at every step (``runtime.watch``) and raise the first event, located there.
+    ``wraps``: None, or ``(slots, into)``: the adaptive C loops wrap those coordinates at the
+    step and append their records to ``into`` (``CompiledLibrary.wrapping``)."""
     method, checks, rtol, atol, h = s.method, s.checks, s.rtol, s.atol, s.h
     if method in integrators.C_LOOPS:
         watched = s.watched
@@ -324,10 +330,12 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
             if watch_.first_past(watched, row.tolist()) is not None:
                 raise watch_.start_error(model, s, float(t_eval[0]), x0, dict(zip(model.columns, map(float, row))))
             watch_.start(model.library, watched, watch_.input_slots(model))
+        slots, into = (None, []) if wraps is None or method == "rk4" else wraps
         try:
-            t, X, st = integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
-                                          max_steps=s.max_steps, h=h, projection=s.proj,
-                                          time_limit=s.time_limit, h0=h0)
+            with model.library.wrapping(slots, into):
+                t, X, st = integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
+                                              max_steps=s.max_steps, h=h, projection=s.proj,
+                                              time_limit=s.time_limit, h0=h0)
         except IntegratorError as exc:
             err = failures.blow_up(model, failures.classify(model, exc), method, h)
             if checks:

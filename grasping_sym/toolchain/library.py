@@ -28,7 +28,7 @@ _C_DIR = Path(__file__).resolve().parent.parent / "c"
 #: its header comment maps the macros and the other files).
 DRIVER_SOURCES: tuple[Path, ...] = tuple(
     _C_DIR / f for f in ("driver.c", "project.c", "rk4.c", "radau5.c", "jac.c", "lu.c", "dopri5.c", "dop853.c",
-                         "stop.c", "watch.c", "batch.c", "budget.c"))
+                         "stop.c", "watch.c", "wrap.c", "batch.c", "budget.c"))
 #: The optional CPython extension giving the sub-microsecond call path.
 PYFAST_C: Path = _C_DIR / "pyfast.c"
 
