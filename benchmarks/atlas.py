@@ -95,7 +95,7 @@ def lap_switches(laps: int = 5) -> dict:
     rhs = interleaved({k: (lambda k=k: models[k].rhs_batch(X[k])) for k in X})
     n_rhs = int(models["steady"].simulate(t_end, **TOL, outputs=False).stats["n_rhs"])
     extra = n_rhs * (rhs["steady"] - rhs["one_chart"]) / 2000
-    out["per_switch"] = {"python_us": 1e6 * sw["switch_python_s"] / sw["switches"],
+    out["per_switch"] = {"python_us": 1e6 * sw["switch_python_s"] / max(1, sw["chart_changes"]),
                          "wrap_us": 1e6 * (st["wall_s"] - one["wall_s"] - extra) / st["switches"],
                          # the Python around the C loops (the run's wall less its loops'), per switch,
                          # against the one chart's; and the loops' own difference per switch
@@ -253,26 +253,24 @@ def main() -> None:
           for k, v in ((k, lap[k]) for k in ("switching", "steady", "one_chart"))],
         "",
         "`switching`: the chart's pole on the contact's path; `steady`: the same physical run with the",
-        "pole on the circle's axis (the contact at one latitude: only the longitude's wraps, each a",
-        "switch within one chart); `one_chart`: as `steady` on one chart whose longitude runs to",
+        "pole on the circle's axis (the contact at one latitude: only the longitude's wraps, each",
+        "recorded as a switch within one chart); `one_chart`: as `steady` on one chart whose longitude runs to",
         "+-100 rad (no switch at all: the same steps). The switching run takes more steps: near a chart's edge",
         "(latitude up to 1.3) the longitude moves up to 1/cos(1.3) = 3.7 times faster than the",
         "contact, and the error control follows the coordinates, not the contact.",
         "",
-        f"**A switch costs {ps['wrap_us']:.0f} µs**: `steady` less `one_chart`, per switch, less the "
+        f"**A wrap costs {ps['wrap_us']:.0f} µs**: `steady` less `one_chart`, per wrap, less the "
         f"steady atlas's dearer rhs ({ps['rhs_us']['steady']:.2f} against {ps['rhs_us']['one_chart']:.2f} µs, "
-        f"{ps['n_rhs']} calls: its chart 1 is chart 0 turned by a full matrix). A wrap is a switch in all "
-        "but the chart: the loop stops at the bound, the state is mapped and recorded, the loop goes on "
-        "from the step size it had reached.",
+        f"{ps['n_rhs']} calls: its chart 1 is chart 0 turned by a full matrix); within this machine's noise "
+        "of 0. A wrap is made inside the C loop at the step (`c/wrap.c`): the step kept, its start "
+        "and end moved a turn, the loop goes on (the same steps as `one_chart`). Outside the C loops "
+        f"(the run's wall less its loops' `stats['loop_time']`, against the one chart's, per wrap): "
+        f"{ps['outside_loops_us']:.0f} µs; inside them {ps['in_loops_us']:.0f} µs (the atlas's dearer steps).",
         "",
-        "In its parts:",
-        f"- outside the C loops (the run's wall less its loops' `stats['loop_time']`, against the "
-        f"one chart's, per switch): **{ps['outside_loops_us']:.0f} µs**; inside them "
-        f"{ps['in_loops_us']:.0f} µs a switch, which holds the atlas's dearer steps (its rhs above, and "
-        "its generated Jacobian, evaluated at about every step) as much as the restarts: the "
-        "switch itself is the first part, Python's;",
-        f"- of which Python's making of it (the C loop's stop, the map, the record; `stats['switch_time']`): "
-        f"**{ps['python_us']:.0f} µs**;",
+        "**A change of chart** (the `switching` run's) still stops the C loop at the edge; the state",
+        "is mapped in Python and the loop started again, on from the step size it had reached:",
+        f"- Python's making of it (the C loop's stop, the map, the record; `stats['switch_time']`, "
+        f"per change): **{ps['python_us']:.0f} µs**;",
         f"- restarting the integration there: the steady run cut into {rs['restarts'] + 1} runs takes "
         f"{rs['steps_cut']} steps against {rs['steps_whole']} in one piece, "
         f"{1e3 * rs['cut_s']:.2f} against {1e3 * rs['whole_s']:.2f} ms: **{rs['per_restart_us']:.0f} µs** a "
@@ -313,8 +311,8 @@ def main() -> None:
         "",
         "`wrapping`: `torus(..., atlas=True)`, its rim's angle over (-3 pi, 3 pi), carried a turn back at",
         "each edge; `one_chart`: the same compiled surface with the angle over +-100 rad (no edge reached).",
-        f"**A wrap costs {wheel['per_wrap_us']:.0f} µs** (the difference per wrap: the C loop's stop and",
-        "restart from Python, as a chart switch's; the model is the one chart's, so a run that",
+        f"**A wrap costs {wheel['per_wrap_us']:.0f} µs** (the difference per wrap; made in the C loop at",
+        "the step, `c/wrap.c`: the same steps; the model is the one chart's, so a run that",
         "reaches no edge costs what it costs without the atlas).",
         "",
     ]

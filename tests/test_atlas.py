@@ -30,6 +30,7 @@ from grasping_sym.geometry import surface_library as sl
 from grasping_sym.geometry.atlas import manifest_entry
 from grasping_sym.runtime import atlas as atlas_
 from grasping_sym.runtime import batch as batch_
+from grasping_sym.runtime import fastpath
 from grasping_sym.runtime import modes as modes_
 from grasping_sym.viz.plots3d import contact_traces
 from tests.scenes import BALL_R, pressed_ball
@@ -170,13 +171,14 @@ def test_a_ball_rolls_lap_after_lap_over_its_charts_poles(lap_model):
 
 
 @pytest.mark.parametrize("method", ["radau", "dop853"])
-def test_a_longitudes_wraps_are_made_in_the_loop(method):
+def test_a_longitudes_wraps_are_made_in_the_loop(method, monkeypatch):
     """The lap ball with its pole on the circle's axis: the contact stays at one latitude and
     its longitude runs on, a turn every 0.39 s. Each time it reaches +-3 pi the C loop wraps it
     a turn back at the step (``c/wrap.c``) and goes on: one loop for the whole run, the same
     steps as on one chart whose longitude never ends (+-100 rad), and the same rows to 1e-11
     (the longitude's modulo 2 pi). Each wrap is recorded as a switch within chart 0, at a
     step's start, a turn back: ``remainder(u, 2 pi)``."""
+    real_short = modes_.short_way
     steady = gs.build(_lap_scene(False, name="lap_steady")[0])
     once = gs.build(_lap_scene(False, sl.sphere(R, lon=(-100.0, 100.0)), name="lap_one_chart")[0])
     kw = dict(t_eval=np.linspace(0.0, 2.0, 101), rtol=1e-10, atol=1e-12, method=method, outputs=False)
@@ -195,6 +197,12 @@ def test_a_longitudes_wraps_are_made_in_the_loop(method):
         assert 3 * math.pi - 0.2 < abs(rec["u"][0]) < 3 * math.pi
         assert rec["u"][1] == pytest.approx(math.remainder(rec["u"][0], 2 * math.pi), abs=1e-15)
         assert rec["v"][0] == rec["v"][1] and 0.0 < rec["t"] < 2.0
+    # a run that only wraps is remembered for the short way (runtime.modes), which wraps alike
+    short = []
+    monkeypatch.setattr(modes_, "short_way", lambda *a: short.append(real_short(*a)) or short[-1])
+    again = steady.simulate(2.0, **kw)
+    assert short and short[0] is again
+    assert np.array_equal(again.x, res.x) and again.chart_switches == res.chart_switches
 
 
 # --------------------------------------------------------------- a grasp across charts
@@ -704,13 +712,14 @@ def test_a_leaning_barrel_rolls_over_its_tubes_seam(barrel):
     assert res.x[-1, -1] - twin.x[-1, -1] == pytest.approx(0.0, abs=1e-9)    # past the switch: one chart
 
 
-def test_a_grasp_runs_on_across_its_revolved_fingertips_seam(pivot_grasps):
+def test_a_grasp_runs_on_across_its_revolved_fingertips_seam(pivot_grasps, monkeypatch):
     """pivot3d's fingertip written as a revolved arc (the sphere's own chart) with
     ``atlas=True``, turned about its axis so that the contact starts 0.3 rad from the angle's
     edge (-3 pi), toward which it rolls: the grasp (run by ``simulate``'s plain run, and by
     ``simulate_many``) crosses the seam once, a turn back, and agrees with the one-chart grasp
     (``pivot_grasps``' reference): every other state to 1e-9 over 1.5 s, each row's contact
     point to 1e-12 m. The model has no chart parameter."""
+    real_short = fastpath.run
     g = pivot_grasps
     ref, x0, tip, box = g["ref"], g["x0"], g["tip"], g["box"]
     names = ref.state_names
@@ -734,6 +743,13 @@ def test_a_grasp_runs_on_across_its_revolved_fingertips_seam(pivot_grasps):
     assert np.abs(arc.evaluate(ra["u_f1"], ra["v_f1"])["point"] - want).max() < 1e-12
     many = model.simulate_many(1.5, x0=np.stack([xs, xs]), **kw)
     assert (many.status == 0).all() and all(np.array_equal(x, ra.x) for x in many.x)
+    # a run that only wraps is remembered for the short way (runtime.fastpath), which wraps alike
+    short = []
+    monkeypatch.setattr(fastpath, "run", lambda *a: short.append(real_short(*a)) or short[-1])
+    model.simulate(1.5, x0=xs, outputs=False, **kw)
+    again = model.simulate(1.5, x0=xs, outputs=False, **kw)
+    assert short[-1] is again
+    assert np.array_equal(again.x, ra.x) and again.chart_switches == ra.chart_switches
 
 
 def test_a_grasps_contact_near_chart_0s_pole_starts_in_chart_1(pivot_grasps):

@@ -22,6 +22,7 @@ import numpy as np
 
 from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import friction, interrupt, parameters, watch
+from grasping_sym.runtime.atlas import Atlases
 from grasping_sym.runtime.c_loops import (
     ADAPTIVE_CODES,
     ERR_INTERRUPT,
@@ -40,14 +41,16 @@ CHECKED_STATES = 64
 class Memory:
     """A model's short way: the plans its full path accepted (by ``key``), and what a run on
     the short way reads of the model (its stored start ``x_start`` and run-time parameters by
-    name ``pdict``). ``Model.short_way`` holds one."""
+    name ``pdict``; ``atlases``, its ``runtime.atlas.Atlases``, made at its first run on the short
+    way, or None). ``Model.short_way`` holds one."""
 
-    __slots__ = ("plans", "x_start", "pdict")
+    __slots__ = ("plans", "x_start", "pdict", "atlases")
 
     def __init__(self, x_start: np.ndarray, pdict: dict[str, float]):
         self.plans: dict = {}
         self.x_start = x_start
         self.pdict = pdict
+        self.atlases = None
 
 
 class Plan:
@@ -160,11 +163,16 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     stats = np.zeros(NSTATS)
     if watched:
         watch.start(lib, watched, watch.input_slots(model))
+    if model.manifest.get("atlas") and memory.atlases is None:
+        memory.atlases = Atlases(model)
+    wrapped: list = []  # the coordinates the loop wraps at the step (c/wrap.c): recorded
+    p = model.default_params if model.p_names else None
     start = perf_counter()
     try:
-        rc, _ = lib._ext.adaptive(plan.code, t, x, model.default_params if model.p_names else None,
-                                  plan.rtol, plan.atol, 0.0, plan.max_steps, plan.nstiff, model.lower,
-                                  model.upper, plan.mask, plan.proj_tol, out, stats)
+        with lib.wrapping(None if memory.atlases is None else memory.atlases.wrap_slots, wrapped):
+            rc, _ = lib._ext.adaptive(plan.code, t, x, p, plan.rtol, plan.atol, 0.0, plan.max_steps,
+                                      plan.nstiff, model.lower, model.upper, plan.mask, plan.proj_tol, out,
+                                      stats)
     finally:
         if watched:
             lib.unwatch()
@@ -180,9 +188,11 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
         return None  # a force leaves its cone: the full way locates it and names it
     info = adaptive_stats(plan.method, stats.tolist(), wall, plan.projected)
     charts = {}
-    if model.manifest.get("atlas"):  # an atlas's run that reached no chart's edge: its start's charts
+    switches = []
+    if model.manifest.get("atlas"):  # an atlas's run that changed no chart: its start's charts
         charts = {k: np.full(m, int(model.default_params[model.p_names.index(k)]))
                   for k in parameters.charts_of(model)}
-        info["chart_switches"] = 0
+        switches = memory.atlases.wrapped(wrapped, p)
+        info["chart_switches"] = len(switches)
     return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
-                            model.scene, charts=charts)
+                            model.scene, charts=charts, chart_switches=switches)

@@ -475,7 +475,9 @@ class Model:
             res = run_.run(self, s, x0, own_start, self.params(params), u)
             res.stats["fallback"] = f"radau: {exc.reason}"
             return res
-        if short and not res.chart_switches:  # the settings and x0 passed: later calls may take the short way
+        # the settings and x0 passed: later calls may take the short way (which wraps a
+        # coordinate in the loop, c/wrap.c, but changes no chart)
+        if short and all(rec["from"] == rec["to"] for rec in res.chart_switches):
             fastpath.remember(self, plan_key, s)
             if checks:
                 fastpath.checked(self, plan_key, None if own_start else x0, s.watched)

@@ -1710,9 +1710,10 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
         raise  # Ctrl-C (under a handler of the user's): the call's, not a reason to go the full way
     except GraspingSymError:
         return None
-    if hit is not None or len(tt) != len(t) or st["wraps"]:  # (a wrap: the full way records it)
+    if hit is not None or len(tt) != len(t):
         plan[3].pop(at, None)  # it switches from there: the next such call goes the full way at once
         return None
+    r.chart_switches += r.atlases.wrapped(st["wraps"], p) if st["wraps"] else []  # (c/wrap.c's)
     _count(r, st, own)
     return _finish(r, s, start, [tt], [leg.states(X)], [_mode_rows(modes, len(tt))], [p])
 
