@@ -188,6 +188,7 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
 /* wrap.c: a step's end outside [lo, hi] at a contact's coordinates that wrap a period round
  * (gs_wrap_set): the step's start y (at t), its end y_end and also[0..n_also-1] moved by whole
  * periods, 1 returned; else 0, nothing changed. */
+GS_HIDDEN int gs_watch_ends_kept(void);
 GS_HIDDEN int gs_wrap_step(double t, double* y, double* y_end, const double* p, const double* lo,
                            const double* hi, double** also, int n_also);
 

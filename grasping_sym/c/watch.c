@@ -96,6 +96,10 @@ static _Thread_local gs_watch_state gs_w;
 
 GS_HIDDEN int gs_watching(void) { return gs_w.on; }
 
+/* The step ends left unwatched since the last watched point (x_kept): wrap.c wraps no
+ * coordinate while there are any (they would mix the two ranges). */
+GS_HIDDEN int gs_watch_ends_kept(void) { return gs_w.on ? gs_w.n_kept : 0; }
+
 /* The witnesses at (t, x), into g. */
 static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p, double* g) {
   double pw[gs_np + 1], y[gs_ny > 0 ? gs_ny : 1];

@@ -11,7 +11,8 @@
  * constraints and the witnesses are periodic in the coordinate, so the loop goes on as if
  * nothing happened, and writes this step's rows in the new range. What needs a chart of
  * another map (an atlas's other chart, where it covers the point better; a bound that is no
- * period's) is left to runtime/atlas.py: the loop stops at the bound as before.
+ * period's) is left to runtime/atlas.py: the loop stops at the bound as before; so is a wrap
+ * while the watch (watch.c) keeps step ends it left unwatched, in the range before.
  *
  *   gs_wrap_set(n, slots, records, capacity)
  *            this thread's next loops wrap the n slots (GS_WRAP_COLS doubles each: u's and
@@ -80,7 +81,9 @@ static double gs_wrapped(double value, double period, double center) {
  * by the same whole periods, the wrap recorded, and 1 returned; else 0 and nothing changed. */
 GS_HIDDEN int gs_wrap_step(double t, double* y, double* y_end, const double* p, const double* lo,
                            const double* hi, double** also, int n_also) {
-  if (!gs_wr.n) return 0;
+  /* step ends the watch left unwatched (watch.c's x_kept, read at the next watched point or at
+   * an event among them) are in the range before: the loop stops at the bound instead */
+  if (!gs_wr.n || gs_watch_ends_kept()) return 0;
   const int n = gs_nx;
   double shift[n], moved[n];
   int which[GS_WRAP_SLOTS], m = 0;

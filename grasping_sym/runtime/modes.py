@@ -1519,19 +1519,22 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         _count(r, st, own)
         t_look = perf_counter()
         at_edge = hit is not None and "atlas" in hit
-        found = None if hit is None or at_edge else _locate(r, leg, pl, watched, hit)
-        if found is not None and found[2] == "slip" and not hit["armed"] and found[3] in r.slip_levels:
-            found = _last_zero(r, leg, pl, watched[hit["which"]], hit, found, t, X, (grid[0], leg.state(x_now)))
-        keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
-        if found is not None and found[0] > hit["t"]:  # output times between the dense output's
-            late = t_eval[(t_eval >= hit["t"]) & (t_eval < found[0])]  # root and the event's
-            if len(late):
-                t = np.concatenate([t[:keep], late])
-                X = np.concatenate([X[:keep], [events.state_at(leg.model, r.s, r.sched, pl, hit["t_step"],
-                                                               hit["x_step"], float(tm), one_step=True,
-                                                               projection=(None, 0.0))
-                                               for tm in late]])
-                keep = len(t)
+        # integrated again from the segment's states (it may have wrapped a coordinate, c/wrap.c,
+        # since its start): wrapped alike, the records left (the segment's are the run's)
+        with leg.model.library.wrapping(st["slots"], []):
+            found = None if hit is None or at_edge else _locate(r, leg, pl, watched, hit)
+            if found is not None and found[2] == "slip" and not hit["armed"] and found[3] in r.slip_levels:
+                found = _last_zero(r, leg, pl, watched[hit["which"]], hit, found, t, X, (grid[0], leg.state(x_now)))
+            keep = len(t) if found is None else int(np.searchsorted(t, found[0], side="left"))
+            if found is not None and found[0] > hit["t"]:  # output times between the dense output's
+                late = t_eval[(t_eval >= hit["t"]) & (t_eval < found[0])]  # root and the event's
+                if len(late):
+                    t = np.concatenate([t[:keep], late])
+                    X = np.concatenate([X[:keep], [events.state_at(leg.model, r.s, r.sched, pl, hit["t_step"],
+                                                                   hit["x_step"], float(tm), one_step=True,
+                                                                   projection=(None, 0.0))
+                                                   for tm in late]])
+                    keep = len(t)
         X = leg.states(X)
         # the samples are at grid's times (t_eval's) but its first, the segment's start
         on_grid = t[:keep] > last_t
@@ -1792,9 +1795,9 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         rows_t, rows_x, stats = [], [], {}
         # the coordinates the C loops wrap at the step (c/wrap.c): the model with modes' own
         wraps: list = []
-        stats["wraps"] = wraps
         wrap_slots = None if r.atlases is None or leg.back is not None or s.method == "rk4" else \
             r.atlases.wrap_slots
+        stats["wraps"], stats["slots"] = wraps, wrap_slots
         deadline = None if s.time_limit is None else perf_counter() + s.time_limit  # the pieces' in all
         for k, (a0, a1, a, b) in enumerate(pieces):
             g = grid if r.sched is None else np.concatenate([[a0], grid[(grid > a0) & (grid < a1)], [a1]])
