@@ -307,7 +307,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     }
     if ((rc = gs_check(y1, lo, hi))) {
       double* kept[1] = {y1u}; /* the lazy extension's end, when kept */
-      if (rc != GS_ERR_BOUNDS || !gs_wrap_step(t, y, y1, p, lo, hi, kept, !inside && gs_watching()))
+      if (rc != GS_ERR_BOUNDS || !gs_wrap_step(wk, t, y, y1, p, lo, hi, kept, !inside && gs_watching()))
         goto fail;
       rc = 0; /* a contact's coordinate a period round (wrap.c): dense[] are differences */
     }

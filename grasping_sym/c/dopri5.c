@@ -242,7 +242,7 @@ GS_EXPORT long gs_dopri5(double t0, long n_out, const double* t_out, const doubl
     }
     if ((rc = gs_check(y1, lo, hi))) {
       double* base[1] = {dense[0]};
-      if (rc != GS_ERR_BOUNDS || !gs_wrap_step(t, y, y1, p, lo, hi, base, 1)) goto fail;
+      if (rc != GS_ERR_BOUNDS || !gs_wrap_step(wk, t, y, y1, p, lo, hi, base, 1)) goto fail;
       rc = 0; /* a contact's coordinate a period round (wrap.c): dense[1..4] are differences */
     }
     {

@@ -187,10 +187,10 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
 
 /* wrap.c: a step's end outside [lo, hi] at a contact's coordinates that wrap a period round
  * (gs_wrap_set): the step's start y (at t), its end y_end and also[0..n_also-1] moved by whole
- * periods, 1 returned; else 0, nothing changed. */
-GS_HIDDEN int gs_watch_ends_kept(void);
-GS_HIDDEN int gs_wrap_step(double t, double* y, double* y_end, const double* p, const double* lo,
-                           const double* hi, double** also, int n_also);
+ * periods, 1 returned; else 0, nothing changed. The watch's ends left unwatched are watched
+ * first (gs_watch_settle): an event among them, no wrap. */
+GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, const double* p,
+                           const double* lo, const double* hi, double** also, int n_also);
 
 /* max |v[i]| over m entries; +inf when an entry is not finite. */
 static inline double gs_max_abs(const double* v, int m) {
@@ -345,6 +345,7 @@ typedef void (*gs_interp)(const void* ctx, double t, double* x);
  * outputs). */
 GS_HIDDEN int gs_watching(void);
 /* The run's start (t0, x0; it ends at t_end): the witnesses' values there, each armed if > 0. */
+GS_HIDDEN int gs_watch_settle(gs_work* wk, const double* p);
 GS_HIDDEN int gs_watch_begin(gs_work* wk, double t0, const double* x0, const double* p,
                              double t_end);
 /* After an accepted step from told to t (end state y_end, dense output interp(ctx, .)): 1 and

@@ -463,7 +463,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
     {
       const double tnew = (h == t_end - t) ? t_end : t + h;
       if ((rc = gs_check(ynew, lo, hi))) {
-        if (rc != GS_ERR_BOUNDS || !gs_wrap_step(t, y, ynew, p, lo, hi, NULL, 0)) goto fail;
+        if (rc != GS_ERR_BOUNDS || !gs_wrap_step(wk, t, y, ynew, p, lo, hi, NULL, 0)) goto fail;
         rc = 0; /* a contact's coordinate a period round (wrap.c): Z, Q are differences */
       }
       GS_PROJECT_STEP(ynew, NULL); /* the dense output below is the unprojected step's */

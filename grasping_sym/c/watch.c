@@ -96,9 +96,6 @@ static _Thread_local gs_watch_state gs_w;
 
 GS_HIDDEN int gs_watching(void) { return gs_w.on; }
 
-/* The step ends left unwatched since the last watched point (x_kept): wrap.c wraps no
- * coordinate while there are any (they would mix the two ranges). */
-GS_HIDDEN int gs_watch_ends_kept(void) { return gs_w.on ? gs_w.n_kept : 0; }
 
 /* The witnesses at (t, x), into g. */
 static int gs_watch_eval(gs_work* wk, double t, const double* x, const double* p, double* g) {
@@ -318,6 +315,18 @@ GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J) {
   for (int i = 0; i < gs_nx * gs_nx; ++i) kept[i] = J[i];
   gs_rj.t = t;
   gs_rj.valid = 1;
+}
+
+/* Before wrap.c moves a step by whole periods: the step ends left unwatched since the last
+ * watched point (x_kept, in the range before) watched now. 0: none left (none fired; the watch
+ * goes on from the last of them, as at its next watched point); 1: an event among them (kept:
+ * the loop stops at the bound and gs_watch_failed takes it); < 0: an error. */
+GS_HIDDEN int gs_watch_settle(gs_work* wk, const double* p) {
+  if (!gs_w.on || gs_w.n_kept == 0) return 0;
+  double t_ev, x_ev[gs_nx];
+  const int found = gs_watch_kept(wk, p, &t_ev, x_ev);
+  if (found == 0) gs_w.n_kept = 0;
+  return found;
 }
 
 GS_HIDDEN long gs_watch_failed(gs_work* wk, long rc, const double* p, const double* t_out, long* row,

@@ -11,8 +11,9 @@
  * constraints and the witnesses are periodic in the coordinate, so the loop goes on as if
  * nothing happened, and writes this step's rows in the new range. What needs a chart of
  * another map (an atlas's other chart, where it covers the point better; a bound that is no
- * period's) is left to runtime/atlas.py: the loop stops at the bound as before; so is a wrap
- * while the watch (watch.c) keeps step ends it left unwatched, in the range before.
+ * period's) is left to runtime/atlas.py: the loop stops at the bound as before. The step ends
+ * the watch (watch.c) left unwatched, in the range before, are watched first: an event among
+ * them stops the loop there, unwrapped.
  *
  *   gs_wrap_set(n, slots, records, capacity)
  *            this thread's next loops wrap the n slots (GS_WRAP_COLS doubles each: u's and
@@ -79,11 +80,9 @@ static double gs_wrapped(double value, double period, double center) {
  * outside is a slot's coordinate that `transition` would wrap in its chart, y, y_end and
  * also[0..n_also-1] (arrays holding the step's start or end: a dense output's base) are moved
  * by the same whole periods, the wrap recorded, and 1 returned; else 0 and nothing changed. */
-GS_HIDDEN int gs_wrap_step(double t, double* y, double* y_end, const double* p, const double* lo,
-                           const double* hi, double** also, int n_also) {
-  /* step ends the watch left unwatched (watch.c's x_kept, read at the next watched point or at
-   * an event among them) are in the range before: the loop stops at the bound instead */
-  if (!gs_wr.n || gs_watch_ends_kept()) return 0;
+GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, const double* p,
+                           const double* lo, const double* hi, double** also, int n_also) {
+  if (!gs_wr.n) return 0;
   const int n = gs_nx;
   double shift[n], moved[n];
   int which[GS_WRAP_SLOTS], m = 0;
@@ -112,6 +111,9 @@ GS_HIDDEN int gs_wrap_step(double t, double* y, double* y_end, const double* p, 
   if (!m || gs_wr.count + m > gs_wr.capacity) return 0;
   for (int i = 0; i < n; ++i) moved[i] = y_end[i] + shift[i];
   if (gs_check(moved, lo, hi)) return 0; /* still outside: a bound that is no period's */
+  /* the step ends the watch left unwatched (watch.c's x_kept) are in the range before: watched
+   * now; an event among them stops the loop there (at the bound, gs_watch_failed), unwrapped */
+  if (gs_watch_settle(wk, p)) return 0;
   for (int j = 0; j < m; ++j) {
     const double* s = gs_wr.slots + which[j] * GS_WRAP_COLS;
     const int iu = (int)s[0], iv = (int)s[1];
