@@ -261,8 +261,10 @@ def main() -> None:
         "",
         f"**A wrap costs {ps['wrap_us']:.0f} µs**: `steady` less `one_chart`, per wrap, less the "
         f"steady atlas's dearer rhs ({ps['rhs_us']['steady']:.2f} against {ps['rhs_us']['one_chart']:.2f} µs, "
-        f"{ps['n_rhs']} calls: its chart 1 is chart 0 turned by a full matrix); within this machine's noise "
-        "of 0. A wrap is made inside the C loop at the step (`c/wrap.c`): the step kept, its start "
+        f"{ps['n_rhs']} calls: its chart 1 is chart 0 turned by a full matrix). That is not the wraps': "
+        "the loops' own difference below is the atlas's dearer steps (its generated Jacobian, evaluated at "
+        "about every step, turns its vectors too); the torus below, one compiled surface both ways, "
+        "measures a wrap alone. A wrap is made inside the C loop at the step (`c/wrap.c`): the step kept, its start "
         "and end moved a turn, the loop goes on (the same steps as `one_chart`). Outside the C loops "
         f"(the run's wall less its loops' `stats['loop_time']`, against the one chart's, per wrap): "
         f"{ps['outside_loops_us']:.0f} µs; inside them {ps['in_loops_us']:.0f} µs (the atlas's dearer steps).",
