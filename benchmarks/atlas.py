@@ -27,6 +27,7 @@ from scipy.spatial.transform import Rotation
 import grasping_sym as gs
 from benchmarks import timing
 from grasping_sym.geometry import surface_library as sl
+from grasping_sym.runtime.atlas import Atlases
 
 RESULTS = Path(__file__).resolve().parent / "results"
 #: Rounds of interleaved calls (each case once a round; the best of each): this machine's
@@ -74,10 +75,50 @@ def _lap_ball(pole_on_path: bool, atlas: bool = True):
     return gs.build(scene)
 
 
+def _by_python(model, t_end: float):
+    """``model.simulate`` as a library without ``c/wrap.c`` runs it: the C loop stops at each
+    chart's edge and Python maps the state and starts the loop again."""
+    model.library.can_wrap = False
+    try:
+        return model.simulate(t_end, **TOL, outputs=False)
+    finally:
+        model.library.can_wrap = True
+
+
+def _change_work(models: dict, t_end: float, changes: int) -> dict:
+    """What a change of chart costs inside the loop: one step not taken (counted rejected) and a
+    start again from the mapped state (its rhs, its first step chosen anew, its Jacobian and LU
+    factorisations). The start again, timed: the steady lap run in one C loop against the same
+    cut into ``changes + 1`` C loops (``radau5`` called alone, each from the last one's end:
+    each start a restart, with its Python call); the step, timed: the switching run's C loop
+    time per attempted step. Their sum bounds a change's cost."""
+    def loop(model, x, a, b):
+        with model.library.wrapping(Atlases(model).wrap_slots, []):
+            return model.library.radau5(x, np.array([a, b]), p=model.default_params, lo=model.lower,
+                                        hi=model.upper, **TOL)
+
+    sw, st = models["switching"], models["steady"]
+    cuts = np.linspace(0.0, t_end, changes + 2)
+
+    def cut():
+        x = st.initial_state()
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            x = loop(st, x, float(a), float(b))[1][-1]
+
+    wall = interleaved({"switching": lambda: loop(sw, sw.initial_state(), 0.0, t_end),
+                        "whole": lambda: loop(st, st.initial_state(), 0.0, t_end), "cut": cut})
+    stats = loop(sw, sw.initial_state(), 0.0, t_end)[2]
+    attempted = stats["n_steps"] + stats["n_rejected"]
+    step, restart = wall["switching"] / attempted, (wall["cut"] - wall["whole"]) / changes
+    return {"attempted_steps": int(attempted), "rejected": int(stats["n_rejected"]), "loop_s": wall["switching"],
+            "step_us": 1e6 * step, "restart_us": 1e6 * restart, "in_loop_us": 1e6 * (step + restart)}
+
+
 def lap_switches(laps: int = 5) -> dict:
     t_end = laps * 14 * math.pi / (5 * OMEGA)
     models = {"switching": _lap_ball(True), "steady": _lap_ball(False), "one_chart": _lap_ball(False, False)}
     runs = {k: (lambda m=m: m.simulate(t_end, **TOL, outputs=False)) for k, m in models.items()}
+    runs["switching_by_python"] = lambda: _by_python(models["switching"], t_end)
     wall = interleaved(runs)
     out = {}
     for key, run in runs.items():
@@ -86,16 +127,23 @@ def lap_switches(laps: int = 5) -> dict:
         loop = min(run().stats["loop_time"] for _ in range(ROUNDS))
         out[key] = {"switches": len(res.chart_switches),
                     "chart_changes": sum(s["from"] != s["to"] for s in res.chart_switches),
+                    "in_loop": sum(s["in_loop"] for s in res.chart_switches),
                     "steps": int(res.stats["n_steps"]), "wall_s": wall[key], "switch_python_s": py,
                     "loop_s": loop}
-    sw, st, one = out["switching"], out["steady"], out["one_chart"]
+    sw, st, one, bp = out["switching"], out["steady"], out["one_chart"], out["switching_by_python"]
     # the steady atlas's rhs costs more than the one chart's (its chart 1 is chart 0 turned by a
     # full Q, computed at every call): that part of the difference is not the switches'
     X = {k: np.tile(models[k].initial_state(), (2000, 1)) for k in ("steady", "one_chart")}
     rhs = interleaved({k: (lambda k=k: models[k].rhs_batch(X[k])) for k in X})
     n_rhs = int(models["steady"].simulate(t_end, **TOL, outputs=False).stats["n_rhs"])
     extra = n_rhs * (rhs["steady"] - rhs["one_chart"]) / 2000
-    out["per_switch"] = {"python_us": 1e6 * sw["switch_python_s"] / max(1, sw["chart_changes"]),
+    changes = max(1, sw["chart_changes"])
+    out["per_change"] = {
+        # the same run with its changes made by Python (the loop stopped at each edge)
+        "saved_us": 1e6 * (bp["wall_s"] - sw["wall_s"]) / changes,
+        # in the loop: counted (``_change_work``)
+        **_change_work(models, t_end, changes)}
+    out["per_switch"] = {"python_us": 1e6 * bp["switch_python_s"] / max(1, bp["chart_changes"]),
                          "wrap_us": 1e6 * (st["wall_s"] - one["wall_s"] - extra) / st["switches"],
                          # the Python around the C loops (the run's wall less its loops'), per switch,
                          # against the one chart's; and the loops' own difference per switch
@@ -239,7 +287,7 @@ def main() -> None:
             "wheel": wheel}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "atlas.json").write_text(json.dumps(data, indent=2))
-    ps, rs = lap["per_switch"], lap["restarts"]
+    ps, rs, pc = lap["per_switch"], lap["restarts"], lap["per_change"]
     lines = [
         "# Atlases of charts: what a switch costs, and an atlas where nothing switches",
         "",
@@ -247,12 +295,14 @@ def main() -> None:
         "",
         "## A ball lapping a turntable (the closed-form case of tests/test_atlas.py), 5 laps",
         "",
-        "| run | switches (chart changes) | steps | wall (ms) |",
+        "| run | switches (chart changes; made in the loop) | steps | wall (ms) |",
         "|---|---|---|---|",
-        *[f"| {k} | {v['switches']} ({v['chart_changes']}) | {v['steps']} | {1e3 * v['wall_s']:.2f} |"
-          for k, v in ((k, lap[k]) for k in ("switching", "steady", "one_chart"))],
+        *[f"| {k} | {v['switches']} ({v['chart_changes']}; {v['in_loop']}) | {v['steps']} | {1e3 * v['wall_s']:.2f} |"
+          for k, v in ((k, lap[k]) for k in ("switching", "switching_by_python", "steady", "one_chart"))],
         "",
-        "`switching`: the chart's pole on the contact's path; `steady`: the same physical run with the",
+        "`switching`: the chart's pole on the contact's path; `switching_by_python`: the same run as a",
+        "library without `c/wrap.c` makes it (the loop stops at each edge, Python maps the state and",
+        "starts the loop again); `steady`: the same physical run with the",
         "pole on the circle's axis (the contact at one latitude: only the longitude's wraps, each",
         "recorded as a switch within one chart); `one_chart`: as `steady` on one chart whose longitude runs to",
         "+-100 rad (no switch at all: the same steps). The switching run takes more steps: near a chart's edge",
@@ -269,9 +319,15 @@ def main() -> None:
         f"(the run's wall less its loops' `stats['loop_time']`, against the one chart's, per wrap): "
         f"{ps['outside_loops_us']:.0f} µs; inside them {ps['in_loops_us']:.0f} µs (the atlas's dearer steps).",
         "",
-        "**A change of chart** (the `switching` run's) still stops the C loop at the edge; the state",
-        "is mapped in Python and the loop started again, on from the step size it had reached:",
-        f"- Python's making of it (the C loop's stop, the map, the record; `stats['switch_time']`, "
+        f"**A change of chart costs at most {pc['in_loop_us']:.0f} µs in the loop** (`c/wrap.c`): one step "
+        f"not taken, {pc['step_us']:.1f} µs (the switching run in one C loop: {pc['attempted_steps']} "
+        f"attempted steps, {pc['rejected']} rejected, in {1e3 * pc['loop_s']:.2f} ms), and a start again "
+        f"from the mapped state, at most {pc['restart_us']:.1f} µs (the steady run in one C loop against "
+        "the same cut into as many more loops, each called alone from Python: its call is in it). "
+        f"Against Python's making of the same changes (the whole `simulate`), it saves "
+        f"**{pc['saved_us']:.0f} µs** a change. "
+        "Python's, which the loop still leaves it where a contact slides or a table of inputs restarts the loop:",
+        f"- its making of it (the C loop's stop, the map, the record; `stats['switch_time']`, "
         f"per change): **{ps['python_us']:.0f} µs**;",
         f"- restarting the integration there: the steady run cut into {rs['restarts'] + 1} runs takes "
         f"{rs['steps_cut']} steps against {rs['steps_whole']} in one piece, "

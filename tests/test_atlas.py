@@ -148,6 +148,22 @@ def test_a_ball_rolls_lap_after_lap_over_its_charts_poles(lap_model):
     assert not res.events and set(res.modes) == {"rolling"}
     switches = res.chart_switches
     assert len(switches) >= 10 and res.stats["chart_switches"] == len(switches)
+    # every change made inside the C loop (c/wrap.c): one segment; the same changes as the
+    # loop stopped at each edge and Python's map (a library without c/wrap.c), each within a
+    # step of its time (the loop chooses its first step after a change anew), the body's
+    # states to 1e-9 (the contact's coordinates differ in rows between two such times)
+    assert res.stats["segments"] == 1 and all(rec["in_loop"] for rec in switches)
+    model.library.can_wrap = False
+    try:
+        by_python = model.simulate(5 * lap, t_eval=t_eval, rtol=1e-10, atol=1e-12)
+    finally:
+        model.library.can_wrap = True
+    assert not any(rec["in_loop"] for rec in by_python.chart_switches)
+    assert [(r["chart"], r["from"], r["to"]) for r in by_python.chart_switches] == \
+        [(r["chart"], r["from"], r["to"]) for r in switches]
+    assert max(abs(a["t"] - b["t"]) for a, b in zip(switches, by_python.chart_switches)) < 1e-3
+    body = [k for k, n in enumerate(res.state_names) if n not in ("u", "v")]
+    assert np.abs(by_python.x[:, body] - res.x[:, body]).max() < 1e-9
     assert {s["from"] for s in switches} == {0, 1} and set(res.charts["chart"]) == {0, 1}
     t = res.t
     beta = math.sqrt(1 + (RC / R) ** 2)
@@ -302,6 +318,7 @@ def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts(pivot_grasps):
     kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
     ra, rr = model.simulate(1.5, x0=xa, **kw), ref.simulate(1.5, x0=x0, **kw)
     assert {s["chart"] for s in ra.chart_switches} == {"chart_f1", "chart_o1"}
+    assert all(s["in_loop"] for s in ra.chart_switches)      # changed in the C loop (c/wrap.c)
     assert set(ra.charts["chart_f1"]) == {0, 1} and set(ra.charts["chart_o1"]) == {0, 1}
     body = [k for k, n in enumerate(names) if not n.startswith(("u_", "v_", "psi"))]
     assert np.abs(ra.x[:, body] - rr.x[:, body]).max() < 1e-9

@@ -187,6 +187,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
   const int proj_rows = proj_mask && proj_tol > 0.0; /* gs_proj_args_ok */
   proj_tol = fabs(proj_tol);
   gs_stop_reset();
+  p = gs_wrap_params(p); /* a chart that changes in the loop is written there (wrap.c) */
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   const double interval = t_end - t0;
 
@@ -307,9 +308,24 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
     }
     if ((rc = gs_check(y1, lo, hi))) {
       double* kept[1] = {y1u}; /* the lazy extension's end, when kept */
-      if (rc != GS_ERR_BOUNDS || !gs_wrap_step(wk, t, y, y1, p, lo, hi, kept, !inside && gs_watching()))
-        goto fail;
-      rc = 0; /* a contact's coordinate a period round (wrap.c): dense[] are differences */
+      const int w = rc == GS_ERR_BOUNDS ? gs_wrap_step(wk, t, y, y1, p, lo, hi, kept, !inside && gs_watching()) : 0;
+      if (!w) goto fail;
+      rc = 0; /* 1: a contact's coordinate a period round (wrap.c): dense[] are differences */
+      if (w == 2) { /* a chart's change: y mapped at t; the step not taken, the loop anew */
+        st[GS_ST_STEPS] -= 1;
+        st[GS_ST_REJECTED] += 1;
+        if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
+        st[GS_ST_RHS] += 1;
+        for (int i = 0; i < n; ++i)
+          if (!isfinite(k[0][i])) {
+            for (int j = 0; j < n; ++j) y1[j] = y[j];
+            rc = GS_ERR_NONFINITE;
+            goto fail;
+          }
+        last = 0;
+        reject = 0;
+        continue;
+      }
     }
     {
       int changed = 0;

@@ -187,8 +187,11 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
 
 /* wrap.c: a step's end outside [lo, hi] at a contact's coordinates that wrap a period round
  * (gs_wrap_set): the step's start y (at t), its end y_end and also[0..n_also-1] moved by whole
- * periods, 1 returned; else 0, nothing changed. The watch's ends left unwatched are watched
- * first (gs_watch_settle): an event among them, no wrap. */
+ * periods, 1 returned; or (a change of chart) y mapped, p's chart changed, 2 returned (the
+ * step not taken); else 0, nothing changed. The watch's ends left unwatched are watched
+ * first (gs_watch_settle): an event among them, neither. */
+/* wrap.c: the parameters a loop runs on (its own copy where a chart may change in it). */
+GS_HIDDEN const double* gs_wrap_params(const double* p);
 GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, const double* p,
                            const double* lo, const double* hi, double** also, int n_also);
 

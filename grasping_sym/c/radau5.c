@@ -209,6 +209,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
   const int proj_rows = proj_mask && proj_tol > 0.0; /* gs_proj_args_ok */
   proj_tol = fabs(proj_tol);
   gs_stop_reset();
+  p = gs_wrap_params(p); /* a chart that changes in the loop is written there (wrap.c) */
   if (rtol < 100.0 * GS_EPS) rtol = 100.0 * GS_EPS;
   fnewt = fmax(GS_RADAU_FNEWT, GS_RADAU_NEWTON_FLOOR * GS_EPS / rtol);
 
@@ -463,8 +464,30 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
     {
       const double tnew = (h == t_end - t) ? t_end : t + h;
       if ((rc = gs_check(ynew, lo, hi))) {
-        if (rc != GS_ERR_BOUNDS || !gs_wrap_step(wk, t, y, ynew, p, lo, hi, NULL, 0)) goto fail;
-        rc = 0; /* a contact's coordinate a period round (wrap.c): Z, Q are differences */
+        const int w = rc == GS_ERR_BOUNDS ? gs_wrap_step(wk, t, y, ynew, p, lo, hi, NULL, 0) : 0;
+        if (!w) goto fail;
+        rc = 0; /* 1: a contact's coordinate a period round (wrap.c): Z, Q are differences */
+        if (w == 2) { /* a chart's change: y mapped at t; the step not taken, the loop anew */
+          st[0] -= 1;
+          st[1] += 1;
+          if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
+          st[2] += 1;
+          for (int i = 0; i < n; ++i)
+            if (!isfinite(f[i])) {
+              for (int j = 0; j < n; ++j) ynew[j] = y[j];
+              rc = GS_ERR_NONFINITE;
+              goto fail;
+            }
+          have_sol = 0;
+          need_jac = 1;
+          lu_valid = 0;
+          caljac = 0;
+          reject = 0;
+          /* a first step chosen anew: the coordinates' rates differ in the new chart (the step
+           * kept from the old one was rejected at every change of the lap benchmark's) */
+          if ((rc = gs_initial_step(wk, t, y, f, p, rtol, atol, t_end - t, 3, 0.0, st, &h))) goto fail;
+          continue;
+        }
       }
       GS_PROJECT_STEP(ynew, NULL); /* the dense output below is the unprojected step's */
       if ((rc = gs_eval_rhs(wk, &tnew, ynew, p, fnew))) goto fail;

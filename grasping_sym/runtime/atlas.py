@@ -17,7 +17,10 @@ surface whose one chart repeats (a torus, a surface of revolution: ``kind`` ``pe
 chart parameter) wraps each repeating coordinate so, a whole period toward its domain's middle.
 Nothing is located: any point of the charts' overlap serves, and the step's end is one.
 Those wraps are made inside the C loops at the step (``c/wrap.c``, with ``wrap_slots``; the
-loop goes on, and ``wrapped`` makes their records); a change of chart stops the loop.
+loop goes on, and ``wrapped`` makes their records), and so is a change of chart where the run
+allows it (the loop starts again from the mapped state, the chart in its own copy of ``p``);
+elsewhere (``wrap_only``: a sliding contact, a table of inputs, an integration again) a change
+stops the loop and ``switch`` makes it.
 """
 from __future__ import annotations
 
@@ -104,14 +107,17 @@ def transition(entry: dict, chart: int, u: float, v: float) -> tuple[int, float,
     return other, u1, v1, math.atan2(_dot(x_new, y_old), _dot(x_new, x_old))
 
 
-def _wrap_slot(entry: dict, i_chart: int | None, cols) -> list[float]:
+def _wrap_slot(entry: dict, i_chart: int | None, cols, change: bool) -> list[float]:
     """A slot's row of ``c/wrap.c``'s table: u's and v's columns; 0 for a repeating chart, its
-    periods (0: none) and middles; 1 for an atlas's longitude (a turn, about 0), its chart
-    parameter's index."""
+    periods (0: none) and middles; 1 (``F = diag(a) d``) or 2 (``F = rho(d) d``) for an atlas, its
+    longitude's turn about 0, its chart parameter's and frame angle's indices (-1: none), its
+    semi-axes and exponent, and whether the loop changes its chart (``change``)."""
     if entry["kind"] == "periodic":
         (pu, pv), (cu, cv) = entry["periods"], entry["centers"]
-        return [cols[0], cols[1], 0, pu or 0.0, pv or 0.0, cu, cv, -1]
-    return [cols[0], cols[1], 1, TURN, 0.0, 0.0, 0.0, i_chart]
+        return [cols[0], cols[1], 0, pu or 0.0, pv or 0.0, cu, cv, -1, -1, 1.0, 1.0, 1.0, 0, 0]
+    kind = 1 if entry["kind"] == "linear" else 2
+    return [cols[0], cols[1], kind, TURN, 0.0, 0.0, 0.0, i_chart, -1 if cols[2] is None else cols[2],
+            *entry["axes"], entry["n"], int(change)]
 
 
 def repeated(switches: list[dict], record: dict) -> bool:
@@ -139,19 +145,31 @@ class Atlases:
         # repeating coordinates only (a revolved open contour's end is its surface's end)
         self.columns = {c: k for k, (entry, _, cols) in enumerate(self.slots) for j, c in enumerate(cols[:2])
                         if entry["kind"] != "periodic" or entry["periods"][j] is not None}
-        #: the slots as the C loops wrap them (``c/wrap.c``: ``transition``'s wraps there, at the step)
-        self.wrap_slots = np.array([_wrap_slot(entry, i, cols) for entry, i, cols in self.slots], dtype=float)
+        #: the slots as the C loops take them (``c/wrap.c``: ``transition`` made there, at the
+        #: step): wraps and changes of chart; wraps only (a change stops the loop)
+        self.wrap_slots = np.array([_wrap_slot(entry, i, cols, True) for entry, i, cols in self.slots], dtype=float)
+        self.wrap_only = np.array([_wrap_slot(entry, i, cols, False) for entry, i, cols in self.slots], dtype=float)
 
-    def wrapped(self, raw, p) -> list[dict]:
-        """The records of the C loops' wraps (``raw``: ``CompiledLibrary.wrapping``'s rows), as
-        :meth:`switch`'s: a wrap keeps its chart (``p``'s) and its frame."""
+    def wrapped(self, raw) -> list[dict]:
+        """The records of what the C loops made (``raw``: ``CompiledLibrary.wrapping``'s rows),
+        as :meth:`switch`'s."""
         out = []
-        for t, k, u0, v0, u1, v1 in raw:
-            entry, i_chart, _ = self.slots[int(k)]
-            chart = 0 if i_chart is None else int(round(float(p[i_chart])))
+        for t, k, u0, v0, u1, v1, c0, c1, delta in raw:
+            entry = self.slots[int(k)][0]
             out.append({"t": t, "chart": entry["param"], "coordinates": (entry["u"], entry["v"]),
-                        "from": chart, "to": chart, "u": (u0, u1), "v": (v0, v1), "delta": 0.0})
+                        "from": int(c0), "to": int(c1), "u": (u0, u1), "v": (v0, v1), "delta": delta,
+                        "in_loop": True})
         return out
+
+    def after(self, records: list[dict], p):
+        """``p`` with the charts ``records`` end in (a copy; ``p`` itself where none changes)."""
+        changed = [rec for rec in records if rec["from"] != rec["to"]]
+        if not changed:
+            return p
+        p = np.array(p, dtype=float)
+        for rec in changed:
+            p[self.model.p_names.index(rec["chart"])] = rec["to"]
+        return p
 
     def slot_of(self, err) -> int | None:
         """The atlas slot whose coordinates left their chart in ``err`` (a
@@ -180,5 +198,6 @@ class Atlases:
         if i_chart is not None:
             p2[i_chart] = float(new)
         record = {"t": float(t), "chart": entry["param"], "coordinates": (entry["u"], entry["v"]),
-                  "from": chart, "to": new, "u": (float(x[iu]), u1), "v": (float(x[iv]), v1), "delta": delta}
+                  "from": chart, "to": new, "u": (float(x[iu]), u1), "v": (float(x[iv]), v1), "delta": delta,
+                  "in_loop": False}
         return x2, p2, record

@@ -169,7 +169,7 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     p = model.default_params if model.p_names else None
     start = perf_counter()
     try:
-        with lib.wrapping(None if memory.atlases is None else memory.atlases.wrap_slots, wrapped):
+        with lib.wrapping(None if memory.atlases is None else memory.atlases.wrap_only, wrapped):
             rc, _ = lib._ext.adaptive(plan.code, t, x, p, plan.rtol, plan.atol, 0.0, plan.max_steps,
                                       plan.nstiff, model.lower, model.upper, plan.mask, plan.proj_tol, out,
                                       stats)
@@ -192,7 +192,7 @@ def run(model, plan: Plan, t_final, t_eval, x0) -> SimulationResult | None:
     if model.manifest.get("atlas"):  # an atlas's run that changed no chart: its start's charts
         charts = {k: np.full(m, int(model.default_params[model.p_names.index(k)]))
                   for k in parameters.charts_of(model)}
-        switches = memory.atlases.wrapped(wrapped, p)
+        switches = memory.atlases.wrapped(wrapped)
         info["chart_switches"] = len(switches)
     return SimulationResult(t, out[:m], model.state_names, {}, plan.method, info, dict(memory.pdict),
                             model.scene, charts=charts, chart_switches=switches)

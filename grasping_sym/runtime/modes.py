@@ -1514,14 +1514,20 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         watched = r.witnesses(modes, slips) if own else leg.watched
         pl = p if own else leg.model.default_params
         t, X, st, hit = _segment(r, leg, leg.state(x_now), grid, pl, watched, h_next)
-        r.chart_switches += r.atlases.wrapped(st["wraps"], p) if st["wraps"] else []
+        made = r.atlases.wrapped(st["wraps"]) if st["wraps"] else []  # what the loop made (c/wrap.c)
+        r.chart_switches += made
+        p_rows, changed = p, [rec for rec in made if rec["from"] != rec["to"]]
+        if changed:  # charts the loop changed: the run goes on in them (its rows before, in theirs)
+            p = pl = r.atlases.after(changed, p)
+            for rec in changed:
+                r.p[model.p_names.index(rec["chart"])] = rec["to"]
         h_next = 0.0
         _count(r, st, own)
         t_look = perf_counter()
         at_edge = hit is not None and "atlas" in hit
         # integrated again from the segment's states (it may have wrapped a coordinate, c/wrap.c,
         # since its start): wrapped alike, the records left (the segment's are the run's)
-        with leg.model.library.wrapping(st["slots"], []):
+        with leg.model.library.wrapping(st["slots_again"], []):
             found = None if hit is None or at_edge else _locate(r, leg, pl, watched, hit)
             if found is not None and found[2] == "slip" and not hit["armed"] and found[3] in r.slip_levels:
                 found = _last_zero(r, leg, pl, watched[hit["which"]], hit, found, t, X, (grid[0], leg.state(x_now)))
@@ -1540,10 +1546,12 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         on_grid = t[:keep] > last_t
         if keep and on_grid[0]:
             on_grid[0] = bool(t_eval[min(int(np.searchsorted(t_eval, t[0])), len(t_eval) - 1)] == t[0])
-        rows_t.append(t[:keep][on_grid])
-        rows_x.append(X[:keep][on_grid])
-        rows_mode.append(_mode_rows(modes, int(on_grid.sum())))
-        rows_p.append(p)
+        t_rows, X_rows = t[:keep][on_grid], X[:keep][on_grid]
+        for a, b, pk in _by_charts(r, t_rows, p_rows, changed):
+            rows_t.append(t_rows[a:b])
+            rows_x.append(X_rows[a:b])
+            rows_mode.append(_mode_rows(modes, b - a))
+            rows_p.append(pk)
         if on_grid.any():
             last_t = float(t[:keep][on_grid][-1])
         if at_edge:  # a contact at its chart's edge: on in the chart that covers it
@@ -1572,6 +1580,21 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
     if short is not None and rolls is not None and r.sched is None and not r.events:
         _remember(model, short, s, r, rolls)
     return res
+
+
+def _by_charts(r: _Run, t: np.ndarray, p: np.ndarray, changed: list[dict]) -> list[tuple[int, int, np.ndarray]]:
+    """A segment's rows ``t`` cut where the loop changed a chart (``changed``, its records in
+    time order): ``[a, b)`` and each piece's ``p`` (a row at a change's time is before it)."""
+    if not changed:
+        return [(0, len(t), p)]
+    out, a, pk = [], 0, np.array(p, dtype=float)
+    for rec in changed:
+        b = int(np.searchsorted(t, rec["t"], side="right"))
+        out.append((a, b, pk.copy()))
+        pk[r.model.p_names.index(rec["chart"])] = rec["to"]
+        a = b
+    out.append((a, len(t), pk))
+    return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), pk)]
 
 
 def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) -> None:
@@ -1713,10 +1736,10 @@ def short_way(model, key, t_final, t_eval, x0) -> SimulationResult | None:
         raise  # Ctrl-C (under a handler of the user's): the call's, not a reason to go the full way
     except GraspingSymError:
         return None
-    if hit is not None or len(tt) != len(t):
+    if hit is not None or len(tt) != len(t) or any(rec[6] != rec[7] for rec in st["wraps"]):
         plan[3].pop(at, None)  # it switches from there: the next such call goes the full way at once
         return None
-    r.chart_switches += r.atlases.wrapped(st["wraps"], p) if st["wraps"] else []  # (c/wrap.c's)
+    r.chart_switches += r.atlases.wrapped(st["wraps"]) if st["wraps"] else []  # (c/wrap.c's)
     _count(r, st, own)
     return _finish(r, s, start, [tt], [leg.states(X)], [_mode_rows(modes, len(tt))], [p])
 
@@ -1795,9 +1818,14 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         rows_t, rows_x, stats = [], [], {}
         # the coordinates the C loops wrap at the step (c/wrap.c): the model with modes' own
         wraps: list = []
-        wrap_slots = None if r.atlases is None or leg.back is not None or s.method == "rk4" else \
-            r.atlases.wrap_slots
-        stats["wraps"], stats["slots"] = wraps, wrap_slots
+        wrap_slots = again = None
+        if r.atlases is not None and leg.back is None and s.method != "rk4":
+            # the loop changes a chart itself unless a contact slides (its slip turns with its
+            # frame: _slip_across) or a table of inputs restarts it (each piece from the segment's
+            # p); integrated again, it only wraps (from a state of the segment's end's charts)
+            fixed = r.sched is not None or any(p[r.i_mode[j - 1]] == SLIDING for j in r.contacts)
+            wrap_slots, again = r.atlases.wrap_only if fixed else r.atlases.wrap_slots, r.atlases.wrap_only
+        stats["wraps"], stats["slots_again"] = wraps, again
         deadline = None if s.time_limit is None else perf_counter() + s.time_limit  # the pieces' in all
         for k, (a0, a1, a, b) in enumerate(pieces):
             g = grid if r.sched is None else np.concatenate([[a0], grid[(grid > a0) & (grid < a1)], [a1]])

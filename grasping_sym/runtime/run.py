@@ -146,12 +146,13 @@ class _Charted:
         rows_t, rows_x, stats, x, grid, h0 = [], [], {}, x0, t_eval, 0.0
         began, now = perf_counter(), s
         while True:
-            wrapped: list = []  # the wraps the C loop made at its steps (c/wrap.c), before any stop
+            wrapped: list = []  # the wraps and charts' changes the C loop made (c/wrap.c), before any stop
             try:
-                t, X, st = integrate(self.model, now, x, grid, p, start, h0, sched,
-                                     (self.atlases.wrap_slots, wrapped))
+                t, X, st = integrate(self.model, now, x, grid, p, start, h0, sched, (self.atlases, wrapped))
             except ContactLeftContourError as err:
-                self.switches += self.atlases.wrapped(wrapped, p)
+                made = self.atlases.wrapped(wrapped)
+                self.switches += made
+                p = self.atlases.after(made, p)  # the charts the loop changed
                 k = self.atlases.slot_of(err)
                 if k is None:
                     raise
@@ -166,7 +167,9 @@ class _Charted:
                 self._keep(record, err)
                 grid = np.concatenate([[err.t], t_eval[t_eval > err.t]])
             else:
-                self.switches += self.atlases.wrapped(wrapped, p)
+                made = self.atlases.wrapped(wrapped)
+                self.switches += made
+                p = self.atlases.after(made, p)
                 grid = None
             rows_t.append(t)
             rows_x.append(X)
@@ -320,8 +323,10 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
     ``sched`` the table, or None) with the settings ``s`` and named errors: ``(t, X, stats)``;
     ``h0``: a C loop's first step (0: chosen). With ``s.checks``, the adaptive C loops watch
     the checks at every step (``runtime.watch``) and raise the first event, located there.
-    ``wraps``: None, or ``(slots, into)``: the adaptive C loops wrap those coordinates at the
-    step and append their records to ``into`` (``CompiledLibrary.wrapping``)."""
+    ``wraps``: None, or ``(atlases, into)``: the adaptive C loops wrap the atlases' coordinates
+    and change their charts at the step (``runtime.atlas.Atlases.wrap_slots``) and append their
+    records to ``into`` (``CompiledLibrary.wrapping``); an error or event after a change is
+    read with the charts it left."""
     method, checks, rtol, atol, h = s.method, s.checks, s.rtol, s.atol, s.h
     if method in integrators.C_LOOPS:
         watched = s.watched
@@ -330,13 +335,14 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
             if watch_.first_past(watched, row.tolist()) is not None:
                 raise watch_.start_error(model, s, float(t_eval[0]), x0, dict(zip(model.columns, map(float, row))))
             watch_.start(model.library, watched, watch_.input_slots(model))
-        slots, into = (None, []) if wraps is None or method == "rk4" else wraps
+        atlases, into = (None, []) if wraps is None or method == "rk4" else wraps
         try:
-            with model.library.wrapping(slots, into):
+            with model.library.wrapping(None if atlases is None else atlases.wrap_slots, into):
                 t, X, st = integrators.c_loop(model, method, x0, t_eval, p, rtol=rtol, atol=atol,
                                               max_steps=s.max_steps, h=h, projection=s.proj,
                                               time_limit=s.time_limit, h0=h0)
         except IntegratorError as exc:
+            p = p if atlases is None else atlases.after(atlases.wrapped(into), p)
             err = failures.blow_up(model, failures.classify(model, exc), method, h)
             if checks:
                 checks_.raise_earlier_event(model, err, p, start)
@@ -345,6 +351,7 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
             if watched:
                 model.library.unwatch()
         if "event" in st:
+            p = p if atlases is None else atlases.after(atlases.wrapped(into), p)
             raise watch_.event_error(model, s, sched, p, watched, st.pop("event"), t, X)
         return t, X, st
     pp = np.zeros(0) if p is None else p
