@@ -404,6 +404,23 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
     assert np.abs(turned - v1 / np.linalg.norm(v1)).max() < 1e-12
 
 
+def test_a_grasp_that_changes_chart_in_the_loop_then_slips_slips_as_on_one_chart(pivot_grasps, pivot_modes):
+    """The grasp with modes of mu = 0.473, just under its cone ratio's peak (0.4745 at 23 ms):
+    it rolls, its fingertip's chart changes inside the C loop (15 ms: ``c/wrap.c``), and in
+    the same segment the contact starts to slip (18 ms), then sticks (32 ms). The events,
+    located from the segment's last step in the new chart, are the one-chart grasp's: the
+    slip's to 1e-9 s, the stick's to 1e-7 s (a stop is taken below ``STOP_SPEED``)."""
+    g, model, one = pivot_grasps, pivot_modes["atlas"], pivot_modes["one"]
+    kw = dict(mu=0.473, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 0.05, 11))
+    ra, r1 = model.simulate(0.05, x0=g["xa"], **kw), one.simulate(0.05, x0=g["x0"], **kw)
+    change = ra.chart_switches[0]
+    assert change["in_loop"] and change["chart"] == "chart_f1" and change["from"] != change["to"]
+    assert [(e["from"], e["to"]) for e in ra.events] == [(e["from"], e["to"]) for e in r1.events] == \
+        [("rolling", "sliding"), ("sliding", "rolling")]
+    assert change["t"] < ra.events[0]["t"]
+    assert abs(ra.events[0]["t"] - r1.events[0]["t"]) < 1e-9 and abs(ra.events[1]["t"] - r1.events[1]["t"]) < 1e-7
+
+
 def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_grasps, tmp_path):
     """After a switch: the contacts' traces (each row read in its chart) run on without a
     jump; a saved result keeps each row's charts; rk4 (one uniform grid) refuses by name;

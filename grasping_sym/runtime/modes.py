@@ -1871,7 +1871,9 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 stats[key] = stats.get(key, 0) + int(st.get(key, 0))
             stats["loop_time"] = stats.get("loop_time", 0.0) + float(st.get("wall_time", 0.0))
             if "event" in st:
-                hit = {**st["event"], **_watched(r, lib), "p": pk}
+                # (p with the charts the loop changed: the event's step is in them)
+                hit = {**st["event"], **_watched(r, lib),
+                       "p": r.atlases.after(r.atlases.wrapped(wraps), pk) if wraps else pk}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             x = X[-1]
         _watched(r, lib)
