@@ -22,6 +22,7 @@ from grasping_sym.derive.bodies3d import surface_sx
 from grasping_sym.errors import (
     ContactLeftContourError,
     FrictionConeError,
+    IntegratorError,
     InvalidSceneError,
     InvalidSurfaceError,
     RunArgumentError,
@@ -30,8 +31,10 @@ from grasping_sym.geometry import surface_library as sl
 from grasping_sym.geometry.atlas import manifest_entry
 from grasping_sym.runtime import atlas as atlas_
 from grasping_sym.runtime import batch as batch_
+from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import fastpath
 from grasping_sym.runtime import modes as modes_
+from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.viz.plots3d import contact_traces
 from tests.scenes import BALL_R, pressed_ball
 
@@ -326,6 +329,33 @@ def test_a_grasp_runs_on_across_its_fingertips_and_objects_charts(pivot_grasps):
         want = one.evaluate(rr[f"u_{side}1"], rr[f"v_{side}1"])["point"]
         got = atlas.evaluate(ra[f"u_{side}1"], ra[f"v_{side}1"], chart=ra.charts[f"chart_{side}1"])["point"]
         assert np.abs(got - want).max() < 1e-12
+
+
+def test_a_failed_run_reads_each_row_in_the_charts_it_was_written_in(pivot_grasps, monkeypatch):
+    """A plain grasp run stopped by ``max_steps`` after its loop changed both charts: the
+    failure's check for an earlier event (``checks.raise_earlier_event``) reads each row of the
+    failed loop in its own charts (before a change, the chart it changed from): every row's
+    relative curvature equals the row read alone in the charts the records give it."""
+    model, xa = pivot_grasps["model"], pivot_grasps["xa"]
+    kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
+    full = model.simulate(1.5, x0=xa, **kw)
+    seen = {}
+    real = checks_._at_rows_in_charts
+
+    def spy(m, t, X, p, changes):
+        seen.update(t=t, X=X, p=p, out=real(m, t, X, p, changes))
+        return seen["out"]
+    monkeypatch.setattr(checks_, "_at_rows_in_charts", spy)
+    with pytest.raises(IntegratorError, match="too many steps"):
+        model.simulate(1.5, x0=xa, max_steps=int(0.9 * full.stats["n_steps"]), **kw)
+    t, X = seen["t"], seen["X"]
+    changes = [rec for rec in full.chart_switches if rec["from"] != rec["to"]]
+    assert len(changes) == 2 and t[-1] > changes[-1]["t"]
+    rows_p = np.tile(seen["p"], (len(t), 1))
+    for rec in changes:
+        rows_p[t > rec["t"], model.p_names.index(rec["chart"])] = rec["to"]
+    alone = [outputs_.at_rows(model, X[i:i + 1], rows_p[i])["krel_min1"][0] for i in range(len(t))]
+    assert np.array_equal(seen["out"]["krel_min1"], alone)
 
 
 def test_what_does_not_take_an_atlas_yet_says_so():

@@ -361,10 +361,28 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
     return min(events, key=lambda e: (e[0], e[1]))[2]
 
 
-def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
+def _at_rows_in_charts(model, t: np.ndarray, X: np.ndarray, p, changes) -> dict:
+    """``outputs.at_rows`` with each row read in the charts it was written in: ``p`` up to the
+    first of ``changes`` (a row at a change's time is before it), then each change's."""
+    if not changes:
+        return outputs.at_rows(model, X, p)
+    parts, a, pk = [], 0, np.array(p, dtype=float)
+    for rec in [*changes, None]:
+        b = len(t) if rec is None else int(np.searchsorted(t, rec["t"], side="right"))
+        if b > a:
+            parts.append(outputs.at_rows(model, X[a:b], pk.copy()))
+        if rec is not None:
+            pk[model.p_names.index(rec["chart"])] = rec["to"]
+        a = max(a, b)
+    return {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+
+
+def raise_earlier_event(model, exc: IntegratorError, p, start: dict, changes: tuple = ()) -> None:
     """On a failed run: raise the curvature or moving-frame event instead when it came before
     ``exc.t`` (the cause of the blow-up). The sign of ``f`` is not checked here: near a
-    numerical blow-up ``f`` swings wildly and "contact opens" would name a symptom."""
+    numerical blow-up ``f`` swings wildly and "contact opens" would name a symptom.
+    ``changes``: the charts the loop changed (``runtime.atlas`` records, in time order; ``p``
+    the start's charts): each row is read in its own."""
     names = model.columns
     if not (curvature_outputs(names) or denominator_outputs(names)):
         return
@@ -391,7 +409,7 @@ def raise_earlier_event(model, exc: IntegratorError, p, start: dict) -> None:
     t, X = t[keep], X[keep]
     if len(t) == 0:
         return
-    outs = outputs.at_rows(model, X, p)
+    outs = _at_rows_in_charts(model, t, X, p, changes)
     note = f"; the integrator then failed at t = {exc.t:.6g} s: {exc.reason}"
     event = trajectory_event(model, t, X, outs, start, force=False, note=note)
     if event is not None and event.t <= exc.t:

@@ -1577,7 +1577,9 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
             _record(r, t_ev, j, name, value_, reset, before, modes, located)
         t_now = t_ev
     res = _finish(r, s, start, rows_t, rows_x, rows_mode, rows_p)
-    if short is not None and rolls is not None and r.sched is None and not r.events:
+    # (a run whose loop changed a chart: the short way would run it and give it up at its end)
+    if short is not None and rolls is not None and r.sched is None and not r.events \
+            and all(rec["from"] == rec["to"] for rec in r.chart_switches):
         _remember(model, short, s, r, rolls)
     return res
 

@@ -342,10 +342,10 @@ def integrate(model, s: RunSettings, x0, t_eval, p, start, h0: float = 0.0, sche
                                               max_steps=s.max_steps, h=h, projection=s.proj,
                                               time_limit=s.time_limit, h0=h0)
         except IntegratorError as exc:
-            p = p if atlases is None else atlases.after(atlases.wrapped(into), p)
+            changed = [] if atlases is None else [rec for rec in atlases.wrapped(into) if rec["from"] != rec["to"]]
             err = failures.blow_up(model, failures.classify(model, exc), method, h)
-            if checks:
-                checks_.raise_earlier_event(model, err, p, start)
+            if checks:  # (each row read in the charts it was written in)
+                checks_.raise_earlier_event(model, err, p, start, changed)
             raise err from None
         finally:
             if watched:
