@@ -195,14 +195,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
   if (row == n_out) goto done;
   if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p, t_out[n_out - 1]))) goto fail;
 
-  if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
-  st[GS_ST_RHS] += 1;
-  for (int i = 0; i < n; ++i)
-    if (!isfinite(k[0][i])) {
-      for (int j = 0; j < n; ++j) y1[j] = y[j];
-      rc = GS_ERR_NONFINITE;
-      goto fail;
-    }
+  if ((rc = gs_start_rhs(wk, t, y, p, k[0], st, y1))) goto fail;
   if (h0 > 0.0)
     h = fmin(h0, interval);
   else if ((rc = gs_initial_step(wk, t0, y, k[0], p, rtol, atol, interval, 7, 100.0, st, &h)))
@@ -314,14 +307,7 @@ GS_EXPORT long gs_dop853(double t0, long n_out, const double* t_out, const doubl
       if (w == 2) { /* a chart's change: y mapped at t; the step not taken, the loop anew */
         st[GS_ST_STEPS] -= 1;
         st[GS_ST_REJECTED] += 1;
-        if ((rc = gs_eval_rhs(wk, &t, y, p, k[0]))) goto fail;
-        st[GS_ST_RHS] += 1;
-        for (int i = 0; i < n; ++i)
-          if (!isfinite(k[0][i])) {
-            for (int j = 0; j < n; ++j) y1[j] = y[j];
-            rc = GS_ERR_NONFINITE;
-            goto fail;
-          }
+        if ((rc = gs_start_rhs(wk, t, y, p, k[0], st, y1))) goto fail;
         last = 0;
         reject = 0;
         continue;

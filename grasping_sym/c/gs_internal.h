@@ -140,6 +140,21 @@ static inline int gs_eval_rhs(gs_work* wk, const double* t, const double* x, con
 
 /* xdot[s] = f(t[s], x[s], p) for s = 0, 1, 2: one call of the 4-lane rhs when the library
  * has it (codegen/lanes.py; bit-identical to three calls of the rhs), else three calls. */
+/* A loop's start (and its start again after a chart's change, wrap.c): f = rhs(t, y), counted
+ * in st; GS_ERR_NONFINITE, with x_bad = y, where f is not finite. */
+static inline int gs_start_rhs(gs_work* wk, double t, const double* y, const double* p, double* f,
+                               double* st, double* x_bad) {
+  const int rc = gs_eval_rhs(wk, &t, y, p, f);
+  if (rc) return rc;
+  st[GS_ST_RHS] += 1;
+  for (int i = 0; i < gs_nx; ++i)
+    if (!isfinite(f[i])) {
+      for (int j = 0; j < gs_nx; ++j) x_bad[j] = y[j];
+      return GS_ERR_NONFINITE;
+    }
+  return 0;
+}
+
 static inline int gs_eval_rhs3(gs_work* wk, const double* t, const double* const* x,
                                const double* p, double* const* xdot) {
   if (gs_has_lanes) {

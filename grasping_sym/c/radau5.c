@@ -218,14 +218,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
   if (row == n_out) goto done;
   if (gs_watching() && (rc = gs_watch_begin(wk, t0, y, p, t_out[n_out - 1]))) goto fail;
 
-  if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
-  st[2] += 1;
-  for (int i = 0; i < n; ++i)
-    if (!isfinite(f[i])) {
-      for (int j = 0; j < n; ++j) ynew[j] = y[j];
-      rc = GS_ERR_NONFINITE;
-      goto fail;
-    }
+  if ((rc = gs_start_rhs(wk, t, y, p, f, st, ynew))) goto fail;
 
   /* Initial step (scipy's select_initial_step with error order 3, no probe cap). */
   if (h0 > 0.0)
@@ -470,14 +463,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
         if (w == 2) { /* a chart's change: y mapped at t; the step not taken, the loop anew */
           st[0] -= 1;
           st[1] += 1;
-          if ((rc = gs_eval_rhs(wk, &t, y, p, f))) goto fail;
-          st[2] += 1;
-          for (int i = 0; i < n; ++i)
-            if (!isfinite(f[i])) {
-              for (int j = 0; j < n; ++j) ynew[j] = y[j];
-              rc = GS_ERR_NONFINITE;
-              goto fail;
-            }
+          if ((rc = gs_start_rhs(wk, t, y, p, f, st, ynew))) goto fail;
           have_sol = 0;
           need_jac = 1;
           lu_valid = 0;
