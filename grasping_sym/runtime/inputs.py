@@ -83,14 +83,13 @@ class Schedule:
         return out[0] if np.ndim(t) == 0 else out
 
     def segments(self, t0: float, t1: float) -> list[tuple[float, float, np.ndarray, np.ndarray]]:
-        """``(start, end, a, b)`` of each segment that meets ``[t0, t1]``, in order."""
-        inner = [float(k) for k in self.knots if t0 < k < t1]
-        bounds = [t0, *inner, t1]
-        out = []
-        for s, e in zip(bounds[:-1], bounds[1:]):
-            k = int(np.searchsorted(self.knots, 0.5 * (s + e), side="right"))
-            out.append((s, e, self.a[k], self.b[k]))
-        return out
+        """``(start, end, a, b)`` of each segment that meets ``[t0, t1]``, in order (in NumPy:
+        a run's start makes them all, and a table of 60 001 knots took it 0.2-0.5 s of Python,
+        which held off a Ctrl-C on a batch's threads for over a second)."""
+        knots = self.knots
+        bounds = np.concatenate([[t0], knots[(knots > t0) & (knots < t1)], [t1]])
+        k = np.searchsorted(knots, 0.5 * (bounds[:-1] + bounds[1:]), side="right")
+        return list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), self.a[k], self.b[k]))
 
     def __repr__(self) -> str:
         return f"Schedule({self.kind}, {self.n} inputs, {len(self.knots)} knots)"
