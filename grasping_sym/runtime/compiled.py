@@ -701,17 +701,20 @@ class CompiledLibrary:
         witnesses keep what they were armed by."""
         self._lib.gs_watch_resume()
 
-    @contextlib.contextmanager
     def wrapping(self, slots: np.ndarray | None, into: list):
         """Around this thread's radau5 / dopri5 / dop853 loops: a contact's coordinates that
         reach their bound are wrapped a period round at the step, in the loop (``c/wrap.c``;
         ``slots``: ``runtime.atlas.Atlases.wrap_slots``, None: nothing is wrapped), or their
         chart changed where a slot allows it; on exit, whatever the loops raised, each one's
         ``(t, slot, u, v, u', v', chart, chart', delta)`` is appended to ``into``. A library of
-        an older version wraps nothing (its loops stop at the bound)."""
+        an older version wraps nothing (its loops stop at the bound). Nothing to wrap: a null
+        context (a run calls this around every piece of a table of inputs)."""
         if slots is None or not self.can_wrap:
-            yield
-            return
+            return contextlib.nullcontext()
+        return self._wrapping(slots, into)
+
+    @contextlib.contextmanager
+    def _wrapping(self, slots: np.ndarray, into: list):
         slots = np.ascontiguousarray(slots, dtype=float)
         records = np.empty((WRAP_CAPACITY, 9))
         if self._lib.gs_wrap_set(len(slots), slots.ctypes.data, records.ctypes.data, WRAP_CAPACITY):
