@@ -120,6 +120,23 @@ def _wrap_slot(entry: dict, i_chart: int | None, cols, change: bool) -> list[flo
             *entry["axes"], entry["n"], int(change)]
 
 
+def by_charts(p_names, t: np.ndarray, p, records) -> list[tuple[int, int, np.ndarray]]:
+    """The rows ``t`` (in time order) cut where ``records`` (switches, in time order) change a
+    chart: ``[a, b)`` and each piece's ``p`` (``p``: the first piece's; a row at a change's
+    time is before it). Wraps cut nothing: they keep their chart."""
+    changed = [rec for rec in records if rec["chart"] is not None and rec["from"] != rec["to"]]
+    if not changed:
+        return [(0, len(t), p)]
+    out, a, pk = [], 0, np.array(p, dtype=float)
+    for rec in changed:
+        b = max(a, int(np.searchsorted(t, rec["t"], side="right")))
+        out.append((a, b, pk.copy()))
+        pk[p_names.index(rec["chart"])] = rec["to"]
+        a = b
+    out.append((a, len(t), pk))
+    return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), pk)]
+
+
 def repeated(switches: list[dict], record: dict) -> bool:
     """Whether ``record`` carries the same coordinates at the same time as the last of
     ``switches``: a state carried across and straight back out, which no chart's edge makes

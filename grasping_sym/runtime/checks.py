@@ -38,6 +38,7 @@ from grasping_sym.errors import (
     RelativeCurvatureError,
 )
 from grasping_sym.runtime import outputs, parameters
+from grasping_sym.runtime.atlas import by_charts
 
 #: ``kappa_sum`` / ``krel_min{i}`` may fall to this fraction of its initial value.
 KAPPA_SUM_RELATIVE = 1e-3
@@ -362,19 +363,10 @@ def trajectory_event(model, t: np.ndarray, X: np.ndarray, outs: dict, start: dic
 
 
 def _at_rows_in_charts(model, t: np.ndarray, X: np.ndarray, p, changes) -> dict:
-    """``outputs.at_rows`` with each row read in the charts it was written in: ``p`` up to the
-    first of ``changes`` (a row at a change's time is before it), then each change's."""
-    if not changes:
-        return outputs.at_rows(model, X, p)
-    parts, a, pk = [], 0, np.array(p, dtype=float)
-    for rec in [*changes, None]:
-        b = len(t) if rec is None else int(np.searchsorted(t, rec["t"], side="right"))
-        if b > a:
-            parts.append(outputs.at_rows(model, X[a:b], pk.copy()))
-        if rec is not None:
-            pk[model.p_names.index(rec["chart"])] = rec["to"]
-        a = max(a, b)
-    return {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+    """``outputs.at_rows`` with each row read in the charts it was written in
+    (``runtime.atlas.by_charts``: ``p`` up to the first of ``changes``, then each change's)."""
+    parts = [outputs.at_rows(model, X[a:b], pk) for a, b, pk in by_charts(model.p_names, t, p, changes)]
+    return parts[0] if len(parts) == 1 else {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
 
 
 def raise_earlier_event(model, exc: IntegratorError, p, start: dict, changes: tuple = ()) -> None:

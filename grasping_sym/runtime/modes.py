@@ -57,7 +57,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import c_loops, events, failures, fastpath, friction, integrators, parameters, pool
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
-from grasping_sym.runtime.atlas import Atlases, repeated
+from grasping_sym.runtime.atlas import Atlases, by_charts, repeated
 from grasping_sym.runtime.parameters import complete
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.watch import WATCH_DT, WATCH_SAFETY
@@ -1547,7 +1547,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         if keep and on_grid[0]:
             on_grid[0] = bool(t_eval[min(int(np.searchsorted(t_eval, t[0])), len(t_eval) - 1)] == t[0])
         t_rows, X_rows = t[:keep][on_grid], X[:keep][on_grid]
-        for a, b, pk in _by_charts(r, t_rows, p_rows, changed):
+        for a, b, pk in by_charts(model.p_names, t_rows, p_rows, changed):
             rows_t.append(t_rows[a:b])
             rows_x.append(X_rows[a:b])
             rows_mode.append(_mode_rows(modes, b - a))
@@ -1582,21 +1582,6 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
             and all(rec["from"] == rec["to"] for rec in r.chart_switches):
         _remember(model, short, s, r, rolls)
     return res
-
-
-def _by_charts(r: _Run, t: np.ndarray, p: np.ndarray, changed: list[dict]) -> list[tuple[int, int, np.ndarray]]:
-    """A segment's rows ``t`` cut where the loop changed a chart (``changed``, its records in
-    time order): ``[a, b)`` and each piece's ``p`` (a row at a change's time is before it)."""
-    if not changed:
-        return [(0, len(t), p)]
-    out, a, pk = [], 0, np.array(p, dtype=float)
-    for rec in changed:
-        b = int(np.searchsorted(t, rec["t"], side="right"))
-        out.append((a, b, pk.copy()))
-        pk[r.model.p_names.index(rec["chart"])] = rec["to"]
-        a = b
-    out.append((a, len(t), pk))
-    return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), pk)]
 
 
 def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) -> None:

@@ -23,7 +23,7 @@ from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import watch as watch_
-from grasping_sym.runtime.atlas import Atlases, repeated
+from grasping_sym.runtime.atlas import Atlases, by_charts, repeated
 from grasping_sym.runtime.inputs import as_schedule
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings, numbers_array
@@ -192,19 +192,9 @@ class _Charted:
         self.switches.append(record)
 
     def pieces(self, t, p) -> list[tuple[int, int, np.ndarray]]:
-        """The rows ``[a, b)`` between switches, each with its ``p`` (``p`` with that
+        """The rows ``[a, b)`` between changes of chart, each with its ``p`` (``p`` with that
         stretch's charts)."""
-        if not self.switches:
-            return [(0, len(t), p)]
-        out, a, pk = [], 0, None if p is None else np.array(p, dtype=float)
-        for rec in self.switches:
-            b = int(np.searchsorted(t, rec["t"], side="right"))
-            out.append((a, b, None if pk is None else pk.copy()))
-            if rec["chart"] is not None:  # None: a repeating chart's coordinates wrapped
-                pk[self.model.p_names.index(rec["chart"])] = rec["to"]
-            a = b
-        out.append((a, len(t), pk))
-        return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), p)]
+        return by_charts(self.model.p_names, t, p, self.switches)
 
     def rows(self, t, p) -> dict:
         """Per chart parameter, each row's chart."""
