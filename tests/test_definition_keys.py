@@ -10,7 +10,7 @@ import pytest
 import grasping_sym as gs
 from grasping_sym.model import controllers
 from grasping_sym.model.law_keys import function_definition, value_definition
-from grasping_sym.pipeline import stages
+from grasping_sym.pipeline import making
 
 GAIN = 0.5
 
@@ -122,13 +122,13 @@ def test_a_cached_scene_is_found_without_running_its_law(monkeypatch):
     scene = gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.004))
     first = gs.build(scene)
     # the definition found the model the law's expressions key
-    assert stages.code_hash(scene)["hash"] == first.manifest["hash"]
+    assert making.code_hash(scene)["hash"] == first.manifest["hash"]
 
     def never(*a, **k):
         raise AssertionError("the law was run or its expressions hashed")
 
     monkeypatch.setattr(controllers.Controller, "torques", never)
-    monkeypatch.setattr(stages, "controller_key", never)
+    monkeypatch.setattr(making, "controller_key", never)
     again = gs.build(gs.scenes.paper2d(controller=controllers.paper2d() + _law_of(0.004)))
     assert again.build_info["key"] == "definition" and again.build_info["source"] == "cache"
     assert again.directory == first.directory
@@ -151,3 +151,35 @@ def test_another_gain_builds_another_model_and_an_unreadable_law_still_builds():
                               + gs.controllers.law(lambda m: [-g.k * dq for dq in m.dq]))
     c = gs.build(scene)
     assert c.build_info["key"] == "expressions" and c.directory == a.directory
+
+
+@pytest.mark.parametrize("scene", ["paper2d", "paper3d"])
+def test_a_cached_build_in_a_new_process_imports_nothing_that_builds(scene):
+    """A build that finds its model by its definition, and the run after it, import none of
+    the floors that derive, write or compile (``pipeline.making``): not CasADi (where the scene
+    did not), not the assembly, the emitter, the derivation or the compiler's library."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = ("import json, sys\n"
+            "import grasping_sym as gs\n"
+            f"scene = gs.scenes.{scene}()\n"
+            "before = set(sys.modules)\n"
+            "model = gs.build(scene)\n"
+            "res = model.simulate(0.05)\n"
+            "print(json.dumps({'new': sorted(set(sys.modules) - before), 'casadi': 'casadi' in before,\n"
+            "                  'key': model.build_info['key'], 'source': model.build_info['source'],\n"
+            "                  'ok': bool(abs(res.t[-1] - 0.05) < 1e-12)}))\n")
+    run = [sys.executable, "-c", code]
+    subprocess.run(run, check=True, capture_output=True, env={**os.environ})  # fills the cache
+    got = json.loads(subprocess.run(run, check=True, capture_output=True, text=True,
+                                    env={**os.environ}).stdout)
+    assert (got["key"], got["source"], got["ok"]) == ("definition", "cache", True)
+    building = ("grasping_sym.assemble", "grasping_sym.emit", "grasping_sym.derive",
+                "grasping_sym.pipeline.making", "grasping_sym.pipeline.committed",
+                "grasping_sym.toolchain.library", "grasping_sym.toolchain.objects")
+    assert not [m for m in got["new"] if m.startswith(building)], got["new"]
+    assert got["casadi"] or "casadi" not in got["new"]
+    assert "grasping_sym.runtime.model" in got["new"]  # the check sees what the build imported

@@ -8,14 +8,10 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
-from grasping_sym.assemble import casadi_api, structure_cache
 from grasping_sym.pipeline.quality_along import grasp_quality as _grasp_quality
 from grasping_sym.runtime import portable
 from grasping_sym.runtime.model import Model
 from grasping_sym.store import safety
-from grasping_sym.store.platform import library_name
-from grasping_sym.toolchain.compiler import toolchain_id
-from grasping_sym.toolchain.library import compile_model
 
 
 class BuiltModel(Model):
@@ -67,6 +63,7 @@ class BuiltModel(Model):
         and the integrators' sensitivities call), compiled once and kept beside the model
         (use them in ``Opti`` without ``expand``, which would inline the SX again).
         Needs the scene: a model from ``gs.build``, not from ``gs.load``."""
+        from grasping_sym.assemble import casadi_api  # noqa: PLC0415 - lazy: SymPy and CasADi, only for a function asked for
         scene = self.scene
         if self.manifest.get("modes"):
             raise ValueError(f"casadi_function: {self.name!r} is a model with contact modes, whose right-"
@@ -137,38 +134,17 @@ def restore(data: dict, friction=None, rolling=None) -> BuiltModel:
     return model
 
 
-def _compile_here(directory: Path, manifest: dict, data: dict) -> dict:
-    """A model's library compiled from the C sent, with its structure's files first; returns
-    the manifest with the library's record."""
-    if data.get("structure"):
-        structure_cache.install_files(data["structure"]["entry"], data["structure"]["files"])
-    return compiled_manifest(manifest, compile_library(directory, manifest))
-
-
-def compiled_manifest(manifest: dict, lib: Path) -> dict:
-    """``manifest`` with the record of a library just compiled: its checksum and what
-    compiled it (``toolchain.compiler.toolchain_id``, checked before a cached one is used)."""
-    return {**manifest, "compiled_with": toolchain_id(),
-            "libraries": {**manifest.get("libraries", {}), lib.name: safety.sha256_file(lib)}}
-
-
 def _structure_files(manifest: dict) -> dict | None:
-    """A model in layers links its structure's objects: the structure's C and record, so that
-    a receiver without it can compile them."""
-    entry = manifest.get("structure")
-    if not entry:
+    """``pipeline.making.structure_files``: a model in layers sends its structure's files; the
+    structure cache (and CasADi with it) imported only for such a model."""
+    if not manifest.get("structure"):
         return None
-    meta, directory = structure_cache.locate(entry)
-    names = [*meta.files, structure_cache.META]
-    return {"entry": entry, "files": {f: (directory / f).read_bytes() for f in names}}
+    from grasping_sym.pipeline import making  # noqa: PLC0415 - lazy: CasADi, only for a model in layers
+    return making.structure_files(manifest)
 
 
-def compile_library(directory: Path, manifest: dict) -> Path:
-    """Compile the model's C files and link them with the driver (and the CPython fast-call
-    extension) and, for a model in layers, its structure's objects."""
-    sources = [directory / f for f in manifest["files"] if f.endswith(".c")]
-    linked = []
-    if "structure" in manifest:
-        linked = structure_cache.link_objects(*structure_cache.locate(manifest["structure"]))
-    return compile_model(sources, directory / library_name(manifest["name"]),
-                         manifest["driver_defines"], objects=linked)
+def _compile_here(directory: Path, manifest: dict, data: dict) -> dict:
+    """``pipeline.making.compile_here``: the C sent compiled here (a receiver whose platform
+    cannot load the library sent), the compiler imported only then."""
+    from grasping_sym.pipeline import making  # noqa: PLC0415 - lazy: the compiler only where the library cannot load
+    return making.compile_here(directory, manifest, data)

@@ -10,7 +10,7 @@ from pathlib import Path
 from grasping_sym.assemble import kinds, structure_cache, templates
 from grasping_sym.derive import finger_templates
 from grasping_sym.model.scenes import BUILTIN
-from grasping_sym.pipeline.stages import generate, solve_start
+from grasping_sym.pipeline.making import generate, solve_start
 from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
 
