@@ -377,7 +377,7 @@ def pivot_modes(pivot_grasps):
             "one": gs.build(gs.scenes.with_modes(g["ref"].scene))}
 
 
-def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, pivot_modes):
+def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, pivot_modes, monkeypatch):
     """A grasp with contact modes on atlases (pivot3d's one finger: its contact numbered too),
     from the same physical start as on one chart:
     - no friction limit: it rolls across both surfaces' charts as the rolling model does
@@ -386,7 +386,9 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
       switches, its slip turning (re-aimed: ``REAIM_ANGLE``), and sticks when the one-chart
       grasp with modes sticks (to 1e-7 s: a stop is taken below ``STOP_SPEED``), its states
       within 1e-8 of that run's, its contact points within 1e-11 m (re-aimed at 90 degrees,
-      the blend of the slide's direction kicked the speeds by ~3e-7);
+      the blend of the slide's direction kicked the speeds by ~3e-7); the slide's changes of
+      chart are made in the C loop, its slip turned there with the fingertip's frame: the run
+      Python's changes make (states to 1e-9, the stick to 1e-10 s), less a segment each;
     - a sliding contact's slip direction, kept in its fingertip's frame, turns with it at a
       switch of the fingertip's chart: the same direction as the slip velocity's there."""
     g, model, one = pivot_grasps, pivot_modes["atlas"], pivot_modes["one"]
@@ -409,6 +411,16 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
     stick = [e for e in ra.events if e["to"] == "rolling"]
     assert ra.modes[0] == "sliding" and len(stick) == 1 and len(ra.events) == len(r1.events) == 1
     assert {s["chart"] for s in ra.chart_switches if s["t"] < stick[0]["t"]} == {"chart_f1", "chart_o1"}
+    # the slide's changes of chart are made in the C loop (c/wrap.c), its slip turned there with
+    # the fingertip's frame: the run Python's changes make, less the segment each one cut
+    assert ra.chart_switches and all(s["in_loop"] for s in ra.chart_switches)
+    monkeypatch.setattr(model.library, "can_wrap", False)
+    rp = model.simulate(1.5, x0=xa, mu=0.1, **kw)
+    monkeypatch.undo()
+    assert [(s["chart"], s["from"], s["to"], s["in_loop"]) for s in rp.chart_switches] == \
+        [(s["chart"], s["from"], s["to"], False) for s in ra.chart_switches]
+    assert ra.stats["segments"] == rp.stats["segments"] - len(rp.chart_switches)
+    assert np.abs(ra.x - rp.x).max() < 1e-9 and abs(ra.events[0]["t"] - rp.events[0]["t"]) < 1e-10
     assert abs(stick[0]["t"] - r1.events[0]["t"]) < 1e-7
     assert np.abs(ra.x[:, body] - r1.x[:, body]).max() < 1e-8 and points_apart(ra, r1) < 1e-11
 

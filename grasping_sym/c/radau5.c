@@ -439,7 +439,7 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
             goto rejected;
           }
           /* Accepted: Gustafsson's predictive controller. */
-          if (st[0] >= 1.0) {
+          if (st[0] >= 1.0 && hacc > 0.0) { /* (none yet since the loop's start or a change) */
             double facgus = (hacc / h) * sqrt(sqrt(err_norm * err_norm / erracc)) / GS_RADAU_SAFE;
             facgus = fmax(GS_RADAU_FACR, fmin(GS_RADAU_FACL, facgus));
             quot = fmax(quot, facgus);
@@ -469,6 +469,9 @@ static long gs_radau5_run(gs_radau_mats* M, double t0, long n_out, const double*
           lu_valid = 0;
           caljac = 0;
           reject = 0;
+          first = 1; /* the loop's start again: no step, Newton rate or error accepted yet */
+          faccon = 1.0;
+          hacc = 0.0;
           /* a first step chosen anew: the coordinates' rates differ in the new chart (the step
            * kept from the old one was rejected at every change of the lap benchmark's) */
           if ((rc = gs_initial_step(wk, t, y, f, p, rtol, atol, t_end - t, 3, 0.0, st, &h))) goto fail;

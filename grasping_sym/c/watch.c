@@ -321,6 +321,25 @@ GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J) {
  * watched point (x_kept, in the range before) watched now. 0: none left (none fired; the watch
  * goes on from the last of them, as at its next watched point); 1: an event among them (kept:
  * the loop stops at the bound and gs_watch_failed takes it); < 0: an error. */
+/* A sliding contact's slip witness w after its fingertip's chart changed in the loop (wrap.c):
+ * its first two terms' coefficients, the slip direction in the fingertip's frame
+ * (runtime/modes.py's slip_terms), turned with that frame by delta as runtime/modes.py's
+ * _slip_across turns it (x' = cos delta x + sin delta y). gs_watch_turn(w, 0) only asks
+ * whether w can be turned: 0 when it can, else 1 (nothing changed). The witness's value is
+ * the same quantity in either frame: its last value and rates stay. */
+GS_HIDDEN int gs_watch_turn(int w, double delta) {
+  if (!gs_w.on || w < 0 || w >= gs_w.n || gs_w.ptr[w + 1] - gs_w.ptr[w] < 2 ||
+      gs_w.norm[gs_w.ptr[w]] || gs_w.norm[gs_w.ptr[w] + 1] || gs_w.idx[gs_w.ptr[w]] < 0 ||
+      gs_w.idx[gs_w.ptr[w] + 1] < 0)
+    return 1;
+  if (delta == 0.0) return 0;
+  double* c = gs_w.coef + gs_w.ptr[w];
+  const double a = c[0], b = c[1], co = cos(delta), si = sin(delta);
+  c[0] = a * co + b * si;
+  c[1] = b * co - a * si;
+  return 0;
+}
+
 GS_HIDDEN int gs_watch_settle(gs_work* wk, const double* p) {
   if (!gs_w.on || gs_w.n_kept == 0) return 0;
   double t_ev, x_ev[gs_nx];

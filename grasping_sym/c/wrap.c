@@ -21,18 +21,23 @@
  *            one of F(d) = rho(d) d; u's and v's periods, 0 where it does not repeat, and
  *            their domains' middles; the chart parameter's index, -1 for none; the frame
  *            angle psi's column, -1 for none; the semi-axes a and the exponent n; 1 where the
- *            loop may change the chart itself, else 0) and write each wrap or change to
+ *            loop may change the chart itself, else 0; for a fingertip's chart whose contact
+ *            slides, the index in p of its slip direction (two entries, in the fingertip's
+ *            frame: turned with it by delta at a change, with the watch's slip witness, whose
+ *            index follows; watch.c's gs_watch_turn), else -1 and -1) and write each wrap or change to
  *            records (GS_WRAP_REC doubles: the step's start time, the slot, u and v there
  *            before and after, the chart before and after, delta), at most capacity of them
  *            (past that the loop stops at the bound, as without); n = 0 clears.
  *   gs_wrap_count()   the records written since gs_wrap_set.
+ *   gs_wrap_cols()    GS_WRAP_COLS: the slots' row this library reads (runtime/compiled.py
+ *                     wraps nothing with a library whose rows differ from its own).
  */
 #include <math.h>
 
 #include "gs_internal.h"
 
 #define GS_WRAP_SLOTS 16
-#define GS_WRAP_COLS 14
+#define GS_WRAP_COLS 16
 #define GS_WRAP_REC 9
 #define GS_WRAP_NP 512 /* the parameters a loop's own copy holds (a chart's change writes it) */
 
@@ -60,7 +65,8 @@ GS_EXPORT int gs_wrap_set(long n, const double* slots, double* records, long cap
     if (s[2] == 0.0) continue;
     if (!((s[2] == 1.0 || s[2] == 2.0) && s[7] >= 0.0 && s[7] < gs_np && s[8] >= -1.0 && s[8] < gs_nx &&
           s[9] > 0.0 && s[10] > 0.0 && s[11] > 0.0 && (s[2] == 1.0 || s[12] >= 2.0) &&
-          (s[13] == 0.0 || s[13] == 1.0)))
+          (s[13] == 0.0 || s[13] == 1.0) &&
+          ((s[14] == -1.0 && s[15] == -1.0) || (s[14] >= 0.0 && s[14] + 1.0 < gs_np && s[15] >= 0.0))))
       return gs_wrap_refuse();
     gs_wr.changes |= s[13] == 1.0 && gs_np <= GS_WRAP_NP;
   }
@@ -72,6 +78,8 @@ GS_EXPORT int gs_wrap_set(long n, const double* slots, double* records, long cap
 }
 
 GS_EXPORT long gs_wrap_count(void) { return gs_wr.n ? gs_wr.count : 0; }
+
+GS_EXPORT long gs_wrap_cols(void) { return GS_WRAP_COLS; }
 
 /* A loop's start: the parameters it runs on. Where a slot may change its chart, this thread's
  * copy of p (gs_wrap_step writes the chart there); else p. */
@@ -195,6 +203,7 @@ GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, cons
         u1 = remainder(u, 2.0 * M_PI);
       } else {
         if (s[13] != 1.0 || p != gs_wr.p) return 0; /* the change is Python's */
+        if (s[14] >= 0.0 && gs_watch_turn((int)s[15], 0.0)) return 0; /* a slip it cannot turn */
         for (long r = gs_wr.count - 1; r >= 0 && gs_wr.records[r * GS_WRAP_REC] == t; --r)
           if (gs_wr.records[r * GS_WRAP_REC + 1] == k) return 0; /* back at once: Python names it */
         double d1[3], x_new[3], n1[3], y_old[3];
@@ -245,6 +254,13 @@ GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, cons
     if (rec[j][6] != rec[j][7]) {
       if (s[8] >= 0.0) y[(int)s[8]] += rec[j][8];
       gs_wr.p[(int)s[7]] = rec[j][7];
+      if (s[14] >= 0.0) { /* a slide: its direction in the fingertip's frame turns with it */
+        double* d = gs_wr.p + (int)s[14];
+        const double a = d[0], b = d[1], co = cos(rec[j][8]), si = sin(rec[j][8]);
+        d[0] = a * co + b * si;
+        d[1] = b * co - a * si;
+        gs_watch_turn((int)s[15], rec[j][8]);
+      }
     }
   }
   return 2;

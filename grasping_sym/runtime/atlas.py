@@ -18,9 +18,10 @@ chart parameter) wraps each repeating coordinate so, a whole period toward its d
 Nothing is located: any point of the charts' overlap serves, and the step's end is one.
 Those wraps are made inside the C loops at the step (``c/wrap.c``, with ``wrap_slots``; the
 loop goes on, and ``wrapped`` makes their records), and so is a change of chart where the run
-allows it (the loop starts again from the mapped state, the chart in its own copy of ``p``);
-elsewhere (``wrap_only``: a sliding contact, a table of inputs, an integration again) a change
-stops the loop and ``switch`` makes it.
+allows it (the loop starts again from the mapped state, the chart in its own copy of ``p``; a
+sliding contact's slip turned there with its fingertip's frame, ``runtime.modes``); elsewhere
+(``wrap_only``: a table of inputs, an integration again) a change stops the loop and
+``switch`` makes it.
 """
 from __future__ import annotations
 
@@ -111,19 +112,23 @@ def _wrap_slot(entry: dict, i_chart: int | None, cols, change: bool) -> list[flo
     """A slot's row of ``c/wrap.c``'s table: u's and v's columns; 0 for a repeating chart, its
     periods (0: none) and middles; 1 (``F = diag(a) d``) or 2 (``F = rho(d) d``) for an atlas, its
     longitude's turn about 0, its chart parameter's and frame angle's indices (-1: none), its
-    semi-axes and exponent, and whether the loop changes its chart (``change``)."""
+    semi-axes and exponent, and whether the loop changes its chart (``change``); then -1, -1:
+    no slip to turn with its frame (a run with modes gives a sliding contact's,
+    ``runtime.modes``)."""
     if entry["kind"] == "periodic":
         (pu, pv), (cu, cv) = entry["periods"], entry["centers"]
-        return [cols[0], cols[1], 0, pu or 0.0, pv or 0.0, cu, cv, -1, -1, 1.0, 1.0, 1.0, 0, 0]
+        return [cols[0], cols[1], 0, pu or 0.0, pv or 0.0, cu, cv, -1, -1, 1.0, 1.0, 1.0, 0, 0, -1, -1]
     kind = 1 if entry["kind"] == "linear" else 2
     return [cols[0], cols[1], kind, TURN, 0.0, 0.0, 0.0, i_chart, -1 if cols[2] is None else cols[2],
-            *entry["axes"], entry["n"], int(change)]
+            *entry["axes"], entry["n"], int(change), -1, -1]
 
 
-def by_charts(p_names, t: np.ndarray, p, records) -> list[tuple[int, int, np.ndarray]]:
+def by_charts(p_names, t: np.ndarray, p, records, turn=None) -> list[tuple[int, int, np.ndarray]]:
     """The rows ``t`` (in time order) cut where ``records`` (switches, in time order) change a
     chart: ``[a, b)`` and each piece's ``p`` (``p``: the first piece's; a row at a change's
-    time is before it). Wraps cut nothing: they keep their chart."""
+    time is before it; ``turn(p, record)``, where given, what else a change turns in ``p``: a
+    sliding contact's slip direction, ``runtime.modes``). Wraps cut nothing: they keep their
+    chart."""
     changed = [rec for rec in records if rec["chart"] is not None and rec["from"] != rec["to"]]
     if not changed:
         return [(0, len(t), p)]
@@ -132,6 +137,8 @@ def by_charts(p_names, t: np.ndarray, p, records) -> list[tuple[int, int, np.nda
         b = max(a, int(np.searchsorted(t, rec["t"], side="right")))
         out.append((a, b, pk.copy()))
         pk[p_names.index(rec["chart"])] = rec["to"]
+        if turn is not None:
+            turn(pk, rec)
         a = b
     out.append((a, len(t), pk))
     return [piece for piece in out if piece[1] > piece[0]] or [(0, len(t), pk)]
@@ -166,6 +173,10 @@ class Atlases:
         #: step): wraps and changes of chart; wraps only (a change stops the loop)
         self.wrap_slots = np.array([_wrap_slot(entry, i, cols, True) for entry, i, cols in self.slots], dtype=float)
         self.wrap_only = np.array([_wrap_slot(entry, i, cols, False) for entry, i, cols in self.slots], dtype=float)
+
+    def entry(self, chart: str) -> dict:
+        """The atlas entry of the chart parameter ``chart``."""
+        return next(entry for entry, _, _ in self.slots if entry["param"] == chart)
 
     def wrapped(self, raw) -> list[dict]:
         """The records of what the C loops made (``raw``: ``CompiledLibrary.wrapping``'s rows),

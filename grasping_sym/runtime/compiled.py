@@ -42,6 +42,9 @@ from grasping_sym.runtime.c_loops import NSTIFF, as_vector
 #: The wraps one loop records (``CompiledLibrary.wrapping``): past them it stops at the bound,
 #: where ``runtime.atlas`` wraps the coordinates as it does the charts' changes.
 WRAP_CAPACITY = 256
+#: The columns of a slot's row in ``c/wrap.c`` (``runtime.atlas``'s ``_wrap_slot``): a library
+#: whose rows differ (an older version's) wraps nothing, its loops stop at the bound.
+WRAP_COLS = 16
 
 __all__ = ["NSTIFF", "CompiledLibrary"]
 
@@ -167,7 +170,11 @@ class CompiledLibrary:
         if hasattr(lib, "gs_stop_bind"):  # Ctrl-C stops the C loops: one owner (c/stop.c)
             interrupt.bind(lib)
         self.can_watch = hasattr(lib, "gs_watch_witnesses")  # (libraries of older versions lack it)
-        self.can_wrap = hasattr(lib, "gs_wrap_set")  # (c/wrap.c; libraries of older versions lack it)
+        # (c/wrap.c; libraries of older versions lack it, or read rows of other columns)
+        self.can_wrap = hasattr(lib, "gs_wrap_cols")
+        if self.can_wrap:
+            lib.gs_wrap_cols.restype = _long
+            self.can_wrap = int(lib.gs_wrap_cols()) == WRAP_COLS
         if self.can_wrap:
             lib.gs_wrap_set.argtypes = [_long, _dp, _dp, _long]
             lib.gs_wrap_set.restype = ctypes.c_int
@@ -716,6 +723,9 @@ class CompiledLibrary:
     @contextlib.contextmanager
     def _wrapping(self, slots: np.ndarray, into: list):
         slots = np.ascontiguousarray(slots, dtype=float)
+        if slots.ndim != 2 or slots.shape[1] != WRAP_COLS:
+            raise ValueError(f"wrapping: slots of shape {slots.shape}, expected (n, {WRAP_COLS}) "
+                             "(runtime.atlas.Atlases.wrap_slots)")
         records = np.empty((WRAP_CAPACITY, 9))
         if self._lib.gs_wrap_set(len(slots), slots.ctypes.data, records.ctypes.data, WRAP_CAPACITY):
             raise ValueError(f"gs_wrap_set refused the slots {slots.tolist()!r:.300}")

@@ -1517,10 +1517,13 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         made = r.atlases.wrapped(st["wraps"]) if st["wraps"] else []  # what the loop made (c/wrap.c)
         r.chart_switches += made
         p_rows, changed = p, [rec for rec in made if rec["from"] != rec["to"]]
-        if changed:  # charts the loop changed: the run goes on in them (its rows before, in theirs)
-            p = pl = r.atlases.after(changed, p)
+        if changed:  # charts the loop changed: the run goes on in them (its rows before, in theirs),
+            # a sliding contact's slip turned with its fingertip's frame as the loop turned it
             for rec in changed:
                 r.p[model.p_names.index(rec["chart"])] = rec["to"]
+                slips = _slip_across(r.atlases.entry(rec["chart"]), rec, modes, slips)
+            p = pl = r.params(modes, slips)
+            watched = r.witnesses(modes, slips)
         h_next = 0.0
         _count(r, st, own)
         t_look = perf_counter()
@@ -1547,7 +1550,7 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
         if keep and on_grid[0]:
             on_grid[0] = bool(t_eval[min(int(np.searchsorted(t_eval, t[0])), len(t_eval) - 1)] == t[0])
         t_rows, X_rows = t[:keep][on_grid], X[:keep][on_grid]
-        for a, b, pk in by_charts(model.p_names, t_rows, p_rows, changed):
+        for a, b, pk in by_charts(model.p_names, t_rows, p_rows, changed, lambda pk, rec: _turn_slip(r, pk, rec)):
             rows_t.append(t_rows[a:b])
             rows_x.append(X_rows[a:b])
             rows_mode.append(_mode_rows(modes, b - a))
@@ -1596,6 +1599,50 @@ def _chart_switch(r: _Run, record: dict, x_at: np.ndarray, p_new: np.ndarray) ->
         i = r.model.p_names.index(record["chart"])
         r.p[i] = p_new[i]
     r.chart_switches.append(record)
+
+
+def _turn_slip(r: _Run, p: np.ndarray, record: dict) -> None:
+    """``p`` (in place) after the chart change ``record``: a sliding contact's slip direction
+    (its parameters ``slip_x``, ``slip_y``) turned with its fingertip's frame, as
+    ``_slip_across`` turns it in ``slips`` and ``c/wrap.c`` in the loop's ``p``."""
+    j = r.atlases.entry(record["chart"]).get("slip_frame")
+    if j is None or p[r.i_mode[j - 1]] != SLIDING:
+        return
+    i = r.i_slip[j - 1]
+    a, b = float(p[i]), float(p[i + 1])
+    c, s = math.cos(record["delta"]), math.sin(record["delta"])
+    p[i], p[i + 1] = a * c + b * s, b * c - a * s
+
+
+def _after(r: _Run, records: list[dict], p: np.ndarray) -> np.ndarray:
+    """``p`` after the switches ``records`` the loop made: their charts (``Atlases.after``) and
+    a sliding contact's slip turned with its fingertip's frame (``_turn_slip``)."""
+    p = r.atlases.after(records, p)
+    for rec in records:
+        if rec["from"] != rec["to"]:
+            _turn_slip(r, p, rec)
+    return p
+
+
+def _wrap_slots(r: _Run, p: np.ndarray, watched) -> np.ndarray:
+    """The atlases' slots as a segment's loop takes them (``c/wrap.c``): it changes a chart
+    itself, and where the chart is a fingertip's whose contact slides, it turns the slip with
+    the fingertip's frame: its direction in ``p`` (``slip_x``, ``slip_y``) and the first two
+    terms of the watch's slip witness (``_GraspRun.slip_terms``). A slip witness of another
+    shape leaves that chart's change to Python (the loop stops at the edge)."""
+    slots = r.atlases.wrap_slots
+    for k, (entry, _, _) in enumerate(r.atlases.slots):
+        j = entry.get("slip_frame")
+        if j is None or p[r.i_mode[j - 1]] != SLIDING:
+            continue
+        slots = slots.copy() if slots is r.atlases.wrap_slots else slots
+        w = next((i for i, (name, c, _) in enumerate(watched) if name == "slip" and c == j), None)
+        if w is None or [term[0] for term in watched[w][2][:2]] != list(r.slip_keys(j)) or \
+                any(len(term) > 2 for term in watched[w][2][:2]):
+            slots[k, 13] = 0.0
+            continue
+        slots[k, 14], slots[k, 15] = r.i_slip[j - 1], w
+    return slots
 
 
 def _slip_across(entry: dict, record: dict, modes, slips) -> list:
@@ -1807,11 +1854,12 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
         wraps: list = []
         wrap_slots = again = None
         if r.atlases is not None and leg.back is None and s.method != "rk4":
-            # the loop changes a chart itself unless a contact slides (its slip turns with its
-            # frame: _slip_across) or a table of inputs restarts it (each piece from the segment's
-            # p); integrated again, it only wraps (from a state of the segment's end's charts)
-            fixed = r.sched is not None or any(p[r.i_mode[j - 1]] == SLIDING for j in r.contacts)
-            wrap_slots, again = r.atlases.wrap_only if fixed else r.atlases.wrap_slots, r.atlases.wrap_only
+            # the loop changes a chart itself (turning a sliding contact's slip with its
+            # fingertip's frame: _wrap_slots) unless a table of inputs restarts it (each piece from
+            # the segment's p); integrated again, it only wraps (from a state of the segment's
+            # end's charts)
+            wrap_slots = r.atlases.wrap_only if r.sched is not None else _wrap_slots(r, p, watched)
+            again = r.atlases.wrap_only
         stats["wraps"], stats["slots_again"] = wraps, again
         deadline = None if s.time_limit is None else perf_counter() + s.time_limit  # the pieces' in all
         for k, (a0, a1, a, b) in enumerate(pieces):
@@ -1860,7 +1908,7 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
             if "event" in st:
                 # (p with the charts the loop changed: the event's step is in them)
                 hit = {**st["event"], **_watched(r, lib),
-                       "p": r.atlases.after(r.atlases.wrapped(wraps), pk) if wraps else pk}
+                       "p": _after(r, r.atlases.wrapped(wraps), pk) if wraps else pk}
                 return _on_grid(rows_t, rows_x, grid) + (stats, hit)
             x = X[-1]
         _watched(r, lib)
