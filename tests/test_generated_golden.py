@@ -57,6 +57,7 @@ def test_the_code_hash_reads_every_module_the_build_imports():
     a build of a 2D and a 3D scene imports: none can shape code unseen."""
     code = (
         "import sys, json; import grasping_sym as gs; from grasping_sym import pipeline; "
+        "from grasping_sym.pipeline import making, committed; "
         "from grasping_sym.assemble import scene_functions; from grasping_sym.derive import start3d; "
         "gs.scenes.paper2d(); gs.scenes.paper3d(); "
         "print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items() "

@@ -18,7 +18,7 @@
  *   stop.c         gs_stop_bind, gs_sigint_ensure, gs_set_time_limit, gs_stop_cause: Ctrl-C
  *                  (one handler for the process, runtime/interrupt.py) and a wall-time
  *                  limit stop the loops (GS_ERR_INTERRUPT)
- *   wrap.c         gs_wrap_set, gs_wrap_count: a contact's coordinates wrapped a period round
+ *   wrap.c         gs_wrap_set, gs_wrap_count, gs_wrap_cols: a contact's coordinates wrapped a period round
  *                  at the step inside gs_radau5 / gs_dopri5 / gs_dop853 (runtime/atlas.py)
  *   batch.c        gs_batch: many runs of gs_radau5 / gs_dopri5 / gs_dop853 / gs_rk4 in one
  *                  call, over a

@@ -200,16 +200,16 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
   return 0;
 }
 
-/* wrap.c: a step's end outside [lo, hi] at a contact's coordinates that wrap a period round
- * (gs_wrap_set): the step's start y (at t), its end y_end and also[0..n_also-1] moved by whole
- * periods, 1 returned; or (a change of chart) y mapped, p's chart changed, 2 returned (the
- * step not taken); else 0, nothing changed. The watch's ends left unwatched are watched
- * first (gs_watch_settle): an event among them, neither. */
 /* watch.c: a sliding contact's slip witness w turned with its fingertip's frame by delta at a
  * change of that frame's chart (wrap.c); delta 0 only asks whether it can be: 0 yes, 1 no. */
 GS_HIDDEN int gs_watch_turn(int w, double delta);
 /* wrap.c: the parameters a loop runs on (its own copy where a chart may change in it). */
 GS_HIDDEN const double* gs_wrap_params(const double* p);
+/* wrap.c: a step's end outside [lo, hi] at a contact's coordinates that wrap a period round
+ * (gs_wrap_set): the step's start y (at t), its end y_end and also[0..n_also-1] moved by whole
+ * periods, 1 returned; or (a change of chart) y mapped, p's chart changed, 2 returned (the
+ * step not taken); else 0, nothing changed. The watch's ends left unwatched are watched
+ * first (gs_watch_settle): an event among them, neither. */
 GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, const double* p,
                            const double* lo, const double* hi, double** also, int n_also);
 

@@ -317,10 +317,6 @@ GS_HIDDEN void gs_refine_jac_put(double t, const double* x, const double* J) {
   gs_rj.valid = 1;
 }
 
-/* Before wrap.c moves a step by whole periods: the step ends left unwatched since the last
- * watched point (x_kept, in the range before) watched now. 0: none left (none fired; the watch
- * goes on from the last of them, as at its next watched point); 1: an event among them (kept:
- * the loop stops at the bound and gs_watch_failed takes it); < 0: an error. */
 /* A sliding contact's slip witness w after its fingertip's chart changed in the loop (wrap.c):
  * its first two terms' coefficients, the slip direction in the fingertip's frame
  * (runtime/modes.py's slip_terms), turned with that frame by delta as runtime/modes.py's
@@ -340,6 +336,10 @@ GS_HIDDEN int gs_watch_turn(int w, double delta) {
   return 0;
 }
 
+/* Before wrap.c moves a step by whole periods: the step ends left unwatched since the last
+ * watched point (x_kept, in the range before) watched now. 0: none left (none fired; the watch
+ * goes on from the last of them, as at its next watched point); 1: an event among them (kept:
+ * the loop stops at the bound and gs_watch_failed takes it); < 0: an error. */
 GS_HIDDEN int gs_watch_settle(gs_work* wk, const double* p) {
   if (!gs_w.on || gs_w.n_kept == 0) return 0;
   double t_ev, x_ev[gs_nx];

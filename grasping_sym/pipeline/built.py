@@ -135,12 +135,17 @@ def restore(data: dict, friction=None, rolling=None) -> BuiltModel:
 
 
 def _structure_files(manifest: dict) -> dict | None:
-    """``pipeline.making.structure_files``: a model in layers sends its structure's files; the
-    structure cache (and CasADi with it) imported only for such a model."""
-    if not manifest.get("structure"):
+    """A model in layers links its structure's objects: the structure's C and record, so that
+    a receiver without it can compile them. The structure cache (and CasADi with it) is
+    imported only for such a model, without the derivation, the emitter's rewrites or the
+    compiler's library (``pipeline.making``)."""
+    entry = manifest.get("structure")
+    if not entry:
         return None
-    from grasping_sym.pipeline import making  # noqa: PLC0415 - lazy: CasADi, only for a model in layers
-    return making.structure_files(manifest)
+    from grasping_sym.assemble import structure_cache  # noqa: PLC0415 - lazy: CasADi, only to send a model in layers
+    meta, directory = structure_cache.locate(entry)
+    names = [*meta.files, structure_cache.META]
+    return {"entry": entry, "files": {f: (directory / f).read_bytes() for f in names}}
 
 
 def _compile_here(directory: Path, manifest: dict, data: dict) -> dict:

@@ -218,17 +218,6 @@ def compiled_manifest(manifest: dict, lib: Path) -> dict:
             "libraries": {**manifest.get("libraries", {}), lib.name: safety.sha256_file(lib)}}
 
 
-def structure_files(manifest: dict) -> dict | None:
-    """A model in layers links its structure's objects: the structure's C and record, so that
-    a receiver without it can compile them."""
-    entry = manifest.get("structure")
-    if not entry:
-        return None
-    meta, directory = structure_cache.locate(entry)
-    names = [*meta.files, structure_cache.META]
-    return {"entry": entry, "files": {f: (directory / f).read_bytes() for f in names}}
-
-
 def compile_library(directory: Path, manifest: dict) -> Path:
     """Compile the model's C files and link them with the driver (and the CPython fast-call
     extension) and, for a model in layers, its structure's objects."""

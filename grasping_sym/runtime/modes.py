@@ -1629,7 +1629,12 @@ def _wrap_slots(r: _Run, p: np.ndarray, watched) -> np.ndarray:
     itself, and where the chart is a fingertip's whose contact slides, it turns the slip with
     the fingertip's frame: its direction in ``p`` (``slip_x``, ``slip_y``) and the first two
     terms of the watch's slip witness (``_GraspRun.slip_terms``). A slip witness of another
-    shape leaves that chart's change to Python (the loop stops at the edge)."""
+    shape leaves that chart's change to Python (the loop stops at the edge), and so does a
+    slide in its onset (``r.slip_levels``, set by ``r.witnesses``): its stop may be looked for
+    at the slip's last zero (``_last_zero``), among the segment's rows and integrated again
+    from its start, all of which must be in one set of charts."""
+    if r.slip_levels:
+        return r.atlases.wrap_only
     slots = r.atlases.wrap_slots
     for k, (entry, _, _) in enumerate(r.atlases.slots):
         j = entry.get("slip_frame")
