@@ -463,6 +463,35 @@ def test_a_grasp_that_changes_chart_in_the_loop_then_slips_slips_as_on_one_chart
     assert abs(ra.events[0]["t"] - r1.events[0]["t"]) < 1e-9 and abs(ra.events[1]["t"] - r1.events[1]["t"]) < 1e-7
 
 
+def test_a_slide_in_its_onset_leaves_its_segments_changes_of_chart_to_python(pivot_modes):
+    """The slots a segment's C loop takes (``modes._wrap_slots``): where the fingertip's contact
+    slides, its chart changes in the loop with the slip's index in ``p`` and its witness's in
+    the watch (the turn, ``c/wrap.c``); the object's chart changes with nothing to turn. A
+    slide in its onset (``slip_levels``: its stop may be looked for at the slip's last zero,
+    among the segment's rows and from its start, which must be in one set of charts) leaves
+    every change of the segment to Python: wraps only."""
+    from types import SimpleNamespace
+
+    model = pivot_modes["atlas"]
+    atlases = atlas_.Atlases(model)
+    run = modes_._new_run(model, None, [0.1], 0.0)
+    p = run.params([modes_.SLIDING], [np.array([0.6, 0.8, 0.0])])
+    watched = run.witnesses([modes_.SLIDING], [np.array([0.6, 0.8, 0.0])])
+    w = next(i for i, (name, j, _) in enumerate(watched) if name == "slip" and j == 1)
+    r = SimpleNamespace(atlases=atlases, slip_levels={}, i_mode=run.i_mode, i_slip=run.i_slip,
+                        slip_keys=run.slip_keys)
+    slots = modes_._wrap_slots(r, p, watched)
+    tip, obj = (next(k for k, (entry, _, _) in enumerate(atlases.slots) if entry["param"] == c)
+                for c in ("chart_f1", "chart_o1"))
+    assert slots[tip, 13] == 1 and (slots[tip, 14], slots[tip, 15]) == (model.p_names.index("slip_x1"), w)
+    assert slots[obj, 13] == 1 and (slots[obj, 14], slots[obj, 15]) == (-1, -1)
+    assert modes_._wrap_slots(SimpleNamespace(**{**vars(r), "slip_levels": {1: 1e-6}}), p, watched) is \
+        atlases.wrap_only
+    assert not atlases.wrap_only[:, 13].any()
+    rolling = run.params([modes_.ROLLING], [None])
+    assert modes_._wrap_slots(r, rolling, run.witnesses([modes_.ROLLING], [None])) is atlases.wrap_slots
+
+
 def test_a_switching_run_draws_saves_and_refuses_what_cannot_follow_it(pivot_grasps, tmp_path):
     """After a switch: the contacts' traces (each row read in its chart) run on without a
     jump; a saved result keeps each row's charts; rk4 (one uniform grid) refuses by name;
