@@ -151,5 +151,5 @@ def _structure_files(manifest: dict) -> dict | None:
 def _compile_here(directory: Path, manifest: dict, data: dict) -> dict:
     """``pipeline.making.compile_here``: the C sent compiled here (a receiver whose platform
     cannot load the library sent), the compiler imported only then."""
-    from grasping_sym.pipeline import making  # noqa: PLC0415 - lazy: the compiler only where the library cannot load
-    return making.compile_here(directory, manifest, data)
+    from grasping_sym.pipeline.making import compile_here  # noqa: PLC0415 - lazy: the compiler only where the library cannot load
+    return compile_here(directory, manifest, data)

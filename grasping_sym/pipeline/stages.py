@@ -67,7 +67,7 @@ def _making():
     """``pipeline.making``: the derivation, the emitter and the compiler, with SymPy and CasADi,
     imported when a build needs them (its model not in the cache, its law not keyed by its
     definition, its start not stored), not by a build that finds everything."""
-    from grasping_sym.pipeline import making  # noqa: PLC0415 - lazy: SymPy and CasADi only when the cache misses
+    import grasping_sym.pipeline.making as making  # noqa: PLC0415 - lazy: SymPy and CasADi only when the cache misses
     return making
 
 
