@@ -200,6 +200,16 @@ static inline int gs_check(const double* x, const double* lo, const double* hi) 
   return 0;
 }
 
+/* A vector's components v[0], v[1] in a frame (x, y) turned by delta about the normal
+ * (x' = cos delta x + sin delta y): its components in the new frame (runtime/modes.py's
+ * _turned). A sliding contact's slip in its fingertip's frame at a change of chart (wrap.c,
+ * watch.c). */
+static inline void gs_turn2(double* v, double delta) {
+  const double a = v[0], b = v[1], c = cos(delta), s = sin(delta);
+  v[0] = a * c + b * s;
+  v[1] = b * c - a * s;
+}
+
 /* watch.c: a sliding contact's slip witness w turned with its fingertip's frame by delta at a
  * change of that frame's chart (wrap.c); delta 0 only asks whether it can be: 0 yes, 1 no. */
 GS_HIDDEN int gs_watch_turn(int w, double delta);

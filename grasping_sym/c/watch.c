@@ -329,10 +329,7 @@ GS_HIDDEN int gs_watch_turn(int w, double delta) {
       gs_w.idx[gs_w.ptr[w] + 1] < 0)
     return 1;
   if (delta == 0.0) return 0;
-  double* c = gs_w.coef + gs_w.ptr[w];
-  const double a = c[0], b = c[1], co = cos(delta), si = sin(delta);
-  c[0] = a * co + b * si;
-  c[1] = b * co - a * si;
+  gs_turn2(gs_w.coef + gs_w.ptr[w], delta);
   return 0;
 }
 

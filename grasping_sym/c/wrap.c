@@ -255,10 +255,7 @@ GS_HIDDEN int gs_wrap_step(gs_work* wk, double t, double* y, double* y_end, cons
       if (s[8] >= 0.0) y[(int)s[8]] += rec[j][8];
       gs_wr.p[(int)s[7]] = rec[j][7];
       if (s[14] >= 0.0) { /* a slide: its direction in the fingertip's frame turns with it */
-        double* d = gs_wr.p + (int)s[14];
-        const double a = d[0], b = d[1], co = cos(rec[j][8]), si = sin(rec[j][8]);
-        d[0] = a * co + b * si;
-        d[1] = b * co - a * si;
+        gs_turn2(gs_wr.p + (int)s[14], rec[j][8]);
         gs_watch_turn((int)s[15], rec[j][8]);
       }
     }

@@ -1609,9 +1609,7 @@ def _turn_slip(r: _Run, p: np.ndarray, record: dict) -> None:
     if j is None or p[r.i_mode[j - 1]] != SLIDING:
         return
     i = r.i_slip[j - 1]
-    a, b = float(p[i]), float(p[i + 1])
-    c, s = math.cos(record["delta"]), math.sin(record["delta"])
-    p[i], p[i + 1] = a * c + b * s, b * c - a * s
+    p[i], p[i + 1] = _turned(p[i], p[i + 1], record["delta"])
 
 
 def _after(r: _Run, records: list[dict], p: np.ndarray) -> np.ndarray:
@@ -1658,11 +1656,18 @@ def _slip_across(entry: dict, record: dict, modes, slips) -> list:
     j = entry.get("slip_frame")
     if j is None or modes[j - 1] != SLIDING or slips[j - 1] is None:
         return slips
-    a, b = float(slips[j - 1][0]), float(slips[j - 1][1])
-    c, s = math.cos(record["delta"]), math.sin(record["delta"])
     slips = list(slips)
-    slips[j - 1] = np.array([a * c + b * s, b * c - a * s, *slips[j - 1][2:]])  # (an onset's scale kept)
+    slips[j - 1] = np.array([*_turned(slips[j - 1][0], slips[j - 1][1], record["delta"]),
+                             *slips[j - 1][2:]])  # (an onset's scale kept)
     return slips
+
+
+def _turned(a, b, delta: float) -> tuple[float, float]:
+    """A vector's components ``(a, b)`` in a frame ``(x, y)`` turned by ``delta`` about the
+    normal (``x' = cos delta x + sin delta y``): its components in the new frame (what
+    ``c/gs_internal.h``'s ``gs_turn2`` computes in the loop)."""
+    a, b, c, s = float(a), float(b), math.cos(delta), math.sin(delta)
+    return a * c + b * s, b * c - a * s
 
 
 def _new_run(model, s, mus, e: float) -> _Run:
