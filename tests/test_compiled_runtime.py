@@ -223,49 +223,59 @@ def test_isa_level(monkeypatch, machine, flags, env, level):
     from grasping_sym.store.platform import library_tag  # noqa: PLC0415
     mvec = "-mvec" if compiler.vector_libm() else ""  # glibc's vector libm (test_vecmath)
     assert mvec == "" or level == "x86-64-v3"
-    quick = "-quick" if platform_.optimization() == "quick" else ""  # the suite's (conftest)
-    assert library_tag().endswith("-" + level + mvec + quick)  # the level is part of the name
+    opt = {"full": "", "quick": "-quick", "none": "-O0"}[platform_.optimization()]  # conftest's
+    assert library_tag().endswith("-" + level + mvec + opt)  # the level is part of the name
 
 
 def test_the_optimisation_level_is_in_the_flags_and_the_name(monkeypatch):
-    """``GRASPING_SYM_OPT``: ``full`` (unset) compiles at -O2, ``quick`` at -Og (the last -O
-    of every command), each library under its own name; anything else is refused by name."""
+    """``GRASPING_SYM_OPT``: ``full`` (unset) compiles at -O2, ``quick`` at -Og, ``none`` at
+    -O0 (the last -O of every command, a file named quick too), each library under its own
+    name; anything else is refused by name."""
     from grasping_sym.store.platform import library_tag  # noqa: PLC0415
 
     names, ids = {}, set()
-    for level, flag in (("full", "-O2"), ("quick", "-Og")):
+    for level, flag, quick in (("full", "-O2", "-Og"), ("quick", "-Og", "-Og"),
+                               ("none", "-O0", "-O0")):
         monkeypatch.setenv("GRASPING_SYM_OPT", level)
         flags = compiler._common_flags({}, [], [])
         assert [f for f in flags if f.startswith("-O")][-1] == flag
+        seen: list = []
+        monkeypatch.setattr(compiler, "_run_all", lambda jobs, at_once, seen=seen: seen.extend(jobs))
+        compiler.compile_objects([__file__], "/nonexistent", quick=[__file__])
+        assert [f for f in seen[0][0] if f.startswith("-O")][-1] == quick
         names[level] = library_tag()
         ids.add(compiler.toolchain_id())
-    assert "-quick" in names["quick"] and names["quick"].replace("-quick", "") == names["full"]
+    for level, tag in (("quick", "-quick"), ("none", "-O0")):
+        assert tag in names[level] and names[level].replace(tag, "") == names["full"]
     assert len(ids) == 1  # the manifest's compiled_with: a model keeps a library of each level
     monkeypatch.setenv("GRASPING_SYM_OPT", "O3")
-    with pytest.raises(ValueError, match="GRASPING_SYM_OPT='O3'.*'full'.*'quick'"):
+    with pytest.raises(ValueError, match="GRASPING_SYM_OPT='O3'.*'full'.*'quick'.*'none'"):
         library_tag()
 
 
-def test_a_quick_build_computes_what_a_full_build_does(tmp_path, monkeypatch):
-    """The quick level (-Og, the test suite's: conftest) and the full one (-O2) compute the
-    same numbers, bit for bit: paper3d's compiled rhs (vector libm and shared reciprocals
+def test_every_level_computes_what_a_full_build_does(tmp_path, monkeypatch):
+    """The quick level (-Og) and none (-O0, the test suite's: conftest) compute the numbers of
+    the full one (-O2), bit for bit: paper3d's compiled rhs (vector libm and shared reciprocals
     included) at random states, and a run of its default method, projection and outputs."""
     import grasping_sym as gs  # noqa: PLC0415
     from grasping_sym.store import paths  # noqa: PLC0415
 
     models = {}
-    for level in ("full", "quick"):
+    for level, tag in (("full", None), ("quick", "-quick"), ("none", "-O0")):
         monkeypatch.setenv("GRASPING_SYM_OPT", level)
         with paths.root_override(tmp_path / level):
             models[level] = gs.build(gs.scenes.paper3d())
-        assert ("-quick" in models[level].library_path.name) == (level == "quick")
-    full, quick = models["full"], models["quick"]
+        assert tag is None or tag in models[level].library_path.name
+    full = models["full"]
     x0 = np.asarray(full.initial_state())
     X = x0 + np.random.default_rng(3).normal(scale=1e-2, size=(50, x0.size))
-    assert np.array_equal(np.array([full.rhs(x) for x in X]), np.array([quick.rhs(x) for x in X]))
-    a, b = (m.simulate(0.5) for m in (full, quick))
-    assert np.array_equal(a.x, b.x) and a.outputs.keys() == b.outputs.keys()
-    assert all(np.array_equal(a.outputs[k], b.outputs[k]) for k in a.outputs)
+    a = full.simulate(0.5)
+    for level in ("quick", "none"):
+        other = models[level]
+        assert np.array_equal(np.array([full.rhs(x) for x in X]), np.array([other.rhs(x) for x in X]))
+        b = other.simulate(0.5)
+        assert np.array_equal(a.x, b.x) and a.outputs.keys() == b.outputs.keys()
+        assert all(np.array_equal(a.outputs[k], b.outputs[k]) for k in a.outputs)
 
 
 def test_isa_setting_unknown(monkeypatch):

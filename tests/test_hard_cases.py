@@ -279,14 +279,16 @@ def test_i_contact_reaches_the_end_of_the_object_contour():
 def test_j_3d_contact_at_rest_in_both_formulations():
     """paper3d comes to rest: the regular formulation runs through it (finite rates, residual
     <= 1e-9 m); the paper's moving frames stop with MovingFrameSingularityError where
-    |omega0.e0 + omega1.e1| falls to 1e-6 of its start (t = 3.149 s measured), never a NaN."""
+    |omega0.e0 + omega1.e1| falls to 1e-6 of its start (t = 3.149 s measured), never a NaN.
+    The paper's formulation runs with dop853 (1.4 s at the suite's -O0; radau, on the
+    finite-difference Jacobian of its 62 states, took 21 s to the same stop)."""
     regular = gs.build(gs.scenes.paper3d()).simulate(5.0, method="radau", rtol=1e-7, atol=1e-10)
     assert np.all(np.isfinite(regular.x))
     assert regular.outputs["constraint_residual"].max() <= 1e-9
     assert regular.outputs["object_angular_speed"][-1] <= 1e-3 * regular.outputs["object_angular_speed"].max()
     paper = gs.build(gs.scenes.paper3d(formulation="paper"))
     with pytest.raises(MovingFrameSingularityError) as info:
-        paper.simulate(5.0, method="radau", rtol=1e-7, atol=1e-10)
+        paper.simulate(5.0, method="dop853", rtol=1e-7, atol=1e-10)
     err = info.value
     assert 0.5 < err.t < 5.0
     # located at the step where |D| reaches its threshold (runtime.watch)

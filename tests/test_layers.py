@@ -259,7 +259,7 @@ def test_a_full_inertia_reaches_the_structure_whole():
 def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     """``compile_objects(quick=...)``: the files named compile with ``QUICK_FLAGS`` (last, so
     they override -O2), the others with the base flags only (at the full level: the suite's is
-    quick, conftest)."""
+    none, conftest)."""
     from grasping_sym.toolchain import compiler
 
     monkeypatch.setenv("GRASPING_SYM_OPT", "full")

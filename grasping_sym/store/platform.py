@@ -83,23 +83,30 @@ def isa_level() -> str:
 
 
 def optimization() -> str:
-    """How hard gcc optimises the libraries built: ``"full"`` (``-O2``, the default) or
-    ``"quick"`` (``-Og``, when ``$GRASPING_SYM_OPT`` is ``quick``).
+    """How hard gcc optimises the libraries built: ``"full"`` (``-O2``, the default),
+    ``"quick"`` (``-Og``) or ``"none"`` (``-O0``), as ``$GRASPING_SYM_OPT`` says.
 
     ``quick`` is for iterating on shapes and for test suites: the model's C compiles in about
     half the time and runs about 10 % slower (paper3d: compile 1.2 s against 2.9 s, a 3 s run
     2.90 ms against 2.60 ms), with the same results on x86-64, where no level fuses or reorders
     floating-point operations (no ``-ffast-math``; the baseline has no fused multiply-add, and
     x86-64-v3 is compiled with ``-ffp-contract=off``; ``tests/test_compiled_runtime.py`` checks
-    it bit for bit). The libraries of the two levels have different names.
+    it bit for bit). ``none`` is for test suites, whose time goes to gcc and not to the runs:
+    a model's C compiles 3 to 5 times faster than at ``quick`` (a modes model's largest file:
+    2.2 s against 10 s) and runs 3 to 5 times slower than at ``full`` (paper2d 10.7 ms against
+    3.0, paper3d 79 against 17, a 3 s run with outputs), with the same results again.
+    The libraries of the levels have different names.
 
     Raises
     ------
     ValueError
-        If ``$GRASPING_SYM_OPT`` is set to something other than ``full`` or ``quick``.
+        If ``$GRASPING_SYM_OPT`` is set to something other than ``full``, ``quick`` or
+        ``none``.
     """
     return _setting(_OPT_ENV, {"full": "gcc -O2, the fastest code",
-                               "quick": "gcc -Og, about half the compile time, ~10 % slower code"})
+                               "quick": "gcc -Og, about half the compile time, ~10 % slower code",
+                               "none": "gcc -O0, a fifth of the compile time, 3-5 times slower "
+                                       "code"})
 
 
 def vector_libm() -> bool:
@@ -132,11 +139,11 @@ def _libmvec_complete() -> bool:
 def library_tag() -> str:
     """What ties a compiled library to this interpreter (the fast path is an extension) and
     to the instruction set it was compiled for (``store.platform.isa_level``, with ``-mvec`` when
-    it calls glibc's vector libm, ``store.platform.vector_libm``), ``-quick`` when compiled at
-    the quick level (``optimization``), and ``$CC`` when set (``-cc`` and a hash of it: another
+    it calls glibc's vector libm, ``store.platform.vector_libm``), ``-quick`` or ``-O0`` when
+    compiled at the quick level or at none (``optimization``), and ``$CC`` when set (``-cc`` and a hash of it: another
     compiler makes another library)."""
     mvec = "-mvec" if vector_libm() else ""
-    mvec += "-quick" if optimization() == "quick" else ""
+    mvec += {"full": "", "quick": "-quick", "none": "-O0"}[optimization()]
     cc = os.environ.get("CC", "").strip()
     cc = f"-cc{hashlib.sha256(cc.encode()).hexdigest()[:8]}" if cc else ""
     return f"{sys.implementation.cache_tag}-numpy{np.__version__}-{isa_level()}{mvec}{cc}"

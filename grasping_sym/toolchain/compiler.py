@@ -75,12 +75,14 @@ CASADI_FILE_FLAGS: tuple[str, ...] = ("-Wno-unused-function", "-Wno-unused-varia
 #: Extra flags for the files a caller names as quick to compile (``compile_objects``'s
 #: ``quick``): a structure's Jacobian, whose C gcc compiles 40 % faster at -Og than at -O2
 #: and runs 7 % slower (a 2-finger structure; -O0 would compile 80 % faster but run 3.3
-#: times slower). With -ffp-contract=off every level computes the same operations.
+#: times slower), at the full level (the others compile every file at theirs). With
+#: -ffp-contract=off every level computes the same operations.
 QUICK_FLAGS: tuple[str, ...] = ("-Og",)
 #: The flags of each optimisation level (``store.platform.optimization``), after
 #: :data:`BASE_FLAGS` (the last ``-O`` counts): ``quick`` compiles a model's C in about half
-#: the time (paper3d: 1.2 s against 2.9 s) and runs it ~10 % slower, with the same results.
-LEVEL_FLAGS: dict[str, tuple[str, ...]] = {"full": (), "quick": ("-Og",)}
+#: the time (paper3d: 1.2 s against 2.9 s) and runs it ~10 % slower, ``none`` (the test
+#: suite's) in a fifth and 3 to 5 times slower, with the same results.
+LEVEL_FLAGS: dict[str, tuple[str, ...]] = {"full": (), "quick": ("-Og",), "none": ("-O0",)}
 #: Flags used when linking the shared library.
 LINK_FLAGS: tuple[str, ...] = ("-shared", "-lm")
 #: Every flag that influences the produced library at every level; hash it into cache keys
@@ -274,8 +276,8 @@ def compile_objects(
 ) -> list[Path]:
     """Compile C sources, in parallel (``at_once``: at most that many at a time), into object
     files ``<out_dir>/<k>_<stem>.o`` (same flags as :func:`compile_shared`, and
-    :data:`QUICK_FLAGS` for the sources in ``quick``); return their paths in the order of
-    ``sources``.
+    :data:`QUICK_FLAGS` for the sources in ``quick`` at the full level); return their paths in
+    the order of ``sources``.
 
     Raises
     ------
@@ -288,7 +290,7 @@ def compile_objects(
         if not s.is_file():
             raise CompileError(f"C source file not found: {s}")
     common = _common_flags(defines, list(include_dirs), list(extra_flags))
-    quick = {Path(q).absolute() for q in quick}
+    quick = {Path(q).absolute() for q in quick} if optimization() == "full" else set()
     objects, jobs = [], []
     for i, src in enumerate(srcs):
         obj = Path(out_dir).absolute() / f"{i}_{src.stem}.o"
