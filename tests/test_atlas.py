@@ -335,7 +335,9 @@ def test_a_failed_run_reads_each_row_in_the_charts_it_was_written_in(pivot_grasp
     """A plain grasp run stopped by ``max_steps`` after its loop changed both charts: the
     failure's check for an earlier event (``checks.raise_earlier_event``) reads each row of the
     failed loop in its own charts (before a change, the chart it changed from): every row's
-    relative curvature equals the row read alone in the charts the records give it."""
+    relative curvature equals the row read alone in the charts the records give it. The error
+    names the charts its state is written in (``err.charts``, and its message): those the
+    changes left, in which its contact points are the one-chart run's at its time."""
     model, xa = pivot_grasps["model"], pivot_grasps["xa"]
     kw = dict(rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
     full = model.simulate(1.5, x0=xa, **kw)
@@ -346,11 +348,22 @@ def test_a_failed_run_reads_each_row_in_the_charts_it_was_written_in(pivot_grasp
         seen.update(t=t, X=X, p=p, out=real(m, t, X, p, changes))
         return seen["out"]
     monkeypatch.setattr(checks_, "_at_rows_in_charts", spy)
-    with pytest.raises(IntegratorError, match="too many steps"):
+    with pytest.raises(IntegratorError, match="too many steps") as info:
         model.simulate(1.5, x0=xa, max_steps=int(0.9 * full.stats["n_steps"]), **kw)
     t, X = seen["t"], seen["X"]
     changes = [rec for rec in full.chart_switches if rec["from"] != rec["to"]]
     assert len(changes) == 2 and t[-1] > changes[-1]["t"]
+    err, left = info.value, {rec["chart"]: rec["to"] for rec in changes}
+    assert err.charts == left and err.t > changes[-1]["t"]
+    assert str(err).endswith(f"in charts chart_f1 = {left['chart_f1']}, chart_o1 = {left['chart_o1']}")
+    g = pivot_grasps
+    there = g["ref"].simulate(err.t, x0=g["x0"], rtol=1e-10, atol=1e-12, t_eval=[0.0, err.t])
+    for side, one, atlas in (("f", g["tip"], g["atip"]), ("o", g["box"], g["abox"])):
+        names = model.state_names
+        got = atlas.evaluate(err.x[names.index(f"u_{side}1")], err.x[names.index(f"v_{side}1")],
+                             chart=err.charts[f"chart_{side}1"])["point"]
+        want = one.evaluate(there[f"u_{side}1"][-1], there[f"v_{side}1"][-1])["point"]
+        assert np.abs(got - want).max() < 1e-11
     rows_p = np.tile(seen["p"], (len(t), 1))
     for rec in changes:
         rows_p[t > rec["t"], model.p_names.index(rec["chart"])] = rec["to"]
@@ -444,6 +457,23 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
     assert abs(record["delta"]) > 1.0
     (turned,) = modes_._slip_across(atlases.slots[k][0], record, [modes_.SLIDING], [v0 / np.linalg.norm(v0)])
     assert np.abs(turned - v1 / np.linalg.norm(v1)).max() < 1e-12
+
+
+def test_a_failed_run_with_modes_names_the_charts_its_loop_left(pivot_grasps, pivot_modes):
+    """The grasp with modes sliding (mu = 0.1) across both charts' changes, made in its C
+    loop, stopped by ``max_steps`` after them: the error names the charts its state is in
+    (``err.charts`` and its message), those the whole run's changes left by then."""
+    model, xa = pivot_modes["atlas"], pivot_grasps["xa"]
+    kw = dict(mu=0.1, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
+    full = model.simulate(1.5, x0=xa, **kw)
+    changes = [rec for rec in full.chart_switches if rec["from"] != rec["to"]]
+    assert len(changes) == 2 and all(rec["in_loop"] for rec in changes)
+    with pytest.raises(IntegratorError, match="too many steps") as info:
+        model.simulate(1.5, x0=xa, max_steps=int(0.9 * full.stats["n_steps"]), **kw)
+    err = info.value
+    left = {rec["chart"]: rec["to"] for rec in changes if rec["t"] <= err.t}
+    assert err.t > changes[-1]["t"] and err.charts == left
+    assert str(err).endswith(f"in charts chart_f1 = {left['chart_f1']}, chart_o1 = {left['chart_o1']}")
 
 
 def test_a_grasp_that_changes_chart_in_the_loop_then_slips_slips_as_on_one_chart(pivot_grasps, pivot_modes):

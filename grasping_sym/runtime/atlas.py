@@ -153,6 +153,19 @@ def repeated(switches: list[dict], record: dict) -> bool:
         abs(last["t"] - record["t"]) <= 1e-12 * max(1.0, abs(record["t"]))
 
 
+def name_charts(err, charts: dict[str, int]):
+    """``err`` (an ``IntegratorError`` of a run on atlases) with the chart each chart
+    parameter names where its state was written (``charts``): as ``err.charts`` and at the
+    end of its message (its contact coordinates mean nothing without them). Once: an error
+    already named keeps its charts. Returns ``err``."""
+    if not charts or getattr(err, "charts", None) is not None or not err.args:
+        return err
+    err.charts = dict(charts)
+    named = ", ".join(f"{k} = {v}" for k, v in charts.items())
+    err.args = (f"{err.args[0]}; its contact coordinates in charts {named}", *err.args[1:])
+    return err
+
+
 class Atlases:
     """A model's atlases (its manifest's ``atlas``): each slot's chart parameter (None: a
     repeating chart), state columns and map; ``switch`` carries a state across."""
@@ -177,6 +190,10 @@ class Atlases:
     def entry(self, chart: str) -> dict:
         """The atlas entry of the chart parameter ``chart``."""
         return next(entry for entry, _, _ in self.slots if entry["param"] == chart)
+
+    def charts(self, p) -> dict[str, int]:
+        """Each chart parameter's chart in ``p``."""
+        return {entry["param"]: int(round(float(p[i]))) for entry, i, _ in self.slots if i is not None}
 
     def wrapped(self, raw) -> list[dict]:
         """The records of what the C loops made (``raw``: ``CompiledLibrary.wrapping``'s rows),

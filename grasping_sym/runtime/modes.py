@@ -57,7 +57,7 @@ from grasping_sym.errors import (
 from grasping_sym.runtime import c_loops, events, failures, fastpath, friction, integrators, parameters, pool
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import run as run_
-from grasping_sym.runtime.atlas import Atlases, by_charts, repeated
+from grasping_sym.runtime.atlas import Atlases, by_charts, name_charts, repeated
 from grasping_sym.runtime.parameters import complete
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.watch import WATCH_DT, WATCH_SAFETY
@@ -1461,6 +1461,17 @@ def run(model, s, x0: np.ndarray, mu_arg=None, e_arg=None, u=None, short=None,
                                "again)")
     mus, e = friction_law(model, mu_arg, e_arg)
     r = _new_run(model, s, mus, e)
+    try:
+        return _run(r, x0, u, short, charts, start)
+    except IntegratorError as err:  # on atlases: its state's charts named (a segment's own, if
+        if r.atlases is not None:   # its loop changed one: _segment), else the run's
+            name_charts(err, r.atlases.charts(r.p))
+        raise
+
+
+def _run(r: _Run, x0: np.ndarray, u, short, charts: dict | None, start: float) -> SimulationResult:
+    """``run`` once its run ``r`` is made."""
+    model, s = r.model, r.s
     for k, c in (charts or {}).items():
         r.p[model.p_names.index(k)] = parameters.chart_value(k, c)
     t_eval = s.t_eval
@@ -1897,6 +1908,8 @@ def _segment(r: _Run, leg: _Leg, x: np.ndarray, grid: np.ndarray, p: np.ndarray,
                 err = _in_own_state(r, leg, failures.classify(model, exc))
                 slot = None if r.atlases is None or leg.back is not None else r.atlases.slot_of(err)
                 if slot is None:
+                    if r.atlases is not None:  # in the charts the loop left
+                        name_charts(err, r.atlases.charts(r.atlases.after(r.atlases.wrapped(wraps), r.p)))
                     raise err from None
                 # a contact at its chart's edge: the rows up to the step there, and where it is
                 t, X = err.trajectory

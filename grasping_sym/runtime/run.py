@@ -23,7 +23,7 @@ from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import events, failures, friction, integrators
 from grasping_sym.runtime import outputs as outputs_
 from grasping_sym.runtime import watch as watch_
-from grasping_sym.runtime.atlas import Atlases, by_charts, repeated
+from grasping_sym.runtime.atlas import Atlases, by_charts, name_charts, repeated
 from grasping_sym.runtime.inputs import as_schedule
 from grasping_sym.runtime.result import SimulationResult
 from grasping_sym.runtime.settings import RunSettings, numbers_array
@@ -70,6 +70,15 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
     start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
     s.watched = watched_checks(model, s, start)
     charted = _Charted(model)
+    try:
+        return _on_charts(model, s, x0, p, sched, segments, start, charted)
+    except IntegratorError as err:  # on atlases: its state's charts named
+        charted.name(err, p)
+        raise
+
+
+def _on_charts(model, s: RunSettings, x0, p, sched, segments, start, charted) -> SimulationResult:
+    """``run``'s integration, checks and result, across the charts of ``charted``."""
     t, X, stats = _segments(model, s, segments, sched, x0, p, start, charted)
     pieces = charted.pieces(t, p)  # the rows between switches, each with its p
     # the checks read the compiled outputs whether or not the result shows them: the C loop
@@ -149,7 +158,7 @@ class _Charted:
             wrapped: list = []  # the wraps and charts' changes the C loop made (c/wrap.c), before any stop
             try:
                 t, X, st = integrate(self.model, now, x, grid, p, start, h0, sched, (self.atlases, wrapped))
-            except ContactLeftContourError as err:
+            except IntegratorError as err:  # (slot_of: a contact at its chart's edge, else None)
                 made = self.atlases.wrapped(wrapped)
                 self.switches += made
                 p = self.atlases.after(made, p)  # the charts the loop changed
@@ -185,6 +194,13 @@ class _Charted:
         keep = np.isin(t, t_eval)        # the switches' times are no output times
         _, first = np.unique(t[keep], return_index=True)
         return t[keep][first], X[keep][first], stats, p
+
+    def name(self, err, p) -> None:
+        """``err`` named with the charts its state is written in (``runtime.atlas.name_charts``):
+        ``p``'s, as the switches up to its time left them."""
+        if self.atlases is not None and p is not None:
+            at = self.atlases.after([rec for rec in self.switches if rec["t"] <= err.t], p)
+            name_charts(err, self.atlases.charts(at))
 
     def _keep(self, record: dict, err) -> None:
         if repeated(self.switches, record):
