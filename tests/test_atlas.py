@@ -460,20 +460,24 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
 
 
 def test_a_failed_run_with_modes_names_the_charts_its_loop_left(pivot_grasps, pivot_modes):
-    """The grasp with modes sliding (mu = 0.1) across both charts' changes, made in its C
-    loop, stopped by ``max_steps`` after them: the error names the charts its state is in
-    (``err.charts`` and its message), those the whole run's changes left by then."""
+    """The grasp with modes rolling (no friction limit: one segment, the charts' changes made
+    in its C loop, the run's own charts unchanged) and sliding (mu = 0.1, a segment per
+    re-aim) across both charts' changes, stopped by ``max_steps`` after them: the error
+    names the charts its state is in (``err.charts`` and its message), those the whole run's
+    changes left by then."""
     model, xa = pivot_modes["atlas"], pivot_grasps["xa"]
-    kw = dict(mu=0.1, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
-    full = model.simulate(1.5, x0=xa, **kw)
-    changes = [rec for rec in full.chart_switches if rec["from"] != rec["to"]]
-    assert len(changes) == 2 and all(rec["in_loop"] for rec in changes)
-    with pytest.raises(IntegratorError, match="too many steps") as info:
-        model.simulate(1.5, x0=xa, max_steps=int(0.9 * full.stats["n_steps"]), **kw)
-    err = info.value
-    left = {rec["chart"]: rec["to"] for rec in changes if rec["t"] <= err.t}
-    assert err.t > changes[-1]["t"] and err.charts == left
-    assert str(err).endswith(f"in charts chart_f1 = {left['chart_f1']}, chart_o1 = {left['chart_o1']}")
+    for mu in (None, 0.1):
+        kw = dict(mu=mu, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.5, 301))
+        full = model.simulate(1.5, x0=xa, **kw)
+        changes = [rec for rec in full.chart_switches if rec["from"] != rec["to"]]
+        assert len(changes) == 2 and all(rec["in_loop"] for rec in changes)
+        assert mu is not None or full.stats["segments"] == 1
+        with pytest.raises(IntegratorError, match="too many steps") as info:
+            model.simulate(1.5, x0=xa, max_steps=int(0.9 * full.stats["n_steps"]), **kw)
+        err = info.value
+        left = {rec["chart"]: rec["to"] for rec in changes if rec["t"] <= err.t}
+        assert err.t > changes[-1]["t"] and err.charts == left
+        assert str(err).endswith(f"in charts chart_f1 = {left['chart_f1']}, chart_o1 = {left['chart_o1']}")
 
 
 def test_a_grasp_that_changes_chart_in_the_loop_then_slips_slips_as_on_one_chart(pivot_grasps, pivot_modes):

@@ -253,15 +253,17 @@ def test_the_optimisation_level_is_in_the_flags_and_the_name(monkeypatch):
         library_tag()
 
 
-def test_every_level_computes_what_a_full_build_does(tmp_path, monkeypatch):
-    """The quick level (-Og) and none (-O0, the test suite's: conftest) compute the numbers of
-    the full one (-O2), bit for bit: paper3d's compiled rhs (vector libm and shared reciprocals
-    included) at random states, and a run of its default method, projection and outputs."""
+def test_every_level_computes_what_a_full_build_does(tmp_path, monkeypatch, paper3d_model):
+    """The quick level (-Og) and none (-O0, the test suite's: conftest, its paper3d) compute
+    the numbers of the full one (-O2), bit for bit: paper3d's compiled rhs (vector libm and
+    shared reciprocals included) at random states, and a run of its default method,
+    projection and outputs."""
     import grasping_sym as gs  # noqa: PLC0415
     from grasping_sym.store import paths  # noqa: PLC0415
 
-    models = {}
-    for level, tag in (("full", None), ("quick", "-quick"), ("none", "-O0")):
+    models = {"none": paper3d_model}
+    assert "-O0" in paper3d_model.library_path.name
+    for level, tag in (("full", None), ("quick", "-quick")):
         monkeypatch.setenv("GRASPING_SYM_OPT", level)
         with paths.root_override(tmp_path / level):
             models[level] = gs.build(gs.scenes.paper3d())

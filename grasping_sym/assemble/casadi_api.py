@@ -215,7 +215,7 @@ def compiled_functions(fns: dict[str, ca.Function], directory, say=lambda m: Non
         sources = [safety.write_text(directory / f"{stem}-{i}.c", text)
                    for i, (_, text) in enumerate(texts)]
         # -O1 at the full level (these derivatives are large and called a few hundred times
-        # per solve), the quick level's -Og else; a failure keeps the C, to read
+        # per solve), the level's own flag else (-Og, -O0); a failure keeps the C, to read
         compile_shared(sources, lib, extra_flags=("-O1",) if optimization() == "full" else ())
         for src in sources:
             src.unlink(missing_ok=True)

@@ -66,19 +66,20 @@ def run(model, s: RunSettings, x0: np.ndarray, own_start: bool, p, u) -> Simulat
     sched = schedule(model, u, s.method, t_eval)
     segments = [(0.0, float(t_eval[-1]), None, None)] if sched is None else \
         sched.segments(0.0, float(t_eval[-1]))
-    p0 = p if sched is None else model.with_inputs(p, segments[0][2], segments[0][3])
-    start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
-    s.watched = watched_checks(model, s, start)
     charted = _Charted(model)
     try:
-        return _on_charts(model, s, x0, p, sched, segments, start, charted)
-    except IntegratorError as err:  # on atlases: its state's charts named
+        return _on_charts(model, s, x0, p, sched, segments, own_start, charted)
+    except IntegratorError as err:  # on atlases: its state's charts named (the start's checks' too)
         charted.name(err, p)
         raise
 
 
-def _on_charts(model, s: RunSettings, x0, p, sched, segments, start, charted) -> SimulationResult:
-    """``run``'s integration, checks and result, across the charts of ``charted``."""
+def _on_charts(model, s: RunSettings, x0, p, sched, segments, own_start: bool, charted) -> SimulationResult:
+    """``run``'s checks of the start, integration, checks and result, across the charts of
+    ``charted``."""
+    p0 = p if sched is None else model.with_inputs(p, segments[0][2], segments[0][3])
+    start = checks_.check_initial_state(model, x0, p0, rates=not own_start) if s.checks else {}
+    s.watched = watched_checks(model, s, start)
     t, X, stats = _segments(model, s, segments, sched, x0, p, start, charted)
     pieces = charted.pieces(t, p)  # the rows between switches, each with its p
     # the checks read the compiled outputs whether or not the result shows them: the C loop

@@ -105,7 +105,7 @@ def optimization() -> str:
     """
     return _setting(_OPT_ENV, {"full": "gcc -O2, the fastest code",
                                "quick": "gcc -Og, about half the compile time, ~10 % slower code",
-                               "none": "gcc -O0, a fifth of the compile time, 3-5 times slower "
+                               "none": "gcc -O0, 3-5 times faster to compile than quick, 3-5 times slower "
                                        "code"})
 
 

@@ -214,7 +214,7 @@ def cached_objects(sources: Sequence[Path], directory: Path,
     """The object files ``<directory>/<stem>.o`` of ``sources``: checked (``runtime.safety``)
     when there, else compiled now (in parallel, each installed atomically; one process or
     thread compiles a directory's objects while the others wait for them; ``quick``: sources
-    compiled with ``compiler.QUICK_FLAGS``; ``at_once``: at most that many compilers at a
+    compiled with ``compiler.QUICK_FLAGS`` at the full level; ``at_once``: at most that many compilers at a
     time). ``directory`` must exist and be the caller's to fill."""
     objects = [Path(directory) / f"{Path(src).stem}.o" for src in sources]
     if _present(objects):
