@@ -459,6 +459,35 @@ def test_a_grasp_with_modes_rolls_and_slides_across_its_charts(pivot_grasps, piv
     assert np.abs(turned - v1 / np.linalg.norm(v1)).max() < 1e-12
 
 
+def test_an_error_is_named_with_the_changes_made_by_its_time_only(pivot_grasps):
+    """``_Charted.name``: the charts of an error at ``t`` are those the changes up to ``t``
+    left, not those of a later change (a located event can come before the last change of
+    the loop that found it); a model without atlases, and an error already named, are left
+    as they are."""
+    from grasping_sym.runtime import run as run_  # noqa: PLC0415
+
+    model = pivot_grasps["model"]
+    charted = run_._Charted(model)
+    x = np.asarray(pivot_grasps["xa"], dtype=float)
+    p = model.default_params.copy()
+    p[list(model.p_names).index("chart_f1")] = 0.0
+    p[list(model.p_names).index("chart_o1")] = 0.0
+    charted.switches = [{"t": 0.2, "chart": "chart_f1", "from": 0, "to": 1},
+                        {"t": 0.5, "chart": "chart_o1", "from": 0, "to": 1}]
+    for t, want in ((0.1, {"chart_f1": 0, "chart_o1": 0}), (0.2, {"chart_f1": 1, "chart_o1": 0}),
+                    (0.3, {"chart_f1": 1, "chart_o1": 0}), (0.6, {"chart_f1": 1, "chart_o1": 1})):
+        err = IntegratorError(t, x, "too many steps", model.state_names)
+        charted.name(err, p)
+        assert err.charts == want and str(err).endswith(
+            f"in charts chart_f1 = {want['chart_f1']}, chart_o1 = {want['chart_o1']}")
+        before = str(err)
+        charted.name(err, p)  # once
+        assert str(err) == before
+    plain = IntegratorError(0.3, x, "too many steps", model.state_names)
+    run_._Charted(pivot_grasps["ref"]).name(plain, pivot_grasps["ref"].default_params)
+    assert not hasattr(plain, "charts") and "in charts" not in str(plain)
+
+
 def test_a_failed_run_with_modes_names_the_charts_its_loop_left(pivot_grasps, pivot_modes):
     """The grasp with modes rolling (no friction limit: one segment, the charts' changes made
     in its C loop, the run's own charts unchanged) and sliding (mu = 0.1, a segment per
