@@ -35,6 +35,7 @@ from grasping_sym.runtime import checks as checks_
 from grasping_sym.runtime import fastpath
 from grasping_sym.runtime import modes as modes_
 from grasping_sym.runtime import outputs as outputs_
+from grasping_sym.runtime import run as run_
 from grasping_sym.viz.plots3d import contact_traces
 from tests.scenes import BALL_R, pressed_ball
 
@@ -464,8 +465,6 @@ def test_an_error_is_named_with_the_changes_made_by_its_time_only(pivot_grasps):
     left, not those of a later change (a located event can come before the last change of
     the loop that found it); a model without atlases, and an error already named, are left
     as they are."""
-    from grasping_sym.runtime import run as run_  # noqa: PLC0415
-
     model = pivot_grasps["model"]
     charted = run_._Charted(model)
     x = np.asarray(pivot_grasps["xa"], dtype=float)
