@@ -3,7 +3,7 @@ for the session's workers together under pytest-xdist (the cache is safe for con
 builds: tests/test_cache_security.py), so that a model one worker built is the other's too.
 
 The session compiles at no optimisation (``GRASPING_SYM_OPT=none``, -O0: gcc was most of the
-suite's time, and -O0 compiles the models' C 3 to 5 times faster than -Og): the numbers are the
+suite's time, and -O0 compiles the models' C about 4.5 times faster than -Og): the numbers are the
 full level's, bit for bit (``test_compiled_runtime.py::test_every_level_computes_what_a_full_build_does``,
 which builds each)."""
 from __future__ import annotations

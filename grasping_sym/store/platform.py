@@ -92,9 +92,10 @@ def optimization() -> str:
     floating-point operations (no ``-ffast-math``; the baseline has no fused multiply-add, and
     x86-64-v3 is compiled with ``-ffp-contract=off``; ``tests/test_compiled_runtime.py`` checks
     it bit for bit). ``none`` is for test suites, whose time goes to gcc and not to the runs:
-    a model's C compiles 3 to 5 times faster than at ``quick`` (a modes model's largest file:
-    2.2 s against 10 s) and runs 3 to 5 times slower than at ``full`` (paper2d 10.7 ms against
-    3.0, paper3d 79 against 17, a 3 s run with outputs), with the same results again.
+    a model's C compiles about 4.5 times faster than at ``quick`` (a modes model's largest file:
+    2.2 s against 10 s) and runs 2 to 3.5 times slower than at ``full`` (a 3 s run with its
+    defaults: paper2d 7.1 ms against 2.8-4.7, paper3d 51 against 16-23), with the same results
+    again.
     The libraries of the levels have different names.
 
     Raises
@@ -105,7 +106,7 @@ def optimization() -> str:
     """
     return _setting(_OPT_ENV, {"full": "gcc -O2, the fastest code",
                                "quick": "gcc -Og, about half the compile time, ~10 % slower code",
-                               "none": "gcc -O0, 3-5 times faster to compile than quick, 3-5 times slower "
+                               "none": "gcc -O0, ~4.5 times faster to compile than quick, 2-3.5 times slower "
                                        "code"})
 
 

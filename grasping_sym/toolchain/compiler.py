@@ -81,7 +81,7 @@ QUICK_FLAGS: tuple[str, ...] = ("-Og",)
 #: The flags of each optimisation level (``store.platform.optimization``), after
 #: :data:`BASE_FLAGS` (the last ``-O`` counts): ``quick`` compiles a model's C in about half
 #: the time (paper3d: 1.2 s against 2.9 s) and runs it ~10 % slower, ``none`` (the test
-#: suite's) 3 to 5 times faster than quick and runs it 3 to 5 times slower, with the same results.
+#: suite's) about 4.5 times faster than quick and runs it 2 to 3.5 times slower, with the same results.
 LEVEL_FLAGS: dict[str, tuple[str, ...]] = {"full": (), "quick": ("-Og",), "none": ("-O0",)}
 #: Flags used when linking the shared library.
 LINK_FLAGS: tuple[str, ...] = ("-shared", "-lm")
