@@ -13,5 +13,7 @@ if ! command -v chromium >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; 
 fi
 # the floors: no import runs upward or closes a loop (pyproject.toml's contracts)
 lint-imports
-# every core, one test file per worker (module fixtures build once)
+# every core, one test file per worker (module fixtures build once); one thread each for
+# OpenBLAS and OpenMP: their idle threads spin on the core the other worker needs
+export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}" OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 python -m pytest -q -n auto --dist loadfile "$@"

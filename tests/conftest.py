@@ -12,6 +12,12 @@ import os
 
 import pytest
 
+# One thread per worker for OpenMP (IPOPT's MUMPS, which CasADi bundles): its idle threads spin,
+# and each worker already has a core of its own. The optimal-control tests burned twice their
+# wall time in CPU, a core taken from the other worker (scripts/test.sh also sets OpenBLAS's,
+# which NumPy has loaded before this file runs).
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
@@ -62,11 +68,12 @@ def paper2d_result(paper2d_model):
 #: finish together instead of one worker running a long file alone at the end. A file not
 #: named keeps its place after these; the order within a file is kept.
 HEAVY_FIRST = (
-    "test_planar_free.py", "test_examples_control.py", "test_docs.py", "test_atlas.py",
-    "test_planar_multifinger.py", "test_layers.py", "test_grasp_modes.py", "test_runtime_guards.py",
-    "test_viewer.py", "test_sweep.py", "test_cache_security.py", "test_hands_urdf.py",
-    "test_generated_golden.py", "test_modes.py", "test_paper3d.py", "test_compiled_vs_symbolic.py",
-    "test_compiled_runtime.py",
+    "test_atlas.py", "test_planar_free.py", "test_docs.py", "test_sweep.py", "test_examples_control.py",
+    "test_planar_multifinger.py", "test_layers.py", "test_cache_security.py", "test_runtime_guards.py",
+    "test_grasp_modes.py", "test_cli_plots3d.py", "test_compiled_vs_symbolic.py", "test_modes.py",
+    "test_interrupts.py", "test_compiled_runtime.py", "test_reference3d_paper.py", "test_contact3d.py",
+    "test_generated_golden.py", "test_hard_cases.py", "test_spatial.py", "test_hands_urdf.py",
+    "test_paper3d.py",
 )
 
 

@@ -276,18 +276,25 @@ def test_quick_files_compile_at_og_and_the_others_at_o2(tmp_path, monkeypatch):
     assert flags["b.c"].index("-Og") > flags["b.c"].index("-O2")
 
 
+@pytest.fixture(scope="module")
+def empty_cache(tmp_path_factory):
+    """A cache of this module's own, empty at its first build: the three models below derive
+    everything, and share the driver's objects where their work sizes do."""
+    return tmp_path_factory.mktemp("predict")
+
+
 @pytest.mark.parametrize("make", [
     lambda: replace(gs.scenes.paper2d(), name="layers_predict_2d"),
     _two_finger_scene,
     lambda: _surface_pair_scene("layers_predict_3d"),
 ])
-def test_the_driver_objects_compiled_ahead_are_the_models(make, monkeypatch, tmp_path):
+def test_the_driver_objects_compiled_ahead_are_the_models(make, monkeypatch, empty_cache):
     """A build that derives a structure predicts its driver's macros first and compiles their
     objects meanwhile (``library.predicted_defines``): the prediction is the model's own,
     so the objects it makes are the ones the model links."""
     from grasping_sym.toolchain import library, objects
 
-    monkeypatch.setenv("GRASPING_SYM_CACHE", str(tmp_path))  # nothing cached: all derived
+    monkeypatch.setenv("GRASPING_SYM_CACHE", str(empty_cache))  # no model of these cached: all derived
     predicted = []
     real = library.prefetch_driver
     monkeypatch.setattr(library, "prefetch_driver",
