@@ -184,6 +184,35 @@ def test_compiler_environment_cannot_change_a_cached_library(cache, tmp_path, mo
     assert library_name("x") != plain and "-cc" in library_name("x")
 
 
+def test_a_cached_library_is_checked_against_its_compiler_without_running_it(cache, monkeypatch):
+    """The manifest records the compiler's stamp (the files of ``$CC`` with their size, time
+    and inode: ``toolchain.compiler.compiler_stamp``) beside the version that compiled the
+    library. A cached build whose stamp is unchanged starts no process; a stamp that changed
+    asks the compiler its version (the same: the library is used); another version recorded is
+    compiled again, and so are other flags under an unchanged stamp."""
+    from grasping_sym.toolchain import compiler
+
+    _, entry = cache
+    path = entry / "manifest.json"
+    m = json.loads(path.read_text())
+    assert m["compiler_stamp"] == compiler.compiler_stamp()
+    version, flags = m["compiled_with"].split(" | ", 1)
+    asked = []
+    real = compiler._version_of
+    monkeypatch.setattr(compiler, "_version_of", lambda cc: asked.append(cc) or real(cc))
+    assert gs.build(gs.scenes.paper2d()).build_info["source"] == "cache" and asked == []
+    path.write_text(json.dumps({**m, "compiler_stamp": "gcc=/elsewhere/gcc:1:2:3:4"}))
+    assert gs.build(gs.scenes.paper2d()).build_info["source"] == "cache" and asked
+    path.write_text(json.dumps({**m, "compiled_with": f"gcc (Other) 1.0 | {flags}", "compiler_stamp": "x"}))
+    model = gs.build(gs.scenes.paper2d())
+    assert "compiled with 'gcc (Other) 1.0" in model.build_info["rebuilt_because"]
+    m = json.loads(path.read_text())
+    assert (m["compiled_with"], m["compiler_stamp"]) == (f"{version} | {flags}", compiler.compiler_stamp())
+    path.write_text(json.dumps({**m, "compiled_with": f"{version} | -O3 -ffast-math"}))
+    model = gs.build(gs.scenes.paper2d())
+    assert "-ffast-math" in model.build_info["rebuilt_because"]
+
+
 def test_formula_text_is_parsed_never_run(tmp_path):
     marker = tmp_path / "ran"
     attack = f"__import__('os').system('touch {marker}')"

@@ -23,7 +23,7 @@ from grasping_sym.store import files as stored
 from grasping_sym.store import paths as cache
 from grasping_sym.store import safety
 from grasping_sym.store.platform import library_name
-from grasping_sym.toolchain.compiler import toolchain_id
+from grasping_sym.toolchain.compiler import compiler_stamp, toolchain_id
 from grasping_sym.toolchain.library import compile_model, model_defines, outputs_read_time
 
 Progress = Callable[[str], None]
@@ -213,8 +213,9 @@ def compile_here(directory: Path, manifest: dict, data: dict) -> dict:
 
 def compiled_manifest(manifest: dict, lib: Path) -> dict:
     """``manifest`` with the record of a library just compiled: its checksum and what
-    compiled it (``toolchain.compiler.toolchain_id``, checked before a cached one is used)."""
-    return {**manifest, "compiled_with": toolchain_id(),
+    compiled it (``toolchain.compiler.toolchain_id``, checked before a cached one is used,
+    with the compiler's stamp: ``toolchain_matches``)."""
+    return {**manifest, "compiled_with": toolchain_id(), "compiler_stamp": compiler_stamp(),
             "libraries": {**manifest.get("libraries", {}), lib.name: safety.sha256_file(lib)}}
 
 

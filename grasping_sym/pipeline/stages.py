@@ -52,7 +52,7 @@ from grasping_sym.store import paths as cache
 from grasping_sym.store import safety
 from grasping_sym.store.manifest_schema import manifest_problems
 from grasping_sym.store.platform import library_name
-from grasping_sym.toolchain.compiler import toolchain_id, vector_libm
+from grasping_sym.toolchain.compiler import toolchain_id, toolchain_matches, vector_libm
 
 Progress = Callable[[str], None]
 
@@ -225,6 +225,6 @@ def _stale(manifest: dict | None, digest: str, lib: Path) -> str | None:
         return "invalid manifest: " + "; ".join(problems)
     if manifest.get("hash") != digest:
         return "another code hash"
-    if manifest.get("compiled_with") != toolchain_id():
+    if not toolchain_matches(manifest.get("compiled_with"), manifest.get("compiler_stamp")):
         return f"compiled with {manifest.get('compiled_with')!r}, not {toolchain_id()!r}"
     return safety.library_problem(lib, manifest)
