@@ -182,3 +182,28 @@ def test_a_cached_build_in_a_new_process_imports_nothing_that_builds(scene):
                 "grasping_sym.toolchain.library", "grasping_sym.toolchain.objects")
     assert not [m for m in got["new"] if m.startswith(building)], got["new"]
     assert "grasping_sym.runtime.model" in got["new"]  # the check sees what the build imported
+
+
+def test_a_cached_scene_is_found_without_reading_the_sources(monkeypatch):
+    """The definition key takes the package's sources by their files' stat
+    (``store.paths.sources_stamp``): a cached scene is found without reading the source tree
+    (``tree_digest``). Another stamp (a source edited) misses the lookup: the build keys the
+    code by the sources read whole, finds the same model, and records the new definition."""
+    from grasping_sym.store import paths
+
+    first = gs.build(gs.scenes.paper2d())
+    real = paths.tree_digest
+
+    def never():
+        raise AssertionError("the source tree was read")
+
+    monkeypatch.setattr(paths, "tree_digest", never)
+    again = gs.build(gs.scenes.paper2d())
+    assert (again.build_info["key"], again.build_info["source"]) == ("definition", "cache")
+    assert again.directory == first.directory
+    monkeypatch.setattr(paths, "tree_digest", real)
+    monkeypatch.setattr(paths, "sources_stamp", lambda: "0" * 64)  # as after an edit
+    moved = gs.build(gs.scenes.paper2d())
+    assert (moved.build_info["key"], moved.build_info["source"]) == ("expressions", "cache")
+    assert moved.directory == first.directory
+    assert gs.build(gs.scenes.paper2d()).build_info["key"] == "definition"

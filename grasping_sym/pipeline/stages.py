@@ -77,7 +77,9 @@ def definition_key(scene) -> str | None:
     with its controller's definition (``Controller.definition``: a preset's name and
     parameters, a law's code), the package's sources and version: computed without running the
     law or deriving anything, so that a cached scene is found at the cost of a lookup
-    (``definitions/<key>.json`` maps it to the code hash and the start key). None for a law
+    (``definitions/<key>.json`` maps it to the code hash and the start key). The sources enter
+    by their files' stat (``store.paths.sources_stamp``), not read whole: an edited source
+    misses the lookup, and the build keys its code by the sources read whole. None for a law
     whose definition cannot be read (then the law's expressions key the build)."""
     law = scene.controller
     text = "none" if law is None else "paper" if law == PAPER else law.definition
@@ -85,7 +87,7 @@ def definition_key(scene) -> str | None:
         return None
     parts = ["definition", type(scene).__name__, scene.name, scene.code_key(), scene.key(),
              f"controller={text}"]
-    return cache.content_hash("\n".join(parts), __version__)["hash"]
+    return cache.content_hash("\n".join(parts), __version__, "stat:" + cache.sources_stamp())["hash"]
 
 
 def _definitions(root: Path) -> Path:
