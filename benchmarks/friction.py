@@ -75,7 +75,7 @@ def switches() -> dict:
 
 #: The settings tried for the ensembles, loosest first (radau with projection, no Baumgarte):
 #: the first whose every run ends within ``ENSEMBLE_ERROR`` of the reference is timed.
-ENSEMBLE_SETTINGS = ((1e-3, 1e-8), (3e-4, 1e-8), (1e-4, 1e-8), (3e-5, 1e-8), (1e-5, 1e-7))
+ENSEMBLE_SETTINGS = ((3e-3, 1e-8), (1e-3, 1e-8), (3e-4, 1e-8), (1e-4, 1e-8), (3e-5, 1e-8), (1e-5, 1e-7))
 ENSEMBLE_ERROR = 1e-8
 
 
@@ -102,6 +102,8 @@ def ensembles(n: int = 2000) -> dict:
         tried.append({"rtol": rtol, "atol": atol, "max_final_error": error})
         if error <= ENSEMBLE_ERROR:
             break
+    else:
+        raise RuntimeError(f"no setting of ENSEMBLE_SETTINGS reaches {ENSEMBLE_ERROR:g} in every run: {tried}")
     out["settings_tried"] = tried
     rtol, atol = tried[-1]["rtol"], tried[-1]["atol"]
     base = dict(x0=x0, rtol=rtol, atol=atol, project=True, threads=1)
@@ -242,8 +244,8 @@ def main() -> dict:
     tried = ", ".join(f"rtol {t['rtol']:g}, atol {t['atol']:g}: {t['max_final_error']:.1e}"
                       for t in e["settings_tried"])
     d = e["default scene, mixed"]
-    lines += ["", f"- the setting: the loosest whose every run (mu, 31 output times) ends within "
-              f"{ENSEMBLE_ERROR:g} of the reference, loosest first ({tried}); the same motion in every "
+    lines += ["", f"- the setting: the first, loosest first, of those tried whose every run (mu, 31 output "
+              f"times) ends within {ENSEMBLE_ERROR:g} of the reference ({tried}); the same motion in every "
               "run (mu does not change a motion that holds), so every run's error is the one shown",
               f"- the default scene (Baumgarte), rtol 1e-8, 301 output times, mu from 0.05 to 0.6: "
               f"{d['runs_per_s_one_thread']:.0f} runs/s; {d['held']} held, {d['slipped']} stopped with "

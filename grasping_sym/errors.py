@@ -218,6 +218,12 @@ class CacheWriteError(GraspingSymError, OSError):
                                     "or point GRASPING_SYM_CACHE at a writable directory of your own")
 
 
+class SourcesChangedError(GraspingSymError, RuntimeError):
+    """The package's source files changed (an edit, a checkout) since this process first
+    keyed a build by their stamp: the code in memory is not the code on disk, and a model built
+    now would be stored under the edited sources' hash. Restart Python to build with them."""
+
+
 class CacheContentsError(GraspingSymError, ValueError):
     """``grasping-sym cache clear`` refused: the cache root holds files the package did not
     make (it is not a cache of its own), or a name given is not one of its entries. Nothing

@@ -213,6 +213,35 @@ def test_a_cached_library_is_checked_against_its_compiler_without_running_it(cac
     assert "-ffast-math" in model.build_info["rebuilt_because"]
 
 
+def test_the_compiler_stamp_follows_the_compilers_file_and_trusts_no_wrapper(tmp_path, monkeypatch):
+    """``compiler_stamp``: a program's file changed is a new stamp; a script (``#!``) or a
+    known wrapper (ccache resolving ``gcc``) gets none, so a library's compiler is asked its
+    version."""
+    from grasping_sym.toolchain import compiler
+
+    prog = tmp_path / "mycc"
+    shutil.copy(shutil.which("true"), prog)
+    monkeypatch.setenv("CC", str(prog))
+    before = compiler.compiler_stamp()
+    assert before is not None and str(prog) in before
+    with open(prog, "ab") as fh:
+        fh.write(b"\0")
+    assert compiler.compiler_stamp() not in (before, None)
+    script = tmp_path / "wrapcc"
+    script.write_text('#!/bin/sh\nexec gcc "$@"\n')
+    script.chmod(0o755)
+    monkeypatch.setenv("CC", str(script))
+    assert compiler.compiler_stamp() is None
+    masq = tmp_path / "bin"
+    masq.mkdir()
+    shutil.copy(shutil.which("true"), masq / "ccache")
+    (masq / "gcc").symlink_to(masq / "ccache")
+    monkeypatch.setenv("CC", "gcc")
+    monkeypatch.setenv("PATH", f"{masq}:{os.environ['PATH']}")
+    assert compiler.compiler_stamp() is None
+    assert not compiler.toolchain_matches("x | " + " ".join(compiler.COMPILER_FLAGS), None)
+
+
 def test_formula_text_is_parsed_never_run(tmp_path):
     marker = tmp_path / "ran"
     attack = f"__import__('os').system('touch {marker}')"

@@ -11,6 +11,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from grasping_sym.model.scenes import BUILTIN
 from grasping_sym.pipeline import generate_committed
 from grasping_sym.store.paths import generated_dir
@@ -77,6 +79,37 @@ def test_the_code_hash_reads_every_module_the_build_imports():
     assert {os.path.realpath(paths.PACKAGE_DIR / "c" / "radau5.c")} <= hashed
 
 
+def test_the_sources_stamp_follows_the_files_and_a_tree_changed_since_is_refused(tmp_path, monkeypatch):
+    """The stamp a definition key takes (``store.paths.sources_stamp``: the files' stat, not
+    their content) changes with a byte appended to a module; the tree read whole after a file
+    changed under the process's stamp raises ``SourcesChangedError`` (the code in memory is
+    not the code on disk), and a process that goes on reads the new stamp."""
+    import shutil
+
+    from grasping_sym.errors import SourcesChangedError
+    from grasping_sym.store import paths
+
+    copy = tmp_path / "grasping_sym"
+    shutil.copytree(paths.PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(paths, "PACKAGE_DIR", copy)
+    try:
+        paths.tree_digest.cache_clear()
+        paths.sources_stamp.cache_clear()
+        first = paths.sources_stamp()
+        assert paths.sources_stamp.__wrapped__() == first
+        digest = paths.tree_digest()  # the same stamp: read
+        with open(copy / "derive" / "spatial.py", "a") as fh:
+            fh.write("\n")
+        assert paths.sources_stamp.__wrapped__() != first
+        paths.tree_digest.cache_clear()
+        with pytest.raises(SourcesChangedError, match="Restart Python"):
+            paths.tree_digest()
+        assert paths.sources_stamp() != first and paths.tree_digest() != digest
+    finally:
+        paths.tree_digest.cache_clear()
+        paths.sources_stamp.cache_clear()
+
+
 def test_the_code_hash_changes_with_any_file_below_the_top_floors(tmp_path, monkeypatch):
     """A byte changed in any module or C file of the build's floors changes the hash; one in
     a top floor (``ABOVE_THE_BUILD``: figures, sweeps, the command line) does not."""
@@ -88,8 +121,9 @@ def test_the_code_hash_changes_with_any_file_below_the_top_floors(tmp_path, monk
     shutil.copytree(paths.PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setattr(paths, "PACKAGE_DIR", copy)
 
-    def digest() -> str:
+    def digest() -> str:  # (the stamp too: the tree read whole must have the process's stamp)
         paths.tree_digest.cache_clear()
+        paths.sources_stamp.cache_clear()
         return paths.tree_digest()
 
     try:
@@ -103,3 +137,4 @@ def test_the_code_hash_changes_with_any_file_below_the_top_floors(tmp_path, monk
             before = after
     finally:
         paths.tree_digest.cache_clear()
+        paths.sources_stamp.cache_clear()

@@ -196,8 +196,9 @@ def make(scene, directory: Path, manifest, why: str, digest: str, force: bool, s
         info["rebuilt_because"] = why
     say(f"compiling {scene.name} with gcc")
     t_c = time.perf_counter()
+    stamp = compiler_stamp()
     lib = compile_library(directory, manifest)
-    manifest = compiled_manifest(manifest, lib)
+    manifest = compiled_manifest(manifest, lib, stamp)
     stored.write_manifest(directory, manifest)
     info["compile"] = time.perf_counter() - t_c
     return manifest, info, lib
@@ -208,14 +209,16 @@ def compile_here(directory: Path, manifest: dict, data: dict) -> dict:
     the manifest with the library's record."""
     if data.get("structure"):
         structure_cache.install_files(data["structure"]["entry"], data["structure"]["files"])
-    return compiled_manifest(manifest, compile_library(directory, manifest))
+    stamp = compiler_stamp()
+    return compiled_manifest(manifest, compile_library(directory, manifest), stamp)
 
 
-def compiled_manifest(manifest: dict, lib: Path) -> dict:
+def compiled_manifest(manifest: dict, lib: Path, stamp: str | None) -> dict:
     """``manifest`` with the record of a library just compiled: its checksum and what
-    compiled it (``toolchain.compiler.toolchain_id``, checked before a cached one is used,
-    with the compiler's stamp: ``toolchain_matches``)."""
-    return {**manifest, "compiled_with": toolchain_id(), "compiler_stamp": compiler_stamp(),
+    compiled it (``toolchain.compiler.toolchain_id``, checked before a cached one is used),
+    with the compiler's stamp taken before the compile (``toolchain_matches``; a stamp from
+    another machine, as a portable model carries, matches nothing there)."""
+    return {**manifest, "compiled_with": toolchain_id(), "compiler_stamp": stamp,
             "libraries": {**manifest.get("libraries", {}), lib.name: safety.sha256_file(lib)}}
 
 

@@ -25,7 +25,7 @@ from functools import lru_cache
 from importlib.resources import files
 from pathlib import Path
 
-from grasping_sym.errors import CacheContentsError
+from grasping_sym.errors import CacheContentsError, SourcesChangedError
 from grasping_sym.store import files as stored
 from grasping_sym.store import safety
 
@@ -75,28 +75,48 @@ def _tree_files() -> list[tuple[tuple[str, ...], str]]:
 @lru_cache(maxsize=1)
 def tree_digest() -> str:
     """Hash of the package's own source tree below its top floors (``ABOVE_THE_BUILD``), read
-    whole: every module, C file and header, by relative path and content (~3 ms, once a
-    process)."""
+    whole: every module, C file and header, by relative path and content (3-8 ms, once a
+    process).
+
+    Raises
+    ------
+    SourcesChangedError
+        The files' stamp is not the one this process keyed its first build by
+        (``sources_stamp``): they changed since, and the code in memory is not theirs."""
+    files = _tree_files()
     h = hashlib.sha256()
-    for parts, path in _tree_files():
+    for parts, path in files:
         h.update("/".join(parts).encode() + b"\0")
         with open(path, "rb") as f:
             h.update(f.read())
         h.update(b"\0")
+    if sources_stamp.cache_info().currsize and _stamp(files) != sources_stamp():
+        sources_stamp.cache_clear()  # (a process that goes on builds by what is on disk now)
+        raise SourcesChangedError(
+            f"the package's source files under {PACKAGE_DIR} changed (an edit, a checkout) since "
+            "this process first built from them: the code it runs is not theirs, and a model "
+            "built now would be stored under their hash. Restart Python to build with them")
+    return h.hexdigest()
+
+
+def _stamp(files) -> str:
+    h = hashlib.sha256(str(PACKAGE_DIR).encode() + b"\0")
+    for parts, path in files:
+        st = os.stat(path)
+        h.update(f"{'/'.join(parts)}:{st.st_size}:{st.st_mtime_ns}:{st.st_ctime_ns}:{st.st_dev}:"
+                 f"{st.st_ino}\0".encode())
     return h.hexdigest()
 
 
 @lru_cache(maxsize=1)
 def sources_stamp() -> str:
-    """The package's source tree (``tree_digest``'s files) by each file's path, size,
-    modification time, device and inode, without reading it (~0.5 ms, against ~8 ms read
-    whole). A lookup's key only (``pipeline.stages.definition_key``): an edited file gets a new
-    stamp, so the lookup misses and the build hashes the tree whole; no code is keyed by it."""
-    h = hashlib.sha256()
-    for parts, path in _tree_files():
-        st = os.stat(path)
-        h.update(f"{'/'.join(parts)}:{st.st_size}:{st.st_mtime_ns}:{st.st_dev}:{st.st_ino}\0".encode())
-    return h.hexdigest()
+    """The package's source tree (``tree_digest``'s files, under ``PACKAGE_DIR``) by each
+    file's path, size, modification and change times, device and inode, without reading it
+    (~0.5 ms, against 3-8 ms read whole), taken once a process, at its first build. A lookup's
+    key only (``pipeline.stages.definition_key``): an edited file gets a new stamp, so the
+    lookup misses and the build hashes the tree whole; no code is keyed by it. A tree read
+    whole later in the process must still have this stamp (``tree_digest``)."""
+    return _stamp(_tree_files())
 
 
 #: The cache root of this context (``root_override``), else None: a context variable, so

@@ -48,6 +48,7 @@ _DEFINE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 __all__ = [
     "COMPILER_FLAGS",
+    "COMPILER_WRAPPERS",
     "CASADI_FILE_FLAGS",
     "LEVEL_FLAGS",
     "LINK_FLAGS",
@@ -121,10 +122,18 @@ def _version_of(cc: tuple[str, ...]) -> str:
     return (proc.stdout.splitlines() or [""])[0].strip()
 
 
-def compiler_stamp() -> str:
+#: Programs that run another compiler than their own file: a stamp of theirs would not
+#: change with that compiler (``compiler_stamp``).
+COMPILER_WRAPPERS = ("ccache", "sccache", "distcc", "icecc", "buildcache")
+
+
+def compiler_stamp() -> str | None:
     """What identifies the compiler without running it: the command (``$CC`` or ``gcc``) and,
     for each of its words that is a program on PATH, the file it resolves to with its size,
-    modification time, device and inode (~0.1 ms; a new or upgraded compiler is a new file). A
+    modification and change times, device and inode (~0.1 ms; a new or upgraded compiler is
+    a new file). None where a word resolves to a program that runs another compiler, whose
+    stamp would not follow it: a script (``#!``: mpicc's, spack's, one's own) or a known
+    wrapper (:data:`COMPILER_WRAPPERS`, as a ccache on PATH before gcc resolves ``gcc``). A
     library's manifest records it beside ``compiled_with`` (:func:`toolchain_matches`)."""
     parts = []
     for word in compiler_command():
@@ -133,8 +142,16 @@ def compiler_stamp() -> str:
             parts.append(word)
             continue
         real = os.path.realpath(path)
-        st = os.stat(real)
-        parts.append(f"{word}={real}:{st.st_size}:{st.st_mtime_ns}:{st.st_dev}:{st.st_ino}")
+        if os.path.basename(real) in COMPILER_WRAPPERS:
+            return None
+        try:
+            with open(real, "rb") as fh:
+                if fh.read(2) == b"#!":
+                    return None
+            st = os.stat(real)
+        except OSError:
+            return None
+        parts.append(f"{word}={real}:{st.st_size}:{st.st_mtime_ns}:{st.st_ctime_ns}:{st.st_dev}:{st.st_ino}")
     return " ".join(parts)
 
 
@@ -146,6 +163,7 @@ def toolchain_matches(compiled_with: object, stamp: object) -> bool:
     Otherwise ``compiled_with`` is compared with :func:`toolchain_id`, which runs it."""
     if isinstance(stamp, str) and isinstance(compiled_with, str) \
             and compiled_with.endswith(" | " + " ".join(COMPILER_FLAGS)) and stamp == compiler_stamp():
+        # (compiler_stamp() is None for a wrapper: no stamp matches it)
         return True
     return compiled_with == toolchain_id()
 
